@@ -1,0 +1,12 @@
+"""Model-based controllers behind stable-baselines3's ``predict`` protocol.
+
+Each controller is built from an environment, reads the equations from
+``env.unwrapped.model`` (never a copy) and acts from the observation alone, so
+``stable_baselines3.common.evaluation.evaluate_policy`` scores it exactly as it
+scores an RL agent.
+"""
+
+from .base import Controller
+from .joint import PD, ComputedTorque, PDGravity
+
+__all__ = ["Controller", "PD", "PDGravity", "ComputedTorque"]

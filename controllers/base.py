@@ -1,0 +1,68 @@
+"""The controller protocol: SB3's ``PolicyPredictor``."""
+
+from __future__ import annotations
+
+import abc
+from typing import Any
+
+import numpy as np
+
+
+def gain(value: Any, n: int, name: str) -> np.ndarray:
+    """A non-negative finite gain, scalar or per coordinate, as shape ``(n,)``.
+
+    Raises
+    ------
+    ValueError
+        Naming the gain, if it is negative, non-finite or of the wrong length.
+    """
+    try:
+        k = np.broadcast_to(np.asarray(value, dtype=float), (n,)).copy()
+    except ValueError:
+        raise ValueError(f"{name} must be a scalar or have length {n}, got {value!r}") from None
+    if not np.all(np.isfinite(k) & (k >= 0)):
+        raise ValueError(f"{name} must be finite and >= 0, got {value!r}")
+    return k
+
+
+class Controller(abc.ABC):
+    """A model-based policy: observation -> normalized action.
+
+    Implements ``predict(observation, state=None, episode_start=None,
+    deterministic=True) -> (action, state)`` (SB3's ``PolicyPredictor``),
+    batched: an observation of shape ``(n_envs, obs_dim)`` gives actions of
+    shape ``(n_envs, nu)``. Subclasses compute actuator inputs ``u`` [N m] in
+    :meth:`input`; the conversion to the env's ``[-1, 1]`` scale (with
+    saturation) happens here once.
+
+    Parameters
+    ----------
+    env : gymnasium.Env
+        The environment (wrapped or not) the controller will act on; its
+        ``unwrapped`` must expose ``model``, ``u_max`` and ``decode_observation``.
+    """
+
+    def __init__(self, env: Any):
+        base = env.unwrapped
+        self.model = base.model
+        self.u_max = np.asarray(base.u_max, float)
+        self.decode_observation = base.decode_observation
+
+    @abc.abstractmethod
+    def input(self, obs: Any) -> np.ndarray:
+        """Actuator inputs ``u`` [N m], shape ``(..., nu)``, from a decoded observation."""
+
+    def predict(
+        self,
+        observation: np.ndarray,
+        state: Any = None,
+        episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, Any]:
+        """Action for an observation (or a batch); ``state`` is passed through."""
+        u = self.input(self.decode_observation(observation))
+        action = np.clip(u / self.u_max, -1.0, 1.0).astype(np.float32)
+        return action, state
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(model={self.model!r})"

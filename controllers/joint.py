@@ -1,0 +1,72 @@
+"""Joint-space tracking controllers: PD, PD + gravity compensation, computed torque.
+
+With ``e = q_ref - q`` and ``de = v_ref - v`` (PHYSICS.md, "Control on top of
+the equations"):
+
+- PD:               ``u = Kp e + Kd de``
+- PD + gravity:     ``u = Kp e + Kd de + G(q)``
+- computed torque:  ``u = inverse_dynamics(q, v, a_ref + Kd de + Kp e)``, which
+  makes the closed loop ``e'' + Kd e' + Kp e = 0`` when the model is exact.
+
+The gains have the same numbers in all three, but PD's are torques per error
+[N m/rad, N m s/rad] while computed torque's are accelerations per error
+[1/s^2, 1/s]: computed torque scales them by the mass matrix.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from .base import Controller, gain
+
+
+class PD(Controller):
+    """Proportional-derivative joint control ``u = Kp (q_ref - q) + Kd (v_ref - v)``.
+
+    Parameters
+    ----------
+    env : gymnasium.Env
+    kp : float or array_like (n,)
+        Proportional gain [N m/rad], default 100.
+    kd : float or array_like (n,)
+        Derivative gain [N m s/rad], default 20.
+    """
+
+    def __init__(self, env: Any, kp: Any = 100.0, kd: Any = 20.0):
+        super().__init__(env)
+        self.kp = gain(kp, self.model.nv, "kp")
+        self.kd = gain(kd, self.model.nv, "kd")
+
+    def feedback(self, obs: Any) -> np.ndarray:
+        """``Kp (q_ref - q) + Kd (v_ref - v)``, shape ``(..., n)``."""
+        return self.kp * (obs.q_ref - obs.q) + self.kd * (obs.v_ref - obs.v)
+
+    def input(self, obs: Any) -> np.ndarray:
+        return self.feedback(obs)
+
+
+class PDGravity(PD):
+    """PD plus gravity compensation: ``u = Kp e + Kd de + G(q)`` (model's ``gravity``)."""
+
+    def input(self, obs: Any) -> np.ndarray:
+        return self.feedback(obs) + self.model.gravity(obs.q)
+
+
+class ComputedTorque(PD):
+    """Computed torque (inverse-dynamics control).
+
+    ``u = inverse_dynamics(q, v, a_ref + Kd (v_ref - v) + Kp (q_ref - q))``.
+
+    Parameters
+    ----------
+    env : gymnasium.Env
+    kp : float or array_like (n,)
+        [1/s^2], default 100 (natural frequency 10 rad/s).
+    kd : float or array_like (n,)
+        [1/s], default 20 (critical damping).
+    """
+
+    def input(self, obs: Any) -> np.ndarray:
+        return self.model.inverse_dynamics(obs.q, obs.v, obs.a_ref + self.feedback(obs))

@@ -1,0 +1,22 @@
+"""mbs_envs: Gymnasium environments for multi-body mechanisms, backed by their equations of motion.
+
+``import mbs_envs`` registers the environment ids (``mbs_envs/Planar2R-v0``, ...)
+with Gymnasium.
+"""
+
+from gymnasium.envs.registration import register, registry
+
+from . import integrators, models
+from .simulate import Trajectory, simulate
+
+__version__ = "0.1.0"
+__all__ = ["Trajectory", "integrators", "models", "simulate", "__version__"]
+
+#: id -> (entry point, max_episode_steps)
+ENV_IDS = {
+    "mbs_envs/Planar2R-v0": ("mbs_envs.envs.planar2r:Planar2REnv", 500),
+}
+
+for _id, (_entry, _steps) in ENV_IDS.items():
+    if _id not in registry:
+        register(id=_id, entry_point=_entry, max_episode_steps=_steps)

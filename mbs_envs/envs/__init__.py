@@ -1,0 +1,14 @@
+"""Gymnasium tasks on the models: spaces, reset distribution, reward, termination, render."""
+
+from .base import MBSEnv
+from .planar2r import Planar2REnv
+from .tracking import JointTrackingEnv, TrackingObservation, decode_tracking, encode_tracking
+
+__all__ = [
+    "MBSEnv",
+    "JointTrackingEnv",
+    "Planar2REnv",
+    "TrackingObservation",
+    "decode_tracking",
+    "encode_tracking",
+]

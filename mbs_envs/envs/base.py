@@ -1,0 +1,263 @@
+"""The environment base: a model, an integrator and a task.
+
+:class:`MBSEnv` owns what every scene shares: the physics step (substeps at a
+finer step than the control step, zero-order hold of the input), action
+validation and scaling to the actuator limits, divergence detection, seeding,
+exact start states, ``info["energy"]``, pickling and rendering plumbing. A task
+subclass supplies the reset distribution, the observation, the reward and the
+drawing; see :class:`mbs_envs.envs.tracking.JointTrackingEnv`.
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+
+from .. import integrators
+from ..models.base import Model, as_vector
+from ..simulate import DIVERGENCE_LIMIT, advance, diverged
+from .rendering import PlanarRenderer, Polyline
+
+
+def validate_action(action: Any, nu: int) -> np.ndarray:
+    """Check a normalized action and saturate it to ``[-1, 1]``.
+
+    Parameters
+    ----------
+    action : array_like, shape (nu,) (a scalar is accepted when ``nu == 1``)
+    nu : int
+
+    Returns
+    -------
+    ndarray, shape (nu,)
+        The action clipped to ``[-1, 1]`` (finite out-of-range values saturate).
+
+    Raises
+    ------
+    ValueError
+        For a non-numeric, wrongly shaped, NaN or infinite action.
+    """
+    try:
+        a = np.asarray(action, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"action must be numeric, got {action!r}") from None
+    if nu == 1 and a.shape == ():
+        a = a.reshape(1)
+    if a.shape != (nu,):
+        raise ValueError(f"action must have shape ({nu},), got shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"action must be finite, got {a.tolist()}")
+    return np.clip(a, -1.0, 1.0)
+
+
+class MBSEnv(gym.Env):
+    """Base of all mbs_envs environments (see the module docstring).
+
+    Parameters
+    ----------
+    model : Model
+        The equations this environment integrates.
+    u_max : array_like, shape (nu,) or scalar
+        Actuator limits; the action ``a in [-1, 1]^nu`` applies ``u = a * u_max``.
+    dt : float
+        Control step [s]: the action is held constant over it.
+    integrator : str
+        Name from :func:`mbs_envs.integrators.available`.
+    substeps : int
+        Fixed-step integrator steps per control step (physics step ``dt / substeps``).
+    rtol, atol : float, optional
+        Tolerances of the adaptive integrators.
+    divergence_limit : float
+        ``|q|`` or ``|v|`` beyond this (or non-finite) ends the episode with
+        ``info["diverged"] = True``; the observation keeps the last finite state.
+    render_mode : {None, "human", "rgb_array"}
+    """
+
+    metadata: ClassVar[dict] = {"render_modes": ["human", "rgb_array"], "render_fps": 50}
+
+    def __init__(
+        self,
+        model: Model,
+        u_max: Any,
+        *,
+        dt: float,
+        integrator: str = "rk4",
+        substeps: int = 1,
+        rtol: float | None = None,
+        atol: float | None = None,
+        divergence_limit: float = DIVERGENCE_LIMIT,
+        render_mode: str | None = None,
+    ):
+        if not (np.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt must be positive and finite, got {dt!r}")
+        if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or substeps < 1:
+            raise ValueError(f"substeps must be an integer >= 1, got {substeps!r}")
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(
+                f"render_mode must be one of {self.metadata['render_modes']} or None, "
+                f"got {render_mode!r}"
+            )
+        options = {k: v for k, v in (("rtol", rtol), ("atol", atol)) if v is not None}
+        self.model = model
+        self.integrator = integrators.get(integrator, **options)
+        self.dt = float(dt)
+        self.substeps = int(substeps)
+        u_max = np.broadcast_to(np.asarray(u_max, float), (model.nu,)).copy()
+        if not np.all(np.isfinite(u_max) & (u_max > 0)):
+            raise ValueError(f"torque_limit must be positive and finite, got {u_max.tolist()}")
+        self.u_max = u_max
+        self.divergence_limit = float(divergence_limit)
+        self.render_mode = render_mode
+        self.metadata = {**self.metadata, "render_fps": max(1, int(round(1.0 / self.dt)))}
+        self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(model.nu,), dtype=np.float32)
+        self._q = np.zeros(model.nq)
+        self._v = np.zeros(model.nv)
+        self._t = 0.0
+        self._renderer: PlanarRenderer | None = None
+
+    # -- state ---------------------------------------------------------------
+
+    @property
+    def q(self) -> np.ndarray:
+        """Current generalized coordinates (a copy), shape ``(nq,)``."""
+        return self._q.copy()
+
+    @property
+    def v(self) -> np.ndarray:
+        """Current generalized velocities (a copy), shape ``(nv,)``."""
+        return self._v.copy()
+
+    @property
+    def t(self) -> float:
+        """Time since reset [s]."""
+        return self._t
+
+    # -- task hooks (override) ----------------------------------------------
+
+    def _reset_task(self, options: dict) -> None:
+        """Sample the episode's task (e.g. its reference) from ``self.np_random``."""
+
+    def _initial_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """Sample ``(q0, v0)`` from ``self.np_random``."""
+        raise NotImplementedError
+
+    def _observation(self) -> np.ndarray:
+        raise NotImplementedError
+
+    def _reward(self, u: np.ndarray, action: np.ndarray) -> tuple[float, dict[str, Any]]:
+        """Reward of the step just taken and its terms (for ``info``)."""
+        raise NotImplementedError
+
+    def _terminated(self) -> bool:
+        """Task failure (besides divergence)."""
+        return False
+
+    def _task_info(self) -> dict[str, Any]:
+        return {}
+
+    def _polylines(self) -> list[Polyline]:
+        """What to draw, in world coordinates."""
+        raise NotImplementedError
+
+    def _render_extent(self) -> float:
+        raise NotImplementedError
+
+    #: reset option keys a task accepts besides ``q`` and ``v``.
+    task_options: ClassVar[tuple[str, ...]] = ()
+
+    # -- Gymnasium API -------------------------------------------------------
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Start an episode.
+
+        ``options={"q": q0, "v": v0}`` starts from an exact state (``v``
+        defaults to zero when only ``q`` is given); otherwise the task's start
+        distribution is sampled.
+        """
+        options = dict(options or {})
+        unknown = sorted(set(options) - {"q", "v"} - set(self.task_options))
+        if unknown:
+            raise ValueError(
+                f"unknown reset option(s) {unknown}; known: {['q', 'v', *self.task_options]}"
+            )
+        q0 = self._checked_state(options, "q", self.model.nq)
+        v0 = self._checked_state(options, "v", self.model.nv)
+        super().reset(seed=seed)
+        self._t = 0.0
+        self._reset_task(options)
+        if q0 is None:
+            q_s, v_s = self._initial_state()
+            q0 = q_s
+            v0 = v_s if v0 is None else v0
+        elif v0 is None:
+            v0 = np.zeros(self.model.nv)
+        self._q, self._v = self._make_consistent(q0, v0)
+        if self.render_mode == "human":
+            self.render()
+        return self._observation(), self._info(diverged=False)
+
+    @staticmethod
+    def _checked_state(options: dict, key: str, n: int) -> np.ndarray | None:
+        if key not in options or options[key] is None:
+            return None
+        x = as_vector(options[key], n, f"options[{key!r}]")
+        if x.shape != (n,) or not np.all(np.isfinite(x)):
+            raise ValueError(f"options[{key!r}] must be a finite array of shape ({n},)")
+        return x.copy()
+
+    def _make_consistent(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Constrained scenes project a start state (or refuse it); others keep it."""
+        return q, v
+
+    def step(self, action: Any):
+        action = validate_action(action, self.model.nu)  # raises before any change
+        u = action * self.u_max
+        q, v = self._advance(u)
+        bad = bool(diverged(q, v, self.divergence_limit))
+        if not bad:
+            self._q, self._v = q, v
+        self._t += self.dt
+        reward, terms = self._reward(u, action)
+        terminated = bad or self._terminated()
+        info = self._info(diverged=bad)
+        info.update(terms)
+        info["u"] = u
+        if self.render_mode == "human":
+            self.render()
+        return self._observation(), float(reward), terminated, False, info
+
+    def _advance(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """One control step of physics with ``u`` held; non-finite on blow-up."""
+        return advance(
+            self.model, self.integrator, self._t, self._q, self._v, self.dt, self.substeps, u
+        )
+
+    def _info(self, diverged: bool) -> dict[str, Any]:
+        info = {"t": self._t, "energy": float(self.model.energy(self._q, self._v)), "diverged": diverged}
+        info.update(self._task_info())
+        return info
+
+    def render(self):
+        if self.render_mode is None:
+            gym.logger.warn(
+                "You are calling render method without specifying any render mode. "
+                'Set render_mode at initialization, e.g. gym.make(id, render_mode="rgb_array")'
+            )
+            return None
+        if self._renderer is None:
+            self._renderer = PlanarRenderer(
+                self._render_extent(), self.render_mode, self.metadata["render_fps"]
+            )
+        return self._renderer.draw(self._polylines())
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    def __getstate__(self) -> dict:
+        state = self.__dict__.copy()
+        state["_renderer"] = None  # a pygame window is not picklable; reopened on demand
+        return state

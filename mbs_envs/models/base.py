@@ -1,0 +1,316 @@
+"""The shared model interface: validated parameters and the equations of motion
+
+    M(q) a + C(q, v) v + G(q) + F(v) = B u                         (PHYSICS.md (1))
+
+for unconstrained mechanisms, with forward dynamics through a Cholesky
+factorization of ``M``. Constrained mechanisms extend this with their own
+``forward_dynamics`` (see :mod:`mbs_envs.constraints`); serial ones pay nothing
+for constraints.
+
+Conventions: every function is pure and batched. ``q`` has shape ``(..., nq)``,
+``v`` and ``a`` ``(..., nv)``, ``u`` ``(..., nu)``; leading dimensions broadcast.
+Units are SI (rad, m, kg, s, N m).
+"""
+
+from __future__ import annotations
+
+import abc
+import dataclasses
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+import numpy as np
+
+from ..linalg import batched_matvec, cholesky_solve
+
+# ---------------------------------------------------------------------------
+# Parameters
+# ---------------------------------------------------------------------------
+
+_CHECKS = {
+    "positive": (lambda x: x > 0, "must be > 0"),
+    "nonnegative": (lambda x: x >= 0, "must be >= 0"),
+    "finite": (lambda x: np.ones_like(x, dtype=bool), "must be finite"),
+}
+
+
+def param(default: Any, check: str = "finite", unit: str = "", doc: str = "") -> Any:
+    """Declare a model parameter field with its validity check, unit and meaning.
+
+    Parameters
+    ----------
+    default : float or array_like
+        Documented default value.
+    check : {"positive", "nonnegative", "finite"}
+        Condition every entry must satisfy (all must also be finite).
+    unit, doc : str
+        SI unit and one-line meaning, used in error messages and docs.
+    """
+    if check not in _CHECKS:
+        raise ValueError(f"unknown parameter check {check!r}")
+    return dataclasses.field(
+        default=default, metadata={"check": check, "unit": unit, "doc": doc}
+    )
+
+
+@dataclasses.dataclass(frozen=True)
+class Params:
+    """Base of the frozen parameter dataclasses of every model.
+
+    Each field is converted to ``float`` (or a read-only float array) and
+    checked at construction; a violation raises ``ValueError`` naming the
+    parameter. Subclasses add cross-parameter checks in :meth:`_check`.
+    """
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            try:
+                arr = np.array(value, dtype=float)
+            except (TypeError, ValueError):
+                raise ValueError(
+                    f"parameter {f.name!r} must be a real number, got {value!r}"
+                ) from None
+            test, message = _CHECKS[f.metadata.get("check", "finite")]
+            if not np.all(np.isfinite(arr)) or not np.all(test(arr)):
+                raise ValueError(f"parameter {f.name!r} {message} and finite, got {value!r}")
+            if arr.ndim == 0:
+                object.__setattr__(self, f.name, float(arr))
+            else:
+                arr.flags.writeable = False
+                object.__setattr__(self, f.name, arr)
+        self._check()
+
+    def _check(self) -> None:
+        """Cross-parameter validity checks (override); raise ``ValueError``."""
+
+    @classmethod
+    def names(cls) -> tuple[str, ...]:
+        """Names of all parameters, in declaration order."""
+        return tuple(f.name for f in dataclasses.fields(cls))
+
+    def replace(self, **overrides: Any) -> "Params":
+        """Return a validated copy with some parameters changed.
+
+        Raises
+        ------
+        ValueError
+            For an unknown parameter name or an invalid value.
+        """
+        unknown = sorted(set(overrides) - set(self.names()))
+        if unknown:
+            raise ValueError(
+                f"unknown parameter(s) {unknown} for {type(self).__name__}; "
+                f"known: {list(self.names())}"
+            )
+        return dataclasses.replace(self, **overrides)
+
+    def as_dict(self) -> dict[str, Any]:
+        """Parameters as a plain dict (arrays as lists), e.g. for JSON."""
+        out = {}
+        for name in self.names():
+            value = getattr(self, name)
+            out[name] = value.tolist() if isinstance(value, np.ndarray) else value
+        return out
+
+
+# ---------------------------------------------------------------------------
+# Array helpers
+# ---------------------------------------------------------------------------
+
+
+def as_vector(x: Any, n: int, name: str) -> np.ndarray:
+    """Convert ``x`` to a float array of shape ``(..., n)``; ``ValueError`` otherwise."""
+    arr = np.asarray(x, dtype=float)
+    if arr.ndim == 0 or arr.shape[-1] != n:
+        raise ValueError(f"{name} must have shape (..., {n}), got shape {arr.shape}")
+    return arr
+
+
+def smoothed_friction(v: np.ndarray, b: np.ndarray, f: np.ndarray, v_s: float) -> np.ndarray:
+    """Joint friction ``F_i(v) = b_i v_i + f_i tanh(v_i / v_s)`` (PHYSICS.md).
+
+    Parameters
+    ----------
+    v : ndarray, shape (..., n)
+        Joint rates [rad/s].
+    b : ndarray, shape (n,)
+        Viscous coefficients [N m s/rad].
+    f : ndarray, shape (n,)
+        Coulomb levels [N m], smoothed by ``tanh``.
+    v_s : float
+        Smoothing speed [rad/s]; small values make the equations stiff.
+
+    Returns
+    -------
+    ndarray, shape (..., n)
+        Friction torques opposing the motion [N m].
+    """
+    return b * v + f * np.tanh(v / v_s)
+
+
+# ---------------------------------------------------------------------------
+# Model
+# ---------------------------------------------------------------------------
+
+
+class Model(abc.ABC):
+    """Equations of motion of one mechanism; stateless and batched.
+
+    Subclasses declare ``Params`` (a :class:`Params` dataclass), ``nq``,
+    ``nv``, ``nu`` and implement :meth:`mass_matrix`, :meth:`coriolis`,
+    :meth:`gravity`, :meth:`potential_energy`, :meth:`friction` and
+    :attr:`actuation`. Everything else (bias, forward and inverse dynamics,
+    energy and power) follows here once for all unconstrained models.
+
+    Construct with keyword overrides of the documented defaults,
+    ``Model(m1=2.0)``, a mapping, ``Model({"m1": 2.0})``, or a ready
+    ``Params`` instance.
+    """
+
+    Params: ClassVar[type[Params]]
+    nq: ClassVar[int]
+    nv: ClassVar[int]
+    nu: ClassVar[int]
+    #: Whether the model carries constraints (serial models: never).
+    constrained: ClassVar[bool] = False
+
+    def __init__(self, params: Params | Mapping[str, Any] | None = None, **overrides: Any):
+        if params is None:
+            params = self.Params()
+        elif isinstance(params, Mapping):
+            overrides = {**params, **overrides}
+            params = self.Params()
+        elif not isinstance(params, self.Params):
+            raise ValueError(
+                f"params must be a {self.Params.__name__}, a mapping or None, got {params!r}"
+            )
+        self.params = params.replace(**overrides) if overrides else params
+
+    def __repr__(self) -> str:
+        changed = {
+            k: v
+            for k, v in self.params.as_dict().items()
+            if np.any(v != self.Params().as_dict()[k])
+        }
+        args = ", ".join(f"{k}={v!r}" for k, v in changed.items())
+        return f"{type(self).__name__}({args})"
+
+    def __eq__(self, other: object) -> bool:
+        return type(self) is type(other) and self.params.as_dict() == other.params.as_dict()
+
+    def __hash__(self) -> int:
+        return hash((type(self).__name__, repr(sorted(self.params.as_dict().items()))))
+
+    # -- to implement per mechanism ------------------------------------------
+
+    @property
+    @abc.abstractmethod
+    def actuation(self) -> np.ndarray:
+        """Actuation matrix ``B``, shape ``(nv, nu)``: inputs to generalized forces."""
+
+    @abc.abstractmethod
+    def mass_matrix(self, q: np.ndarray) -> np.ndarray:
+        """Mass matrix ``M(q)``, shape ``(..., nv, nv)``, symmetric positive definite."""
+
+    @abc.abstractmethod
+    def coriolis(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Centripetal and Coriolis forces ``C(q, v) v``, shape ``(..., nv)``."""
+
+    @abc.abstractmethod
+    def gravity(self, q: np.ndarray) -> np.ndarray:
+        """Generalized gravity forces ``G(q) = dV/dq``, shape ``(..., nv)``."""
+
+    @abc.abstractmethod
+    def potential_energy(self, q: np.ndarray) -> np.ndarray:
+        """Potential energy ``V(q)`` [J], shape ``(...)``."""
+
+    @abc.abstractmethod
+    def friction(self, v: np.ndarray) -> np.ndarray:
+        """Friction forces ``F(v)``, shape ``(..., nv)`` (zero by default)."""
+
+    # -- derived, shared by every unconstrained model -------------------------
+
+    def bias(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Bias forces ``h = C(q, v) v + G(q) + F(v)``, shape ``(..., nv)``."""
+        q = as_vector(q, self.nq, "q")
+        v = as_vector(v, self.nv, "v")
+        return self.coriolis(q, v) + self.gravity(q) + self.friction(v)
+
+    def generalized_input(self, u: np.ndarray | None) -> np.ndarray:
+        """Generalized forces of the inputs ``B u``, shape ``(..., nv)``; ``u=None`` is zero."""
+        if u is None:
+            return np.zeros(self.nv)
+        return batched_matvec(self.actuation, as_vector(u, self.nu, "u"))
+
+    def forward_dynamics(
+        self, q: np.ndarray, v: np.ndarray, u: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Accelerations ``a = M(q)^-1 (B u - h(q, v))`` by Cholesky factorization.
+
+        Parameters
+        ----------
+        q : ndarray, shape (..., nq)
+        v : ndarray, shape (..., nv)
+        u : ndarray, shape (..., nu), or None for no input
+
+        Returns
+        -------
+        a : ndarray, shape (..., nv)
+        """
+        q = as_vector(q, self.nq, "q")
+        v = as_vector(v, self.nv, "v")
+        rhs = self.generalized_input(u) - self.bias(q, v)
+        return cholesky_solve(self.mass_matrix(q), rhs)
+
+    def inverse_dynamics(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
+        """Inputs ``u`` with ``B u = M(q) a + h(q, v)`` (fully actuated models).
+
+        Parameters
+        ----------
+        q : ndarray, shape (..., nq)
+        v, a : ndarray, shape (..., nv)
+
+        Returns
+        -------
+        u : ndarray, shape (..., nu)
+
+        Raises
+        ------
+        NotImplementedError
+            If ``B`` is not square (under-actuated without constraints).
+        """
+        q = as_vector(q, self.nq, "q")
+        a = as_vector(a, self.nv, "a")
+        tau = batched_matvec(self.mass_matrix(q), a) + self.bias(q, v)
+        B = self.actuation
+        if B.shape[0] != B.shape[1]:
+            raise NotImplementedError(
+                f"{type(self).__name__} is under-actuated (B is {B.shape}); "
+                "no input reproduces an arbitrary acceleration"
+            )
+        if np.array_equal(B, np.eye(self.nv)):
+            return tau
+        return np.linalg.solve(B, tau[..., None])[..., 0]
+
+    def kinetic_energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Kinetic energy ``T = v^T M(q) v / 2`` [J], shape ``(...)``."""
+        v = as_vector(v, self.nv, "v")
+        return 0.5 * np.einsum("...i,...i->...", v, batched_matvec(self.mass_matrix(q), v))
+
+    def energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Total mechanical energy ``T + V`` [J], shape ``(...)``."""
+        return self.kinetic_energy(q, v) + self.potential_energy(q)
+
+    def input_power(self, v: np.ndarray, u: np.ndarray | None) -> np.ndarray:
+        """Power of the inputs ``v . B u`` [W], shape ``(...)``."""
+        v = as_vector(v, self.nv, "v")
+        return np.einsum("...i,...i->...", v, self.generalized_input(u))
+
+    def friction_power(self, v: np.ndarray) -> np.ndarray:
+        """Power dissipated by friction ``v . F(v) >= 0`` [W], shape ``(...)``.
+
+        Along any motion ``dE/dt = input_power - friction_power``.
+        """
+        v = as_vector(v, self.nv, "v")
+        return np.einsum("...i,...i->...", v, self.friction(v))

@@ -1,0 +1,212 @@
+"""Simulation of a model independent of Gymnasium: ``simulate(model, ...)``.
+
+:func:`advance` is the one place where a model, an input and an integrator meet;
+:func:`simulate` and the environments both go through it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from . import integrators
+from .integrators import Acceleration, ScipyIVP, Stepper
+from .models.base import Model, as_vector
+
+#: Input: None (zero), an array ``(..., nu)`` held constant, or ``u(t, q, v)``.
+Input = None | np.ndarray | Callable[[float, np.ndarray, np.ndarray], np.ndarray]
+
+#: Default bound on ``|q|`` and ``|v|`` beyond which a state counts as diverged.
+DIVERGENCE_LIMIT = 1e8
+
+
+@dataclasses.dataclass(frozen=True)
+class Trajectory:
+    """A simulated motion.
+
+    Attributes
+    ----------
+    t : ndarray, shape (K,)
+        Times [s], ``t[0] = 0``.
+    q : ndarray, shape (K, ..., nq)
+    v : ndarray, shape (K, ..., nv)
+    diverged : ndarray of bool, shape (...)
+        Which members of the batch diverged; a diverged member is held at its
+        last finite state from then on.
+    integrator : str
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    diverged: np.ndarray
+    integrator: str
+
+
+def input_function(model: Model, u: Input) -> Callable[[float, np.ndarray, np.ndarray], Any]:
+    """Normalize an input specification to a function ``u(t, q, v)``.
+
+    Raises
+    ------
+    ValueError
+        If an array input has the wrong trailing shape or is not finite.
+    """
+    if u is None or callable(u):
+        return (lambda t, q, v: None) if u is None else u
+    u_arr = as_vector(u, model.nu, "u")
+    if not np.all(np.isfinite(u_arr)):
+        raise ValueError("u must be finite")
+    return lambda t, q, v: u_arr
+
+
+def acceleration(model: Model, u: Input) -> Acceleration:
+    """The right-hand side ``a(t, q, v) = forward_dynamics(q, v, u(t, q, v))``."""
+    u_fn = input_function(model, u)
+    return lambda t, q, v: model.forward_dynamics(q, v, u_fn(t, q, v))
+
+
+def diverged(q: np.ndarray, v: np.ndarray, limit: float = DIVERGENCE_LIMIT) -> np.ndarray:
+    """Whether states stopped being finite or left ``|x| <= limit``.
+
+    Parameters
+    ----------
+    q : ndarray, shape (..., nq)
+    v : ndarray, shape (..., nv)
+    limit : float
+
+    Returns
+    -------
+    ndarray of bool, shape (...)
+    """
+    with np.errstate(invalid="ignore"):
+        ok_q = np.all(np.abs(q) <= limit, axis=-1)  # False for NaN
+        ok_v = np.all(np.abs(v) <= limit, axis=-1)
+    return ~(ok_q & ok_v)
+
+
+def advance(
+    model: Model,
+    stepper: Stepper,
+    t: float,
+    q: np.ndarray,
+    v: np.ndarray,
+    duration: float,
+    substeps: int = 1,
+    u: Input = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Integrate from ``t`` over ``duration``.
+
+    Fixed-step methods take ``substeps`` equal steps; adaptive methods make one
+    solve over the interval (``substeps`` is ignored). Floating-point warnings
+    are silenced here: a blow-up (including a mass matrix that stops being
+    positive definite on garbage states) shows up as non-finite values that
+    the caller detects with :func:`diverged`.
+
+    Returns
+    -------
+    q, v : ndarray
+        The state at ``t + duration``.
+    """
+    acc = acceleration(model, u)
+    try:
+        with np.errstate(all="ignore"):
+            if isinstance(stepper, ScipyIVP):
+                return stepper.step(acc, t, q, v, duration)
+            h = duration / substeps
+            for k in range(substeps):
+                q, v = stepper.step(acc, t + k * h, q, v, h)
+    except np.linalg.LinAlgError:  # M(q) stopped being positive definite: a blow-up
+        q = np.full(np.shape(q), np.nan)
+        v = np.full(np.shape(v), np.nan)
+    return q, v
+
+
+def simulate(
+    model: Model,
+    q0: np.ndarray,
+    v0: np.ndarray,
+    t_final: float,
+    dt: float = 1e-3,
+    integrator: str = "rk4",
+    u: Input = None,
+    *,
+    divergence_limit: float = DIVERGENCE_LIMIT,
+    **integrator_options: Any,
+) -> Trajectory:
+    """Simulate ``model`` from ``(q0, v0)`` over ``[0, t_final]``.
+
+    Parameters
+    ----------
+    model : Model
+    q0 : array_like, shape (..., nq)
+    v0 : array_like, shape (..., nv)
+        Initial state; leading dimensions form a batch.
+    t_final : float
+        End time [s], > 0.
+    dt : float
+        Step [s] of the output grid ``0, dt, 2 dt, ..., t_final`` (the last
+        interval may be shorter); the step size of fixed-step methods.
+    integrator : str
+        A name from :func:`mbs_envs.integrators.available`.
+    u : None, array_like (..., nu), or callable ``u(t, q, v)``
+        The input; a callable is evaluated at every stage (continuous control).
+    divergence_limit : float
+        Bound on ``|q|, |v|`` (see :func:`diverged`).
+    **integrator_options
+        ``rtol``, ``atol`` for the adaptive methods.
+
+    Returns
+    -------
+    Trajectory
+
+    Raises
+    ------
+    ValueError
+        For a non-positive or non-finite ``t_final``/``dt``, badly shaped or
+        non-finite initial states, or an unknown integrator.
+    """
+    for name, value in (("t_final", t_final), ("dt", dt)):
+        if not (np.isfinite(value) and value > 0):
+            raise ValueError(f"{name} must be positive and finite, got {value!r}")
+    q0 = as_vector(q0, model.nq, "q0")
+    v0 = as_vector(v0, model.nv, "v0")
+    if not (np.all(np.isfinite(q0)) and np.all(np.isfinite(v0))):
+        raise ValueError("q0 and v0 must be finite")
+    batch = np.broadcast_shapes(q0.shape[:-1], v0.shape[:-1])
+    q0 = np.broadcast_to(q0, batch + (model.nq,)).copy()
+    v0 = np.broadcast_to(v0, batch + (model.nv,)).copy()
+    stepper = integrators.get(integrator, **integrator_options)
+    n_steps = max(1, int(np.ceil(t_final / dt - 1e-9)))
+    t = np.minimum(np.arange(n_steps + 1) * dt, t_final)
+    t[-1] = t_final
+
+    if isinstance(stepper, ScipyIVP):
+        acc = acceleration(model, u)
+        ts, qs, vs, _ = stepper.solve(acc, 0.0, q0, v0, t[1:])
+        qs = np.concatenate([q0[None], qs])
+        vs = np.concatenate([v0[None], vs])
+        bad = diverged(qs, vs, divergence_limit)
+        first_bad = np.argmax(bad.reshape(len(qs), -1).any(axis=1)) if bad.any() else None
+        if first_bad is not None or len(ts) < len(t) - 1:
+            K = first_bad if first_bad is not None else len(qs)
+            return Trajectory(t[:K], qs[:K], vs[:K], np.ones(batch, bool), stepper.name)
+        return Trajectory(t, qs, vs, np.zeros(batch, bool), stepper.name)
+
+    qs = np.empty((n_steps + 1,) + q0.shape)
+    vs = np.empty((n_steps + 1,) + v0.shape)
+    qs[0], vs[0] = q0, v0
+    gone = np.zeros(batch, bool)
+    q, v = q0, v0
+    for k in range(n_steps):
+        q_new, v_new = advance(model, stepper, t[k], q, v, t[k + 1] - t[k], 1, u)
+        bad = diverged(q_new, v_new, divergence_limit)
+        if bad.any():
+            gone |= bad
+            q_new = np.where(bad[..., None], q, q_new)  # hold the last finite state
+            v_new = np.where(bad[..., None], v, v_new)
+        qs[k + 1], vs[k + 1] = q_new, v_new
+        q, v = q_new, v_new
+    return Trajectory(t, qs, vs, gone, stepper.name)
