@@ -108,6 +108,10 @@ class MBSEnv(gym.Env):
         if not np.all(np.isfinite(u_max) & (u_max > 0)):
             raise ValueError(f"torque_limit must be positive and finite, got {u_max.tolist()}")
         self.u_max = u_max
+        if not (np.isfinite(divergence_limit) and 0 < divergence_limit <= 1e30):
+            raise ValueError(
+                f"divergence_limit must be in (0, 1e30] (float32 observations), got {divergence_limit!r}"
+            )
         self.divergence_limit = float(divergence_limit)
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": max(1, int(round(1.0 / self.dt)))}

@@ -104,8 +104,17 @@ class JointTrackingEnv(MBSEnv):
         self.reward_weights = w
         self.start_noise = float(start_noise)
         n = model.nq
+        # |v| <= divergence_limit is guaranteed (a diverged step keeps the last
+        # finite state); the reference's rates are bounded by sum A w and sum A w^2.
+        w_max = self.omega_range[1]
         high = np.concatenate(
-            [np.ones(2 * n), np.full(n, np.inf), np.full(n, np.pi), np.full(2 * n, np.inf)]
+            [
+                np.ones(2 * n),
+                np.full(n, self.divergence_limit),
+                np.full(n, np.pi),
+                np.broadcast_to(self.max_amplitude * w_max, (n,)),
+                np.broadcast_to(self.max_amplitude * w_max**2, (n,)),
+            ]
         ).astype(np.float32)
         self.observation_space = gym.spaces.Box(-high, high, dtype=np.float32)
         self.reference: SumOfSines | None = None
