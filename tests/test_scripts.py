@@ -1,0 +1,40 @@
+"""The README's example and the scripts, end to end on small settings."""
+
+from __future__ import annotations
+
+import json
+import pathlib
+import runpy
+import sys
+
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+
+def load_script(name: str):
+    return runpy.run_path(str(ROOT / "scripts" / name))
+
+
+def test_readme_usage_example_runs():
+    text = (ROOT / "README.md").read_text()
+    code = text.split("```python")[1].split("```")[0]
+    exec(compile(code, "README.md", "exec"), {})
+
+
+def test_compare_quick_writes_its_results(tmp_path, capsys):
+    script = load_script("compare.py")
+    out = script["run"](script["parse_args"](["--out", str(tmp_path), "--quick"]))
+    for name in ("episodes.csv", "summary.json", "summary.md", "comparison.png"):
+        assert (tmp_path / name).stat().st_size > 0
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["config"]["seeds"] == 3
+    assert out["ratios"]["pd_over_ct_rms_error_settled"] > 10
+    assert "computed torque" in capsys.readouterr().out
+
+
+def test_bench_step_runs(tmp_path):
+    script = load_script("bench_step.py")
+    result = script["run"](tmp_path, repeats=1, steps=20)
+    assert result["ratio_to_acrobot"]["Acrobot-v1"] == 1.0
+    assert (tmp_path / "bench_step.json").exists() and (tmp_path / "bench_step.png").exists()
