@@ -1,12 +1,17 @@
 """Joint-space tracking controllers: PD, PD + gravity compensation, computed torque.
 
-With ``e = q_ref - q`` and ``de = v_ref - v`` (PHYSICS.md, "Control on top of
-the equations"):
+With ``e = q_ref - q`` and ``de = v_ref - v`` on the tracked coordinates
+(every joint of a serial scene; the crank of the four-bar), following
+PHYSICS.md, "Control on top of the equations":
 
 - PD:               ``u = Kp e + Kd de``
-- PD + gravity:     ``u = Kp e + Kd de + G(q)``
-- computed torque:  ``u = inverse_dynamics(q, v, a_ref + Kd de + Kp e)``, which
-  makes the closed loop ``e'' + Kd e' + Kp e = 0`` when the model is exact.
+- PD + gravity:     ``u = Kp e + Kd de + u_g(q)``, ``u_g = inverse_dynamics(q, 0, 0)``
+  the input that holds the mechanism still against gravity (``G(q)`` for a
+  serial model; the static crank torque of the constrained four-bar)
+- computed torque:  ``u = inverse_dynamics(q, v, a)`` with the tracked
+  accelerations ``a_ref + Kd de + Kp e`` (completed to a consistent ``a`` by
+  the constraints where there are any), which makes the closed loop
+  ``e'' + Kd e' + Kp e = 0`` when the model is exact.
 
 The gains have the same numbers in all three, but PD's are torques per error
 [N m/rad, N m s/rad] while computed torque's are accelerations per error
@@ -36,22 +41,24 @@ class PD(Controller):
 
     def __init__(self, env: Any, kp: Any = 100.0, kd: Any = 20.0):
         super().__init__(env)
-        self.kp = gain(kp, self.model.nv, "kp")
-        self.kd = gain(kd, self.model.nv, "kd")
+        self.kp = gain(kp, self.model.nu, "kp")
+        self.kd = gain(kd, self.model.nu, "kd")
 
     def feedback(self, obs: Any) -> np.ndarray:
-        """``Kp (q_ref - q) + Kd (v_ref - v)``, shape ``(..., n)``."""
-        return self.kp * (obs.q_ref - obs.q) + self.kd * (obs.v_ref - obs.v)
+        """``Kp (q_ref - q) + Kd (v_ref - v)`` on the tracked coordinates, shape ``(..., m)``."""
+        idx = list(obs.tracked)
+        return self.kp * (obs.q_ref - obs.q[..., idx]) + self.kd * (obs.v_ref - obs.v[..., idx])
 
     def input(self, obs: Any) -> np.ndarray:
         return self.feedback(obs)
 
 
 class PDGravity(PD):
-    """PD plus gravity compensation: ``u = Kp e + Kd de + G(q)`` (model's ``gravity``)."""
+    """PD plus gravity compensation ``u_g(q) = inverse_dynamics(q, 0, 0)`` (= ``G(q)`` when ``B = I``)."""
 
     def input(self, obs: Any) -> np.ndarray:
-        return self.feedback(obs) + self.model.gravity(obs.q)
+        rest = np.zeros_like(obs.v)
+        return self.feedback(obs) + self.model.inverse_dynamics(obs.q, rest, rest)
 
 
 class ComputedTorque(PD):
@@ -69,4 +76,9 @@ class ComputedTorque(PD):
     """
 
     def input(self, obs: Any) -> np.ndarray:
-        return self.model.inverse_dynamics(obs.q, obs.v, obs.a_ref + self.feedback(obs))
+        a_tracked = obs.a_ref + self.feedback(obs)
+        if self.model.constrained:  # the crank's acceleration fixes the others'
+            a = self.model.complete_acceleration(obs.q, obs.v, a_tracked)
+        else:
+            a = a_tracked
+        return self.model.inverse_dynamics(obs.q, obs.v, a)

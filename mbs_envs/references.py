@@ -2,11 +2,12 @@
 
 The family is a sum of sinusoids per coordinate,
 
-    q_ref(t) = c + sum_k A_k sin(w_k t + p_k),
-    v_ref(t) = sum_k A_k w_k cos(w_k t + p_k),
+    q_ref(t) = c + s t + sum_k A_k sin(w_k t + p_k),
+    v_ref(t) = s + sum_k A_k w_k cos(w_k t + p_k),
     a_ref(t) = -sum_k A_k w_k^2 sin(w_k t + p_k),
 
-smooth (C-infinity) and bounded: ``|q_ref - c| <= sum_k |A_k|``.
+smooth (C-infinity); ``|q_ref - c - s t| <= sum_k |A_k|``. The mean rate ``s``
+(zero by default) lets a reference spin, e.g. a crank at a rippled speed.
 """
 
 from __future__ import annotations
@@ -30,12 +31,15 @@ class SumOfSines:
         Angular frequencies ``w`` [rad/s].
     phase : ndarray, shape (n, K)
         Phases ``p`` [rad].
+    rate : ndarray, shape (n,), optional
+        Mean rate ``s`` [rad/s] (default zero).
     """
 
     center: np.ndarray
     amplitude: np.ndarray
     omega: np.ndarray
     phase: np.ndarray
+    rate: np.ndarray | None = None
 
     def __call__(self, t: float | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Evaluate ``(q_ref, v_ref, a_ref)`` at times ``t``.
@@ -53,6 +57,9 @@ class SumOfSines:
         s, c = np.sin(arg), np.cos(arg)
         q_ref = self.center + np.sum(self.amplitude * s, axis=-1)
         v_ref = np.sum(self.amplitude * self.omega * c, axis=-1)
+        if self.rate is not None:
+            q_ref = q_ref + self.rate * np.asarray(t, float)[..., None]
+            v_ref = v_ref + self.rate
         a_ref = -np.sum(self.amplitude * self.omega**2 * s, axis=-1)
         return q_ref, v_ref, a_ref
 
@@ -64,13 +71,15 @@ def sample_sum_of_sines(
     max_amplitude: np.ndarray,
     omega_range: tuple[float, float],
     n_components: int = 3,
+    rate_range: tuple[float, float] | None = None,
 ) -> SumOfSines:
     """Draw a :class:`SumOfSines` reference.
 
     The centre is uniform in ``[center_low, center_high]``; each coordinate's
     total amplitude ``sum_k |A_k|`` is uniform in ``[max_amplitude / 2,
     max_amplitude]``, split among the components by Dirichlet(1) weights;
-    frequencies are uniform in ``omega_range`` [rad/s]; phases uniform.
+    frequencies are uniform in ``omega_range`` [rad/s]; phases uniform; the
+    mean rate, if ``rate_range`` is given, uniform in it [rad/s].
 
     Parameters
     ----------
@@ -93,4 +102,5 @@ def sample_sum_of_sines(
     amplitude = total[:, None] * weights
     omega = rng.uniform(omega_range[0], omega_range[1], size=(n, n_components))
     phase = rng.uniform(0.0, 2 * np.pi, size=(n, n_components))
-    return SumOfSines(center, amplitude, omega, phase)
+    rate = None if rate_range is None else rng.uniform(rate_range[0], rate_range[1], size=n)
+    return SumOfSines(center, amplitude, omega, phase, rate)

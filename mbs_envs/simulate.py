@@ -62,10 +62,15 @@ def input_function(model: Model, u: Input) -> Callable[[float, np.ndarray, np.nd
     return lambda t, q, v: u_arr
 
 
-def acceleration(model: Model, u: Input) -> Acceleration:
-    """The right-hand side ``a(t, q, v) = forward_dynamics(q, v, u(t, q, v))``."""
+def acceleration(model: Model, u: Input, stabilization: Any = None) -> Acceleration:
+    """The right-hand side ``a(t, q, v) = forward_dynamics(q, v, u(t, q, v))``.
+
+    With a ``stabilization`` (constrained models), its Baumgarte terms are included.
+    """
     u_fn = input_function(model, u)
-    return lambda t, q, v: model.forward_dynamics(q, v, u_fn(t, q, v))
+    if stabilization is None:
+        return lambda t, q, v: model.forward_dynamics(q, v, u_fn(t, q, v))
+    return lambda t, q, v: model.accelerations(q, v, u_fn(t, q, v), stabilization)
 
 
 def diverged(q: np.ndarray, v: np.ndarray, limit: float = DIVERGENCE_LIMIT) -> np.ndarray:
@@ -96,6 +101,7 @@ def advance(
     duration: float,
     substeps: int = 1,
     u: Input = None,
+    stabilization: Any = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Integrate from ``t`` over ``duration``.
 
@@ -103,21 +109,28 @@ def advance(
     solve over the interval (``substeps`` is ignored). Floating-point warnings
     are silenced here: a blow-up (including a mass matrix that stops being
     positive definite on garbage states) shows up as non-finite values that
-    the caller detects with :func:`diverged`.
+    the caller detects with :func:`diverged`. ``stabilization`` (from
+    ``model.stabilization(...)``, None for unconstrained models) adds Baumgarte
+    terms to the dynamics or projects the state after every step.
 
     Returns
     -------
     q, v : ndarray
         The state at ``t + duration``.
     """
-    acc = acceleration(model, u)
+    acc = acceleration(model, u, stabilization)
     try:
         with np.errstate(all="ignore"):
             if isinstance(stepper, ScipyIVP):
-                return stepper.step(acc, t, q, v, duration)
-            h = duration / substeps
+                q, v = stepper.step(acc, t, q, v, duration)
+                substeps = 0
+            h = duration / max(substeps, 1)
             for k in range(substeps):
                 q, v = stepper.step(acc, t + k * h, q, v, h)
+                if stabilization is not None:
+                    q, v = model.after_step(q, v, stabilization)
+            if substeps == 0 and stabilization is not None:
+                q, v = model.after_step(q, v, stabilization)
     except np.linalg.LinAlgError:  # M(q) stopped being positive definite: a blow-up
         q = np.full(np.shape(q), np.nan)
         v = np.full(np.shape(v), np.nan)
@@ -133,6 +146,7 @@ def simulate(
     integrator: str = "rk4",
     u: Input = None,
     *,
+    stabilization: Any = None,
     divergence_limit: float = DIVERGENCE_LIMIT,
     **integrator_options: Any,
 ) -> Trajectory:
@@ -153,6 +167,10 @@ def simulate(
         A name from :func:`mbs_envs.integrators.available`.
     u : None, array_like (..., nu), or callable ``u(t, q, v)``
         The input; a callable is evaluated at every stage (continuous control).
+    stabilization : {None, "projection", "baumgarte", "none"} or Stabilization
+        Constrained models only (default projection); see
+        :class:`mbs_envs.constraints.Stabilization`. With an adaptive
+        integrator the projection is applied once per output interval.
     divergence_limit : float
         Bound on ``|q|, |v|`` (see :func:`diverged`).
     **integrator_options
@@ -179,11 +197,12 @@ def simulate(
     q0 = np.broadcast_to(q0, batch + (model.nq,)).copy()
     v0 = np.broadcast_to(v0, batch + (model.nv,)).copy()
     stepper = integrators.get(integrator, **integrator_options)
+    stab = model.stabilization(stabilization)
     n_steps = max(1, int(np.ceil(t_final / dt - 1e-9)))
     t = np.minimum(np.arange(n_steps + 1) * dt, t_final)
     t[-1] = t_final
 
-    if isinstance(stepper, ScipyIVP):
+    if isinstance(stepper, ScipyIVP) and stab is None:
         acc = acceleration(model, u)
         ts, qs, vs, _ = stepper.solve(acc, 0.0, q0, v0, t[1:])
         qs = np.concatenate([q0[None], qs])
@@ -201,7 +220,7 @@ def simulate(
     gone = np.zeros(batch, bool)
     q, v = q0, v0
     for k in range(n_steps):
-        q_new, v_new = advance(model, stepper, t[k], q, v, t[k + 1] - t[k], 1, u)
+        q_new, v_new = advance(model, stepper, t[k], q, v, t[k + 1] - t[k], 1, u, stab)
         bad = diverged(q_new, v_new, divergence_limit)
         if bad.any():
             gone |= bad

@@ -72,6 +72,9 @@ class MBSEnv(gym.Env):
     divergence_limit : float
         ``|q|`` or ``|v|`` beyond this (or non-finite) ends the episode with
         ``info["diverged"] = True``; the observation keeps the last finite state.
+    stabilization : {None, "projection", "baumgarte", "none"}
+        Constrained models only (default projection); see
+        :class:`mbs_envs.constraints.Stabilization`.
     render_mode : {None, "human", "rgb_array"}
     """
 
@@ -88,6 +91,7 @@ class MBSEnv(gym.Env):
         rtol: float | None = None,
         atol: float | None = None,
         divergence_limit: float = DIVERGENCE_LIMIT,
+        stabilization: Any = None,
         render_mode: str | None = None,
     ):
         if not (np.isfinite(dt) and dt > 0):
@@ -102,6 +106,7 @@ class MBSEnv(gym.Env):
         options = {k: v for k, v in (("rtol", rtol), ("atol", atol)) if v is not None}
         self.model = model
         self.integrator = integrators.get(integrator, **options)
+        self.stabilization = model.stabilization(stabilization)
         self.dt = float(dt)
         self.substeps = int(substeps)
         u_max = np.broadcast_to(np.asarray(u_max, float), (model.nu,)).copy()
@@ -211,15 +216,31 @@ class MBSEnv(gym.Env):
             raise ValueError(f"options[{key!r}] must be a finite array of shape ({n},)")
         return x.copy()
 
+    #: largest constraint residual [m] a start state may keep after projection
+    consistency_tol: ClassVar[float] = 1e-9
+
     def _make_consistent(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Constrained scenes project a start state (or refuse it); others keep it."""
-        return q, v
+        """Constrained scenes project a start state onto the constraints (or refuse it)."""
+        if not self.model.constrained:
+            return q, v
+        q_p, v_p = self.model.project(q, v)
+        residual = np.max(np.abs(self.model.constraint_residual(q_p)))
+        if not np.all(np.isfinite(q_p)) or residual > self.consistency_tol:
+            raise ValueError(
+                f"start state q = {q.tolist()} cannot be made consistent with the constraints "
+                f"(residual {residual:.3g} after projection)"
+            )
+        return q_p, v_p
+
+    def _diverged(self, q: np.ndarray, v: np.ndarray) -> bool:
+        """Non-finite or absurdly large state (constrained scenes add the residual)."""
+        return bool(diverged(q, v, self.divergence_limit))
 
     def step(self, action: Any):
         action = validate_action(action, self.model.nu)  # raises before any change
         u = action * self.u_max
         q, v = self._advance(u)
-        bad = bool(diverged(q, v, self.divergence_limit))
+        bad = self._diverged(q, v)
         if not bad:
             self._q, self._v = q, v
         self._t += self.dt
@@ -235,7 +256,8 @@ class MBSEnv(gym.Env):
     def _advance(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """One control step of physics with ``u`` held; non-finite on blow-up."""
         return advance(
-            self.model, self.integrator, self._t, self._q, self._v, self.dt, self.substeps, u
+            self.model, self.integrator, self._t, self._q, self._v, self.dt, self.substeps, u,
+            self.stabilization,
         )
 
     def _info(self, diverged: bool) -> dict[str, Any]:

@@ -1,6 +1,7 @@
 """The physics: one file per mechanism, plus the shared base."""
 
 from .base import Model, Params
+from .fourbar import FourBar, FourBarParams, grashof_class
 from .planar2r import Planar2R, Planar2RParams
 
-__all__ = ["Model", "Params", "Planar2R", "Planar2RParams"]
+__all__ = ["FourBar", "FourBarParams", "Model", "Params", "Planar2R", "Planar2RParams", "grashof_class"]

@@ -231,6 +231,21 @@ class Model(abc.ABC):
 
     # -- derived, shared by every unconstrained model -------------------------
 
+    def stabilization(self, kind: Any = None, **options: Any) -> None:
+        """Constraint stabilization for a simulation: none for unconstrained models.
+
+        Raises
+        ------
+        ValueError
+            If a stabilization other than ``None``/``"none"`` is asked for.
+        """
+        if kind not in (None, "none") or options:
+            raise ValueError(
+                f"{type(self).__name__} has no constraints; stabilization must be None or 'none', "
+                f"got {kind!r}"
+            )
+        return None
+
     def bias(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Bias forces ``h = C(q, v) v + G(q) + F(v)``, shape ``(..., nv)``."""
         q = as_vector(q, self.nq, "q")

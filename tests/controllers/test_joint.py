@@ -20,7 +20,7 @@ def continuous_law(controller, reference):
 
     def u(t, q, v):
         q_ref, v_ref, a_ref = reference(t)
-        return controller.input(TrackingObservation(q, v, q_ref, v_ref, a_ref))
+        return controller.input(TrackingObservation(q, v, q_ref, v_ref, a_ref, tracked=(0, 1)))
 
     return u
 

@@ -1,0 +1,318 @@
+"""Scene 2: the planar four-bar linkage, a closed loop (PHYSICS.md).
+
+Ground pivots ``O1 = (0, 0)``, ``O4 = (l0, 0)``. The loop is cut at the joint B
+between coupler (link 2) and rocker (link 3): a 2R chain (crank, coupler) plus
+a 1R link (rocker). ``q = (th1, ph2, ph1)``: crank angle from +x, coupler angle
+relative to the crank, absolute rocker angle about ``O4``. Only the crank is
+driven, ``B = (1, 0, 0)^T``; one degree of freedom.
+
+The 2R part's equations are :class:`~mbs_envs.models.planar2r.Planar2R`'s (the
+model composes one), the rocker adds a block ``m3 r3^2 + I3``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import ClassVar
+
+import numpy as np
+
+from .base import Params, as_vector, param, smoothed_friction
+from .constrained import ConstrainedModel
+from .planar2r import Planar2R
+
+#: Grashof classes by which link is shortest when s + l < p + q.
+GRASHOF_BY_SHORTEST = {
+    "l0": "double-crank",
+    "l1": "crank-rocker",
+    "l2": "double-rocker",
+    "l3": "rocker-crank",
+}
+
+
+def grashof_class(l0: float, l1: float, l2: float, l3: float, rtol: float = 1e-12) -> str:
+    """Grashof classification of a four-bar with ground ``l0``, crank ``l1``,
+    coupler ``l2``, rocker ``l3``.
+
+    With ``s``/``l`` the shortest/longest and ``p, q`` the others: ``s + l < p + q``
+    is Grashof (the shortest link turns fully): ``"crank-rocker"`` (crank
+    shortest), ``"double-crank"`` (ground shortest), ``"double-rocker"``
+    (coupler shortest) or ``"rocker-crank"`` (rocker shortest, so it turns
+    fully and the crank rocks); ``s + l = p + q`` (to ``rtol``) is
+    ``"change-point"``; otherwise ``"triple-rocker"`` (non-Grashof).
+    """
+    lengths = {"l0": l0, "l1": l1, "l2": l2, "l3": l3}
+    ordered = sorted(lengths.values())
+    s, l = ordered[0], ordered[-1]
+    pq = ordered[1] + ordered[2]
+    if abs((s + l) - pq) <= rtol * (s + l):
+        return "change-point"
+    if s + l < pq:
+        return GRASHOF_BY_SHORTEST[min(lengths, key=lengths.get)]
+    return "triple-rocker"
+
+
+@dataclasses.dataclass(frozen=True)
+class FourBarParams(Params):
+    """Parameters of :class:`FourBar`; defaults: a Grashof crank-rocker of
+    uniform rods of 1 kg/m (``l0, l1, l2, l3 = 1, 0.3, 1, 0.8`` m).
+
+    Friction acts at the crank pivot (``b1, f1``, rate ``dth1``), the
+    crank-coupler joint (``b2, f2``, rate ``dph2``) and the rocker pivot
+    (``b3, f3``, rate ``dph1``); the cut joint B is frictionless.
+    """
+
+    l0: float = param(1.0, "positive", "m", "ground link O1-O4")
+    l1: float = param(0.3, "positive", "m", "crank")
+    l2: float = param(1.0, "positive", "m", "coupler")
+    l3: float = param(0.8, "positive", "m", "rocker")
+    m1: float = param(0.3, "positive", "kg", "crank mass")
+    m2: float = param(1.0, "positive", "kg", "coupler mass")
+    m3: float = param(0.8, "positive", "kg", "rocker mass")
+    r1: float = param(0.15, "nonnegative", "m", "O1 to crank COM")
+    r2: float = param(0.5, "nonnegative", "m", "A to coupler COM")
+    r3: float = param(0.4, "nonnegative", "m", "O4 to rocker COM")
+    I1: float = param(0.3 * 0.3**2 / 12, "nonnegative", "kg m^2", "crank inertia about COM")
+    I2: float = param(1.0 / 12, "nonnegative", "kg m^2", "coupler inertia about COM")
+    I3: float = param(0.8 * 0.8**2 / 12, "nonnegative", "kg m^2", "rocker inertia about COM")
+    g: float = param(9.81, "finite", "m/s^2", "gravity along -y")
+    b1: float = param(0.0, "nonnegative", "N m s/rad", "viscous friction, crank pivot")
+    b2: float = param(0.0, "nonnegative", "N m s/rad", "viscous friction, crank-coupler joint")
+    b3: float = param(0.0, "nonnegative", "N m s/rad", "viscous friction, rocker pivot")
+    f1: float = param(0.0, "nonnegative", "N m", "Coulomb friction, crank pivot")
+    f2: float = param(0.0, "nonnegative", "N m", "Coulomb friction, crank-coupler joint")
+    f3: float = param(0.0, "nonnegative", "N m", "Coulomb friction, rocker pivot")
+    v_s: float = param(0.01, "positive", "rad/s", "Coulomb smoothing speed")
+
+    def _check(self) -> None:
+        lengths = {"l0": self.l0, "l1": self.l1, "l2": self.l2, "l3": self.l3}
+        longest = max(lengths, key=lengths.get)
+        others = sum(v for k, v in lengths.items() if k != longest)
+        if not lengths[longest] < others:
+            raise ValueError(
+                f"parameter {longest}: the linkage cannot assemble, the longest link "
+                f"({lengths[longest]:g} m) must be shorter than the sum of the others ({others:g} m)"
+            )
+        for i in (1, 2, 3):
+            I, m, r = (getattr(self, f"{k}{i}") for k in ("I", "m", "r"))
+            if not I + m * r**2 > 0:
+                raise ValueError(f"parameters I{i}, r{i}: link {i} has no inertia about its joint")
+
+
+class FourBar(ConstrainedModel):
+    """Four-bar linkage as a DAE with Lagrange multipliers (PHYSICS.md scene 2).
+
+    ``phi(q) = (l1 c1 + l2 cos(th1 + ph2) - l0 - l3 cos ph1,
+                l1 s1 + l2 sin(th1 + ph2) - l3 sin ph1)``:
+    the position of joint B reached through the chain minus through the rocker.
+    The multipliers ``lam`` are then the force [N] the rocker exerts on the
+    coupler at B (the rocker feels ``-lam``).
+    """
+
+    Params = FourBarParams
+    nq = 3
+    nv = 3
+    nu = 1
+    nc = 2
+    independent: ClassVar[tuple[int, ...]] = (0,)
+
+    def __init__(self, params=None, **overrides):
+        super().__init__(params, **overrides)
+        p = self.params
+        self.chain = Planar2R(
+            m1=p.m1, m2=p.m2, l1=p.l1, l2=p.l2, r1=p.r1, r2=p.r2, I1=p.I1, I2=p.I2, g=p.g, v_s=p.v_s,
+            b1=p.b1, b2=p.b2, f1=p.f1, f2=p.f2,
+        )  # fmt: skip
+
+    @property
+    def grashof(self) -> str:
+        """Grashof class of the linkage (see :func:`grashof_class`)."""
+        p = self.params
+        return grashof_class(p.l0, p.l1, p.l2, p.l3)
+
+    @property
+    def actuation(self) -> np.ndarray:
+        """``B = (1, 0, 0)^T``: the crank torque."""
+        return np.array([[1.0], [0.0], [0.0]])
+
+    def _rocker_inertia(self) -> float:
+        p = self.params
+        return p.I3 + p.m3 * p.r3**2
+
+    def mass_matrix(self, q: np.ndarray) -> np.ndarray:
+        """``blockdiag(M_2R(th1, ph2), m3 r3^2 + I3)``, shape ``(..., 3, 3)``."""
+        q = as_vector(q, 3, "q")
+        M = np.zeros(q.shape[:-1] + (3, 3))
+        M[..., :2, :2] = self.chain.mass_matrix(q[..., :2])
+        M[..., 2, 2] = self._rocker_inertia()
+        return M
+
+    def coriolis(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """The 2R chain's ``C v`` and zero for the rocker, shape ``(..., 3)``."""
+        q = as_vector(q, 3, "q")
+        v = as_vector(v, 3, "v")
+        cv = self.chain.coriolis(q[..., :2], v[..., :2])
+        return np.concatenate([cv, np.zeros(cv.shape[:-1] + (1,))], axis=-1)
+
+    def gravity(self, q: np.ndarray) -> np.ndarray:
+        """The 2R chain's ``G`` and ``m3 g r3 cos ph1``, shape ``(..., 3)``."""
+        q = as_vector(q, 3, "q")
+        p = self.params
+        g3 = p.m3 * p.g * p.r3 * np.cos(q[..., 2:3])
+        return np.concatenate([self.chain.gravity(q[..., :2]), g3], axis=-1)
+
+    def potential_energy(self, q: np.ndarray) -> np.ndarray:
+        """Chain potential plus ``m3 g r3 sin ph1`` [J], shape ``(...)``."""
+        q = as_vector(q, 3, "q")
+        p = self.params
+        return self.chain.potential_energy(q[..., :2]) + p.m3 * p.g * p.r3 * np.sin(q[..., 2])
+
+    def friction(self, v: np.ndarray) -> np.ndarray:
+        """Joint friction at O1, A and O4, shape ``(..., 3)`` [N m]."""
+        p = self.params
+        v = as_vector(v, 3, "v")
+        return smoothed_friction(v, np.array([p.b1, p.b2, p.b3]), np.array([p.f1, p.f2, p.f3]), p.v_s)
+
+    # -- loop closure ----------------------------------------------------------
+
+    def _angles(self, q: np.ndarray):
+        q = as_vector(q, 3, "q")
+        th1, th12, ph1 = q[..., 0], q[..., 0] + q[..., 1], q[..., 2]
+        return (np.cos(th1), np.sin(th1), np.cos(th12), np.sin(th12), np.cos(ph1), np.sin(ph1))
+
+    def constraint_residual(self, q: np.ndarray) -> np.ndarray:
+        """``phi(q)`` [m], shape ``(..., 2)``."""
+        p = self.params
+        c1, s1, c12, s12, c3, s3 = self._angles(q)
+        return np.stack(
+            [p.l1 * c1 + p.l2 * c12 - p.l0 - p.l3 * c3, p.l1 * s1 + p.l2 * s12 - p.l3 * s3], axis=-1
+        )
+
+    def constraint_jacobian(self, q: np.ndarray) -> np.ndarray:
+        """``Psi = d phi / d q``, shape ``(..., 2, 3)``."""
+        p = self.params
+        c1, s1, c12, s12, c3, s3 = self._angles(q)
+        Psi = np.empty(c1.shape + (2, 3))
+        Psi[..., 0, 0] = -p.l1 * s1 - p.l2 * s12
+        Psi[..., 0, 1] = -p.l2 * s12
+        Psi[..., 0, 2] = p.l3 * s3
+        Psi[..., 1, 0] = p.l1 * c1 + p.l2 * c12
+        Psi[..., 1, 1] = p.l2 * c12
+        Psi[..., 1, 2] = -p.l3 * c3
+        return Psi
+
+    def constraint_bias(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``dPsi v`` (the velocity-squared part of ``d^2 phi / dt^2``), shape ``(..., 2)``."""
+        p = self.params
+        v = as_vector(v, 3, "v")
+        c1, s1, c12, s12, c3, s3 = self._angles(q)
+        w1, w12, w3 = v[..., 0] ** 2, (v[..., 0] + v[..., 1]) ** 2, v[..., 2] ** 2
+        return np.stack(
+            [
+                -p.l1 * c1 * w1 - p.l2 * c12 * w12 + p.l3 * c3 * w3,
+                -p.l1 * s1 * w1 - p.l2 * s12 * w12 + p.l3 * s3 * w3,
+            ],
+            axis=-1,
+        )
+
+    # -- consistent states ------------------------------------------------------
+
+    def assemble(self, th1: np.ndarray, branch: int = 1) -> np.ndarray:
+        """Coordinates ``q = (th1, ph2, ph1)`` closing the loop at crank angle ``th1``.
+
+        Joint B is the intersection of the circle of radius ``l2`` about the
+        crank tip A and the circle of radius ``l3`` about ``O4``. ``branch=+1``
+        takes the intersection to the left of the directed line A -> O4
+        (counter-clockwise side; for the default crank-rocker, the usual "open"
+        assembly with B above the ground line), ``branch=-1`` the other one.
+
+        Parameters
+        ----------
+        th1 : float or ndarray, shape (...)
+        branch : {+1, -1}
+
+        Returns
+        -------
+        q : ndarray, shape (..., 3)
+
+        Raises
+        ------
+        ValueError
+            If the loop cannot close at this crank angle, or for a bad branch.
+        """
+        if branch not in (1, -1):
+            raise ValueError(f"branch must be +1 or -1, got {branch!r}")
+        p = self.params
+        th1 = np.asarray(th1, float)
+        A = np.stack([p.l1 * np.cos(th1), p.l1 * np.sin(th1)], axis=-1)
+        d_vec = np.array([p.l0, 0.0]) - A
+        d = np.linalg.norm(d_vec, axis=-1)
+        if np.any(d > p.l2 + p.l3) or np.any(d < abs(p.l2 - p.l3)):
+            raise ValueError(
+                f"the linkage ({self.grashof}) cannot assemble at crank angle th1 = {th1.tolist()}"
+            )
+        e = d_vec / d[..., None]
+        e_perp = np.stack([-e[..., 1], e[..., 0]], axis=-1)
+        x = (d**2 + p.l2**2 - p.l3**2) / (2 * d)
+        h = np.sqrt(np.maximum(p.l2**2 - x**2, 0.0))
+        B = A + x[..., None] * e + branch * h[..., None] * e_perp
+        th12 = np.arctan2(B[..., 1] - A[..., 1], B[..., 0] - A[..., 0])
+        ph1 = np.arctan2(B[..., 1], B[..., 0] - p.l0)
+        ph2 = (th12 - th1 + np.pi) % (2 * np.pi) - np.pi
+        return np.stack([th1, ph2, ph1], axis=-1)
+
+    def consistent_state(self, th1: float, dth1: float = 0.0, branch: int = 1) -> tuple[np.ndarray, np.ndarray]:
+        """A state on the constraints from a crank angle and rate (see :meth:`assemble`).
+
+        Returns
+        -------
+        q, v : ndarray, shape (..., 3)
+        """
+        q = self.assemble(th1, branch)
+        v = self.complete_velocity(q, np.asarray(dth1, float)[..., None])
+        return q, v
+
+    # -- reactions and drawing -----------------------------------------------------
+
+    def joint_positions(self, q: np.ndarray) -> np.ndarray:
+        """``O1, A, B (through the chain), O4`` [m], shape ``(..., 4, 2)``."""
+        p = self.params
+        pts = self.chain.joint_positions(as_vector(q, 3, "q")[..., :2])
+        O4 = np.broadcast_to(np.array([p.l0, 0.0]), pts.shape[:-2] + (1, 2))
+        return np.concatenate([pts, O4], axis=-2)
+
+    def joint_forces(self, q: np.ndarray, v: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
+        """Reaction forces in the four joints [N] from the multipliers and Newton's law per link.
+
+        Rows: force of the ground on the crank at O1, of the crank on the
+        coupler at A, of the rocker on the coupler at B (``= lam``), of the
+        ground on the rocker at O4. From ``m_i a_Ci = sum of joint forces + m_i g``
+        with the centre-of-mass accelerations of the constrained motion.
+
+        Returns
+        -------
+        ndarray, shape (..., 4, 2)
+        """
+        p = self.params
+        q = as_vector(q, 3, "q")
+        v = as_vector(v, 3, "v")
+        a, lam, _ = self.solve(q, v, u)
+        th1, th12, ph1 = q[..., 0], q[..., 0] + q[..., 1], q[..., 2]
+        w1, w12, w3 = v[..., 0], v[..., 0] + v[..., 1], v[..., 2]
+        al1, al12, al3 = a[..., 0], a[..., 0] + a[..., 1], a[..., 2]
+
+        def point_acc(radius, angle, w, alpha):
+            """Acceleration of a point at ``radius`` along a link at ``angle`` rotating about a fixed-rate origin."""
+            e = np.stack([np.cos(angle), np.sin(angle)], axis=-1)
+            e_perp = np.stack([-np.sin(angle), np.cos(angle)], axis=-1)
+            return radius * (alpha[..., None] * e_perp - (w**2)[..., None] * e)
+
+        gvec = np.array([0.0, -p.g])
+        a_c1 = point_acc(p.r1, th1, w1, al1)
+        a_c2 = point_acc(p.l1, th1, w1, al1) + point_acc(p.r2, th12, w12, al12)
+        a_c3 = point_acc(p.r3, ph1, w3, al3)
+        F_B = lam
+        F_A = p.m2 * (a_c2 - gvec) - F_B
+        F_O1 = p.m1 * (a_c1 - gvec) + F_A
+        F_O4 = p.m3 * (a_c3 - gvec) + F_B
+        return np.stack([F_O1, F_A, F_B, F_O4], axis=-2)
