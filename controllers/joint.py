@@ -33,16 +33,22 @@ class PD(Controller):
     Parameters
     ----------
     env : gymnasium.Env
-    kp : float or array_like (n,)
-        Proportional gain [N m/rad], default 100.
-    kd : float or array_like (n,)
-        Derivative gain [N m s/rad], default 20.
+    kp : float or array_like (m,), optional
+        Proportional gain [N m/rad]; default the env's ``pd_gains[0]``
+        (100 on Planar2R-v0).
+    kd : float or array_like (m,), optional
+        Derivative gain [N m s/rad]; default the env's ``pd_gains[1]`` (20).
     """
 
-    def __init__(self, env: Any, kp: Any = 100.0, kd: Any = 20.0):
+    def __init__(self, env: Any, kp: Any = None, kd: Any = None):
         super().__init__(env)
-        self.kp = gain(kp, self.model.nu, "kp")
-        self.kd = gain(kd, self.model.nu, "kd")
+        default = self.default_gains(env)
+        self.kp = gain(default[0] if kp is None else kp, self.model.nu, "kp")
+        self.kd = gain(default[1] if kd is None else kd, self.model.nu, "kd")
+
+    @staticmethod
+    def default_gains(env: Any) -> tuple[float, float]:
+        return tuple(getattr(env.unwrapped, "pd_gains", (100.0, 20.0)))
 
     def feedback(self, obs: Any) -> np.ndarray:
         """``Kp (q_ref - q) + Kd (v_ref - v)`` on the tracked coordinates, shape ``(..., m)``."""
@@ -74,6 +80,10 @@ class ComputedTorque(PD):
     kd : float or array_like (n,)
         [1/s], default 20 (critical damping).
     """
+
+    @staticmethod
+    def default_gains(env: Any) -> tuple[float, float]:
+        return (100.0, 20.0)
 
     def input(self, obs: Any) -> np.ndarray:
         a_tracked = obs.a_ref + self.feedback(obs)

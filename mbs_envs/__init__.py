@@ -15,6 +15,7 @@ __all__ = ["Trajectory", "integrators", "models", "simulate", "__version__"]
 #: id -> (entry point, max_episode_steps)
 ENV_IDS = {
     "mbs_envs/Planar2R-v0": ("mbs_envs.envs.planar2r:Planar2REnv", 500),
+    "mbs_envs/FourBar-v0": ("mbs_envs.envs.fourbar:FourBarEnv", 500),
 }
 
 for _id, (_entry, _steps) in ENV_IDS.items():

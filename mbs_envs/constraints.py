@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from .linalg import batched_matvec, cholesky_solve
+from .linalg import batched_matvec, cholesky_solve_columns
 
 #: Relative eigenvalue cut-off of the Schur complement pseudo-inverse.
 RCOND = 1e-12
@@ -79,12 +79,14 @@ def constrained_accelerations(
     cond : ndarray, shape (...)
         Condition number of ``S = Psi M^-1 Psi^T``.
     """
-    n = M.shape[-1]
-    k = Psi.shape[-2]
     PsiT = np.swapaxes(Psi, -1, -2)
-    # one Cholesky, n + ... right-hand sides: [f, Psi^T] stacked as columns
-    rhs = np.concatenate([f[..., :, None], np.broadcast_to(PsiT, f.shape[:-1] + (n, k))], axis=-1)
-    sol = np.stack([cholesky_solve(M, rhs[..., :, j]) for j in range(k + 1)], axis=-1)
+    shape = np.broadcast_shapes(f.shape[:-1], PsiT.shape[:-2])
+    # one Cholesky factorization, k + 1 right-hand sides [f, Psi^T]
+    rhs = np.concatenate(
+        [np.broadcast_to(f[..., :, None], shape + f.shape[-1:] + (1,)), np.broadcast_to(PsiT, shape + PsiT.shape[-2:])],
+        axis=-1,
+    )
+    sol = cholesky_solve_columns(M, rhs)
     Minv_f, Minv_PsiT = sol[..., 0], sol[..., 1:]
     S = Psi @ Minv_PsiT
     lam, cond = symmetric_pinv_solve(S, gamma - batched_matvec(Psi, Minv_f), rcond)

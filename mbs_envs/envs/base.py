@@ -124,6 +124,7 @@ class MBSEnv(gym.Env):
         self._q = np.zeros(model.nq)
         self._v = np.zeros(model.nv)
         self._t = 0.0
+        self._u = np.zeros(model.nu)  # the input applied in the last step
         self._renderer: PlanarRenderer | None = None
 
     # -- state ---------------------------------------------------------------
@@ -173,6 +174,10 @@ class MBSEnv(gym.Env):
     def _render_extent(self) -> float:
         raise NotImplementedError
 
+    def _render_center(self) -> tuple[float, float]:
+        """World point at the centre of the picture [m]."""
+        return (0.0, 0.0)
+
     #: reset option keys a task accepts besides ``q`` and ``v``.
     task_options: ClassVar[tuple[str, ...]] = ()
 
@@ -195,6 +200,7 @@ class MBSEnv(gym.Env):
         v0 = self._checked_state(options, "v", self.model.nv)
         super().reset(seed=seed)
         self._t = 0.0
+        self._u = np.zeros(self.model.nu)
         self._reset_task(options)
         if q0 is None:
             q_s, v_s = self._initial_state()
@@ -244,6 +250,7 @@ class MBSEnv(gym.Env):
         if not bad:
             self._q, self._v = q, v
         self._t += self.dt
+        self._u = u
         reward, terms = self._reward(u, action)
         terminated = bad or self._terminated()
         info = self._info(diverged=bad)
@@ -274,7 +281,8 @@ class MBSEnv(gym.Env):
             return None
         if self._renderer is None:
             self._renderer = PlanarRenderer(
-                self._render_extent(), self.render_mode, self.metadata["render_fps"]
+                self._render_extent(), self.render_mode, self.metadata["render_fps"],
+                center=self._render_center(),
             )
         return self._renderer.draw(self._polylines())
 

@@ -21,15 +21,19 @@ class PlanarRenderer:
     Parameters
     ----------
     extent : float
-        Half-width of the shown world square [m], centred on the origin.
+        Half-width of the shown world square [m].
     render_mode : {"human", "rgb_array"}
     fps : int
         Frame rate of the ``human`` window.
     screen_size : int
         Window size in pixels.
+    center : (float, float)
+        World point at the centre of the window [m].
     """
 
-    def __init__(self, extent: float, render_mode: str, fps: int, screen_size: int = 500):
+    def __init__(
+        self, extent: float, render_mode: str, fps: int, screen_size: int = 500, center=(0.0, 0.0)
+    ):
         try:
             import pygame
         except ImportError as e:  # pragma: no cover - exercised without pygame only
@@ -38,6 +42,7 @@ class PlanarRenderer:
             ) from e
         self._pygame = pygame
         self.extent = float(extent)
+        self.center = np.asarray(center, float)
         self.render_mode = render_mode
         self.fps = fps
         self.size = screen_size
@@ -51,8 +56,9 @@ class PlanarRenderer:
 
     def _to_pixels(self, points: np.ndarray) -> list[tuple[int, int]]:
         scale = self.size / (2 * self.extent)
-        px = (np.asarray(points)[:, 0] + self.extent) * scale
-        py = (self.extent - np.asarray(points)[:, 1]) * scale  # y up in the world
+        rel = np.asarray(points) - self.center
+        px = (rel[:, 0] + self.extent) * scale
+        py = (self.extent - rel[:, 1]) * scale  # y up in the world
         return [(int(round(x)), int(round(y))) for x, y in zip(px, py)]
 
     def draw(self, polylines: Sequence[Polyline]) -> np.ndarray | None:
@@ -62,7 +68,7 @@ class PlanarRenderer:
 
         surf = pygame.Surface((self.size, self.size))
         surf.fill((255, 255, 255))
-        origin = self._to_pixels(np.zeros((1, 2)))[0]
+        origin = self._to_pixels(np.zeros((1, 2)))[0]  # the ground line y = 0
         gfxdraw.hline(surf, 0, self.size, origin[1], (200, 200, 200))
         for points, colour in polylines:
             pix = self._to_pixels(points)

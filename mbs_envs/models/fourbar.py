@@ -272,6 +272,16 @@ class FourBar(ConstrainedModel):
         v = self.complete_velocity(q, np.asarray(dth1, float)[..., None])
         return q, v
 
+    def effective_inertia(self, q: np.ndarray) -> np.ndarray:
+        """Reduced inertia of the crank ``J(q) = T^T M T`` [kg m^2], shape ``(...)``.
+
+        ``T = dv/d(dth1)`` spans the motions allowed by the loop (``Psi T = 0``,
+        ``T_0 = 1``): the kinetic energy is ``J(q) dth1^2 / 2``.
+        """
+        q = as_vector(q, 3, "q")
+        T = self.complete_velocity(q, np.ones(q.shape[:-1] + (1,)))
+        return np.einsum("...i,...ij,...j->...", T, self.mass_matrix(q), T)
+
     # -- reactions and drawing -----------------------------------------------------
 
     def joint_positions(self, q: np.ndarray) -> np.ndarray:
