@@ -23,6 +23,7 @@ import numpy as np
 from tqdm import tqdm
 
 import mbs_envs  # noqa: F401
+from mbs_envs.plotting import pyplot, save
 
 
 def time_steps(env: gym.Env, actions: list, reset_every: int) -> float:
@@ -76,20 +77,14 @@ def run(out: pathlib.Path, repeats: int, steps: int) -> dict:
 
 
 def plot(times: dict, path: pathlib.Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(8, 3.5))
     names = list(times)
     ax.boxplot([np.array(times[n]) * 1e6 for n in names], orientation="horizontal")
     ax.set_yticks(range(1, len(names) + 1), names)
     ax.set_xlabel("time per env.step [us] (per repeat)")
     ax.set_xscale("log")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save(fig, path)
 
 
 def main(argv: list[str] | None = None) -> int:

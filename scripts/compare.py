@@ -1,9 +1,14 @@
 #!/usr/bin/env python
-"""Model-based controllers on Planar2R-v0: PD, PD + gravity, computed torque.
+"""Model-based controllers on every tracking scene: PD, PD + gravity, computed torque.
 
-Runs each controller over the same seeds, prints a table of tracking error and
-torque, and writes ``episodes.csv``, ``summary.json``, ``summary.md`` and
-``comparison.png`` to ``--out``.
+Runs each controller on each scene (Planar2R-v0, FourBar-v0) over the same
+seeds, prints a table of tracking error and torque per scene, and writes
+``episodes.csv``, ``summary.json``, ``summary.md`` and one
+``comparison_<scene>.png`` per scene to ``--out``.
+
+Gains: computed torque uses kp = 100, kd = 20 [1/s^2, 1/s]; PD and PD + gravity
+use each env's ``pd_gains``: the same numbers on Planar2R-v0, and on FourBar-v0
+those scaled by the mean effective crank inertia (same bandwidth on average).
 
     python scripts/compare.py --out results            # 20 seeds
     python scripts/compare.py --out results --quick    # 3 seeds
@@ -22,10 +27,11 @@ import numpy as np
 from tqdm import tqdm
 
 import mbs_envs  # noqa: F401  (registers the ids)
+from mbs_envs.plotting import pyplot, save
 from controllers import PD, ComputedTorque, PDGravity
 from mbs_envs.evaluation import episode_metrics, rollout
 
-ENV_ID = "mbs_envs/Planar2R-v0"
+ENV_IDS = ["mbs_envs/Planar2R-v0", "mbs_envs/FourBar-v0"]
 CONTROLLERS = {"PD": PD, "PD+gravity": PDGravity, "computed torque": ComputedTorque}
 COLUMNS = ["rms_error", "rms_error_settled", "max_error", "rms_torque", "peak_torque", "return", "compute_us_per_action"]
 
@@ -35,8 +41,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--out", required=True, type=pathlib.Path, help="folder for the results")
     p.add_argument("--seeds", type=int, default=20, help="episodes per controller (default 20)")
     p.add_argument("--quick", action="store_true", help="3 seeds, for a smoke run")
-    p.add_argument("--kp", type=float, default=100.0, help="proportional gain of all three (default 100)")
-    p.add_argument("--kd", type=float, default=20.0, help="derivative gain of all three (default 20)")
+    p.add_argument("--env", action="append", choices=ENV_IDS, help="scene(s) to run (default: all)")
     return p.parse_args(argv)
 
 
@@ -44,52 +49,64 @@ def run(args: argparse.Namespace) -> dict:
     n_seeds = 3 if args.quick else args.seeds
     if n_seeds < 1:
         raise SystemExit("--seeds must be >= 1")
+    env_ids = args.env or ENV_IDS
     args.out.mkdir(parents=True, exist_ok=True)
-    env = gym.make(ENV_ID)
     rows, examples = [], {}
-    jobs = [(name, seed) for name in CONTROLLERS for seed in range(n_seeds)]
-    for name, seed in tqdm(jobs, desc="episodes", unit="ep"):
-        controller = CONTROLLERS[name](env, kp=args.kp, kd=args.kd)
-        ep = rollout(env, controller, seed=seed)
-        rows.append({"controller": name, "seed": seed, **episode_metrics(ep)})
+    jobs = [(env_id, name, seed) for env_id in env_ids for name in CONTROLLERS for seed in range(n_seeds)]
+    envs = {env_id: gym.make(env_id) for env_id in env_ids}
+    for env_id, name, seed in tqdm(jobs, desc="episodes", unit="ep"):
+        controller = CONTROLLERS[name](envs[env_id])
+        ep = rollout(envs[env_id], controller, seed=seed)
+        rows.append({"env": env_id, "controller": name, "seed": seed, **episode_metrics(ep)})
         if seed == 0:
-            examples[name] = ep
-    env.close()
+            examples.setdefault(env_id, {})[name] = ep
+    gains = {
+        env_id: {name: {"kp": CONTROLLERS[name](env).kp.tolist(), "kd": CONTROLLERS[name](env).kd.tolist()} for name in CONTROLLERS}
+        for env_id, env in envs.items()
+    }
+    for env in envs.values():
+        env.close()
 
     with open(args.out / "episodes.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
 
-    summary = {}
-    for name in CONTROLLERS:
-        mine = [r for r in rows if r["controller"] == name]
-        summary[name] = {c: float(np.mean([r[c] for r in mine])) for c in COLUMNS}
-        summary[name]["failures"] = int(sum(r["diverged"] for r in mine))
-    pd_err = summary["PD"]
-    ct_err = summary["computed torque"]
-    ratios = {
-        "pd_over_ct_rms_error": pd_err["rms_error"] / ct_err["rms_error"],
-        "pd_over_ct_rms_error_settled": pd_err["rms_error_settled"] / ct_err["rms_error_settled"],
-    }
-    meta = {"env": ENV_ID, "seeds": n_seeds, "kp": args.kp, "kd": args.kd, "settle_time_s": 1.0}
+    summary, ratios, text = {}, {}, ""
+    for env_id in env_ids:
+        summary[env_id] = {}
+        for name in CONTROLLERS:
+            mine = [r for r in rows if r["env"] == env_id and r["controller"] == name]
+            summary[env_id][name] = {c: float(np.mean([r[c] for r in mine])) for c in COLUMNS}
+            summary[env_id][name]["failures"] = int(sum(r["diverged"] for r in mine))
+        pd_err, ct_err = summary[env_id]["PD"], summary[env_id]["computed torque"]
+        ratios[env_id] = {
+            "pd_over_ct_rms_error": pd_err["rms_error"] / ct_err["rms_error"],
+            "pd_over_ct_rms_error_settled": pd_err["rms_error_settled"] / ct_err["rms_error_settled"],
+        }
+        text += markdown_table(env_id, summary[env_id], n_seeds, gains[env_id])
+        text += (
+            f"\nPD / computed torque RMS error: {ratios[env_id]['pd_over_ct_rms_error']:.1f}x over the whole "
+            f"episode, {ratios[env_id]['pd_over_ct_rms_error_settled']:.1f}x after the first second.\n\n"
+        )
+        plot(env_id, [r for r in rows if r["env"] == env_id], examples[env_id], args.out / f"comparison_{scene(env_id)}.png")
+    meta = {"envs": env_ids, "seeds": n_seeds, "settle_time_s": 1.0, "gains": gains}
     (args.out / "summary.json").write_text(json.dumps({"config": meta, "summary": summary, "ratios": ratios}, indent=2))
-
-    table = markdown_table(summary, n_seeds, args)
-    table += (
-        f"\nPD / computed torque RMS error: {ratios['pd_over_ct_rms_error']:.1f}x over the whole episode, "
-        f"{ratios['pd_over_ct_rms_error_settled']:.1f}x after the first second.\n"
-    )
-    (args.out / "summary.md").write_text(table)
-    plot(rows, examples, args.out / "comparison.png")
-    print(table)
-    print(f"results written to {args.out}/ (episodes.csv, summary.json, summary.md, comparison.png)")
+    (args.out / "summary.md").write_text(text)
+    print(text)
+    print(f"results written to {args.out}/ (episodes.csv, summary.json, summary.md, comparison_*.png)")
     return {"summary": summary, "ratios": ratios}
 
 
-def markdown_table(summary: dict, n_seeds: int, args: argparse.Namespace) -> str:
+def scene(env_id: str) -> str:
+    return env_id.split("/")[-1].split("-")[0]
+
+
+def markdown_table(env_id: str, summary: dict, n_seeds: int, gains: dict) -> str:
+    gain_text = ", ".join(f"{n}: kp={g['kp'][0]:.3g}, kd={g['kd'][0]:.3g}" for n, g in gains.items())
     head = (
-        f"# {ENV_ID}: model-based controllers, mean over {n_seeds} seeds (kp={args.kp:g}, kd={args.kd:g})\n\n"
+        f"## {env_id}: model-based controllers, mean over {n_seeds} seeds\n\n"
+        f"Gains ({gain_text}); errors are the norm over tracked joints.\n\n"
         "| controller | RMS error [rad] | RMS error t>=1s [rad] | max error [rad] | RMS torque [N m] | "
         "peak torque [N m] | return | compute/action [us] | diverged |\n"
         "|---|---|---|---|---|---|---|---|---|\n"
@@ -103,12 +120,8 @@ def markdown_table(summary: dict, n_seeds: int, args: argparse.Namespace) -> str
     return head + "\n".join(lines) + "\n"
 
 
-def plot(rows: list[dict], examples: dict, path: pathlib.Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+def plot(env_id: str, rows: list[dict], examples: dict, path: pathlib.Path) -> None:
+    plt = pyplot()
     fig, (ax0, ax1) = plt.subplots(1, 2, figsize=(12, 4.5))
     names = list(CONTROLLERS)
     for i, name in enumerate(names):
@@ -120,7 +133,7 @@ def plot(rows: list[dict], examples: dict, path: pathlib.Path) -> None:
     ax0.set_xticks(range(len(names)), names)
     ax0.set_yscale("log")
     ax0.set_ylabel("RMS tracking error [rad]")
-    ax0.set_title("per seed (bars: means)")
+    ax0.set_title(f"{env_id}: per seed (bars: means)")
     ax0.legend()
     for i, (name, ep) in enumerate(examples.items()):
         ax1.semilogy(ep.t, np.linalg.norm(ep.tracking_error, axis=-1) + 1e-12, label=name, color=f"C{i + 2}")
@@ -128,9 +141,7 @@ def plot(rows: list[dict], examples: dict, path: pathlib.Path) -> None:
     ax1.set_ylabel("|q_ref - q| [rad]")
     ax1.set_title("seed 0")
     ax1.legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save(fig, path)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -25,11 +25,12 @@ def test_readme_usage_example_runs():
 def test_compare_quick_writes_its_results(tmp_path, capsys):
     script = load_script("compare.py")
     out = script["run"](script["parse_args"](["--out", str(tmp_path), "--quick"]))
-    for name in ("episodes.csv", "summary.json", "summary.md", "comparison.png"):
+    for name in ("episodes.csv", "summary.json", "summary.md", "comparison_Planar2R.png", "comparison_FourBar.png"):
         assert (tmp_path / name).stat().st_size > 0
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["config"]["seeds"] == 3
-    assert out["ratios"]["pd_over_ct_rms_error_settled"] > 10
+    for env_id in ("mbs_envs/Planar2R-v0", "mbs_envs/FourBar-v0"):
+        assert out["ratios"][env_id]["pd_over_ct_rms_error_settled"] > 10
     assert "computed torque" in capsys.readouterr().out
 
 
@@ -38,3 +39,11 @@ def test_bench_step_runs(tmp_path):
     result = script["run"](tmp_path, repeats=1, steps=20)
     assert result["ratio_to_acrobot"]["Acrobot-v1"] == 1.0
     assert (tmp_path / "bench_step.json").exists() and (tmp_path / "bench_step.png").exists()
+
+
+def test_constraint_drift_runs(tmp_path):
+    script = load_script("constraint_drift.py")
+    result = script["run"](tmp_path, steps=300, dt=1e-3, chunk=100)
+    assert result["projection"]["max_residual"] <= 1e-10
+    assert result["none"]["final_residual"] > result["projection"]["final_residual"]
+    assert (tmp_path / "constraint_drift.png").exists()
