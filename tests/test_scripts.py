@@ -5,9 +5,7 @@ from __future__ import annotations
 import json
 import pathlib
 import runpy
-import sys
 
-import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 

@@ -85,7 +85,7 @@ class MBSEnv(gym.Env):
         model: Model,
         u_max: Any,
         *,
-        dt: float,
+        dt: float = 0.01,
         integrator: str = "rk4",
         substeps: int = 1,
         rtol: float | None = None,

@@ -81,13 +81,10 @@ class FourBarEnv(JointTrackingEnv):
     def __init__(
         self,
         params: Mapping[str, Any] | None = None,
-        dt: float = 0.01,
-        integrator: str = "rk4",
-        substeps: int = 1,
-        stabilization: str = "projection",
         torque_limit: Any = 8.0,
         branch: int = 1,
         residual_limit: float = 0.01,
+        stabilization: str = "projection",
         **kwargs: Any,
     ):
         if branch not in (1, -1):
@@ -96,15 +93,7 @@ class FourBarEnv(JointTrackingEnv):
             raise ValueError(f"residual_limit must be positive and finite, got {residual_limit!r}")
         self.branch = branch
         self.residual_limit = float(residual_limit)
-        super().__init__(
-            FourBar(params),
-            torque_limit,
-            dt=dt,
-            integrator=integrator,
-            substeps=substeps,
-            stabilization=stabilization,
-            **kwargs,
-        )
+        super().__init__(FourBar(params), torque_limit, stabilization=stabilization, **kwargs)
         th1 = np.linspace(-np.pi, np.pi, 360, endpoint=False)
         J = []
         for th in th1:  # angles where a non-Grashof linkage cannot assemble are skipped
@@ -140,7 +129,7 @@ class FourBarEnv(JointTrackingEnv):
         p = self.model.params
         lines: list[Polyline] = [(np.array([[0.0, 0.0], [p.l0, 0.0]]), (160, 160, 160))]
         try:
-            q_ref = self.model.assemble(self.reference(self._t)[0][0], self.branch)
+            q_ref = self.model.assemble(self.reference_now()[0][0], self.branch)
             lines.append((self.model.joint_positions(q_ref), (180, 200, 240)))
         except ValueError:  # the reference crank angle may not assemble for non-Grashof linkages
             pass

@@ -74,29 +74,16 @@ class Planar2REnv(JointTrackingEnv):
     max_amplitude = np.array([0.6, 0.8])
 
     def __init__(
-        self,
-        params: Mapping[str, Any] | None = None,
-        dt: float = 0.01,
-        integrator: str = "rk4",
-        substeps: int = 1,
-        torque_limit: Any = (40.0, 20.0),
-        **kwargs: Any,
+        self, params: Mapping[str, Any] | None = None, torque_limit: Any = (40.0, 20.0), **kwargs: Any
     ):
-        super().__init__(
-            Planar2R(params),
-            torque_limit,
-            dt=dt,
-            integrator=integrator,
-            substeps=substeps,
-            **kwargs,
-        )
+        super().__init__(Planar2R(params), torque_limit, **kwargs)
 
     def _render_extent(self) -> float:
         p = self.model.params
         return 1.1 * (p.l1 + p.l2)
 
     def _polylines(self) -> list[Polyline]:
-        q_ref = self.reference(self._t)[0]
+        q_ref = self.reference_now()[0]
         return [
             (self.model.joint_positions(q_ref), (180, 200, 240)),
             (self.model.joint_positions(self._q), (0, 90, 200)),

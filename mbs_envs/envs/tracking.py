@@ -137,8 +137,16 @@ class JointTrackingEnv(MBSEnv):
         ).astype(np.float32)
         self.observation_space = gym.spaces.Box(-high, high, dtype=np.float32)
         self.reference: SumOfSines | None = None
+        self._ref_cache: tuple[float, tuple] | None = None
+
+    def reference_now(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(q_ref, v_ref, a_ref)`` at the current time (evaluated once per step)."""
+        if self._ref_cache is None or self._ref_cache[0] != self._t:
+            self._ref_cache = (self._t, self.reference(self._t))
+        return self._ref_cache[1]
 
     def _reset_task(self, options: dict) -> None:
+        self._ref_cache = None
         self.reference = sample_sum_of_sines(
             self.np_random,
             self.center_low,
@@ -161,14 +169,14 @@ class JointTrackingEnv(MBSEnv):
         return q_t, v_t
 
     def _observation(self) -> np.ndarray:
-        return encode_tracking(self._q, self._v, *self.reference(self._t), self.tracked)
+        return encode_tracking(self._q, self._v, *self.reference_now(), self.tracked)
 
     def decode_observation(self, obs: np.ndarray) -> TrackingObservation:
         """The state and reference in an observation (batched); see :func:`decode_tracking`."""
         return decode_tracking(obs, self.model.nq, self.tracked)
 
     def _errors(self) -> tuple[np.ndarray, np.ndarray]:
-        q_ref, v_ref, _ = self.reference(self._t)
+        q_ref, v_ref, _ = self.reference_now()
         idx = list(self.tracked)
         return wrap_angle(q_ref - self._q[idx]), v_ref - self._v[idx]
 
@@ -184,4 +192,4 @@ class JointTrackingEnv(MBSEnv):
 
     def _task_info(self) -> dict[str, Any]:
         e, _ = self._errors()
-        return {"tracking_error": e, "q_ref": self.reference(self._t)[0]}
+        return {"tracking_error": e, "q_ref": self.reference_now()[0]}
