@@ -73,14 +73,18 @@ def acceleration(model: Model, u: Input, stabilization: Any = None) -> Accelerat
     return lambda t, q, v: model.accelerations(q, v, u_fn(t, q, v), stabilization)
 
 
-def diverged(q: np.ndarray, v: np.ndarray, limit: float = DIVERGENCE_LIMIT) -> np.ndarray:
-    """Whether states stopped being finite or left ``|x| <= limit``.
+def diverged(
+    q: np.ndarray, v: np.ndarray, limit: float = DIVERGENCE_LIMIT, model: Model | None = None
+) -> np.ndarray:
+    """Whether states stopped being finite, left ``|x| <= limit``, or reached a
+    singularity of the model's coordinates (``model.singular``).
 
     Parameters
     ----------
     q : ndarray, shape (..., nq)
     v : ndarray, shape (..., nv)
     limit : float
+    model : Model, optional
 
     Returns
     -------
@@ -89,7 +93,10 @@ def diverged(q: np.ndarray, v: np.ndarray, limit: float = DIVERGENCE_LIMIT) -> n
     with np.errstate(invalid="ignore"):
         ok_q = np.all(np.abs(q) <= limit, axis=-1)  # False for NaN
         ok_v = np.all(np.abs(v) <= limit, axis=-1)
-    return ~(ok_q & ok_v)
+        bad = ~(ok_q & ok_v)
+        if model is not None:
+            bad = bad | model.singular(np.where(np.isfinite(q), q, 0.0))
+    return bad
 
 
 def advance(
@@ -207,7 +214,7 @@ def simulate(
         ts, qs, vs, _ = stepper.solve(acc, 0.0, q0, v0, t[1:])
         qs = np.concatenate([q0[None], qs])
         vs = np.concatenate([v0[None], vs])
-        bad = diverged(qs, vs, divergence_limit)
+        bad = diverged(qs, vs, divergence_limit, model)
         first_bad = np.argmax(bad.reshape(len(qs), -1).any(axis=1)) if bad.any() else None
         if first_bad is not None or len(ts) < len(t) - 1:
             K = first_bad if first_bad is not None else len(qs)
@@ -221,7 +228,7 @@ def simulate(
     q, v = q0, v0
     for k in range(n_steps):
         q_new, v_new = advance(model, stepper, t[k], q, v, t[k + 1] - t[k], 1, u, stab)
-        bad = diverged(q_new, v_new, divergence_limit)
+        bad = diverged(q_new, v_new, divergence_limit, model)
         if bad.any():
             gone |= bad
             q_new = np.where(bad[..., None], q, q_new)  # hold the last finite state

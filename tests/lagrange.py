@@ -9,7 +9,7 @@ from __future__ import annotations
 import sympy as sp
 
 
-def lagrange(T: sp.Expr, V: sp.Expr, q: list, dq: list):
+def lagrange(T: sp.Expr, V: sp.Expr, q: list, dq: list, simplify: bool = True):
     """Equations of motion by Lagrange: ``d/dt dL/d(dq) - dL/dq = M ddq + h``.
 
     The time derivative is taken literally by the chain rule with symbols for
@@ -34,6 +34,8 @@ def lagrange(T: sp.Expr, V: sp.Expr, q: list, dq: list):
     rest = sp.Matrix([e.subs({a: 0 for a in ddq}) for e in eqs])
     G = sp.Matrix([sp.diff(V, qi) for qi in q])
     Cv = sp.expand(rest - G)
+    if not simplify:  # large expressions: leave them to lambdify
+        return M, Cv, G
     return sp.simplify(M), sp.simplify(Cv), sp.simplify(G)
 
 

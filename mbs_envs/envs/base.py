@@ -240,7 +240,7 @@ class MBSEnv(gym.Env):
 
     def _diverged(self, q: np.ndarray, v: np.ndarray) -> bool:
         """Non-finite or absurdly large state (constrained scenes add the residual)."""
-        return bool(diverged(q, v, self.divergence_limit))
+        return bool(diverged(q, v, self.divergence_limit, self.model))
 
     def step(self, action: Any):
         action = validate_action(action, self.model.nu)  # raises before any change

@@ -3,5 +3,17 @@
 from .base import Model, Params
 from .fourbar import FourBar, FourBarParams, grashof_class
 from .planar2r import Planar2R, Planar2RParams
+from .rolling_disk import RollingDisk, RollingDiskParams, critical_spin
 
-__all__ = ["FourBar", "FourBarParams", "Model", "Params", "Planar2R", "Planar2RParams", "grashof_class"]
+__all__ = [
+    "FourBar",
+    "FourBarParams",
+    "Model",
+    "Params",
+    "Planar2R",
+    "Planar2RParams",
+    "RollingDisk",
+    "RollingDiskParams",
+    "critical_spin",
+    "grashof_class",
+]

@@ -229,6 +229,13 @@ class Model(abc.ABC):
     def friction(self, v: np.ndarray) -> np.ndarray:
         """Friction forces ``F(v)``, shape ``(..., nv)`` (zero by default)."""
 
+    def singular(self, q: np.ndarray) -> np.ndarray:
+        """Whether ``q`` is at or past a singularity of the coordinates (none by default).
+
+        Simulations stop there and report divergence rather than return NaN.
+        """
+        return np.zeros(np.shape(q)[:-1], dtype=bool)
+
     # -- derived, shared by every unconstrained model -------------------------
 
     def stabilization(self, kind: Any = None, **options: Any) -> None:
