@@ -7,6 +7,7 @@ scores an RL agent.
 """
 
 from .base import Controller
+from .disk import LQR, NoControl, SteeringPD
 from .joint import PD, ComputedTorque, PDGravity
 
-__all__ = ["Controller", "PD", "PDGravity", "ComputedTorque"]
+__all__ = ["Controller", "PD", "PDGravity", "ComputedTorque", "LQR", "SteeringPD", "NoControl"]

@@ -16,6 +16,7 @@ __all__ = ["Trajectory", "integrators", "models", "simulate", "__version__"]
 ENV_IDS = {
     "mbs_envs/Planar2R-v0": ("mbs_envs.envs.planar2r:Planar2REnv", 500),
     "mbs_envs/FourBar-v0": ("mbs_envs.envs.fourbar:FourBarEnv", 500),
+    "mbs_envs/RollingDisk-v0": ("mbs_envs.envs.rolling_disk:RollingDiskEnv", 1000),
 }
 
 for _id, (_entry, _steps) in ENV_IDS.items():

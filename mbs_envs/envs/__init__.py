@@ -3,6 +3,7 @@
 from .base import MBSEnv
 from .fourbar import FourBarEnv
 from .planar2r import Planar2REnv
+from .rolling_disk import DiskObservation, RollingDiskEnv
 from .tracking import JointTrackingEnv, TrackingObservation, decode_tracking, encode_tracking
 
 __all__ = [
@@ -10,6 +11,8 @@ __all__ = [
     "FourBarEnv",
     "JointTrackingEnv",
     "Planar2REnv",
+    "RollingDiskEnv",
+    "DiskObservation",
     "TrackingObservation",
     "decode_tracking",
     "encode_tracking",

@@ -54,12 +54,13 @@ class RollingDiskParams(Params):
 def critical_spin(m: float, r: float, g: float, A: float | None = None, C: float | None = None) -> float:
     """Spin rate above which steady upright straight rolling is linearly stable [rad/s].
 
-    Linearizing the lean/heading equations about upright rolling at spin ``W``,
+    Linearizing the lean/heading equations about upright rolling at spin ``W``
+    (in this scene's coordinates; the full model's Jacobian has these entries),
 
-        (A + m r^2) lean'' = m g r lean - (C + m r^2) W heading',
-        A heading'' = C W lean',
+        (A + m r^2) lean'' = m g r lean + (C + m r^2) W heading',
+        A heading'' = -C W lean',
 
-    and integrating the second, ``heading' = C W lean / A + const``, gives
+    and integrating the second, ``heading' = -C W lean / A + const``, gives
     ``(A + m r^2) lean'' = (m g r - (C + m r^2) C W^2 / A) lean``: stable
     (oscillating) iff ``W^2 > m g r A / (C (C + m r^2))``. For the uniform thin
     disk (``A = m r^2 / 4``, ``C = m r^2 / 2``) this is ``sqrt(g / (3 r))``.

@@ -1,0 +1,206 @@
+"""``mbs_envs/RollingDisk-v0``: keep a rolling disk upright on a commanded heading and speed."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from ..models.rolling_disk import RollingDisk
+from ..references import SumOfSines, sample_sum_of_sines
+from .base import MBSEnv
+from .rendering import Polyline
+from .tracking import wrap_angle
+
+
+@dataclasses.dataclass(frozen=True)
+class DiskObservation:
+    """A decoded RollingDisk-v0 observation; each array has shape ``(...)``."""
+
+    lean: np.ndarray
+    dlean: np.ndarray
+    dheading: np.ndarray
+    dspin: np.ndarray
+    heading_error: np.ndarray  # wrap(heading_ref - heading)
+    dheading_ref: np.ndarray
+    ddheading_ref: np.ndarray
+    spin_ref: np.ndarray
+
+
+OBS_FIELDS = tuple(f.name for f in dataclasses.fields(DiskObservation))
+
+
+class RollingDiskEnv(MBSEnv):
+    """A thin disk rolling without slipping: stay upright, follow a heading, hold a speed.
+
+    ## Description
+
+    The disk of PHYSICS.md scene 3 (six coordinates, rolling constraints, no
+    slip). Each episode commands a spin rate ``W_ref`` (forward speed
+    ``r W_ref``), drawn uniformly between 0.3 and 2 times the critical spin
+    of upright rolling (so about 40 % of episodes are not self-stable), and
+    a smooth heading reference ``heading_ref(t)`` (two slow sinusoids, total
+    amplitude up to 0.6 rad). The disk must follow both without falling.
+
+    ## Action Space
+
+    ``Box(-1, 1, (2,), float32)``: ``(drive, steer)`` normalized by
+    ``torque_limit``: the generalized forces on the spin angle and the heading,
+    i.e. the components of an applied torque along the spin axis and the
+    vertical (see :mod:`mbs_envs.models.rolling_disk`).
+
+    ## Observation Space
+
+    ``Box((8,), float32)``: ``[lean, dlean, dheading, dspin, wrap(heading_ref -
+    heading), dheading_ref, ddheading_ref, spin_ref]``; see :class:`DiskObservation`.
+
+    ## Rewards
+
+    ``r = 1 - (e_h^2 + lean^2 + 0.1 ((dspin - W_ref) / W_c)^2 + 0.001 |action|^2)``
+    per step (the 1 rewards staying up); terms in ``info``.
+
+    ## Starting State
+
+    Upright rolling at ``W_ref`` with lean ``U(-0.05, 0.05)`` rad, lean rate
+    ``U(-0.1, 0.1)`` rad/s, heading ``heading_ref(0) + U(-0.1, 0.1)``, no heading
+    rate; the centre's velocity from the rolling constraints. Or an exact state
+    through ``reset(options={"q": ..., "v": ...})`` (projected onto the constraints).
+
+    ## Episode End
+
+    Termination when ``|lean| > lean_limit`` (default 0.6 rad; ``info["fell"]``)
+    or on divergence, which includes the disk nearing flat (Euler-angle
+    singularity at ``|lean| = pi/2``). Truncation after ``max_episode_steps``
+    (default 1000, 10 s).
+
+    ## Arguments
+
+    ``gym.make("mbs_envs/RollingDisk-v0", params=None, torque_limit=(0.3, 0.3),
+    lean_limit=0.6, dt=0.01, integrator="rk4", substeps=1,
+    stabilization="projection", ...)``.
+    """
+
+    spin_range = (0.3, 2.0)  # W_ref / W_c
+    task_options = ("spin_ref",)
+    heading_amplitude = 0.6  # rad
+    heading_omega = (0.2, 0.8)  # rad/s
+    reward_weights = (1.0, 1.0, 0.1, 1e-3)
+
+    def __init__(
+        self,
+        params: Mapping[str, Any] | None = None,
+        torque_limit: Any = (0.3, 0.3),
+        lean_limit: float = 0.6,
+        stabilization: str = "projection",
+        **kwargs: Any,
+    ):
+        model = RollingDisk(params)
+        if not (0 < lean_limit < model.flat_lean):
+            raise ValueError(f"lean_limit must be in (0, {model.flat_lean:.3f}) rad, got {lean_limit!r}")
+        self.lean_limit = float(lean_limit)
+        super().__init__(model, torque_limit, stabilization=stabilization, **kwargs)
+        Wc = model.critical_spin
+        w_max = self.heading_omega[1]
+        high = np.array(
+            [np.pi / 2, self.divergence_limit, self.divergence_limit, self.divergence_limit, np.pi,
+             self.heading_amplitude * w_max, self.heading_amplitude * w_max**2, self.spin_range[1] * Wc],
+            dtype=np.float32,
+        )  # fmt: skip
+        self.observation_space = gym.spaces.Box(-high, high, dtype=np.float32)
+        self.heading_reference: SumOfSines | None = None
+        self.spin_ref = Wc
+
+    def _reset_task(self, options: dict) -> None:
+        rng = self.np_random
+        self.spin_ref = float(rng.uniform(*self.spin_range) * self.model.critical_spin)
+        if options.get("spin_ref") is not None:
+            W = options["spin_ref"]
+            if not (np.isfinite(W) and abs(W) <= self.spin_range[1] * self.model.critical_spin):
+                raise ValueError(
+                    f"options['spin_ref'] must be finite with |W| <= {self.spin_range[1]} W_c, got {W!r}"
+                )
+            self.spin_ref = float(W)
+        self.heading_reference = sample_sum_of_sines(
+            rng, [-np.pi], [np.pi], [self.heading_amplitude], self.heading_omega, n_components=2
+        )
+
+    def _initial_state(self) -> tuple[np.ndarray, np.ndarray]:
+        rng = self.np_random
+        heading0 = float(self.heading_reference(0.0)[0][0] + rng.uniform(-0.1, 0.1))
+        return self.model.rolling_state(
+            heading=heading0,
+            lean=float(rng.uniform(-0.05, 0.05)),
+            dlean=float(rng.uniform(-0.1, 0.1)),
+            dspin=self.spin_ref,
+        )
+
+    def _heading_ref(self) -> tuple[float, float, float]:
+        h, dh, ddh = self.heading_reference(self._t)
+        return float(h[0]), float(dh[0]), float(ddh[0])
+
+    def _observation(self) -> np.ndarray:
+        h, dh, ddh = self._heading_ref()
+        q, v = self._q, self._v
+        return np.array(
+            [q[4], v[4], v[3], v[5], wrap_angle(h - q[3]), dh, ddh, self.spin_ref], dtype=np.float32
+        )
+
+    @staticmethod
+    def decode_observation(obs: np.ndarray) -> DiskObservation:
+        """The fields of an observation (batched over leading dimensions)."""
+        obs = np.asarray(obs, dtype=float)
+        if obs.shape[-1] != len(OBS_FIELDS):
+            raise ValueError(f"observation must have shape (..., {len(OBS_FIELDS)}), got {obs.shape}")
+        return DiskObservation(*(obs[..., i] for i in range(len(OBS_FIELDS))))
+
+    def _fell(self) -> bool:
+        return bool(abs(self._q[4]) > self.lean_limit)
+
+    def _terminated(self) -> bool:
+        return self._fell()
+
+    def _reward(self, u: np.ndarray, action: np.ndarray) -> tuple[float, dict[str, Any]]:
+        w_h, w_l, w_s, w_u = self.reward_weights
+        e_h = wrap_angle(self._heading_ref()[0] - self._q[3])
+        e_s = (self._v[5] - self.spin_ref) / self.model.critical_spin
+        terms = {
+            "reward_heading": -w_h * float(e_h**2),
+            "reward_lean": -w_l * float(self._q[4] ** 2),
+            "reward_speed": -w_s * float(e_s**2),
+            "reward_effort": -w_u * float(action @ action),
+        }
+        return 1.0 + sum(terms.values()), terms
+
+    def _task_info(self) -> dict[str, Any]:
+        e_h = wrap_angle(self._heading_ref()[0] - self._q[3])
+        return {
+            "constraint_residual": float(np.max(np.abs(self.model.constraint_residual(self._q)))),
+            "lean": float(self._q[4]),
+            "fell": self._fell(),
+            "tracking_error": np.array([e_h]),
+            "spin_error": float(self._v[5] - self.spin_ref),
+        }
+
+    # -- drawing: a view from above (x, y), the disk as its ground-plane footprint
+    def _render_extent(self) -> float:
+        return 2.0
+
+    def _render_center(self) -> tuple[float, float]:
+        return (float(self._q[0]), float(self._q[1]))
+
+    def _polylines(self) -> list[Polyline]:
+        q = self._q
+        r = self.model.params.r
+        heading = np.array([np.cos(q[3]), np.sin(q[3])])
+        centre = q[:2]
+        contact = centre + self.model.contact_offset(q)[:2]
+        h_ref = self._heading_ref()[0]
+        ref = np.array([np.cos(h_ref), np.sin(h_ref)])
+        return [
+            (np.stack([centre - r * heading, centre + r * heading]), (0, 90, 200)),
+            (np.stack([centre, contact]), (200, 60, 60)),
+            (np.stack([centre, centre + 0.8 * ref]), (180, 200, 240)),
+        ]
