@@ -45,3 +45,11 @@ def test_constraint_drift_runs(tmp_path):
     assert result["projection"]["max_residual"] <= 1e-10
     assert result["none"]["final_residual"] > result["projection"]["final_residual"]
     assert (tmp_path / "constraint_drift.png").exists()
+
+
+def test_disk_report_runs(tmp_path):
+    script = load_script("disk_report.py")
+    result = script["run"](tmp_path, seeds=1, iterations=2, sweep=2)
+    assert result["critical_spin"]["simulated_bracket"][0] < result["critical_spin"]["simulated_bracket"][1]
+    for name in ("disk_report.json", "summary.md", "critical_spin.png", "lean_traces.png"):
+        assert (tmp_path / name).exists()

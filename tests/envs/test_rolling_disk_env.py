@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import os
-import pickle
-import warnings
 
 import gymnasium as gym
 import numpy as np
@@ -15,33 +13,6 @@ from controllers import LQR, NoControl, SteeringPD
 from controllers.disk import linearize
 
 ENV_ID = "mbs_envs/RollingDisk-v0"
-
-
-def test_checkers_without_warnings():
-    from gymnasium.utils.env_checker import check_env
-    from stable_baselines3.common.env_checker import check_env as sb3_check_env
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        check_env(gym.make(ENV_ID, render_mode="rgb_array").unwrapped)
-        sb3_check_env(gym.make(ENV_ID).unwrapped, warn=True)
-
-
-def test_determinism_and_pickling():
-    acts = np.random.default_rng(0).uniform(-1, 1, (60, 2)).astype(np.float32)
-
-    def run(env, seed):
-        env.reset(seed=seed)
-        return np.array([env.step(a)[0] for a in acts])
-
-    np.testing.assert_array_equal(run(gym.make(ENV_ID), 2), run(gym.make(ENV_ID), 2))
-    env = gym.make(ENV_ID)
-    env.reset(seed=5)
-    for a in acts[:20]:
-        env.step(a)
-    twin = pickle.loads(pickle.dumps(env))
-    for a in acts[20:]:
-        np.testing.assert_array_equal(env.step(a)[0], twin.step(a)[0])
 
 
 def test_states_stay_on_the_constraints_and_info_is_complete():
