@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import os
 import pickle
 import warnings
 
@@ -113,3 +114,16 @@ def test_out_of_range_actions_saturate(env_id):
     o2, *_, i2 = e2.step(np.clip(big, -1, 1))
     np.testing.assert_array_equal(o1, o2)
     np.testing.assert_array_equal(i1["u"], e1.unwrapped.u_max * np.clip(big, -1, 1))
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_rgb_array_render(env_id):
+    os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+    pytest.importorskip("pygame")
+    env = gym.make(env_id, render_mode="rgb_array")
+    env.reset(seed=0)
+    env.step(np.zeros(env.action_space.shape, np.float32))
+    frame = env.render()
+    assert frame.shape == (500, 500, 3) and frame.dtype == np.uint8
+    assert frame.min() < 100  # something was drawn on the white background
+    env.close()

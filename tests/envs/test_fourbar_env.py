@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 
 import gymnasium as gym
 import numpy as np
@@ -112,12 +111,3 @@ def test_pd_default_gains_match_the_mean_crank_inertia():
     pd = PD(env)
     np.testing.assert_allclose([pd.kp[0], pd.kd[0]], [100 * J, 20 * J])
     np.testing.assert_allclose(ComputedTorque(env).kp, 100.0)
-
-
-def test_rgb_render():
-    os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
-    pytest.importorskip("pygame")
-    env = gym.make(ENV_ID, render_mode="rgb_array")
-    env.reset(seed=0)
-    assert env.render().shape == (500, 500, 3)
-    env.close()

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 
 import gymnasium as gym
 import numpy as np
@@ -120,12 +119,3 @@ def test_controller_predict_batched():
     for C in (NoControl, SteeringPD, LQR):
         a, _ = C(env).predict(np.stack([obs, obs]))
         assert a.shape == (2, 2) and a.dtype == np.float32
-
-
-def test_rgb_render():
-    os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
-    pytest.importorskip("pygame")
-    env = gym.make(ENV_ID, render_mode="rgb_array")
-    env.reset(seed=0)
-    assert env.render().shape == (500, 500, 3)
-    env.close()
