@@ -16,7 +16,9 @@ With ``A = Ixx = Izz`` and ``C = Iyy`` the body inertias and ``n = R e_y =
 
 Rolling without slipping, ``(dx, dy, dz) + w x rC = 0`` with the contact point
 ``rC = -r (s1 s2, -c1 s2, c2)``, is ``Psi v = 0`` with ``Psi = [I3, -[rC]x Jw]``;
-its z row is the derivative of the holonomic ``phi = z - r cos th2``.
+its z row is the derivative of the holonomic ``phi = z - r cos th2``. As the
+translational columns of ``Psi`` are the identity, the multipliers ``lam`` are
+the contact force of the ground on the disk [N] (world frame).
 
 Inputs ``u = (drive, steer)`` are the generalized forces conjugate to the spin
 angle ``th3`` and the heading ``th1``. Because ``dw/d(dth3) = n`` and

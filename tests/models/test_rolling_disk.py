@@ -43,6 +43,16 @@ def test_matches_independent_sympy_model():
         assert model.kinetic_energy(q, v) == pytest.approx(f["T"](*args), rel=1e-12)
 
 
+def test_multipliers_are_the_contact_force():
+    """Newton for the centre: m a = lam - m g e_z."""
+    model = RollingDisk()
+    for _ in range(5):
+        q, v = random_state(model)
+        u = RNG.uniform(-0.5, 0.5, 2)
+        a, lam, _ = model.solve(q, v, u)
+        np.testing.assert_allclose(lam, model.params.m * (a[:3] + [0.0, 0.0, model.params.g]), atol=1e-12)
+
+
 def test_sign_facts_of_physics_md():
     model = RollingDisk()
     q, v = model.rolling_state(dspin=2.0)
