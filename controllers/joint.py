@@ -47,7 +47,7 @@ class PD(Controller):
         self.kd = gain(default[1] if kd is None else kd, self.model.nu, "kd")
 
     @staticmethod
-    def default_gains(env: Any) -> tuple[float, float]:
+    def default_gains(env: Any) -> tuple[Any, Any]:
         return tuple(getattr(env.unwrapped, "pd_gains", (100.0, 20.0)))
 
     def feedback(self, obs: Any) -> np.ndarray:

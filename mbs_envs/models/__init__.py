@@ -3,6 +3,7 @@
 from .base import Model, Params
 from .fourbar import FourBar, FourBarParams, grashof_class
 from .planar2r import Planar2R, Planar2RParams
+from .serial_chain import SerialChain, SerialChainParams
 from .rolling_disk import RollingDisk, RollingDiskParams, critical_spin
 
 __all__ = [
@@ -14,6 +15,8 @@ __all__ = [
     "Planar2RParams",
     "RollingDisk",
     "RollingDiskParams",
+    "SerialChain",
+    "SerialChainParams",
     "critical_spin",
     "grashof_class",
 ]

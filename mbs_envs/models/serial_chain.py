@@ -1,0 +1,351 @@
+"""Scene 4: the planar N-link serial chain, with O(N) recursive algorithms (PHYSICS.md).
+
+``q_i`` is the angle of link i relative to link i-1 (``q_1`` from +x); every
+joint is a driven revolute about z (``B = I``). Link i: mass ``m_i``, length
+``l_i``, centre of mass at ``r_i`` along the link, inertia ``I_i`` about it.
+With N = 2 this is :class:`~mbs_envs.models.planar2r.Planar2R`.
+
+Algorithms (all in world coordinates; ``th_i = q_1 + ... + q_i`` absolute angles):
+
+- inverse dynamics by the recursive Newton-Euler algorithm (:meth:`SerialChain.rnea`).
+  In the plane its forward pass (velocities, accelerations) and backward pass
+  (forces, moments) are prefix and suffix sums, so it is vectorized over the
+  links as well as the batch: O(N) work, no Python loop;
+- forward dynamics by the articulated-body algorithm (:meth:`SerialChain.aba`),
+  a sequential recursion, compiled with numba (:func:`_aba_kernel`);
+- the mass matrix by the composite-rigid-body algorithm (:meth:`SerialChain.mass_matrix`),
+  ``M_ij = sum_{k >= max(i,j)} [I_k + m_k (c_k - p_i) . (c_k - p_j)]`` from suffix sums,
+  the cross-check (``forward_dynamics_crba``: Cholesky of ``M``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numba
+import numpy as np
+
+from ..linalg import cholesky_solve
+from .base import Model, Params, as_vector, param, smoothed_friction
+
+
+@dataclasses.dataclass(frozen=True)
+class SerialChainParams(Params):
+    """Parameters of :class:`SerialChain`: per-link arrays of length ``n_links``
+    (scalars are broadcast). Defaults: every link a uniform rod of
+    ``m = 1 / n_links`` kg and ``l = 1 / n_links`` m (``r = l / 2``,
+    ``I = m l^2 / 12``), so the whole chain is a 1 kg, 1 m rope whatever N.
+    """
+
+    n_links: int = param(2, "positive", "", "number of links")
+    m: Any = param(None, "positive", "kg", "link masses")
+    l: Any = param(None, "positive", "m", "link lengths")  # noqa: E741
+    r: Any = param(None, "nonnegative", "m", "joint to centre of mass, along the link")
+    I: Any = param(None, "nonnegative", "kg m^2", "link inertias about the centre of mass")  # noqa: E741
+    g: float = param(9.81, "finite", "m/s^2", "gravity along -y")
+    b: Any = param(0.0, "nonnegative", "N m s/rad", "viscous joint friction")
+    f: Any = param(0.0, "nonnegative", "N m", "smoothed Coulomb joint friction")
+    v_s: float = param(0.01, "positive", "rad/s", "Coulomb smoothing speed")
+
+    def __post_init__(self) -> None:
+        n = self.n_links
+        if isinstance(n, bool) or not float(n).is_integer() or not 1 <= n <= 100_000:
+            raise ValueError(f"parameter 'n_links' must be an integer >= 1, got {n!r}")
+        n = int(n)
+        object.__setattr__(self, "n_links", n)
+        defaults = {"m": 1.0 / n, "l": 1.0 / n}
+        for name in ("m", "l", "r", "I", "b", "f"):
+            value = getattr(self, name)
+            if value is None:
+                value = defaults.get(name)
+            if value is None and name == "r":
+                value = 0.5 * np.asarray(self.l if self.l is not None else defaults["l"], float)
+            if value is None and name == "I":
+                mm = np.asarray(self.m if self.m is not None else defaults["m"], float)
+                ll = np.asarray(self.l if self.l is not None else defaults["l"], float)
+                value = mm * ll**2 / 12
+            try:
+                arr = np.broadcast_to(np.asarray(value, dtype=float), (n,)).copy()
+            except (TypeError, ValueError):
+                raise ValueError(f"parameter {name!r} must be a scalar or have length n_links = {n}, got {value!r}") from None
+            object.__setattr__(self, name, arr)
+        super().__post_init__()
+        object.__setattr__(self, "n_links", n)  # keep it an int
+
+    def _check(self) -> None:
+        bad = np.flatnonzero(~(self.I + self.m * self.r**2 > 0))
+        if bad.size:
+            raise ValueError(f"parameters I, r: link {bad[0] + 1} has no inertia about its joint")
+
+    def replace(self, **overrides: Any) -> "SerialChainParams":
+        if "n_links" in overrides:  # per-link defaults follow the new length
+            unknown = sorted(set(overrides) - set(self.names()))
+            if unknown:
+                raise ValueError(f"unknown parameter(s) {unknown} for {type(self).__name__}")
+            kept = {k: getattr(self, k) for k in ("g", "v_s")}
+            return type(self)(**{**kept, **overrides})
+        return super().replace(**overrides)
+
+
+@numba.njit(cache=True)
+def _aba_kernel(th, w, px, py, m, cx, cy, Ic, tau, g):  # pragma: no cover - compiled
+    """Articulated-body forward dynamics for a batch of planar chains (world frame).
+
+    Spatial motion vectors are ``(w, vOx, vOy)`` (angular rate and the velocity
+    of the body point at the world origin); the joint axis at ``p_i`` has
+    ``s_i = (1, p_iy, -p_ix)``; body inertia about the origin
+    ``[[Ic + m |c|^2, -m c_y, m c_x], [-m c_y, m, 0], [m c_x, 0, m]]``; gravity
+    as a base acceleration ``(0, 0, g)``.
+
+    Arrays are (B, N) with B the flattened batch; returns ddq (B, N).
+    """
+    B, N = th.shape
+    out = np.empty((B, N))
+    IA = np.empty((N, 3, 3))
+    pA = np.empty((N, 3))
+    v = np.empty((N, 3))
+    c = np.empty((N, 3))
+    U = np.empty((N, 3))
+    D = np.empty(N)
+    u = np.empty(N)
+    for b in range(B):
+        vp0 = 0.0
+        vp1 = 0.0
+        vp2 = 0.0
+        for i in range(N):  # pass 1: velocities, bias accelerations, body inertias and bias forces
+            s0, s1, s2 = 1.0, py[b, i], -px[b, i]
+            qd = w[b, i]
+            # c_i = v_parent x (s_i qd)  (the joint axis moves with the parent)
+            c[i, 0] = 0.0
+            c[i, 1] = (-vp0 * s2 + s0 * vp2) * qd
+            c[i, 2] = (vp0 * s1 - s0 * vp1) * qd
+            v0 = vp0 + s0 * qd
+            v1 = vp1 + s1 * qd
+            v2 = vp2 + s2 * qd
+            v[i, 0], v[i, 1], v[i, 2] = v0, v1, v2
+            mi, x, y = m[b, i], cx[b, i], cy[b, i]
+            I00 = Ic[b, i] + mi * (x * x + y * y)
+            IA[i, 0, 0], IA[i, 0, 1], IA[i, 0, 2] = I00, -mi * y, mi * x
+            IA[i, 1, 0], IA[i, 1, 1], IA[i, 1, 2] = -mi * y, mi, 0.0
+            IA[i, 2, 0], IA[i, 2, 1], IA[i, 2, 2] = mi * x, 0.0, mi
+            h0 = I00 * v0 - mi * y * v1 + mi * x * v2
+            h1 = -mi * y * v0 + mi * v1
+            h2 = mi * x * v0 + mi * v2
+            # p = v x* h = (vx hy - vy hx, -w hy, w hx)
+            pA[i, 0] = v1 * h2 - v2 * h1
+            pA[i, 1] = -v0 * h2
+            pA[i, 2] = v0 * h1
+            vp0, vp1, vp2 = v0, v1, v2
+        for i in range(N - 1, -1, -1):  # pass 2: articulated inertias
+            s0, s1, s2 = 1.0, py[b, i], -px[b, i]
+            for k in range(3):
+                U[i, k] = IA[i, k, 0] * s0 + IA[i, k, 1] * s1 + IA[i, k, 2] * s2
+            D[i] = s0 * U[i, 0] + s1 * U[i, 1] + s2 * U[i, 2]
+            u[i] = tau[b, i] - (s0 * pA[i, 0] + s1 * pA[i, 1] + s2 * pA[i, 2])
+            if i > 0:
+                Ia = np.empty((3, 3))
+                for r_ in range(3):
+                    for k in range(3):
+                        Ia[r_, k] = IA[i, r_, k] - U[i, r_] * U[i, k] / D[i]
+                for r_ in range(3):
+                    pa = pA[i, r_] + U[i, r_] * u[i] / D[i]
+                    for k in range(3):
+                        pa += Ia[r_, k] * c[i, k]
+                        IA[i - 1, r_, k] += Ia[r_, k]
+                    pA[i - 1, r_] += pa
+        a0, a1, a2 = 0.0, 0.0, g  # pass 3: accelerations (gravity as base acceleration)
+        for i in range(N):
+            s0, s1, s2 = 1.0, py[b, i], -px[b, i]
+            a0 += c[i, 0]
+            a1 += c[i, 1]
+            a2 += c[i, 2]
+            qdd = (u[i] - (U[i, 0] * a0 + U[i, 1] * a1 + U[i, 2] * a2)) / D[i]
+            out[b, i] = qdd
+            a0 += s0 * qdd
+            a1 += s1 * qdd
+            a2 += s2 * qdd
+    return out
+
+
+def _suffix_sum(x: np.ndarray, axis: int = -1) -> np.ndarray:
+    """``y_i = sum_{k >= i} x_k`` along ``axis``."""
+    return np.flip(np.cumsum(np.flip(x, axis), axis), axis)
+
+
+class SerialChain(Model):
+    """Planar N-link chain, every joint driven; see the module docstring.
+
+    Construct with ``SerialChain(n_links=N, m=..., l=..., r=..., I=..., g=...,
+    b=..., f=..., v_s=...)``, per-link arrays or scalars.
+    """
+
+    Params = SerialChainParams
+    nu = nv = nq = 2  # replaced per instance in __init__
+
+    def __init__(self, params=None, **overrides):
+        super().__init__(params, **overrides)
+        n = self.params.n_links
+        self.nq = self.nv = self.nu = n
+
+    @property
+    def n_links(self) -> int:
+        return self.params.n_links
+
+    @property
+    def actuation(self) -> np.ndarray:
+        return np.eye(self.n_links)
+
+    # -- kinematics ---------------------------------------------------------
+
+    def kinematics(self, q: np.ndarray) -> dict[str, np.ndarray]:
+        """Absolute angles, joint positions and centres of mass (world frame).
+
+        Returns
+        -------
+        dict with ``th`` (..., N), ``p`` (..., N, 2) joint i positions (``p_1 = 0``),
+        ``c`` (..., N, 2) centres of mass, ``e`` (..., N, 2) link unit vectors.
+        """
+        p_ = self.params
+        q = as_vector(q, self.n_links, "q")
+        th = np.cumsum(q, axis=-1)
+        e = np.stack([np.cos(th), np.sin(th)], axis=-1)
+        ends = np.cumsum(p_.l[:, None] * e, axis=-2)  # tip of link i
+        p = np.concatenate([np.zeros(ends.shape[:-2] + (1, 2)), ends[..., :-1, :]], axis=-2)
+        c = p + p_.r[:, None] * e
+        return {"th": th, "p": p, "c": c, "e": e}
+
+    def joint_positions(self, q: np.ndarray) -> np.ndarray:
+        """Base, joints and tip [m], shape ``(..., N + 1, 2)``."""
+        k = self.kinematics(q)
+        tip = k["p"][..., -1:, :] + self.params.l[-1] * k["e"][..., -1:, :]
+        return np.concatenate([k["p"], tip], axis=-2)
+
+    # -- inverse dynamics: RNEA with prefix/suffix sums ------------------------
+
+    def rnea(self, q: np.ndarray, v: np.ndarray, a: np.ndarray, gravity: bool = True) -> np.ndarray:
+        """Joint torques ``M a + C v (+ G)`` by the recursive Newton-Euler algorithm.
+
+        Forward pass: link rates ``w = cumsum(v)``, ``dw = cumsum(a)``; centre
+        of mass accelerations from the link vectors (prefix sums over the
+        joints). Backward pass: the force carried by joint i is the suffix sum
+        ``F_i = sum_{k>=i} m_k (a_Ck + g e_y)``, its moment about joint i
+        ``sum_{k>=i} [I_k dw_k + (c_k - p_i) x m_k (a_Ck + g e_y)]``, written
+        as suffix sums too. O(N), vectorized over links and batch. Friction
+        is not included (see :meth:`inverse_dynamics`).
+
+        Returns
+        -------
+        tau : ndarray, shape (..., N)
+        """
+        p_ = self.params
+        q = as_vector(q, self.n_links, "q")
+        v = as_vector(v, self.n_links, "v")
+        a = as_vector(a, self.n_links, "a")
+        k = self.kinematics(q)
+        e, p, c = k["e"], k["p"], k["c"]
+        w = np.cumsum(v, axis=-1)
+        dw = np.cumsum(a, axis=-1)
+        n_perp = np.stack([-e[..., 1], e[..., 0]], axis=-1)
+        # acceleration of a point at distance d along link j: d (dw_j n_j - w_j^2 e_j)
+        link_acc = dw[..., None] * n_perp - (w**2)[..., None] * e  # per unit length
+        tip_acc = np.cumsum(p_.l[:, None] * link_acc, axis=-2)  # acceleration of the tip of link i
+        joint_acc = np.concatenate([np.zeros(tip_acc.shape[:-2] + (1, 2)), tip_acc[..., :-1, :]], axis=-2)
+        a_c = joint_acc + p_.r[:, None] * link_acc
+        if gravity:
+            a_c = a_c + np.array([0.0, p_.g])
+        F = p_.m[:, None] * a_c  # net force needed on each link (incl. weight support)
+        F_sum = _suffix_sum(F, axis=-2)
+        cross_cF = c[..., 0] * F[..., 1] - c[..., 1] * F[..., 0]
+        moment = _suffix_sum(p_.I * dw + cross_cF, axis=-1)
+        return moment - (p[..., 0] * F_sum[..., 1] - p[..., 1] * F_sum[..., 0])
+
+    # -- the Model interface --------------------------------------------------
+
+    def mass_matrix(self, q: np.ndarray) -> np.ndarray:
+        """Composite-rigid-body ``M(q)``, shape ``(..., N, N)``, from suffix sums."""
+        p_ = self.params
+        k = self.kinematics(q)
+        p, c = k["p"], k["c"]
+        S0 = _suffix_sum(p_.I + p_.m * np.sum(c**2, axis=-1), axis=-1)  # (..., N)
+        S1 = _suffix_sum(p_.m[:, None] * c, axis=-2)  # (..., N, 2)
+        S2 = _suffix_sum(p_.m, axis=-1)  # (N,)
+        n = self.n_links
+        J = np.maximum.outer(np.arange(n), np.arange(n))
+        pp = np.einsum("...id,...jd->...ij", p, p)
+        S1J = S1[..., J, :]  # (..., N, N, 2)
+        cross = np.einsum("...ijd,...id->...ij", S1J, p) + np.einsum("...ijd,...jd->...ij", S1J, p)
+        return S0[..., J] - cross + S2[J] * pp
+
+    def coriolis(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``C(q, v) v`` from RNEA with zero acceleration and no gravity."""
+        v = as_vector(v, self.n_links, "v")
+        return self.rnea(q, v, np.zeros_like(v), gravity=False)
+
+    def gravity(self, q: np.ndarray) -> np.ndarray:
+        """``G(q)`` from RNEA at rest."""
+        q = as_vector(q, self.n_links, "q")
+        z = np.zeros(q.shape)
+        return self.rnea(q, z, z)
+
+    def bias(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``C v + G + F`` in one RNEA pass."""
+        v = as_vector(v, self.n_links, "v")
+        return self.rnea(q, v, np.zeros_like(v)) + self.friction(v)
+
+    def potential_energy(self, q: np.ndarray) -> np.ndarray:
+        c = self.kinematics(q)["c"]
+        return self.params.g * np.sum(self.params.m * c[..., 1], axis=-1)
+
+    def friction(self, v: np.ndarray) -> np.ndarray:
+        p_ = self.params
+        v = as_vector(v, self.n_links, "v")
+        return smoothed_friction(v, p_.b, p_.f, p_.v_s)
+
+    def inverse_dynamics(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
+        """Joint torques for accelerations ``a``: RNEA plus friction, O(N)."""
+        v = as_vector(v, self.n_links, "v")
+        return self.rnea(q, v, a) + self.friction(v)
+
+    def aba(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """Accelerations for joint torques ``tau`` (friction not included), O(N).
+
+        The articulated-body recursion runs in the compiled :func:`_aba_kernel`,
+        over the flattened batch.
+        """
+        p_ = self.params
+        q = as_vector(q, self.n_links, "q")
+        v = as_vector(v, self.n_links, "v")
+        tau = as_vector(tau, self.n_links, "tau")
+        shape = np.broadcast_shapes(q.shape, v.shape, tau.shape)
+        k = self.kinematics(np.broadcast_to(q, shape))
+        n = self.n_links
+        flat = lambda x: np.ascontiguousarray(np.broadcast_to(x, shape).reshape(-1, n), dtype=float)  # noqa: E731
+        out = _aba_kernel(
+            flat(k["th"]), flat(v), flat(k["p"][..., 0]), flat(k["p"][..., 1]),
+            flat(p_.m), flat(k["c"][..., 0]), flat(k["c"][..., 1]), flat(p_.I), flat(tau), float(p_.g),
+        )  # fmt: skip
+        return out.reshape(shape)
+
+    def forward_dynamics(self, q: np.ndarray, v: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
+        """Accelerations by the articulated-body algorithm, O(N); friction included."""
+        v = as_vector(v, self.n_links, "v")
+        tau = -self.friction(v) if u is None else as_vector(u, self.n_links, "u") - self.friction(v)
+        return self.aba(q, v, tau)
+
+    def forward_dynamics_crba(self, q: np.ndarray, v: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
+        """The cross-check path: ``M^-1 (u - h)`` with ``M`` by CRBA and a Cholesky solve, O(N^3)."""
+        return Model.forward_dynamics(self, q, v, u)
+
+    def kinetic_energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``sum_i m_i |v_Ci|^2 / 2 + I_i w_i^2 / 2`` from the link velocities (O(N), not via M)."""
+        p_ = self.params
+        v = as_vector(v, self.n_links, "v")
+        k = self.kinematics(q)
+        w = np.cumsum(v, axis=-1)
+        n_perp = np.stack([-k["e"][..., 1], k["e"][..., 0]], axis=-1)
+        link_vel = w[..., None] * n_perp
+        tip_vel = np.cumsum(p_.l[:, None] * link_vel, axis=-2)
+        joint_vel = np.concatenate([np.zeros(tip_vel.shape[:-2] + (1, 2)), tip_vel[..., :-1, :]], axis=-2)
+        v_c = joint_vel + p_.r[:, None] * link_vel
+        return 0.5 * np.sum(p_.m * np.sum(v_c**2, axis=-1) + p_.I * w**2, axis=-1)
