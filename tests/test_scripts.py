@@ -53,3 +53,10 @@ def test_disk_report_runs(tmp_path):
     assert result["critical_spin"]["simulated_bracket"][0] < result["critical_spin"]["simulated_bracket"][1]
     for name in ("disk_report.json", "summary.md", "critical_spin.png", "lean_traces.png"):
         assert (tmp_path / name).exists()
+
+
+def test_bench_chain_runs(tmp_path):
+    script = load_script("bench_chain.py")
+    result = script["run"](tmp_path, sizes=[2, 20, 40])
+    assert "aba_single" in result["loglog_slopes_n_ge_20"]
+    assert (tmp_path / "bench_chain.json").exists() and (tmp_path / "bench_chain.png").exists()

@@ -153,3 +153,20 @@ def test_defaults_make_a_one_metre_one_kilogram_rope():
     assert np.sum(chain.params.m) == pytest.approx(1.0) and np.sum(chain.params.l) == pytest.approx(1.0)
     tip = chain.joint_positions(np.r_[-np.pi / 2, np.zeros(7)])[-1]
     np.testing.assert_allclose(tip, [0.0, -1.0], atol=1e-14)
+
+
+@pytest.mark.parametrize("n", [3, 40])
+def test_aba_agrees_with_pinocchio(n):
+    """A third-party implementation (optional benchmark dependency ``pin``): skipped when absent."""
+    pytest.importorskip("pinocchio")
+    import runpy
+    import pathlib
+
+    bench = runpy.run_path(str(pathlib.Path(__file__).resolve().parents[2] / "scripts" / "bench_chain.py"))
+    chain = random_chain(n)
+    pin, model, data = bench["pinocchio_chain"](chain)
+    q, v = random_state(n)
+    u = RNG.uniform(-1, 1, n)
+    a_pin = np.array(pin.aba(model, data, q, v, u))
+    np.testing.assert_allclose(chain.aba(q, v, u), a_pin, atol=1e-10 * np.max(np.abs(a_pin)))
+    np.testing.assert_allclose(chain.rnea(q, v, u), np.array(pin.rnea(model, data, q, v, u)), atol=1e-10 * max(1.0, np.max(np.abs(u))))

@@ -1,0 +1,150 @@
+#!/usr/bin/env python
+"""SerialChain algorithms against N, and against Pinocchio when it is installed.
+
+Times RNEA, ABA and CRBA + Cholesky for N = 2 ... 500, single call and per
+environment in a batch of 256, fits log-log slopes (target ~1 for RNEA and
+ABA), and times Pinocchio's ``rnea``/``aba`` on the same chain in the same run
+when the ``pin`` package is importable (``pip install pin``, optional). Medians
+over repeats; prints ratios; writes ``bench_chain.json`` and ``bench_chain.png``.
+
+    python scripts/bench_chain.py --out results/chain
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import pathlib
+import sys
+import time
+
+import numpy as np
+from tqdm import tqdm
+
+from mbs_envs.models import SerialChain
+from mbs_envs.plotting import pyplot, save
+
+SIZES = [2, 5, 10, 20, 50, 100, 200, 500]
+BATCH = 256
+
+
+def median_time(f, repeats: int = 7, min_time: float = 0.02) -> float:
+    """Median seconds per call of ``f`` over ``repeats`` timed loops of at least ``min_time``."""
+    f()  # warm-up (numba compilation, caches)
+    n = 1
+    while True:
+        t0 = time.perf_counter()
+        for _ in range(n):
+            f()
+        if time.perf_counter() - t0 >= min_time:
+            break
+        n *= 2
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        for _ in range(n):
+            f()
+        times.append((time.perf_counter() - t0) / n)
+    return float(np.median(times))
+
+
+def pinocchio_chain(chain: SerialChain):
+    """The same planar chain as a Pinocchio model (revolute-z joints), or None without ``pin``."""
+    try:
+        import pinocchio as pin
+    except ImportError:
+        return None
+    p = chain.params
+    model = pin.Model()
+    parent = 0
+    for i in range(chain.n_links):
+        placement = pin.SE3(np.eye(3), np.array([p.l[i - 1] if i else 0.0, 0.0, 0.0]))
+        parent = model.addJoint(parent, pin.JointModelRZ(), placement, f"joint{i + 1}")
+        inertia = pin.Inertia(p.m[i], np.array([p.r[i], 0.0, 0.0]), np.diag([p.I[i]] * 3))
+        model.appendBodyToJoint(parent, inertia, pin.SE3.Identity())
+    model.gravity.linear[:] = [0.0, -p.g, 0.0]
+    return pin, model, model.createData()
+
+
+def run(out: pathlib.Path, sizes: list[int]) -> dict:
+    out.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(0)
+    rows = []
+    for n in tqdm(sizes, desc="chain sizes"):
+        chain = SerialChain(n_links=n)
+        q, v, u = (rng.uniform(-1, 1, n) for _ in range(3))
+        Q, V, U = (rng.uniform(-1, 1, (BATCH, n)) for _ in range(3))
+        row = {
+            "n": n,
+            "rnea_single": median_time(lambda: chain.rnea(q, v, u)),
+            "aba_single": median_time(lambda: chain.aba(q, v, u)),
+            "crba_cholesky_single": median_time(lambda: chain.forward_dynamics_crba(q, v, u)),
+            "rnea_batch_per_env": median_time(lambda: chain.rnea(Q, V, U)) / BATCH,
+            "aba_batch_per_env": median_time(lambda: chain.aba(Q, V, U)) / BATCH,
+        }
+        if n <= 200:  # O(N^3) per environment: skipped beyond
+            row["crba_cholesky_batch_per_env"] = median_time(lambda: chain.forward_dynamics_crba(Q, V, U), repeats=3) / BATCH
+        peer = pinocchio_chain(chain)
+        if peer is not None:
+            pin, model, data = peer
+            row["pin_rnea_single"] = median_time(lambda: pin.rnea(model, data, q, v, u))
+            row["pin_aba_single"] = median_time(lambda: pin.aba(model, data, q, v, u))
+            a_pin = np.array(pin.aba(model, data, q, v, u))
+            row["aba_agreement_rel"] = float(np.max(np.abs(chain.aba(q, v, u) - a_pin)) / np.max(np.abs(a_pin)))
+        rows.append(row)
+    ns = np.array([r["n"] for r in rows], float)
+    big = ns >= 20  # slopes on the asymptotic part (fixed per-call overheads dominate small N)
+    slopes = {}
+    for key in rows[0]:
+        if key in ("n", "aba_agreement_rel"):
+            continue
+        y = np.array([r.get(key, np.nan) for r in rows])
+        sel = big & np.isfinite(y)
+        if sel.sum() >= 2:
+            slopes[key] = float(np.polyfit(np.log(ns[sel]), np.log(y[sel]), 1)[0])
+    result = {"batch": BATCH, "rows": rows, "loglog_slopes_n_ge_20": slopes, "pinocchio": "pin_aba_single" in rows[0]}
+    (out / "bench_chain.json").write_text(json.dumps(result, indent=2))
+    plot(rows, out / "bench_chain.png")
+    print(f"{'N':>5} {'RNEA':>9} {'ABA':>9} {'CRBA+chol':>10} {'ABA/env@256':>12} {'pin aba':>9} {'ABA/pin':>8} {'ABA@256/pin':>12}   [us]")
+    for r in rows:
+        pa = r.get("pin_aba_single")
+        ratio = f"{r['aba_single'] / pa:8.2f}" if pa else "       -"
+        ratio_b = f"{r['aba_batch_per_env'] / pa:12.2f}" if pa else "           -"
+        pin_t = f"{pa * 1e6:9.1f}" if pa else "        -"
+        print(
+            f"{r['n']:5d} {r['rnea_single'] * 1e6:9.1f} {r['aba_single'] * 1e6:9.1f} "
+            f"{r['crba_cholesky_single'] * 1e6:10.1f} {r['aba_batch_per_env'] * 1e6:12.2f} {pin_t} {ratio} {ratio_b}"
+        )
+    print("log-log slopes (N >= 20):", {k: round(s, 2) for k, s in slopes.items()})
+    print(f"written to {out}/bench_chain.json and bench_chain.png")
+    return result
+
+
+def plot(rows: list[dict], path: pathlib.Path) -> None:
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(8, 5))
+    ns = [r["n"] for r in rows]
+    for key, style in [
+        ("rnea_single", "o-"), ("aba_single", "s-"), ("crba_cholesky_single", "^-"),
+        ("aba_batch_per_env", "s--"), ("pin_rnea_single", "o:"), ("pin_aba_single", "s:"),
+    ]:  # fmt: skip
+        ys = [r.get(key, np.nan) * 1e6 for r in rows]
+        if np.any(np.isfinite(ys)):
+            ax.loglog(ns, ys, style, label=key)
+    ax.set_xlabel("links N")
+    ax.set_ylabel("time per call (or per env in a batch of 256) [us]")
+    ax.legend()
+    save(fig, path)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--out", required=True, type=pathlib.Path)
+    p.add_argument("--sizes", type=int, nargs="+", default=SIZES)
+    a = p.parse_args(argv)
+    run(a.out, a.sizes)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
