@@ -34,8 +34,10 @@ class Trajectory:
     q : ndarray, shape (K, ..., nq)
     v : ndarray, shape (K, ..., nv)
     diverged : ndarray of bool, shape (...)
-        Which members of the batch diverged; a diverged member is held at its
-        last finite state from then on.
+        Which members of the batch diverged. With a fixed-step method a
+        diverged member is held at its last finite state from then on; with an
+        adaptive one (a single solve for the whole batch) the trajectory ends at
+        the last finite output and every member is flagged.
     integrator : str
     """
 
@@ -126,18 +128,14 @@ def advance(
         The state at ``t + duration``.
     """
     acc = acceleration(model, u, stabilization)
+    steps = 1 if isinstance(stepper, ScipyIVP) else substeps
+    h = duration / steps
     try:
         with np.errstate(all="ignore"):
-            if isinstance(stepper, ScipyIVP):
-                q, v = stepper.step(acc, t, q, v, duration)
-                substeps = 0
-            h = duration / max(substeps, 1)
-            for k in range(substeps):
+            for k in range(steps):
                 q, v = stepper.step(acc, t + k * h, q, v, h)
                 if stabilization is not None:
                     q, v = model.after_step(q, v, stabilization)
-            if substeps == 0 and stabilization is not None:
-                q, v = model.after_step(q, v, stabilization)
     except np.linalg.LinAlgError:  # M(q) stopped being positive definite: a blow-up
         q = np.full(np.shape(q), np.nan)
         v = np.full(np.shape(v), np.nan)
