@@ -63,6 +63,7 @@ def pinocchio_chain(chain: SerialChain):
         inertia = pin.Inertia(p.m[i], np.array([p.r[i], 0.0, 0.0]), np.diag([p.I[i]] * 3))
         model.appendBodyToJoint(parent, inertia, pin.SE3.Identity())
     model.gravity.linear[:] = [0.0, -p.g, 0.0]
+    model.armature[:] = p.armature
     return pin, model, model.createData()
 
 

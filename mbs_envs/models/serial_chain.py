@@ -2,7 +2,9 @@
 
 ``q_i`` is the angle of link i relative to link i-1 (``q_1`` from +x); every
 joint is a driven revolute about z (``B = I``). Link i: mass ``m_i``, length
-``l_i``, centre of mass at ``r_i`` along the link, inertia ``I_i`` about it.
+``l_i``, centre of mass at ``r_i`` along the link, inertia ``I_i`` about it;
+optional joint ``armature_i`` (a drive's rotor inertia reflected through its
+gear, as in Pinocchio and MuJoCo: ``M -> M + diag(armature)``, default 0).
 With N = 2 this is :class:`~mbs_envs.models.planar2r.Planar2R`.
 
 Algorithms (all in world coordinates; ``th_i = q_1 + ... + q_i`` absolute angles):
@@ -44,6 +46,7 @@ class SerialChainParams(Params):
     r: Any = param(None, "nonnegative", "m", "joint to centre of mass, along the link")
     I: Any = param(None, "nonnegative", "kg m^2", "link inertias about the centre of mass")  # noqa: E741
     g: float = param(9.81, "finite", "m/s^2", "gravity along -y")
+    armature: Any = param(0.0, "nonnegative", "kg m^2", "reflected rotor inertia at each joint (adds to diag M)")
     b: Any = param(0.0, "nonnegative", "N m s/rad", "viscous joint friction")
     f: Any = param(0.0, "nonnegative", "N m", "smoothed Coulomb joint friction")
     v_s: float = param(0.01, "positive", "rad/s", "Coulomb smoothing speed")
@@ -55,7 +58,7 @@ class SerialChainParams(Params):
         n = int(n)
         object.__setattr__(self, "n_links", n)
         defaults = {"m": 1.0 / n, "l": 1.0 / n}
-        for name in ("m", "l", "r", "I", "b", "f"):
+        for name in ("m", "l", "r", "I", "armature", "b", "f"):
             value = getattr(self, name)
             if value is None:
                 value = defaults.get(name)
@@ -89,14 +92,15 @@ class SerialChainParams(Params):
 
 
 @numba.njit(cache=True)
-def _aba_kernel(th, w, px, py, m, cx, cy, Ic, tau, g):  # pragma: no cover - compiled
+def _aba_kernel(th, w, px, py, m, cx, cy, Ic, arm, tau, g):  # pragma: no cover - compiled
     """Articulated-body forward dynamics for a batch of planar chains (world frame).
 
     Spatial motion vectors are ``(w, vOx, vOy)`` (angular rate and the velocity
     of the body point at the world origin); the joint axis at ``p_i`` has
     ``s_i = (1, p_iy, -p_ix)``; body inertia about the origin
     ``[[Ic + m |c|^2, -m c_y, m c_x], [-m c_y, m, 0], [m c_x, 0, m]]``; gravity
-    as a base acceleration ``(0, 0, g)``.
+    as a base acceleration ``(0, 0, g)``; the joint armature ``arm`` (N,) adds
+    to each joint's articulated inertia ``D_i = s_i^T I^A_i s_i + arm_i``.
 
     Arrays are (B, N) with B the flattened batch; returns ddq (B, N).
     """
@@ -141,7 +145,7 @@ def _aba_kernel(th, w, px, py, m, cx, cy, Ic, tau, g):  # pragma: no cover - com
             s0, s1, s2 = 1.0, py[b, i], -px[b, i]
             for k in range(3):
                 U[i, k] = IA[i, k, 0] * s0 + IA[i, k, 1] * s1 + IA[i, k, 2] * s2
-            D[i] = s0 * U[i, 0] + s1 * U[i, 1] + s2 * U[i, 2]
+            D[i] = s0 * U[i, 0] + s1 * U[i, 1] + s2 * U[i, 2] + arm[i]
             u[i] = tau[b, i] - (s0 * pA[i, 0] + s1 * pA[i, 1] + s2 * pA[i, 2])
             if i > 0:
                 Ia = np.empty((3, 3))
@@ -258,7 +262,8 @@ class SerialChain(Model):
         F_sum = _suffix_sum(F, axis=-2)
         cross_cF = c[..., 0] * F[..., 1] - c[..., 1] * F[..., 0]
         moment = _suffix_sum(p_.I * dw + cross_cF, axis=-1)
-        return moment - (p[..., 0] * F_sum[..., 1] - p[..., 1] * F_sum[..., 0])
+        tau = moment - (p[..., 0] * F_sum[..., 1] - p[..., 1] * F_sum[..., 0])
+        return tau + p_.armature * a
 
     # -- the Model interface --------------------------------------------------
 
@@ -275,7 +280,7 @@ class SerialChain(Model):
         pp = np.einsum("...id,...jd->...ij", p, p)
         S1J = S1[..., J, :]  # (..., N, N, 2)
         cross = np.einsum("...ijd,...id->...ij", S1J, p) + np.einsum("...ijd,...jd->...ij", S1J, p)
-        return S0[..., J] - cross + S2[J] * pp
+        return S0[..., J] - cross + S2[J] * pp + np.diag(p_.armature)
 
     def coriolis(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """``C(q, v) v`` from RNEA with zero acceleration and no gravity."""
@@ -323,7 +328,7 @@ class SerialChain(Model):
         flat = lambda x: np.ascontiguousarray(np.broadcast_to(x, shape).reshape(-1, n), dtype=float)  # noqa: E731
         out = _aba_kernel(
             flat(k["th"]), flat(v), flat(k["p"][..., 0]), flat(k["p"][..., 1]),
-            flat(p_.m), flat(k["c"][..., 0]), flat(k["c"][..., 1]), flat(p_.I), flat(tau), float(p_.g),
+            flat(p_.m), flat(k["c"][..., 0]), flat(k["c"][..., 1]), flat(p_.I), p_.armature, flat(tau), float(p_.g),
         )  # fmt: skip
         return out.reshape(shape)
 
@@ -338,7 +343,7 @@ class SerialChain(Model):
         return Model.forward_dynamics(self, q, v, u)
 
     def kinetic_energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """``sum_i m_i |v_Ci|^2 / 2 + I_i w_i^2 / 2`` from the link velocities (O(N), not via M)."""
+        """``sum_i m_i |v_Ci|^2 / 2 + I_i w_i^2 / 2 + armature_i v_i^2 / 2`` from the link velocities (O(N), not via M)."""
         p_ = self.params
         v = as_vector(v, self.n_links, "v")
         k = self.kinematics(q)
@@ -348,4 +353,4 @@ class SerialChain(Model):
         tip_vel = np.cumsum(p_.l[:, None] * link_vel, axis=-2)
         joint_vel = np.concatenate([np.zeros(tip_vel.shape[:-2] + (1, 2)), tip_vel[..., :-1, :]], axis=-2)
         v_c = joint_vel + p_.r[:, None] * link_vel
-        return 0.5 * np.sum(p_.m * np.sum(v_c**2, axis=-1) + p_.I * w**2, axis=-1)
+        return 0.5 * np.sum(p_.m * np.sum(v_c**2, axis=-1) + p_.I * w**2 + p_.armature * v**2, axis=-1)

@@ -20,7 +20,7 @@ RNG = np.random.default_rng(11)
 def random_chain(n, rng=RNG):
     l = rng.uniform(0.1, 1.0, n)  # noqa: E741
     m = rng.uniform(0.1, 2.0, n)
-    return SerialChain(n_links=n, m=m, l=l, r=l * rng.uniform(0, 1, n), I=m * l**2 * rng.uniform(0.01, 0.2, n), b=rng.uniform(0, 0.2, n), f=rng.uniform(0, 0.1, n), v_s=0.3)
+    return SerialChain(n_links=n, m=m, l=l, r=l * rng.uniform(0, 1, n), I=m * l**2 * rng.uniform(0.01, 0.2, n), armature=rng.uniform(0, 0.05, n), b=rng.uniform(0, 0.2, n), f=rng.uniform(0, 0.1, n), v_s=0.3)
 
 
 def random_state(n, batch=(), rng=RNG):
@@ -45,9 +45,11 @@ def test_two_links_reproduce_planar2r():
 @functools.lru_cache(maxsize=None)
 def sympy_chain3():
     ch = planar_chain(3)
-    M, Cv, G = lagrange(ch["T"], ch["V"], ch["q"], ch["dq"], simplify=False)
+    arm = sp.symbols("armature1:4")
+    T = ch["T"] + sum(a * dq**2 for a, dq in zip(arm, ch["dq"])) / 2  # rotor energy of each drive
+    M, Cv, G = lagrange(T, ch["V"], ch["q"], ch["dq"], simplify=False)
     names = [f"{k}{i}" for k in ("m", "l", "r", "I") for i in (1, 2, 3)] + ["g"]
-    args = [ch["syms"][n] for n in names] + ch["q"] + ch["dq"]
+    args = [ch["syms"][n] for n in names] + list(arm) + ch["q"] + ch["dq"]
     return names, {k: sp.lambdify(args, e, "numpy") for k, e in dict(M=M, Cv=Cv, G=G).items()}
 
 
@@ -59,7 +61,7 @@ def test_three_links_match_sympy_lagrange():
     vals["g"] = p.g
     for _ in range(10):
         q, v = random_state(3)
-        args = [vals[n] for n in names] + list(q) + list(v)
+        args = [vals[n] for n in names] + list(p.armature) + list(q) + list(v)
         np.testing.assert_allclose(chain.mass_matrix(q), np.array(f["M"](*args), float), atol=1e-12)
         np.testing.assert_allclose(chain.coriolis(q, v), np.ravel(f["Cv"](*args)), atol=1e-12)
         np.testing.assert_allclose(chain.gravity(q), np.ravel(f["G"](*args)), atol=1e-12)
