@@ -17,6 +17,7 @@ ENV_IDS = {
     "mbs_envs/Planar2R-v0": ("mbs_envs.envs.planar2r:Planar2REnv", 500),
     "mbs_envs/FourBar-v0": ("mbs_envs.envs.fourbar:FourBarEnv", 500),
     "mbs_envs/RollingDisk-v0": ("mbs_envs.envs.rolling_disk:RollingDiskEnv", 1000),
+    "mbs_envs/SerialChain-v0": ("mbs_envs.envs.serial_chain:SerialChainEnv", 500),
 }
 
 for _id, (_entry, _steps) in ENV_IDS.items():
