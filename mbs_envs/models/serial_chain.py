@@ -28,7 +28,6 @@ from typing import Any
 import numba
 import numpy as np
 
-from ..linalg import cholesky_solve
 from .base import Model, Params, as_vector, param, smoothed_friction
 
 
@@ -133,7 +132,7 @@ def _aba_kernel(th, w, px, py, m, cx, cy, Ic, arm, tau, g):  # pragma: no cover 
             IA[i, 0, 0], IA[i, 0, 1], IA[i, 0, 2] = I00, -mi * y, mi * x
             IA[i, 1, 0], IA[i, 1, 1], IA[i, 1, 2] = -mi * y, mi, 0.0
             IA[i, 2, 0], IA[i, 2, 1], IA[i, 2, 2] = mi * x, 0.0, mi
-            h0 = I00 * v0 - mi * y * v1 + mi * x * v2
+            # momentum h = I v; its angular part does not enter the planar v x* h
             h1 = -mi * y * v0 + mi * v1
             h2 = mi * x * v0 + mi * v2
             # p = v x* h = (vx hy - vy hx, -w hy, w hx)
