@@ -12,6 +12,14 @@ A plain RK method has ``A_q = A_v`` and ``b_q = b_v``; semi-implicit
 (symplectic) Euler differs only in its ``q`` coefficients. A stage whose
 acceleration nobody reads is not evaluated.
 
+Fixed-step implicit methods for stiff cases (large friction, high-gain
+loops, light links) are singly diagonally implicit, stiffly accurate and
+L-stable (:data:`DIRK_TABLEAUX`, run by :class:`ImplicitRK`): implicit Euler
+(order 1), Alexander's SDIRK2 (order 2) and SDIRK3 (order 3). Each stage is
+solved by a simplified Newton iteration on the stage velocity with a
+finite-difference Jacobian of ``a(t, q, v)``; where Newton fails the step is
+halved (member by member), so a stiff start does not end an episode.
+
 Adaptive and stiff methods come from :func:`scipy.integrate.solve_ivp`
 (:class:`ScipyIVP`), taking ``rtol`` and ``atol``.
 
@@ -250,12 +258,227 @@ class ScipyIVP:
         return qs[-1], vs[-1]
 
 
-Stepper = ExplicitRK | ScipyIVP
+@dataclasses.dataclass(frozen=True)
+class DirkTableau:
+    """A singly diagonally implicit, stiffly accurate Runge-Kutta method.
+
+    Attributes
+    ----------
+    c : tuple, shape (s,)
+    A : tuple of tuples, shape (s, s)
+        Lower triangular, every diagonal entry ``gamma``; the last row is the
+        weights ``b`` (stiffly accurate: the step's result is the last stage).
+    order : int
+    """
+
+    c: tuple
+    A: tuple
+    order: int
+
+    def __post_init__(self) -> None:
+        A = np.array(self.A, float)
+        s = len(self.c)
+        if A.shape != (s, s) or np.any(np.triu(A, 1) != 0):
+            raise ValueError("a DIRK tableau is lower triangular (s, s)")
+        if not np.allclose(np.diag(A), A[0, 0]) or A[0, 0] <= 0:
+            raise ValueError("a singly diagonally implicit tableau has one positive diagonal value")
+        if not np.allclose(A.sum(axis=1), self.c, rtol=0, atol=1e-14):
+            raise ValueError("row sums of A must equal c")
+
+    @property
+    def gamma(self) -> float:
+        return float(self.A[0][0])
+
+
+_G2 = 1.0 - np.sqrt(0.5)  # Alexander (1977), 2 stages, order 2, L-stable
+_G3 = 0.43586652150845899942  # root of x^3 - 3x^2 + 3x/2 - 1/6 in (1/6, 1/2)
+DIRK_TABLEAUX: dict[str, DirkTableau] = {
+    # implicit (backward) Euler, order 1, L-stable
+    "implicit_euler": DirkTableau(c=(1.0,), A=((1.0,),), order=1),
+    "sdirk2": DirkTableau(c=(_G2, 1.0), A=((_G2, 0.0), (1.0 - _G2, _G2)), order=2),
+    # Alexander (1977), 3 stages, order 3, L-stable
+    "sdirk3": DirkTableau(
+        c=(_G3, (1.0 + _G3) / 2, 1.0),
+        A=(
+            (_G3, 0.0, 0.0),
+            ((1.0 - _G3) / 2, _G3, 0.0),
+            (-(6 * _G3**2 - 16 * _G3 + 1) / 4, (6 * _G3**2 - 20 * _G3 + 5) / 4, _G3),
+        ),
+        order=3,
+    ),
+}
+
+
+def acceleration_jacobian(
+    acc: Acceleration, t: float, q: np.ndarray, v: np.ndarray, a0: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Forward-difference Jacobians ``(da/dq, da/dv)`` of ``a(t, q, v)``.
+
+    All ``2 n`` perturbed states go through ``acc`` as one batch (stacked on
+    a new leading axis), so the cost is one batched call.
+
+    Parameters
+    ----------
+    acc : callable ``a(t, q, v)``, batched over leading dimensions
+    t : float
+    q, v : ndarray, shape (..., n)
+    a0 : ndarray, shape (..., n), optional
+        ``acc(t, q, v)`` if already known.
+
+    Returns
+    -------
+    A_q, A_v : ndarray, shape (..., n, n)
+        ``A_q[..., i, j] = d a_i / d q_j``.
+    """
+    n = q.shape[-1]
+    if a0 is None:
+        a0 = acc(t, q, v)
+    eps_q = np.sqrt(np.finfo(float).eps) * np.maximum(1.0, np.abs(q))  # (..., n)
+    eps_v = np.sqrt(np.finfo(float).eps) * np.maximum(1.0, np.abs(v))
+    eye = np.eye(n)
+    # perturbation k on axis 0: (n, ..., n)
+    dq = np.moveaxis(eps_q[..., None, :] * eye, -2, 0)
+    dv = np.moveaxis(eps_v[..., None, :] * eye, -2, 0)
+    zeros = np.zeros_like(dq)
+    Q = np.concatenate([q + dq, q + zeros])
+    V = np.concatenate([v + zeros, v + dv])
+    a = np.asarray(acc(t, Q, V))
+    da = a - a0  # (2n, ..., n): [k, ..., i] = a_i(perturb k) - a_i
+    A_q = np.moveaxis(da[:n], 0, -1) / eps_q[..., None, :]
+    A_v = np.moveaxis(da[n:], 0, -1) / eps_v[..., None, :]
+    return A_q, A_v
+
+
+@dataclasses.dataclass(frozen=True)
+class ImplicitRK:
+    """Fixed-step stepper running a :class:`DirkTableau` (see the module docstring).
+
+    Stage ``i`` with ``Qh = q + h sum_{j<i} a_ij V_j``, ``Vh = v + h sum_{j<i} a_ij K_j``
+    solves, with ``g = h gamma``,
+
+        R(V) = V - Vh - g a(t + c_i h, Qh + g V, V) = 0
+
+    by simplified Newton with ``J = I - g (g da/dq + da/dv)`` (the Jacobian
+    at the step's start, one inversion per step; re-evaluated at the iterate
+    when a stage converges slowly), then ``K_i = (V - Vh) / g``.
+
+    Attributes
+    ----------
+    name : str
+    tableau : DirkTableau
+    newton_tol : float
+        Converged when ``|dV| <= newton_tol (1 + |V|)`` (max norm) per member.
+    max_iter : int
+        Simplified Newton iterations per Jacobian.
+    max_refresh : int
+        Jacobian re-evaluations (at the current iterate) per stage before
+        the step is halved.
+    max_halvings : int
+        Depth of step halving before the member's state is set to NaN
+        (reported as divergence by the caller).
+    """
+
+    name: str
+    tableau: DirkTableau
+    newton_tol: float = 1e-10
+    max_iter: int = 8
+    max_refresh: int = 3
+    max_halvings: int = 6
+    adaptive = False
+
+    @property
+    def order(self) -> int:
+        return self.tableau.order
+
+    def step(
+        self, acc: Acceleration, t: float, q: np.ndarray, v: np.ndarray, h: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Advance ``(q, v)`` from ``t`` to ``t + h``; batched, NaN for members that fail.
+
+        Returns
+        -------
+        q, v : ndarray
+        """
+        return self._step(acc, t, np.asarray(q, float), np.asarray(v, float), h, self.max_halvings)
+
+    def _step(self, acc, t, q, v, h, halvings):
+        q1, v1, ok = self._try_step(acc, t, q, v, h)
+        if np.all(ok):
+            return q1, v1
+        if halvings == 0:
+            bad = ~ok[..., None]
+            return np.where(bad, np.nan, q1), np.where(bad, np.nan, v1)
+        qm, vm = self._step(acc, t, q, v, h / 2, halvings - 1)
+        q2, v2 = self._step(acc, t + h / 2, qm, vm, h / 2, halvings - 1)
+        keep = ok[..., None]
+        return np.where(keep, q1, q2), np.where(keep, v1, v2)
+
+    def _try_step(self, acc, t, q, v, h):
+        tab = self.tableau
+        g = h * tab.gamma
+        J_inv = self._newton_matrix(acc, t, q, v, g)
+        ok = np.ones(q.shape[:-1], bool)
+        V: list[np.ndarray] = []
+        K: list[np.ndarray] = []
+        for i, ci in enumerate(tab.c):
+            Qh, Vh = q, v
+            for j in range(i):
+                Qh = Qh + (h * tab.A[i][j]) * V[j]
+                Vh = Vh + (h * tab.A[i][j]) * K[j]
+            ti = t + ci * h
+            Vi, conv = self._newton(acc, ti, Qh, Vh, g, J_inv, v if i == 0 else V[-1], ~ok)
+            for _ in range(self.max_refresh):  # slow convergence: Jacobian at the iterate
+                if np.all(conv | ~ok):
+                    break
+                J_new = self._newton_matrix(acc, ti, Qh + g * Vi, Vi, g)
+                Vi, conv = self._newton(acc, ti, Qh, Vh, g, J_new, Vi, conv | ~ok)
+            ok = ok & conv
+            V.append(Vi)
+            K.append((Vi - Vh) / g)
+        # stiffly accurate: the last stage is the result
+        Qs = q + h * sum(tab.A[-1][j] * V[j] for j in range(len(V)))
+        return Qs, V[-1], ok
+
+    @staticmethod
+    def _newton_matrix(acc, t, q, v, g):
+        """``(I - g (g da/dq + da/dv))^-1`` at ``(t, q, v)``; identity where not finite."""
+        A_q, A_v = acceleration_jacobian(acc, t, q, v)
+        n = q.shape[-1]
+        J = np.eye(n) - g * (g * A_q + A_v)
+        finite = np.all(np.isfinite(J), axis=(-2, -1))
+        J = np.where(finite[..., None, None], J, np.eye(n))
+        try:
+            return np.linalg.inv(J)
+        except np.linalg.LinAlgError:  # singular: let Newton fail and the step halve
+            return np.zeros_like(J)
+
+    def _newton(self, acc, t, Qh, Vh, g, J_inv, V0, frozen):
+        """Solve ``V - Vh - g a(t, Qh + g V, V) = 0`` for the members not ``frozen``.
+
+        Returns the iterate and which members converged (frozen ones keep ``V0``
+        and count as converged).
+        """
+        V = V0
+        done = np.array(frozen, bool)
+        for _ in range(self.max_iter):
+            R = V - Vh - g * np.asarray(acc(t, Qh + g * V, V))
+            dV = -np.einsum("...ij,...j->...i", J_inv, R)
+            finite = np.all(np.isfinite(dV), axis=-1)
+            dV = np.where((done | ~finite)[..., None], 0.0, dV)
+            V = V + dV
+            small = np.max(np.abs(dV), axis=-1) <= self.newton_tol * (1.0 + np.max(np.abs(V), axis=-1))
+            done = done | (small & finite)
+            if np.all(done | ~finite):
+                break
+        return V, done
+
+
+Stepper = ExplicitRK | ImplicitRK | ScipyIVP
 
 
 def available() -> tuple[str, ...]:
     """Names accepted by :func:`get`, ``simulate`` and the environments."""
-    return tuple(TABLEAUX) + tuple(SCIPY_METHODS)
+    return tuple(TABLEAUX) + tuple(DIRK_TABLEAUX) + tuple(SCIPY_METHODS)
 
 
 def get(name: str, **options: Any) -> Stepper:
@@ -282,6 +505,12 @@ def get(name: str, **options: Any) -> Stepper:
                 f"integrator {name!r} is fixed-step and takes no options, got {sorted(options)}"
             )
         return ExplicitRK(key, TABLEAUX[key])
+    if key in DIRK_TABLEAUX:
+        if options:
+            raise ValueError(
+                f"integrator {name!r} is fixed-step and takes no options, got {sorted(options)}"
+            )
+        return ImplicitRK(key, DIRK_TABLEAUX[key])
     if key in SCIPY_METHODS:
         unknown = sorted(set(options) - {"rtol", "atol"})
         if unknown:
