@@ -60,3 +60,18 @@ def test_bench_chain_runs(tmp_path):
     result = script["run"](tmp_path, sizes=[2, 20, 40])
     assert "aba_single" in result["loglog_slopes_n_ge_20"]
     assert (tmp_path / "bench_chain.json").exists() and (tmp_path / "bench_chain.png").exists()
+
+
+def test_work_precision_tiny_configuration(tmp_path):
+    script = load_script("work_precision.py")
+    rows = script["run"](tmp_path, quick=True, scenes=["planar2r", "fourbar-projection"], methods=["rk4", "sdirk2", "dop853"], n_fixed=2, n_adaptive=2)
+    assert len(rows) == 2 * 3 * 2
+    for name in ("work_precision.csv", "work_precision.md", "work_precision.json", "work_precision_planar2r.png", "work_precision_fourbar-projection.png"):
+        assert (tmp_path / name).stat().st_size > 0
+    header = (tmp_path / "work_precision.csv").read_text().splitlines()[0].split(",")
+    for column in ("scene", "integrator", "setting", "state_error", "energy_error", "constraint_error", "cpu_s"):
+        assert column in header
+    rk4 = {r["setting"]: r["state_error"] for r in rows if r["scene"] == "planar2r" and r["integrator"] == "rk4"}
+    assert rk4[0.01] < rk4[0.02] / 8  # fourth order: ~16x per halving
+    fb = [r for r in rows if r["scene"] == "fourbar-projection"]
+    assert all(r["constraint_error"] < 1e-10 for r in fb)  # projection keeps the loop closed

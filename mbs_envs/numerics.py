@@ -1,0 +1,229 @@
+"""Accuracy against cost: the measurements behind ``scripts/work_precision.py``
+and ``scripts/stiff_cases.py``.
+
+A :class:`Case` is a model, a start state, an input and a horizon. One run of
+one integrator at one setting (a step ``dt`` for fixed-step methods, a
+tolerance ``rtol`` for adaptive ones) is scored by :func:`score` against a
+reference solution computed once per case by a different, high-accuracy
+method (:func:`reference`):
+
+- ``state_error``: ``max(|q(T) - q_ref(T)|, |v(T) - v_ref(T)|)`` (max norm) [rad, rad/s, m];
+- ``energy_error``: ``max_t |E(t) - E(0)|`` [J], for cases without input or
+  friction (where energy is a conserved quantity), else NaN;
+- ``constraint_error``: ``max_t max(|phi(q)|, |Psi(q) v|)`` for constrained
+  models (the position and velocity residuals), else NaN;
+- ``cpu_s``: process CPU time of the run (``time.process_time``), and
+  ``wall_s``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable, Iterable
+from typing import Any
+
+import numpy as np
+
+from . import integrators
+from .models import FourBar, Planar2R, RollingDisk, SerialChain
+from .models.base import Model
+from .simulate import Input, simulate
+
+FIXED = ("euler", "semi_implicit_euler", "midpoint", "rk4", "implicit_euler", "sdirk2", "sdirk3")
+ADAPTIVE = ("rk45", "dop853", "radau", "bdf", "lsoda")
+
+
+@dataclasses.dataclass(frozen=True)
+class Case:
+    """A simulation to measure.
+
+    Attributes
+    ----------
+    scene : str
+        Name used in tables and file names.
+    model : Model
+    q0, v0 : ndarray
+        Start state (consistent with the constraints of a constrained model).
+    t_final : float
+        Horizon [s].
+    u : None, ndarray or callable ``u(t, q, v)``
+        Input (None: free motion).
+    stabilization : str, optional
+        Constrained models: ``"projection"``, ``"baumgarte"`` or ``"none"``.
+    dt_out : float
+        Output grid of adaptive runs (energy and constraint errors are
+        taken on it) [s].
+    conservative : bool
+        Whether the energy is conserved (no input, no friction).
+    reference_method : str
+        ``"dop853"`` (non-stiff) or ``"radau"`` (stiff) for the reference.
+    """
+
+    scene: str
+    model: Model
+    q0: np.ndarray
+    v0: np.ndarray
+    t_final: float
+    u: Input = None
+    stabilization: str | None = None
+    dt_out: float = 0.01
+    conservative: bool = True
+    reference_method: str = "dop853"
+
+
+@dataclasses.dataclass(frozen=True)
+class Reference:
+    """The reference final state and an estimate of its own error.
+
+    ``error_estimate`` is the difference between the reference and the same
+    method at a 100x looser tolerance: an upper bound for the reference's error
+    when the method converges.
+    """
+
+    q: np.ndarray
+    v: np.ndarray
+    error_estimate: float
+    method: str
+    rtol: float
+
+
+def reference(case: Case, rtol: float = 1e-12) -> Reference:
+    """High-accuracy final state of ``case`` (no stabilization: the exact index-1 ODE)."""
+    runs = []
+    for tol in (rtol, 100 * rtol):
+        tr = simulate(
+            case.model, case.q0, case.v0, case.t_final, dt=case.t_final, integrator=case.reference_method,
+            u=case.u, stabilization="none" if case.model.constrained else None, rtol=tol, atol=tol,
+        )  # fmt: skip
+        if bool(np.any(tr.diverged)):
+            raise RuntimeError(f"reference solution of {case.scene} failed")
+        runs.append((tr.q[-1], tr.v[-1]))
+    (q, v), (q2, v2) = runs
+    est = float(max(np.max(np.abs(q - q2)), np.max(np.abs(v - v2))))
+    return Reference(q, v, est, case.reference_method, rtol)
+
+
+def constraint_error(model: Model, q: np.ndarray, v: np.ndarray) -> float:
+    """``max(|phi(q)|, |Psi(q) v|)`` over all samples, NaN for unconstrained models."""
+    if not model.constrained:
+        return float("nan")
+    phi = model.constraint_residual(q)  # the holonomic rows
+    dphi = np.einsum("...ij,...j->...i", model.constraint_jacobian(q), v)  # all rows
+    return float(max(np.max(np.abs(phi)), np.max(np.abs(dphi))))
+
+
+def score(case: Case, ref: Reference, integrator: str, setting: float) -> dict[str, Any]:
+    """Run ``case`` with one integrator at one setting and measure it (see the module docstring).
+
+    Parameters
+    ----------
+    setting : float
+        ``dt`` [s] for fixed-step methods, ``rtol`` for adaptive ones (``atol = rtol``).
+
+    Returns
+    -------
+    dict
+        One CSV row: ``scene, integrator, kind, setting_name, setting,
+        state_error, energy_error, constraint_error, cpu_s, wall_s, steps, diverged``.
+    """
+    adaptive = integrators.get(integrator).adaptive
+    kwargs = {"rtol": setting, "atol": setting} if adaptive else {}
+    dt = case.dt_out if adaptive else setting
+    c0, w0 = time.process_time(), time.perf_counter()
+    tr = simulate(
+        case.model, case.q0, case.v0, case.t_final, dt=dt, integrator=integrator, u=case.u,
+        stabilization=case.stabilization, **kwargs,
+    )  # fmt: skip
+    cpu, wall = time.process_time() - c0, time.perf_counter() - w0
+    diverged = bool(np.any(tr.diverged)) or not np.isclose(tr.t[-1], case.t_final)
+    row = {
+        "scene": case.scene,
+        "integrator": integrator,
+        "kind": "adaptive" if adaptive else "fixed",
+        "setting_name": "rtol" if adaptive else "dt",
+        "setting": setting,
+        "state_error": float("inf"),
+        "energy_error": float("nan"),
+        "constraint_error": float("nan"),
+        "cpu_s": cpu,
+        "wall_s": wall,
+        "steps": None if adaptive else len(tr.t) - 1,
+        "diverged": diverged,
+    }
+    if diverged:
+        return row
+    row["state_error"] = float(max(np.max(np.abs(tr.q[-1] - ref.q)), np.max(np.abs(tr.v[-1] - ref.v))))
+    if case.conservative:
+        E = case.model.energy(tr.q, tr.v)
+        row["energy_error"] = float(np.max(np.abs(E - E[0])))
+    row["constraint_error"] = constraint_error(case.model, tr.q, tr.v)
+    return row
+
+
+def fixed_steps(coarsest: float, n: int) -> list[float]:
+    """``coarsest * 2^-k`` for ``k = 0 .. n-1`` [s]."""
+    return [coarsest * 2.0**-k for k in range(n)]
+
+
+def work_precision_cases(quick: bool = False) -> list[Case]:
+    """The scenes of the work-precision report: free motion (energy conserved) of each.
+
+    2R and chains swing from a bent posture; the four-bar (with each
+    stabilization) turns its crank; the disk rolls upright above its critical
+    spin with a small lean. ``quick`` shortens horizons and drops the large chain.
+    """
+    T = 1.0 if quick else 2.0
+    cases = [Case("planar2r", Planar2R(), np.array([-1.0, 0.8]), np.array([0.5, -1.0]), T)]
+    fb = FourBar()
+    q0, v0 = fb.consistent_state(0.2, 4.0)
+    for kind in ("projection", "baumgarte", "none"):
+        cases.append(Case(f"fourbar-{kind}", fb, q0, v0, T, stabilization=kind))
+    disk = RollingDisk()
+    qd, vd = disk.rolling_state(lean=0.1, dspin=2.0 * disk.critical_spin, dlean=0.2)
+    cases.append(Case("rollingdisk", disk, qd, vd, T, stabilization="projection"))
+    for n in (5,) if quick else (5, 50):
+        chain = SerialChain(n_links=n, armature=np.abs(SerialChain(n_links=n).gravity(np.zeros(n))) / 30.0)
+        q0c = np.r_[-0.3, np.full(n - 1, 1.5 / n)]
+        cases.append(Case(f"chain-{n}", chain, q0c, np.zeros(n), T / 2))
+    return cases
+
+
+def run_grid(
+    cases: Iterable[Case],
+    settings: Callable[[Case, str], list[float]],
+    methods: Iterable[str],
+    progress: Callable[[str], None] | None = None,
+) -> tuple[list[dict[str, Any]], dict[str, Reference]]:
+    """Score every case with every method at every setting.
+
+    Parameters
+    ----------
+    settings : callable ``(case, method) -> list of settings``
+    progress : callable, optional
+        Called once per run with a short label (e.g. a progress bar's update).
+
+    Returns
+    -------
+    rows : list of dict
+        One per case x method x setting (see :func:`score`), with the
+        reference's error estimate added.
+    refs : dict scene -> Reference
+    """
+    rows, refs = [], {}
+    for case in cases:
+        ref = refs[case.scene] = reference(case)
+        for method in methods:
+            for setting in settings(case, method):
+                row = score(case, ref, method, setting)
+                row["reference_error_estimate"] = ref.error_estimate
+                rows.append(row)
+                if progress is not None:
+                    progress(f"{case.scene} {method} {setting:g}")
+    return rows, refs
+
+
+def cheapest(rows: list[dict[str, Any]], target: float, key: str = "state_error") -> dict[str, Any] | None:
+    """The run with the least CPU time whose ``key`` error is at most ``target``."""
+    ok = [r for r in rows if not r["diverged"] and r[key] <= target]
+    return min(ok, key=lambda r: r["cpu_s"]) if ok else None
