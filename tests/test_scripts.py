@@ -75,3 +75,19 @@ def test_work_precision_tiny_configuration(tmp_path):
     assert rk4[0.01] < rk4[0.02] / 8  # fourth order: ~16x per halving
     fb = [r for r in rows if r["scene"] == "fourbar-projection"]
     assert all(r["constraint_error"] < 1e-10 for r in fb)  # projection keeps the loop closed
+
+
+def test_stiff_cases_tiny_configuration(tmp_path):
+    """Viscous b = 400: RK4 fails (reported) above its limit; SDIRK2 is usable 10x beyond it."""
+    script = load_script("stiff_cases.py")
+    result = script["run"](tmp_path, quick=True, cases=["viscous b=400"], methods=["rk4", "sdirk2"])
+    rows = {r["integrator"]: r for r in result["summary"]}
+    limit = rows["rk4"]["rk4_limit_predicted"]
+    assert rows["rk4"]["largest_stable_dt"] is None or rows["rk4"]["largest_stable_dt"] <= limit
+    assert rows["rk4"]["unstable_flagged"] >= 1 and rows["rk4"]["silent_failures"] <= 1
+    assert rows["sdirk2"]["largest_stable_dt"] >= 10 * limit
+    assert rows["sdirk2"]["state_error"] < 1e-5
+    # the disk falling flat is reported, never returned as NaN
+    assert all(r["flagged"] and r["all_outputs_finite"] for r in result["singular"])
+    for name in ("stiff_cases.md", "stiff_cases.csv", "stiff_summary.csv", "stiff_cases.json", "stiff_cases.png"):
+        assert (tmp_path / name).stat().st_size > 0

@@ -1,0 +1,222 @@
+"""Stiff and extreme cases: which integrators stay stable at which step, and
+whether a failure is reported (the logic of ``scripts/stiff_cases.py``).
+
+Every case is a :class:`mbs_envs.numerics.Case`. :func:`scan` runs one
+fixed-step integrator from the coarsest step down, halving, until a run is
+*stable*: not flagged as diverged and within ``accept`` of the reference at
+the final time (a bounded but wrong answer is not stable). Runs that are
+neither stable nor flagged are *silent failures* and counted. Cases whose
+true motion ends in a singularity (the disk falling flat) are scored on
+whether that is reported instead (:func:`singular_case_row`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+
+from . import integrators, numerics
+from .models import FourBar, Planar2R, RollingDisk, SerialChain
+from .models.base import Model
+from .references import SumOfSines
+from .simulate import acceleration, simulate
+
+Case = numerics.Case
+
+
+def spectral_radius(case: Case) -> float:
+    """Largest ``|eigenvalue|`` of the linearized first-order system at the start [1/s].
+
+    ``J = [[0, I], [da/dq, da/dv]]`` with finite-difference ``da/dq``, ``da/dv``
+    (:func:`mbs_envs.integrators.acceleration_jacobian`). An explicit method
+    with real stability interval ``[-beta, 0]`` needs ``dt < beta / rho``
+    (RK4: ``beta = 2.785``) when the fast eigenvalue is real and negative.
+    """
+    stab = case.model.stabilization(case.stabilization) if case.model.constrained else None
+    acc = acceleration(case.model, case.u, stab)
+    A_q, A_v = integrators.acceleration_jacobian(acc, 0.0, np.asarray(case.q0, float), np.asarray(case.v0, float))
+    n = A_q.shape[-1]
+    J = np.block([[np.zeros((n, n)), np.eye(n)], [A_q, A_v]])
+    return float(np.max(np.abs(np.linalg.eigvals(J))))
+
+
+def pd_law(kp: float, kd: float, q_star: np.ndarray):
+    """``u = kp (q* - q) - kd v``: a high-gain regulator (continuous in time)."""
+    return lambda t, q, v: kp * (q_star - q) - kd * v
+
+
+def computed_torque_law(model: Model, reference: SumOfSines, kp: float, kd: float):
+    """``u = inverse_dynamics(q, v, a_ref + kd (v_ref - v) + kp (q_ref - q))`` (continuous)."""
+
+    def u(t, q, v):
+        q_ref, v_ref, a_ref = reference(t)
+        return model.inverse_dynamics(q, v, a_ref + kd * (v_ref - v) + kp * (q_ref - q))
+
+    return u
+
+
+def chain(n: int, armature: bool) -> SerialChain:
+    """The default rope of ``n`` links, bare or with SerialChain-v0's drives' armature."""
+    if not armature:
+        return SerialChain(n_links=n)
+    return SerialChain(n_links=n, armature=np.abs(SerialChain(n_links=n).gravity(np.zeros(n))) / 30.0)
+
+
+def stiff_cases(quick: bool = False) -> list[Case]:
+    """The stiff and extreme cases of the report (see ``docs/numerics.md``)."""
+    q0, v0 = np.array([-1.0, 0.5]), np.array([1.0, -2.0])
+    cases = [
+        Case("viscous b=400", Planar2R(b1=400.0, b2=400.0), q0, v0, 1.0, u=np.array([30.0, 5.0]),
+             conservative=False, reference_method="radau"),
+        Case("Coulomb f=2, v_s=1e-4", Planar2R(f1=2.0, f2=2.0, v_s=1e-4), q0, v0, 1.0,
+             conservative=False, reference_method="radau"),
+        Case("PD kp=1e5, kd=2e3", Planar2R(), q0, v0, 1.0, u=pd_law(1e5, 2e3, np.array([-0.5, 0.5])),
+             conservative=False, reference_method="radau"),
+    ]  # fmt: skip
+    ref = SumOfSines(np.array([-1.2, 0.4]), np.array([[0.3], [0.5]]), np.array([[2.0], [3.0]]), np.zeros((2, 1)))
+    m2r = Planar2R()
+    cases.append(
+        Case("computed torque w=1000", m2r, q0, v0, 1.0, u=computed_torque_law(m2r, ref, 1e6, 2e3),
+             conservative=False, reference_method="radau")
+    )  # fmt: skip
+    for label, kw in {
+        "mass ratio 1e-3": {"m1": 1.0, "m2": 1e-3, "I1": 1 / 12, "I2": 1e-3 / 12},
+        "mass ratio 1e3": {"m1": 1.0, "m2": 1e3, "I1": 1 / 12, "I2": 1e3 / 12},
+        "inertia ratio 1e-3 (r2=0)": {"m2": 1.0, "r2": 0.0, "I2": 1e-3 / 12},
+    }.items():
+        cases.append(Case(label, Planar2R(**kw), q0, v0, 1.0))
+    tr = FourBar(l0=1.0, l1=0.9, l2=0.5, l3=0.7)  # non-Grashof triple rocker: the crank meets toggles
+    qt, vt = tr.consistent_state(1.2, 3.0)
+    cases.append(Case("four-bar toggles (triple rocker)", tr, qt, vt, 2.0, stabilization="projection"))
+    cp = FourBar(l0=1.0, l1=0.4, l2=1.0, l3=0.4)  # parallelogram: change point at th1 = 0
+    qc, vc = cp.consistent_state(0.5, -3.0)
+    cases.append(Case("four-bar change point (parallelogram)", cp, qc, vc, 1.0, stabilization="projection"))
+    for n in (200,) if quick else (200, 500):
+        cases.append(Case(f"chain N={n}, drives", chain(n, True), np.r_[-0.3, np.full(n - 1, 1.5 / n)], np.zeros(n), 0.3))
+    cases.append(Case("chain N=200, bare", chain(200, False), np.r_[-0.3, np.full(199, 1.5 / 200)], np.zeros(200), 0.3))
+    return cases
+
+
+def singular_cases() -> list[Case]:
+    """Cases whose true motion ends at a coordinate singularity: the disk falling flat."""
+    disk = RollingDisk()
+    q, v = disk.rolling_state(lean=1.2, dspin=0.3 * disk.critical_spin)
+    return [Case("disk falls flat", disk, q, v, 3.0, stabilization="projection")]
+
+
+def scan(case: Case, ref: numerics.Reference, method: str, dts: list[float], accept: float = 1e-2) -> list[dict[str, Any]]:
+    """Run ``method`` at ``dts`` (coarsest first) until a run is stable; return every row.
+
+    Each row is :func:`mbs_envs.numerics.score`'s with ``stable`` and
+    ``silent_failure`` added. Where the reference itself is not determined to
+    ``accept`` (its error estimate is larger: motion through a change point,
+    where the branch taken is decided by rounding), stability is judged on the
+    invariants instead: energy error at most ``accept`` J and constraint error
+    at most 1e-6.
+    """
+    ill_posed = ref.error_estimate > accept
+    rows = []
+    for dt in sorted(dts, reverse=True):
+        row = numerics.score(case, ref, method, dt)
+        if ill_posed:
+            ok = row["energy_error"] <= accept and not row["constraint_error"] > 1e-6
+            row["state_error"] = float("nan")
+        else:
+            ok = row["state_error"] <= accept
+        row["stable"] = (not row["diverged"]) and bool(ok)
+        row["silent_failure"] = (not row["diverged"]) and not row["stable"]
+        rows.append(row)
+        if row["stable"]:
+            break
+    return rows
+
+
+def summarize_scan(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """One table row from a :func:`scan`: the largest stable step and what happened above it."""
+    stable = [r for r in rows if r["stable"]]
+    best = stable[0] if stable else None
+    unstable = [r for r in rows if not r["stable"]]
+    return {
+        "scene": rows[0]["scene"],
+        "integrator": rows[0]["integrator"],
+        "largest_stable_dt": None if best is None else best["setting"],
+        "state_error": None if best is None else best["state_error"],
+        "energy_error": None if best is None else best["energy_error"],
+        "constraint_error": None if best is None else best["constraint_error"],
+        "cpu_s": None if best is None else best["cpu_s"],
+        "unstable_runs": len(unstable),
+        "unstable_flagged": sum(r["diverged"] for r in unstable),
+        "silent_failures": sum(r["silent_failure"] for r in rows),
+    }
+
+
+def singular_case_row(case: Case, method: str, dt: float) -> dict[str, Any]:
+    """Run a case that must end in its singularity: was it reported, and were all outputs finite?"""
+    opts = {"rtol": 1e-8, "atol": 1e-8} if integrators.get(method).adaptive else {}
+    step = 0.01 if opts else dt
+    tr = simulate(case.model, case.q0, case.v0, case.t_final, dt=step, integrator=method, u=case.u,
+                  stabilization=case.stabilization, **opts)  # fmt: skip
+    finite = bool(np.all(np.isfinite(tr.q)) and np.all(np.isfinite(tr.v)))
+    flagged = bool(np.any(tr.diverged))
+    if tr.q.ndim > 1 and flagged:
+        # fixed step: the member is held at its last finite state from the flag on
+        moved = np.any(np.diff(tr.q, axis=0) != 0, axis=-1)
+        t_flag = float(tr.t[np.flatnonzero(moved)[-1] + 1]) if moved.any() else 0.0
+    else:
+        t_flag = float(tr.t[-1]) if flagged else None
+    lean = np.abs(tr.q[..., 4])
+    return {
+        "scene": case.scene,
+        "integrator": method,
+        "dt": step,
+        "flagged": flagged,
+        "all_outputs_finite": finite,
+        "t_flagged": t_flag,
+        "max_lean_reported": float(np.max(lean)),
+    }
+
+
+@dataclasses.dataclass(frozen=True)
+class LongRun:
+    """A long horizon: many fixed steps of free, conservative motion."""
+
+    scene: str
+    model: Model
+    q0: np.ndarray
+    v0: np.ndarray
+    steps: int
+    dt: float
+    stabilization: str | None = None
+
+
+def long_runs(quick: bool = False) -> list[LongRun]:
+    n = 2_000 if quick else 100_000
+    fb = FourBar()
+    q, v = fb.consistent_state(0.2, 4.0)
+    return [
+        LongRun("2R free swing", Planar2R(), np.array([-np.pi / 2 + 0.3, 0.2]), np.zeros(2), n, 1e-3),
+        LongRun("four-bar free, projection", fb, q, v, n, 1e-3, "projection"),
+    ]
+
+
+def long_run_row(run: LongRun, method: str) -> dict[str, Any]:
+    """Energy and constraint drift over ``run.steps`` fixed steps."""
+    import time
+
+    c0 = time.process_time()
+    tr = simulate(run.model, run.q0, run.v0, run.steps * run.dt, dt=run.dt, integrator=method, stabilization=run.stabilization)
+    cpu = time.process_time() - c0
+    E = run.model.energy(tr.q, tr.v)
+    return {
+        "scene": run.scene,
+        "integrator": method,
+        "steps": run.steps,
+        "dt": run.dt,
+        "diverged": bool(np.any(tr.diverged)),
+        "energy_drift": float(np.max(np.abs(E - E[0]))),
+        "energy_drift_relative": float(np.max(np.abs(E - E[0])) / max(abs(float(E[0])), 1e-300)),
+        "constraint_error": numerics.constraint_error(run.model, tr.q, tr.v),
+        "cpu_s": cpu,
+    }
