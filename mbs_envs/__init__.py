@@ -4,9 +4,12 @@
 with Gymnasium.
 """
 
+import functools
+
 from gymnasium.envs.registration import register, registry
 
 from . import integrators, models
+from .envs.vector import make_vector as _make_vector
 from .simulate import Trajectory, simulate
 
 __version__ = "0.1.0"
@@ -22,4 +25,9 @@ ENV_IDS = {
 
 for _id, (_entry, _steps) in ENV_IDS.items():
     if _id not in registry:
-        register(id=_id, entry_point=_entry, max_episode_steps=_steps)
+        register(
+            id=_id,
+            entry_point=_entry,
+            vector_entry_point=functools.partial(_make_vector, _entry),
+            max_episode_steps=_steps,
+        )

@@ -44,6 +44,12 @@ def symmetric_pinv_solve(S: np.ndarray, r: np.ndarray, rcond: float = RCOND) -> 
     cond : ndarray, shape (...)
         ``max / min`` eigenvalue of ``S`` (inf when singular).
     """
+    bad = ~(np.all(np.isfinite(S), axis=(-2, -1)) & np.all(np.isfinite(r), axis=-1))
+    if np.any(bad):  # a blown-up batch member: NaN for it, the others solved
+        S = np.where(bad[..., None, None], np.eye(S.shape[-1]), S)
+        r = np.where(bad[..., None], 0.0, r)
+        x, cond = symmetric_pinv_solve(S, r, rcond)
+        return np.where(bad[..., None], np.nan, x), np.where(bad, np.nan, cond)
     w, V = np.linalg.eigh(S)
     w_max = np.max(np.abs(w), axis=-1, keepdims=True)
     keep = w > rcond * w_max
@@ -122,11 +128,12 @@ def gauss_newton_projection(
     q = np.array(q, dtype=float)
     phi = residual(q)
     for _ in range(max_iter):
-        if np.all(np.abs(phi) <= tol):
+        active = np.any(np.abs(phi) > tol, axis=-1)  # members of a batch stop on their own
+        if not np.any(active):
             break
         Psi = jacobian(q)
         y, _ = symmetric_pinv_solve(Psi @ np.swapaxes(Psi, -1, -2), phi)
-        q = q - np.einsum("...ki,...k->...i", Psi, y)
+        q = q - np.where(active[..., None], np.einsum("...ki,...k->...i", Psi, y), 0.0)
         phi = residual(q)
     return q, phi
 

@@ -449,8 +449,15 @@ class ImplicitRK:
         J = np.where(finite[..., None, None], J, np.eye(n))
         try:
             return np.linalg.inv(J)
-        except np.linalg.LinAlgError:  # singular: let Newton fail and the step halve
-            return np.zeros_like(J)
+        except np.linalg.LinAlgError:  # singular members: zero, so their Newton fails and halves
+            flat = J.reshape((-1, n, n))
+            out = np.zeros_like(flat)
+            for k, Jk in enumerate(flat):
+                try:
+                    out[k] = np.linalg.inv(Jk)
+                except np.linalg.LinAlgError:
+                    pass
+            return out.reshape(J.shape)
 
     def _newton(self, acc, t, Qh, Vh, g, J_inv, V0, frozen):
         """Solve ``V - Vh - g a(t, Qh + g V, V) = 0`` for the members not ``frozen``.

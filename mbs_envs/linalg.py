@@ -25,6 +25,64 @@ def batched_matvec(A: np.ndarray, x: np.ndarray) -> np.ndarray:
     return np.einsum("...ij,...j->...i", A, x)
 
 
+def _sqrt_pivot(d: np.ndarray) -> np.ndarray:
+    """``sqrt(d)``, NaN where ``d <= 0`` (not positive definite)."""
+    with np.errstate(invalid="ignore"):
+        return np.sqrt(np.where(d > 0, d, np.nan))
+
+
+def _cholesky_2x2_3x3(M: np.ndarray) -> np.ndarray:
+    """Closed-form Cholesky of a batch of 2 x 2 or 3 x 3 matrices, vectorized over the batch.
+
+    LAPACK pays a per-matrix call; for the scenes' small mass matrices in a
+    large batch a handful of whole-array operations is several times faster.
+    A non-positive pivot gives NaN for that member.
+    """
+    n = M.shape[-1]
+    L = np.zeros(M.shape)
+    l00 = _sqrt_pivot(M[..., 0, 0])
+    l10 = M[..., 1, 0] / l00
+    L[..., 0, 0], L[..., 1, 0] = l00, l10
+    L[..., 1, 1] = l11 = _sqrt_pivot(M[..., 1, 1] - l10 * l10)
+    if n == 3:
+        l20 = M[..., 2, 0] / l00
+        l21 = (M[..., 2, 1] - l20 * l10) / l11
+        L[..., 2, 0], L[..., 2, 1] = l20, l21
+        L[..., 2, 2] = _sqrt_pivot(M[..., 2, 2] - l20 * l20 - l21 * l21)
+    return L
+
+
+def cholesky_lower(M: np.ndarray) -> np.ndarray:
+    """Lower Cholesky factors of a batch of symmetric positive definite matrices.
+
+    A batch member that is not positive definite (a blown-up state) gets a
+    NaN factor instead of failing the whole batch, so one diverging
+    environment of a vector env does not stop the others. Batches of 2 x 2
+    and 3 x 3 matrices are factorized in closed form (:func:`_cholesky_2x2_3x3`),
+    everything else by LAPACK.
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        For a single (unbatched) large matrix that is not positive definite.
+    """
+    if M.ndim > 2 and M.shape[-1] in (2, 3) and M.shape[0] > 1:
+        return _cholesky_2x2_3x3(M)
+    try:
+        return np.linalg.cholesky(M)
+    except np.linalg.LinAlgError:
+        if M.ndim == 2:
+            raise
+    flat = M.reshape((-1,) + M.shape[-2:])
+    L = np.full(flat.shape, np.nan)
+    for k, Mk in enumerate(flat):
+        try:
+            L[k] = np.linalg.cholesky(Mk)
+        except np.linalg.LinAlgError:
+            pass
+    return L.reshape(M.shape)
+
+
 def cholesky_solve_columns(M: np.ndarray, B: np.ndarray) -> np.ndarray:
     """Solve ``M X = B`` for symmetric positive definite ``M`` and several right-hand sides.
 
@@ -46,9 +104,10 @@ def cholesky_solve_columns(M: np.ndarray, B: np.ndarray) -> np.ndarray:
     Raises
     ------
     numpy.linalg.LinAlgError
-        If a matrix is not positive definite (a non-physical mass matrix).
+        If a single matrix is not positive definite (a non-physical mass
+        matrix); in a batch, such members get NaN (:func:`cholesky_lower`).
     """
-    L = np.linalg.cholesky(M)
+    L = cholesky_lower(M)
     n = L.shape[-1]
     shape = np.broadcast_shapes(L.shape[:-2], B.shape[:-2])
     if L.shape[:-2] != shape:

@@ -16,55 +16,16 @@ import argparse
 import json
 import pathlib
 import sys
-import time
 
 import numpy as np
 from tqdm import tqdm
 
 from mbs_envs.models import SerialChain
+from mbs_envs.benchmarking import median_time, pinocchio_chain
 from mbs_envs.plotting import pyplot, save
 
 SIZES = [2, 5, 10, 20, 50, 100, 200, 500]
 BATCH = 256
-
-
-def median_time(f, repeats: int = 7, min_time: float = 0.02) -> float:
-    """Median seconds per call of ``f`` over ``repeats`` timed loops of at least ``min_time``."""
-    f()  # warm-up (numba compilation, caches)
-    n = 1
-    while True:
-        t0 = time.perf_counter()
-        for _ in range(n):
-            f()
-        if time.perf_counter() - t0 >= min_time:
-            break
-        n *= 2
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        for _ in range(n):
-            f()
-        times.append((time.perf_counter() - t0) / n)
-    return float(np.median(times))
-
-
-def pinocchio_chain(chain: SerialChain):
-    """The same planar chain as a Pinocchio model (revolute-z joints), or None without ``pin``."""
-    try:
-        import pinocchio as pin
-    except ImportError:
-        return None
-    p = chain.params
-    model = pin.Model()
-    parent = 0
-    for i in range(chain.n_links):
-        placement = pin.SE3(np.eye(3), np.array([p.l[i - 1] if i else 0.0, 0.0, 0.0]))
-        parent = model.addJoint(parent, pin.JointModelRZ(), placement, f"joint{i + 1}")
-        inertia = pin.Inertia(p.m[i], np.array([p.r[i], 0.0, 0.0]), np.diag([p.I[i]] * 3))
-        model.appendBodyToJoint(parent, inertia, pin.SE3.Identity())
-    model.gravity.linear[:] = [0.0, -p.g, 0.0]
-    model.armature[:] = p.armature
-    return pin, model, model.createData()
 
 
 def run(out: pathlib.Path, sizes: list[int]) -> dict:

@@ -21,6 +21,11 @@ from ..simulate import DIVERGENCE_LIMIT, advance, diverged
 from .rendering import PlanarRenderer, Polyline
 
 
+def _scalar(x: Any) -> Any:
+    """0-d arrays as Python scalars (a single env's ``info``); arrays unchanged."""
+    return x.item() if isinstance(x, np.ndarray) and x.ndim == 0 else x
+
+
 def validate_action(action: Any, nu: int) -> np.ndarray:
     """Check a normalized action and saturate it to ``[-1, 1]``.
 
@@ -125,6 +130,7 @@ class MBSEnv(gym.Env):
         self._v = np.zeros(model.nv)
         self._t = 0.0
         self._u = np.zeros(model.nu)  # the input applied in the last step
+        self._task: Any = None
         self._renderer: PlanarRenderer | None = None
 
     # -- state ---------------------------------------------------------------
@@ -144,27 +150,46 @@ class MBSEnv(gym.Env):
         """Time since reset [s]."""
         return self._t
 
-    # -- task hooks (override) ----------------------------------------------
+    # -- the task (override) ---------------------------------------------------
+    #
+    # The task is written once, as functions of explicit arrays batched over
+    # leading dimensions: this env calls them with its own state, shape (n,),
+    # and :class:`mbs_envs.envs.vector.MBSVectorEnv` with a batch, shape (N, n).
+    # ``task`` is what an episode draws at reset (e.g. a reference), stacked
+    # member-wise in the vector env; ``now`` is what the task needs at time t.
 
-    def _reset_task(self, options: dict) -> None:
-        """Sample the episode's task (e.g. its reference) from ``self.np_random``."""
+    def _reset_task(self, options: dict) -> Any:
+        """Draw the episode's task from ``self.np_random`` (default: none)."""
+        return None
 
-    def _initial_state(self) -> tuple[np.ndarray, np.ndarray]:
-        """Sample ``(q0, v0)`` from ``self.np_random``."""
+    def _initial_state(self, task: Any) -> tuple[np.ndarray, np.ndarray]:
+        """Draw ``(q0, v0)`` from ``self.np_random``."""
         raise NotImplementedError
 
-    def _observation(self) -> np.ndarray:
+    def task_now(self, t: np.ndarray, task: Any) -> Any:
+        """The task's time-dependent quantities at ``t`` (shape ``(...)``), e.g. the reference."""
+        return None
+
+    def observe(self, q: np.ndarray, v: np.ndarray, now: Any, task: Any) -> np.ndarray:
+        """Observation, float32, shape ``(..., obs_dim)``."""
         raise NotImplementedError
 
-    def _reward(self, u: np.ndarray, action: np.ndarray) -> tuple[float, dict[str, Any]]:
-        """Reward of the step just taken and its terms (for ``info``)."""
+    def reward(
+        self, q: np.ndarray, v: np.ndarray, now: Any, task: Any, u: np.ndarray, action: np.ndarray
+    ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """Reward of the step just taken, shape ``(...)``, and its terms (for ``info``)."""
         raise NotImplementedError
 
-    def _terminated(self) -> bool:
-        """Task failure (besides divergence)."""
-        return False
+    def terminated(self, q: np.ndarray, v: np.ndarray, now: Any, task: Any) -> np.ndarray:
+        """Task failure besides divergence, bool ``(...)``."""
+        return np.zeros(np.shape(q)[:-1], bool)
 
-    def _task_info(self) -> dict[str, Any]:
+    def state_diverged(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Non-finite, absurdly large or singular states, bool ``(...)``."""
+        return diverged(q, v, self.divergence_limit, self.model)
+
+    def task_info(self, q: np.ndarray, v: np.ndarray, now: Any, task: Any, u: np.ndarray) -> dict[str, Any]:
+        """Task quantities for ``info``, each shaped ``(...)`` or ``(..., k)``."""
         return {}
 
     def _polylines(self) -> list[Polyline]:
@@ -178,6 +203,10 @@ class MBSEnv(gym.Env):
         """World point at the centre of the picture [m]."""
         return (0.0, 0.0)
 
+    def now(self) -> Any:
+        """``task_now`` at the current time."""
+        return self.task_now(np.asarray(self._t), self._task)
+
     #: reset option keys a task accepts besides ``q`` and ``v``.
     task_options: ClassVar[tuple[str, ...]] = ()
 
@@ -190,28 +219,39 @@ class MBSEnv(gym.Env):
         defaults to zero when only ``q`` is given); otherwise the task's start
         distribution is sampled.
         """
+        options = self.check_reset_options(options)
+        super().reset(seed=seed)
+        self._t = 0.0
+        self._u = np.zeros(self.model.nu)
+        self._task, self._q, self._v = self.sample_start(options)
+        if self.render_mode == "human":
+            self.render()
+        return self._observation(), self._info(diverged=False)
+
+    def check_reset_options(self, options: dict | None) -> dict:
+        """Validate reset options (unknown keys, ``q``/``v`` shape and finiteness) before any change."""
         options = dict(options or {})
         unknown = sorted(set(options) - {"q", "v"} - set(self.task_options))
         if unknown:
             raise ValueError(
                 f"unknown reset option(s) {unknown}; known: {['q', 'v', *self.task_options]}"
             )
-        q0 = self._checked_state(options, "q", self.model.nq)
-        v0 = self._checked_state(options, "v", self.model.nv)
-        super().reset(seed=seed)
-        self._t = 0.0
-        self._u = np.zeros(self.model.nu)
-        self._reset_task(options)
+        for key, n in (("q", self.model.nq), ("v", self.model.nv)):
+            options[key] = self._checked_state(options, key, n)
+        return options
+
+    def sample_start(self, options: dict) -> tuple[Any, np.ndarray, np.ndarray]:
+        """Draw ``(task, q0, v0)`` from ``self.np_random`` (checked ``options`` may fix the state)."""
+        task = self._reset_task(options)
+        q0, v0 = options.get("q"), options.get("v")
         if q0 is None:
-            q_s, v_s = self._initial_state()
+            q_s, v_s = self._initial_state(task)
             q0 = q_s
             v0 = v_s if v0 is None else v0
         elif v0 is None:
             v0 = np.zeros(self.model.nv)
-        self._q, self._v = self._make_consistent(q0, v0)
-        if self.render_mode == "human":
-            self.render()
-        return self._observation(), self._info(diverged=False)
+        q0, v0 = self._make_consistent(q0, v0)
+        return task, q0, v0
 
     @staticmethod
     def _checked_state(options: dict, key: str, n: int) -> np.ndarray | None:
@@ -238,27 +278,27 @@ class MBSEnv(gym.Env):
             )
         return q_p, v_p
 
-    def _diverged(self, q: np.ndarray, v: np.ndarray) -> bool:
-        """Non-finite or absurdly large state (constrained scenes add the residual)."""
-        return bool(diverged(q, v, self.divergence_limit, self.model))
-
     def step(self, action: Any):
         action = validate_action(action, self.model.nu)  # raises before any change
         u = action * self.u_max
         q, v = self._advance(u)
-        bad = self._diverged(q, v)
+        bad = bool(self.state_diverged(q, v))
         if not bad:
             self._q, self._v = q, v
         self._t += self.dt
         self._u = u
-        reward, terms = self._reward(u, action)
-        terminated = bad or self._terminated()
-        info = self._info(diverged=bad)
-        info.update(terms)
+        now = self.now()
+        reward, terms = self.reward(self._q, self._v, now, self._task, u, action)
+        terminated = bad or bool(self.terminated(self._q, self._v, now, self._task))
+        info = self._info(diverged=bad, now=now)
+        info.update({k: _scalar(x) for k, x in terms.items()})
         info["u"] = u
         if self.render_mode == "human":
             self.render()
-        return self._observation(), float(reward), terminated, False, info
+        return self.observe(self._q, self._v, now, self._task), float(reward), terminated, False, info
+
+    def _observation(self) -> np.ndarray:
+        return self.observe(self._q, self._v, self.now(), self._task)
 
     def _advance(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """One control step of physics with ``u`` held; non-finite on blow-up."""
@@ -267,9 +307,11 @@ class MBSEnv(gym.Env):
             self.stabilization,
         )
 
-    def _info(self, diverged: bool) -> dict[str, Any]:
+    def _info(self, diverged: bool, now: Any = None) -> dict[str, Any]:
+        now = self.now() if now is None else now
         info = {"t": self._t, "energy": float(self.model.energy(self._q, self._v)), "diverged": diverged}
-        info.update(self._task_info())
+        task = self.task_info(self._q, self._v, now, self._task, self._u)
+        info.update({k: _scalar(x) for k, x in task.items()})
         return info
 
     def render(self):

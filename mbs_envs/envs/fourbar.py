@@ -107,15 +107,16 @@ class FourBarEnv(JointTrackingEnv):
     def _state_from_tracked(self, q_t: np.ndarray, v_t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return self.model.consistent_state(q_t[0], v_t[0], self.branch)
 
-    def _diverged(self, q: np.ndarray, v: np.ndarray) -> bool:
-        if super()._diverged(q, v):
-            return True
-        return bool(np.max(np.abs(self.model.constraint_residual(q))) > self.residual_limit)
+    def state_diverged(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Divergence, or the loop opened beyond ``residual_limit``."""
+        with np.errstate(invalid="ignore"):
+            opened = ~(np.max(np.abs(self.model.constraint_residual(q)), axis=-1) <= self.residual_limit)
+        return super().state_diverged(q, v) | opened
 
-    def _task_info(self) -> dict[str, Any]:
-        info = super()._task_info()
-        info["constraint_residual"] = float(np.max(np.abs(self.model.constraint_residual(self._q))))
-        info["multipliers"] = self.model.multipliers(self._q, self._v, self._u)
+    def task_info(self, q, v, now, task, u) -> dict[str, Any]:
+        info = super().task_info(q, v, now, task, u)
+        info["constraint_residual"] = np.max(np.abs(self.model.constraint_residual(q)), axis=-1)
+        info["multipliers"] = self.model.multipliers(q, v, u)
         return info
 
     def _render_extent(self) -> float:

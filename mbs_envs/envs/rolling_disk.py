@@ -33,6 +33,14 @@ class DiskObservation:
 OBS_FIELDS = tuple(f.name for f in dataclasses.fields(DiskObservation))
 
 
+@dataclasses.dataclass(frozen=True)
+class DiskTask:
+    """An episode's commands: the heading reference and the spin rate ``spin_ref`` [rad/s]."""
+
+    heading: SumOfSines
+    spin_ref: np.ndarray
+
+
 class RollingDiskEnv(MBSEnv):
     """A thin disk rolling without slipping: stay upright, follow a heading, hold a speed.
 
@@ -110,43 +118,48 @@ class RollingDiskEnv(MBSEnv):
             dtype=np.float32,
         )  # fmt: skip
         self.observation_space = gym.spaces.Box(-high, high, dtype=np.float32)
-        self.heading_reference: SumOfSines | None = None
-        self.spin_ref = Wc
 
-    def _reset_task(self, options: dict) -> None:
+    def _reset_task(self, options: dict) -> DiskTask:
         rng = self.np_random
-        self.spin_ref = float(rng.uniform(*self.spin_range) * self.model.critical_spin)
+        spin_ref = float(rng.uniform(*self.spin_range) * self.model.critical_spin)
         if options.get("spin_ref") is not None:
             W = options["spin_ref"]
             if not (np.isfinite(W) and abs(W) <= self.spin_range[1] * self.model.critical_spin):
                 raise ValueError(
                     f"options['spin_ref'] must be finite with |W| <= {self.spin_range[1]} W_c, got {W!r}"
                 )
-            self.spin_ref = float(W)
-        self.heading_reference = sample_sum_of_sines(
-            rng, [-np.pi], [np.pi], [self.heading_amplitude], self.heading_omega, n_components=2
-        )
+            spin_ref = float(W)
+        heading = sample_sum_of_sines(rng, [-np.pi], [np.pi], [self.heading_amplitude], self.heading_omega, n_components=2)
+        return DiskTask(heading=heading, spin_ref=np.asarray(spin_ref))
 
-    def _initial_state(self) -> tuple[np.ndarray, np.ndarray]:
+    def _initial_state(self, task: DiskTask) -> tuple[np.ndarray, np.ndarray]:
         rng = self.np_random
-        heading0 = float(self.heading_reference(0.0)[0][0] + rng.uniform(-0.1, 0.1))
+        heading0 = float(task.heading(0.0)[0][0] + rng.uniform(-0.1, 0.1))
         return self.model.rolling_state(
             heading=heading0,
             lean=float(rng.uniform(-0.05, 0.05)),
             dlean=float(rng.uniform(-0.1, 0.1)),
-            dspin=self.spin_ref,
+            dspin=float(task.spin_ref),
         )
 
-    def _heading_ref(self) -> tuple[float, float, float]:
-        h, dh, ddh = self.heading_reference(self._t)
-        return float(h[0]), float(dh[0]), float(ddh[0])
+    @property
+    def spin_ref(self) -> float:
+        """The episode's commanded spin rate [rad/s]."""
+        return float(self._task.spin_ref) if self._task is not None else self.model.critical_spin
 
-    def _observation(self) -> np.ndarray:
-        h, dh, ddh = self._heading_ref()
-        q, v = self._q, self._v
-        return np.array(
-            [q[4], v[4], v[3], v[5], wrap_angle(h - q[3]), dh, ddh, self.spin_ref], dtype=np.float32
-        )
+    @property
+    def heading_reference(self) -> SumOfSines | None:
+        return None if self._task is None else self._task.heading
+
+    def task_now(self, t: np.ndarray, task: DiskTask) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(heading_ref, dheading_ref, ddheading_ref)``, each shape ``(...)``."""
+        h, dh, ddh = task.heading(t)
+        return h[..., 0], dh[..., 0], ddh[..., 0]
+
+    def observe(self, q, v, now, task) -> np.ndarray:
+        h, dh, ddh = now
+        fields = (q[..., 4], v[..., 4], v[..., 3], v[..., 5], wrap_angle(h - q[..., 3]), dh, ddh, task.spin_ref)
+        return np.stack(np.broadcast_arrays(*fields), axis=-1).astype(np.float32)
 
     @staticmethod
     def decode_observation(obs: np.ndarray) -> DiskObservation:
@@ -156,32 +169,34 @@ class RollingDiskEnv(MBSEnv):
             raise ValueError(f"observation must have shape (..., {len(OBS_FIELDS)}), got {obs.shape}")
         return DiskObservation(*(obs[..., i] for i in range(len(OBS_FIELDS))))
 
-    def _fell(self) -> bool:
-        return bool(abs(self._q[4]) > self.lean_limit)
+    def fell(self, q: np.ndarray) -> np.ndarray:
+        """``|lean| > lean_limit``, bool ``(...)``."""
+        return np.abs(q[..., 4]) > self.lean_limit
 
-    def _terminated(self) -> bool:
-        return self._fell()
+    def terminated(self, q, v, now, task) -> np.ndarray:
+        return self.fell(q)
 
-    def _reward(self, u: np.ndarray, action: np.ndarray) -> tuple[float, dict[str, Any]]:
+    def reward(self, q, v, now, task, u, action) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         w_h, w_l, w_s, w_u = self.reward_weights
-        e_h = wrap_angle(self._heading_ref()[0] - self._q[3])
-        e_s = (self._v[5] - self.spin_ref) / self.model.critical_spin
+        e_h = wrap_angle(now[0] - q[..., 3])
+        e_s = (v[..., 5] - task.spin_ref) / self.model.critical_spin
         terms = {
-            "reward_heading": -w_h * float(e_h**2),
-            "reward_lean": -w_l * float(self._q[4] ** 2),
-            "reward_speed": -w_s * float(e_s**2),
-            "reward_effort": -w_u * float(action @ action),
+            "reward_heading": -w_h * e_h**2,
+            "reward_lean": -w_l * q[..., 4] ** 2,
+            "reward_speed": -w_s * e_s**2,
+            "reward_effort": -w_u * np.sum(action * action, axis=-1),
         }
-        return 1.0 + sum(terms.values()), terms
+        total = 1.0 + terms["reward_heading"] + terms["reward_lean"] + terms["reward_speed"] + terms["reward_effort"]
+        return total, terms
 
-    def _task_info(self) -> dict[str, Any]:
-        e_h = wrap_angle(self._heading_ref()[0] - self._q[3])
+    def task_info(self, q, v, now, task, u) -> dict[str, Any]:
+        e_h = wrap_angle(now[0] - q[..., 3])
         return {
-            "constraint_residual": float(np.max(np.abs(self.model.constraint_residual(self._q)))),
-            "lean": float(self._q[4]),
-            "fell": self._fell(),
-            "tracking_error": np.array([e_h]),
-            "spin_error": float(self._v[5] - self.spin_ref),
+            "constraint_residual": np.max(np.abs(self.model.constraint_residual(q)), axis=-1),
+            "lean": q[..., 4],
+            "fell": self.fell(q),
+            "tracking_error": e_h[..., None],
+            "spin_error": v[..., 5] - task.spin_ref,
         }
 
     # -- drawing: a view from above (x, y), the disk as its ground-plane footprint
@@ -197,7 +212,7 @@ class RollingDiskEnv(MBSEnv):
         heading = np.array([np.cos(q[3]), np.sin(q[3])])
         centre = q[:2]
         contact = centre + self.model.contact_offset(q)[:2]
-        h_ref = self._heading_ref()[0]
+        h_ref = float(self.now()[0])
         ref = np.array([np.cos(h_ref), np.sin(h_ref)])
         return [
             (np.stack([centre - r * heading, centre + r * heading]), (0, 90, 200)),

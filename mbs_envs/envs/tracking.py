@@ -136,18 +136,19 @@ class JointTrackingEnv(MBSEnv):
             ]
         ).astype(np.float32)
         self.observation_space = gym.spaces.Box(-high, high, dtype=np.float32)
-        self.reference: SumOfSines | None = None
-        self._ref_cache: tuple[float, tuple] | None = None
+    @property
+    def reference(self) -> SumOfSines | None:
+        """The episode's reference (None before the first reset)."""
+        return self._task
 
     def reference_now(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(q_ref, v_ref, a_ref)`` at the current time (evaluated once per step)."""
-        if self._ref_cache is None or self._ref_cache[0] != self._t:
-            self._ref_cache = (self._t, self.reference(self._t))
-        return self._ref_cache[1]
+        """``(q_ref, v_ref, a_ref)`` at the current time."""
+        return self.now()
 
-    def _reset_task(self, options: dict) -> None:
-        self._ref_cache = None
-        self.reference = sample_sum_of_sines(
+    # -- the task, batched (see MBSEnv) ------------------------------------------
+
+    def _reset_task(self, options: dict) -> SumOfSines:
+        return sample_sum_of_sines(
             self.np_random,
             self.center_low,
             self.center_high,
@@ -157,8 +158,8 @@ class JointTrackingEnv(MBSEnv):
             self.rate_range,
         )
 
-    def _initial_state(self) -> tuple[np.ndarray, np.ndarray]:
-        q_ref, v_ref, _ = self.reference(0.0)
+    def _initial_state(self, task: SumOfSines) -> tuple[np.ndarray, np.ndarray]:
+        q_ref, v_ref, _ = task(0.0)
         s, m = self.start_noise, len(self.tracked)
         q_t = q_ref + self.np_random.uniform(-s, s, m)
         v_t = v_ref + self.np_random.uniform(-s, s, m)
@@ -168,28 +169,33 @@ class JointTrackingEnv(MBSEnv):
         """Whole state from the tracked coordinates (identity when all are tracked)."""
         return q_t, v_t
 
-    def _observation(self) -> np.ndarray:
-        return encode_tracking(self._q, self._v, *self.reference_now(), self.tracked)
+    def task_now(self, t: np.ndarray, task: SumOfSines) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(q_ref, v_ref, a_ref)`` at ``t``, each shape ``(..., m)``."""
+        return task(t)
+
+    def observe(self, q, v, now, task) -> np.ndarray:
+        return encode_tracking(q, v, *now, self.tracked)
 
     def decode_observation(self, obs: np.ndarray) -> TrackingObservation:
         """The state and reference in an observation (batched); see :func:`decode_tracking`."""
         return decode_tracking(obs, self.model.nq, self.tracked)
 
-    def _errors(self) -> tuple[np.ndarray, np.ndarray]:
-        q_ref, v_ref, _ = self.reference_now()
+    def errors(self, q: np.ndarray, v: np.ndarray, now) -> tuple[np.ndarray, np.ndarray]:
+        """``(wrap(q_ref - q), v_ref - v)`` on the tracked coordinates, shape ``(..., m)``."""
+        q_ref, v_ref, _ = now
         idx = list(self.tracked)
-        return wrap_angle(q_ref - self._q[idx]), v_ref - self._v[idx]
+        return wrap_angle(q_ref - q[..., idx]), v_ref - v[..., idx]
 
-    def _reward(self, u: np.ndarray, action: np.ndarray) -> tuple[float, dict[str, Any]]:
-        e, de = self._errors()
+    def reward(self, q, v, now, task, u, action) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        e, de = self.errors(q, v, now)
         w_e, w_de, w_u = (float(w) for w in self.reward_weights)
         terms = {
-            "reward_tracking": -w_e * float(e @ e),
-            "reward_velocity": -w_de * float(de @ de),
-            "reward_effort": -w_u * float(action @ action),
+            "reward_tracking": -w_e * np.sum(e * e, axis=-1),
+            "reward_velocity": -w_de * np.sum(de * de, axis=-1),
+            "reward_effort": -w_u * np.sum(action * action, axis=-1),
         }
-        return sum(terms.values()), terms
+        return terms["reward_tracking"] + terms["reward_velocity"] + terms["reward_effort"], terms
 
-    def _task_info(self) -> dict[str, Any]:
-        e, _ = self._errors()
-        return {"tracking_error": e, "q_ref": self.reference_now()[0]}
+    def task_info(self, q, v, now, task, u) -> dict[str, Any]:
+        e, _ = self.errors(q, v, now)
+        return {"tracking_error": e, "q_ref": now[0]}

@@ -15,6 +15,7 @@ Units are SI (rad, m, kg, s, N m).
 from __future__ import annotations
 
 import abc
+import copy
 import dataclasses
 from collections.abc import Mapping
 from typing import Any, ClassVar
@@ -105,6 +106,24 @@ class Params:
             )
         return dataclasses.replace(self, **overrides)
 
+    def batched(self, **values: np.ndarray) -> "Params":
+        """A copy whose named scalar parameters hold one value per batch member, shape ``(B,)``.
+
+        For domain randomization in a batched environment: each member's
+        values must have been validated already (e.g. through :meth:`replace`);
+        they are not checked again here. Only models with
+        ``batched_params = True`` accept such parameters.
+        """
+        unknown = sorted(set(values) - set(self.names()))
+        if unknown:
+            raise ValueError(f"unknown parameter(s) {unknown} for {type(self).__name__}")
+        new = copy.copy(self)
+        for name, value in values.items():
+            if np.ndim(getattr(self, name)) != 0:
+                raise ValueError(f"parameter {name!r} is an array; only scalar parameters can be batched")
+            object.__setattr__(new, name, np.asarray(value, float))
+        return new
+
     def as_dict(self) -> dict[str, Any]:
         """Parameters as a plain dict (arrays as lists), e.g. for JSON."""
         out = {}
@@ -174,6 +193,8 @@ class Model(abc.ABC):
     nu: ClassVar[int]
     #: Whether the model carries constraints (serial models: never).
     constrained: ClassVar[bool] = False
+    #: Whether the equations accept per-batch-member parameters (:meth:`Params.batched`).
+    batched_params: ClassVar[bool] = False
 
     def __init__(self, params: Params | Mapping[str, Any] | None = None, **overrides: Any):
         if params is None:
@@ -186,6 +207,12 @@ class Model(abc.ABC):
                 f"params must be a {self.Params.__name__}, a mapping or None, got {params!r}"
             )
         self.params = params.replace(**overrides) if overrides else params
+
+    def with_params(self, params: Params) -> "Model":
+        """The same model with other (already validated, possibly batched) parameters."""
+        new = copy.copy(self)
+        new.params = params
+        return new
 
     def __repr__(self) -> str:
         changed = {

@@ -59,6 +59,7 @@ class Planar2R(Model):
     """
 
     Params = Planar2RParams
+    batched_params = True
     nq = 2
     nv = 2
     nu = 2
@@ -112,7 +113,9 @@ class Planar2R(Model):
         """``F_i = b_i v_i + f_i tanh(v_i / v_s)``, shape ``(..., 2)`` [N m]."""
         p = self.params
         v = as_vector(v, 2, "v")
-        return smoothed_friction(v, np.array([p.b1, p.b2]), np.array([p.f1, p.f2]), p.v_s)
+        b = np.stack(np.broadcast_arrays(p.b1, p.b2), axis=-1)
+        f = np.stack(np.broadcast_arrays(p.f1, p.f2), axis=-1)
+        return smoothed_friction(v, b, f, np.asarray(p.v_s)[..., None])
 
     def joint_positions(self, q: np.ndarray) -> np.ndarray:
         """Positions of the base, the elbow and the tip in the plane [m].

@@ -161,12 +161,10 @@ def test_defaults_make_a_one_metre_one_kilogram_rope():
 def test_aba_agrees_with_pinocchio(n):
     """A third-party implementation (optional benchmark dependency ``pin``): skipped when absent."""
     pytest.importorskip("pinocchio")
-    import runpy
-    import pathlib
+    from mbs_envs.benchmarking import pinocchio_chain
 
-    bench = runpy.run_path(str(pathlib.Path(__file__).resolve().parents[2] / "scripts" / "bench_chain.py"))
     chain = random_chain(n)
-    pin, model, data = bench["pinocchio_chain"](chain)
+    pin, model, data = pinocchio_chain(chain)
     q, v = random_state(n)
     u = RNG.uniform(-1, 1, n)
     a_pin = np.array(pin.aba(model, data, q, v, u))

@@ -1,0 +1,73 @@
+"""Timing helpers shared by the benchmark scripts (not used by tests: machines are noisy).
+
+Every figure is a median over repeats, and scripts print ratios against a peer
+timed in the same process and run.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from .models import SerialChain
+
+
+def median_time(f: Callable[[], Any], repeats: int = 7, min_time: float = 0.02) -> float:
+    """Median seconds per call of ``f`` over ``repeats`` timed loops of at least ``min_time`` s."""
+    f()  # warm-up (numba compilation, caches)
+    n = 1
+    while True:
+        t0 = time.perf_counter()
+        for _ in range(n):
+            f()
+        if time.perf_counter() - t0 >= min_time:
+            break
+        n *= 2
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        for _ in range(n):
+            f()
+        times.append((time.perf_counter() - t0) / n)
+    return float(np.median(times))
+
+
+def time_steps(env: Any, actions: list, reset_every: int) -> float:
+    """Mean wall time of one ``env.step`` over ``actions`` [s] (resets not timed)."""
+    env.reset(seed=0)
+    total = 0.0
+    for k, a in enumerate(actions):
+        tic = time.perf_counter()
+        _, _, term, trunc, _ = env.step(a)
+        total += time.perf_counter() - tic
+        if np.any(term) or np.any(trunc) or (k + 1) % reset_every == 0:
+            if np.ndim(term) == 0:
+                env.reset()
+    return total / len(actions)
+
+
+def pinocchio_chain(chain: SerialChain):
+    """The same planar chain as a Pinocchio model (revolute-z joints), or None without ``pin``.
+
+    Returns
+    -------
+    (pinocchio module, model, data) or None
+    """
+    try:
+        import pinocchio as pin
+    except ImportError:
+        return None
+    p = chain.params
+    model = pin.Model()
+    parent = 0
+    for i in range(chain.n_links):
+        placement = pin.SE3(np.eye(3), np.array([p.l[i - 1] if i else 0.0, 0.0, 0.0]))
+        parent = model.addJoint(parent, pin.JointModelRZ(), placement, f"joint{i + 1}")
+        inertia = pin.Inertia(p.m[i], np.array([p.r[i], 0.0, 0.0]), np.diag([p.I[i]] * 3))
+        model.appendBodyToJoint(parent, inertia, pin.SE3.Identity())
+    model.gravity.linear[:] = [0.0, -p.g, 0.0]
+    model.armature[:] = p.armature
+    return pin, model, model.createData()

@@ -1,0 +1,345 @@
+"""Numpy-batched vector environments: one model, one integrator call for all members.
+
+:class:`MBSVectorEnv` runs ``num_envs`` copies of any :class:`~mbs_envs.envs.base.MBSEnv`
+task as one batch: the physics step is a single batched :func:`mbs_envs.simulate.advance`
+call, and observation, reward, termination and info come from the same task
+functions the single environment uses (``task_now``, ``observe``, ``reward``,
+``terminated``, ``state_diverged``, ``task_info``), called with ``(N, ...)``
+arrays. Resets draw from each member's own generator through the single env's
+``sample_start``, so member ``i`` seeded with ``seed + i`` reproduces
+``gym.make(id).reset(seed=seed + i)`` and its episode.
+
+Every registered id has it as ``vector_entry_point``::
+
+    envs = gym.make_vec("mbs_envs/Planar2R-v0", num_envs=1024, vectorization_mode="vector_entry_point")
+
+Autoreset follows Gymnasium 1.x (``metadata["autoreset_mode"]``): ``NEXT_STEP``
+(default; the step after an episode ends resets that member and ignores its
+action) or ``SAME_STEP`` (the member is reset within the step; its last
+observation and info are in ``info["final_obs"]``, ``info["final_info"]``).
+
+Domain randomization: ``randomize={"m2": 0.2, ...}`` scales the named model
+parameters of every member by ``U(1 - s, 1 + s)``, drawn from the member's
+generator at each reset (after its task), for models whose equations accept
+per-member parameters (see :meth:`mbs_envs.models.base.Params.batched`).
+
+With an adaptive (scipy) integrator the batch is one system with one step
+size, so members differ from single envs within the tolerance; fixed-step
+methods give the single env's numbers (tested to 1e-12).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from ..simulate import advance
+from .base import MBSEnv
+
+
+def tree_stack(items: list[Any]) -> Any:
+    """Stack per-member task objects (dataclasses of arrays, possibly None) along a new axis 0."""
+    first = items[0]
+    if first is None:
+        return None
+    if dataclasses.is_dataclass(first):
+        return type(first)(**{f.name: tree_stack([getattr(x, f.name) for x in items]) for f in dataclasses.fields(first)})
+    return np.stack([np.asarray(x, float) for x in items])
+
+
+def tree_set(batch: Any, i: int, item: Any) -> None:
+    """Write member ``i`` of a stacked task in place."""
+    if batch is None:
+        return
+    if dataclasses.is_dataclass(batch):
+        for f in dataclasses.fields(batch):
+            tree_set(getattr(batch, f.name), i, getattr(item, f.name))
+        return
+    batch[i] = item
+
+
+def validate_actions(actions: Any, num_envs: int, nu: int) -> np.ndarray:
+    """Batched :func:`~mbs_envs.envs.base.validate_action`: shape ``(num_envs, nu)``, finite; saturated."""
+    try:
+        a = np.asarray(actions, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"actions must be numeric, got {actions!r}") from None
+    if a.shape != (num_envs, nu):
+        raise ValueError(f"actions must have shape ({num_envs}, {nu}), got shape {a.shape}")
+    finite = np.all(np.isfinite(a), axis=-1)
+    if not np.all(finite):
+        raise ValueError(f"actions must be finite; members {np.flatnonzero(~finite).tolist()} are not")
+    return np.clip(a, -1.0, 1.0)
+
+
+class MBSVectorEnv(VectorEnv):
+    """``num_envs`` members of one task, stepped as a numpy batch (see the module docstring).
+
+    Parameters
+    ----------
+    env_cls : type of MBSEnv
+    num_envs : int
+    max_episode_steps : int, optional
+        Truncation (the registered id's value through ``gym.make_vec``).
+    autoreset_mode : AutoresetMode or str
+    randomize : dict, optional
+        ``{parameter name: relative half-width}`` (domain randomization).
+    full_info : bool
+        ``info`` carries everything the single env's does (energy, reward
+        terms, task quantities); False keeps ``t`` and ``diverged`` only (faster).
+    **env_kwargs
+        The single env's constructor arguments (``params``, ``dt``, ...).
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init__(
+        self,
+        env_cls: type[MBSEnv],
+        num_envs: int,
+        *,
+        max_episode_steps: int | None = None,
+        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+        randomize: dict[str, float] | None = None,
+        full_info: bool = True,
+        render_mode: str | None = None,
+        **env_kwargs: Any,
+    ):
+        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
+            raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+        if max_episode_steps is not None and (not isinstance(max_episode_steps, (int, np.integer)) or max_episode_steps < 1):
+            raise ValueError(f"max_episode_steps must be an integer >= 1 or None, got {max_episode_steps!r}")
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be 'rgb_array' or None, got {render_mode!r}")
+        self.autoreset_mode = AutoresetMode(autoreset_mode)
+        self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
+        self.env = env_cls(**env_kwargs)  # the task's code and configuration
+        self.nominal_model = self.env.model
+        self.model = self.nominal_model  # the batch's (per-member parameters when randomized)
+        self.nominal_params = self.model.params
+        self.randomize = self._checked_randomize(randomize)
+        self.num_envs = int(num_envs)
+        self.max_episode_steps = max_episode_steps
+        self.full_info = bool(full_info)
+        self.render_mode = render_mode
+        self.single_observation_space = self.env.observation_space
+        self.single_action_space = self.env.action_space
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        n = self.num_envs
+        self._rngs: list[np.random.Generator] = [seeding.np_random(None)[0] for _ in range(n)]
+        self._q = np.zeros((n, self.model.nq))
+        self._v = np.zeros((n, self.model.nv))
+        self._t = np.zeros(n)
+        self._u = np.zeros((n, self.model.nu))
+        self._elapsed = np.zeros(n, int)
+        self._task: Any = None
+        self._scales: dict[str, np.ndarray] = {k: np.ones(n) for k in self.randomize}
+        self._autoreset = np.zeros(n, bool)
+        self._started = False
+
+    # -- domain randomization --------------------------------------------------
+
+    def _checked_randomize(self, randomize: dict[str, float] | None) -> dict[str, float]:
+        randomize = dict(randomize or {})
+        names = set(self.nominal_params.names())
+        for name, s in randomize.items():
+            if name not in names:
+                raise ValueError(f"randomize: unknown parameter {name!r} of {type(self.nominal_params).__name__}")
+            if not (np.isfinite(s) and 0 <= s < 1):
+                raise ValueError(f"randomize[{name!r}] must be in [0, 1), got {s!r}")
+        if randomize and not getattr(self.model, "batched_params", False):
+            raise ValueError(f"{type(self.model).__name__} does not support per-member parameters (randomize)")
+        return randomize
+
+    def _apply_scales(self) -> None:
+        if not self.randomize:
+            return
+        values = {k: getattr(self.nominal_params, k) * self._scales[k] for k in self.randomize}
+        self.model = self.nominal_model.with_params(self.nominal_params.batched(**values))
+
+    # -- resets ----------------------------------------------------------------
+
+    def _seed_members(self, seed: int | list | None) -> None:
+        if seed is None:
+            return
+        seeds = [seed + i for i in range(self.num_envs)] if isinstance(seed, (int, np.integer)) else list(seed)
+        if len(seeds) != self.num_envs:
+            raise ValueError(f"seed must be an int or a list of {self.num_envs} seeds, got {seed!r}")
+        for i, s in enumerate(seeds):
+            if s is not None:
+                self._rngs[i] = seeding.np_random(int(s))[0]
+
+    def _reset_members(self, idx: np.ndarray, options: dict) -> None:
+        """Draw task and start state of members ``idx`` with the single env's code."""
+        env = self.env
+        for i in idx:
+            env._np_random = self._rngs[i]
+            if self.randomize:  # the member's parameters first: start states may depend on them
+                for k, s in self.randomize.items():
+                    self._scales[k][i] = self._rngs[i].uniform(1 - s, 1 + s)
+                self._set_single_params(i)
+            task, q0, v0 = env.sample_start(options)
+            if self._task is None:
+                self._task = tree_stack([task] * self.num_envs)
+            tree_set(self._task, i, task)
+            self._q[i], self._v[i] = q0, v0
+        self._t[idx] = 0.0
+        self._u[idx] = 0.0
+        self._elapsed[idx] = 0
+        self._apply_scales()
+
+    def _set_single_params(self, i: int) -> None:
+        """Member ``i``'s current parameters on the task env (for start states that use the model)."""
+        values = {k: getattr(self.nominal_params, k) * self._scales[k][i] for k in self.randomize}
+        self.env.model = self.nominal_model.with_params(self.nominal_params.replace(**values))
+
+    def reset(self, *, seed: int | list | None = None, options: dict | None = None):
+        """Reset all members (or those in ``options["reset_mask"]``).
+
+        ``seed``: an int seeds member ``i`` with ``seed + i``; a list gives each
+        its own. Other ``options`` go to every member's reset (see the single env).
+        """
+        options = dict(options or {})
+        mask = options.pop("reset_mask", None)
+        options = self.env.check_reset_options(options)
+        self._seed_members(seed)
+        if mask is None:
+            idx = np.arange(self.num_envs)
+        else:
+            mask = np.asarray(mask, bool)
+            if mask.shape != (self.num_envs,):
+                raise ValueError(f"options['reset_mask'] must have shape ({self.num_envs},), got {mask.shape}")
+            if not self._started and not mask.all():
+                raise ValueError("the first reset must reset every member")
+            idx = np.flatnonzero(mask)
+        self._reset_members(idx, options)
+        self._autoreset[idx] = False
+        self._started = True
+        now = self.env.task_now(self._t, self._task)
+        return self.env.observe(self._q, self._v, now, self._task), self._info(now, np.zeros(self.num_envs, bool))
+
+    # -- stepping ----------------------------------------------------------------
+
+    def step(self, actions: Any):
+        if not self._started:
+            raise gym.error.ResetNeeded("call reset() before step()")
+        env = self.env
+        a = validate_actions(actions, self.num_envs, self.model.nu)
+        u = a * env.u_max
+        q, v = advance(self.model, env.integrator, 0.0, self._q, self._v, env.dt, env.substeps, u, env.stabilization)
+        bad = env.state_diverged(q, v)
+        keep = bad[:, None]
+        self._q = np.where(keep, self._q, q)
+        self._v = np.where(keep, self._v, v)
+        self._t = self._t + env.dt
+        self._u = u
+        self._elapsed += 1
+        now = env.task_now(self._t, self._task)
+        reward, terms = env.reward(self._q, self._v, now, self._task, u, a)
+        terminated = bad | env.terminated(self._q, self._v, now, self._task)
+        if self.max_episode_steps is None:
+            truncated = np.zeros(self.num_envs, bool)
+        else:
+            truncated = self._elapsed >= self.max_episode_steps
+        obs = env.observe(self._q, self._v, now, self._task)
+        info = self._info(now, bad, terms)
+        if self.autoreset_mode == AutoresetMode.NEXT_STEP and self._autoreset.any():
+            idx = np.flatnonzero(self._autoreset)
+            self._reset_members(idx, {})
+            now_r = env.task_now(self._t[idx], self._pick(self._task, idx))
+            obs[idx] = env.observe(self._q[idx], self._v[idx], now_r, self._pick(self._task, idx))
+            reward[idx] = 0.0
+            terminated[idx] = False
+            truncated[idx] = False
+            for key in ("diverged",):
+                info[key][idx] = False
+        done = terminated | truncated
+        if self.autoreset_mode == AutoresetMode.SAME_STEP and done.any():
+            idx = np.flatnonzero(done)
+            final_obs = np.empty(self.num_envs, dtype=object)
+            for i in idx:
+                final_obs[i] = obs[i].copy()
+            info["final_obs"], info["_final_obs"] = final_obs, done.copy()
+            info["final_info"] = {k: np.copy(x) for k, x in info.items() if not k.startswith(("_", "final"))}
+            info["_final_info"] = done.copy()
+            self._reset_members(idx, {})
+            now_r = env.task_now(self._t[idx], self._pick(self._task, idx))
+            obs[idx] = env.observe(self._q[idx], self._v[idx], now_r, self._pick(self._task, idx))
+        self._autoreset = done if self.autoreset_mode == AutoresetMode.NEXT_STEP else np.zeros(self.num_envs, bool)
+        return obs, np.asarray(reward, float), terminated, truncated, info
+
+    @staticmethod
+    def _pick(task: Any, idx: np.ndarray) -> Any:
+        """Members ``idx`` of a stacked task."""
+        if task is None:
+            return None
+        if dataclasses.is_dataclass(task):
+            return type(task)(**{f.name: MBSVectorEnv._pick(getattr(task, f.name), idx) for f in dataclasses.fields(task)})
+        return task[idx]
+
+    def _info(self, now: Any, bad: np.ndarray, terms: dict | None = None) -> dict[str, Any]:
+        info: dict[str, Any] = {"t": self._t.copy(), "diverged": np.asarray(bad, bool).copy()}
+        if self.full_info:
+            info["energy"] = self.model.energy(self._q, self._v)
+            info["u"] = self._u.copy()
+            info.update(terms or {})
+            info.update(self.env.task_info(self._q, self._v, now, self._task, self._u))
+        mask = np.ones(self.num_envs, bool)
+        for key in list(info):
+            info["_" + key] = mask
+        return info
+
+    # -- state access, rendering, closing ---------------------------------------
+
+    @property
+    def q(self) -> np.ndarray:
+        """Coordinates of every member, shape ``(num_envs, nq)`` (a copy)."""
+        return self._q.copy()
+
+    @property
+    def v(self) -> np.ndarray:
+        """Velocities of every member, shape ``(num_envs, nv)`` (a copy)."""
+        return self._v.copy()
+
+    def render(self) -> tuple[np.ndarray, ...] | None:
+        """One RGB frame per member (``render_mode="rgb_array"``)."""
+        if self.render_mode is None:
+            gym.logger.warn("render_mode is None; pass render_mode='rgb_array' to make_vec")
+            return None
+        env = self.env
+        env.render_mode = "rgb_array"
+        frames = []
+        saved = (env._q, env._v, env._t, env._task)
+        for i in range(self.num_envs):
+            env._q, env._v, env._t = self._q[i], self._v[i], float(self._t[i])
+            env._task = self._pick(self._task, np.array([i]))
+            env._task = _unbatch(env._task)
+            frames.append(env.render())
+        env._q, env._v, env._t, env._task = saved
+        return tuple(frames)
+
+    def close_extras(self, **kwargs: Any) -> None:
+        self.env.close()
+
+
+def _unbatch(task: Any) -> Any:
+    """A stacked task of one member back to the single env's shapes."""
+    if task is None:
+        return None
+    if dataclasses.is_dataclass(task):
+        return type(task)(**{f.name: _unbatch(getattr(task, f.name)) for f in dataclasses.fields(task)})
+    return task[0]
+
+
+def make_vector(entry_point: str, num_envs: int = 1, **kwargs: Any) -> MBSVectorEnv:
+    """The ``vector_entry_point`` of every id: the batched env of the class at ``entry_point``."""
+    from gymnasium.envs.registration import load_env_creator
+
+    return MBSVectorEnv(load_env_creator(entry_point), num_envs, **kwargs)

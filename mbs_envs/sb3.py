@@ -1,0 +1,116 @@
+"""stable-baselines3 on the batched environments without per-environment Python.
+
+:class:`SB3VecEnv` presents a :class:`~mbs_envs.envs.vector.MBSVectorEnv` (in
+``SAME_STEP`` autoreset mode) as an SB3 ``VecEnv``: one batched physics step
+per ``step_wait``, SB3's conventions for episode ends
+(``info["terminal_observation"]``, ``info["TimeLimit.truncated"]``).
+:func:`make_sb3_vec_env` builds it for a registered id, with ``VecMonitor`` so
+SB3 logs episode returns::
+
+    from stable_baselines3 import PPO
+    from mbs_envs.sb3 import make_sb3_vec_env
+
+    venv = make_sb3_vec_env("mbs_envs/Planar2R-v0", n_envs=64, seed=0)
+    PPO("MlpPolicy", venv).learn(100_000)
+
+Requires the ``rl`` extra (stable-baselines3).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.vector import AutoresetMode
+from stable_baselines3.common.vec_env import VecEnv, VecMonitor
+
+from .envs.vector import MBSVectorEnv
+
+
+class SB3VecEnv(VecEnv):
+    """An SB3 ``VecEnv`` over a batched mbs_envs vector env (see the module docstring).
+
+    Attribute access (``get_attr``, ``set_attr``, ``env_method``) goes to the
+    task env shared by all members: the same value for every index.
+    """
+
+    def __init__(self, venv: MBSVectorEnv):
+        if not isinstance(venv, MBSVectorEnv):
+            raise ValueError(f"venv must be an MBSVectorEnv, got {type(venv).__name__}")
+        if venv.autoreset_mode != AutoresetMode.SAME_STEP:
+            raise ValueError("SB3VecEnv needs autoreset_mode=SAME_STEP (SB3 resets within the step)")
+        self.venv = venv
+        self._actions: np.ndarray | None = None
+        super().__init__(venv.num_envs, venv.single_observation_space, venv.single_action_space)
+
+    def reset(self) -> np.ndarray:
+        seeds = None if all(s is None for s in self._seeds) else list(self._seeds)
+        options = self._options[0] if self._options and all(o == self._options[0] for o in self._options) else None
+        if options is None and any(self._options):
+            raise ValueError("SB3VecEnv applies one options dict to all members")
+        obs, _ = self.venv.reset(seed=seeds, options=options or None)
+        self._reset_seeds()
+        self._reset_options()
+        self.reset_infos = [{} for _ in range(self.num_envs)]
+        return obs
+
+    def step_async(self, actions: np.ndarray) -> None:
+        self._actions = np.asarray(actions)
+
+    def step_wait(self):
+        obs, reward, terminated, truncated, info = self.venv.step(self._actions)
+        dones = terminated | truncated
+        infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
+        for i in np.flatnonzero(dones):
+            infos[i]["terminal_observation"] = info["final_obs"][i]
+            infos[i]["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
+            infos[i]["diverged"] = bool(info["final_info"]["diverged"][i])
+        return obs, reward.astype(np.float32), dones, infos
+
+    def close(self) -> None:
+        self.venv.close()
+
+    def get_attr(self, attr_name: str, indices: Any = None) -> list[Any]:
+        value = getattr(self.venv.env, attr_name)
+        return [value for _ in self._get_indices(indices)]
+
+    def set_attr(self, attr_name: str, value: Any, indices: Any = None) -> None:
+        setattr(self.venv.env, attr_name, value)
+
+    def env_method(self, method_name: str, *method_args: Any, indices: Any = None, **method_kwargs: Any) -> list[Any]:
+        method = getattr(self.venv.env, method_name)
+        return [method(*method_args, **method_kwargs) for _ in self._get_indices(indices)]
+
+    def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices: Any = None) -> list[bool]:
+        return [False for _ in self._get_indices(indices)]
+
+    def get_images(self) -> Sequence[np.ndarray | None]:
+        frames = self.venv.render()
+        return [None] * self.num_envs if frames is None else list(frames)
+
+
+def make_sb3_vec_env(env_id: str, n_envs: int = 8, seed: int | None = None, monitor: bool = True, **kwargs: Any) -> VecEnv:
+    """SB3 ``VecEnv`` of ``n_envs`` batched members of a registered id.
+
+    Parameters
+    ----------
+    env_id : str
+        A registered mbs_envs id (``"mbs_envs/Planar2R-v0"``, ...).
+    n_envs : int
+    seed : int, optional
+        Member ``i`` is seeded with ``seed + i`` at the first reset.
+    monitor : bool
+        Wrap in ``VecMonitor`` (episode returns and lengths for SB3's logger).
+    **kwargs
+        Env arguments (``params``, ``dt``, ``n_links``, ``randomize``, ...).
+    """
+    kwargs.setdefault("full_info", False)
+    venv = gym.make_vec(
+        env_id, num_envs=n_envs, vectorization_mode="vector_entry_point", autoreset_mode=AutoresetMode.SAME_STEP, **kwargs
+    )
+    env: VecEnv = SB3VecEnv(venv)
+    if seed is not None:
+        env.seed(seed)
+    return VecMonitor(env) if monitor else env

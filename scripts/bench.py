@@ -1,0 +1,286 @@
+#!/usr/bin/env python
+"""Speed against peers, in one run: single step, batched step, chain dynamics, SB3 throughput.
+
+Sections (each a median over repeats, printed as a ratio to its peer timed in
+the same process):
+
+1. ``single``: Planar2R-v0 against Gymnasium's Acrobot-v1, both through
+   ``gym.make`` (their default wrappers); and the integration error each
+   makes over one control step at its default settings, against DOP853 at
+   rtol 1e-12 on the same equations.
+2. ``batched``: Planar2R-v0 as the numpy-batched vector env (RK4) against
+   Gymnasium's CartPole-v1 vector env (``vector_entry_point``), per env-step at
+   1024 envs.
+3. ``chain``: SerialChain forward dynamics (ABA) at N = 100, single call and per
+   env in a batch of 256, against Pinocchio's ``aba`` (when ``pin`` is
+   installed); ``t(N=400) / t(N=50)``.
+4. ``mujoco``: MuJoCo's InvertedDoublePendulum-v5 single step (when ``mujoco``
+   is installed).
+5. ``sb3``: PPO env-steps per second with our batched env through the SB3
+   adapter against SB3's ``make_vec_env`` of single envs (DummyVecEnv), both
+   for the whole ``learn`` and for rollouts alone.
+
+Writes ``bench.json`` and ``bench.png`` to ``--out``.
+
+    python scripts/bench.py --out results/bench            # ~3 min
+    python scripts/bench.py --out results/bench --quick    # ~30 s
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import pathlib
+import platform
+import sys
+import time
+
+import gymnasium as gym
+import numpy as np
+from scipy.integrate import solve_ivp
+from tqdm import tqdm
+
+import mbs_envs
+from mbs_envs.benchmarking import median_time, pinocchio_chain, time_steps
+from mbs_envs.models import SerialChain
+from mbs_envs.plotting import pyplot, save
+
+
+def single_step(repeats: int, steps: int) -> dict:
+    rng = np.random.default_rng(0)
+    peers = {
+        "Acrobot-v1": (gym.make("Acrobot-v1"), [int(a) for a in rng.integers(0, 3, steps)]),
+        "Planar2R-v0": (gym.make("mbs_envs/Planar2R-v0"), list(rng.uniform(-1, 1, (steps, 2)).astype(np.float32))),
+    }
+    times: dict[str, list[float]] = {k: [] for k in peers}
+    for _ in tqdm(range(repeats), desc="single step"):
+        for name, (env, actions) in peers.items():  # interleaved: drift hits both alike
+            times[name].append(time_steps(env, actions, reset_every=400))
+    med = {k: float(np.median(v)) for k, v in times.items()}
+    return {
+        "median_step_us": {k: v * 1e6 for k, v in med.items()},
+        "ratio_planar2r_to_acrobot": med["Planar2R-v0"] / med["Acrobot-v1"],
+        "error": step_errors(),
+    }
+
+
+def step_errors(n_states: int = 50) -> dict:
+    """Largest state error over one control step, each env at its defaults, against DOP853 (rtol 1e-12)."""
+    from gymnasium.envs.classic_control.acrobot import AcrobotEnv, rk4
+
+    rng = np.random.default_rng(1)
+    acro = AcrobotEnv()
+    err_acro = 0.0
+    for _ in range(n_states):
+        s = np.r_[rng.uniform(-np.pi, np.pi, 2), rng.uniform(-4, 4, 2)]
+        torque = float(rng.choice(acro.AVAIL_TORQUE))
+        aug = np.append(s, torque)
+        ns = rk4(acro._dsdt, aug, [0, acro.dt])  # what Acrobot-v1's step integrates
+        ref = solve_ivp(lambda t, y: acro._dsdt(y), (0, acro.dt), aug, method="DOP853", rtol=1e-12, atol=1e-12).y[:4, -1]
+        err_acro = max(err_acro, float(np.max(np.abs(ns[:4] - ref))))
+    env = gym.make("mbs_envs/Planar2R-v0").unwrapped
+    model = env.model
+    err_ours = 0.0
+    for _ in range(n_states):
+        q, v = rng.uniform(-np.pi, np.pi, 2), rng.uniform(-4, 4, 2)
+        u = rng.uniform(-1, 1, 2) * env.u_max
+        step = mbs_envs.simulate(model, q, v, env.dt, dt=env.dt, integrator="rk4", u=u)  # what step() integrates
+        ref = mbs_envs.simulate(model, q, v, env.dt, dt=env.dt, integrator="dop853", u=u, rtol=1e-12, atol=1e-12)
+        err = max(np.max(np.abs(step.q[-1] - ref.q[-1])), np.max(np.abs(step.v[-1] - ref.v[-1])))
+        err_ours = max(err_ours, float(err))
+    return {
+        "acrobot_dt": acro.dt,
+        "acrobot_max_state_error_per_step": err_acro,
+        "planar2r_dt": env.dt,
+        "planar2r_max_state_error_per_step": err_ours,
+        "ratio_acrobot_to_planar2r": err_acro / err_ours,
+    }
+
+
+def batched_step(num_envs: int, repeats: int, steps: int) -> dict:
+    from gymnasium.vector import AutoresetMode
+
+    rng = np.random.default_rng(0)
+    peers = {
+        "CartPole-v1 vector": gym.make_vec("CartPole-v1", num_envs=num_envs, vectorization_mode="vector_entry_point"),
+        "Planar2R-v0 vector": gym.make_vec(
+            "mbs_envs/Planar2R-v0", num_envs=num_envs, vectorization_mode="vector_entry_point", full_info=False,
+            autoreset_mode=AutoresetMode.NEXT_STEP,
+        ),
+        "Planar2R-v0 vector (full info)": gym.make_vec(
+            "mbs_envs/Planar2R-v0", num_envs=num_envs, vectorization_mode="vector_entry_point"
+        ),
+    }  # fmt: skip
+    actions = {
+        name: [env.action_space.sample() for _ in range(steps)] if "CartPole" in name else list(rng.uniform(-1, 1, (steps, num_envs, 2)))
+        for name, env in peers.items()
+    }
+    times: dict[str, list[float]] = {k: [] for k in peers}
+    for _ in tqdm(range(repeats), desc=f"batched x{num_envs}"):
+        for name, env in peers.items():
+            times[name].append(time_steps(env, actions[name], reset_every=10**9))
+    per_env = {k: float(np.median(v)) / num_envs for k, v in times.items()}
+    ref = per_env["CartPole-v1 vector"]
+    return {
+        "num_envs": num_envs,
+        "per_env_step_us": {k: v * 1e6 for k, v in per_env.items()},
+        "ratio_to_cartpole": {k: v / ref for k, v in per_env.items()},
+    }
+
+
+def chain_dynamics(batch: int = 256) -> dict:
+    rng = np.random.default_rng(0)
+    out: dict = {}
+    for n in (50, 100, 400):
+        chain = SerialChain(n_links=n)
+        q, v, u = (rng.uniform(-1, 1, n) for _ in range(3))
+        Q, V, U = (rng.uniform(-1, 1, (batch, n)) for _ in range(3))
+        row = {
+            "aba_single_us": 1e6 * median_time(lambda: chain.aba(q, v, u)),
+            "aba_batch_per_env_us": 1e6 * median_time(lambda: chain.aba(Q, V, U)) / batch,
+        }
+        pin = pinocchio_chain(chain)
+        if pin is not None:
+            pmod, model, data = pin
+            row["pin_aba_single_us"] = 1e6 * median_time(lambda: pmod.aba(model, data, q, v, u))
+        out[n] = row
+    r = out[100]
+    summary = {"rows": out, "batch": batch, "t400_over_t50_batched": out[400]["aba_batch_per_env_us"] / out[50]["aba_batch_per_env_us"],
+               "t400_over_t50_single": out[400]["aba_single_us"] / out[50]["aba_single_us"]}  # fmt: skip
+    if "pin_aba_single_us" in r:
+        summary["n100_single_over_pin"] = r["aba_single_us"] / r["pin_aba_single_us"]
+        summary["n100_batched_per_env_over_pin"] = r["aba_batch_per_env_us"] / r["pin_aba_single_us"]
+    return summary
+
+
+def mujoco_step(repeats: int, steps: int) -> dict | None:
+    try:
+        env = gym.make("InvertedDoublePendulum-v5")
+    except Exception as e:  # mujoco not installed
+        return {"skipped": f"{type(e).__name__}: {e}"}
+    acro = gym.make("Acrobot-v1")
+    rng = np.random.default_rng(0)
+    t_m = [time_steps(env, list(rng.uniform(-1, 1, (steps, 1)).astype(np.float32)), 400) for _ in range(repeats)]
+    t_a = [time_steps(acro, [int(a) for a in rng.integers(0, 3, steps)], 400) for _ in range(repeats)]
+    return {"median_step_us": float(np.median(t_m)) * 1e6, "acrobot_us": float(np.median(t_a)) * 1e6}
+
+
+def sb3_throughput(n_envs: int, rollout_steps: int, iterations: int) -> dict:
+    import torch
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.env_util import make_vec_env
+
+    from mbs_envs.sb3 import make_sb3_vec_env
+
+    torch.set_num_threads(1)
+    makers = {
+        "SB3 make_vec_env (DummyVecEnv of single envs)": lambda: make_vec_env("mbs_envs/Planar2R-v0", n_envs=n_envs, seed=0),
+        "mbs_envs SB3 adapter (batched)": lambda: make_sb3_vec_env("mbs_envs/Planar2R-v0", n_envs=n_envs, seed=0),
+    }
+    out = {}
+    for name, make in tqdm(makers.items(), desc="sb3"):
+        venv = make()
+        model = PPO("MlpPolicy", venv, n_steps=rollout_steps, batch_size=rollout_steps * n_envs // 4, n_epochs=1, seed=0, device="cpu")
+        model.learn(rollout_steps * n_envs)  # warm-up
+        t0 = time.perf_counter()
+        model.learn(iterations * rollout_steps * n_envs, reset_num_timesteps=False)
+        learn = (time.perf_counter() - t0) / (iterations * rollout_steps * n_envs)
+        obs = venv.reset()
+        t0 = time.perf_counter()
+        for _ in range(rollout_steps):
+            action, _ = model.predict(obs, deterministic=False)
+            obs, _, _, _ = venv.step(action)
+        rollout = (time.perf_counter() - t0) / (rollout_steps * n_envs)
+        out[name] = {"learn_env_steps_per_s": 1 / learn, "rollout_env_steps_per_s": 1 / rollout}
+        venv.close()
+    a, b = (out[k] for k in makers)
+    return {"n_envs": n_envs, "results": out,
+            "ratio_learn": b["learn_env_steps_per_s"] / a["learn_env_steps_per_s"],
+            "ratio_rollout": b["rollout_env_steps_per_s"] / a["rollout_env_steps_per_s"]}  # fmt: skip
+
+
+def run(out: pathlib.Path, quick: bool = False) -> dict:
+    out.mkdir(parents=True, exist_ok=True)
+    reps = 3 if quick else 11
+    result = {
+        "machine": {"python": platform.python_version(), "processor": platform.processor(), "numpy": np.__version__},
+        "quick": quick,
+        "single": single_step(reps, 200 if quick else 1000),
+        "batched": batched_step(1024, reps, 20 if quick else 100),
+        "chain": chain_dynamics(),
+        "mujoco": mujoco_step(reps, 200),
+        "sb3": sb3_throughput(16 if quick else 64, 64 if quick else 256, 1 if quick else 3),
+    }
+    (out / "bench.json").write_text(json.dumps(result, indent=2, default=float))
+    plot(result, out / "bench.png")
+    print(report(result))
+    print(f"written to {out}/bench.json and bench.png")
+    return result
+
+
+def report(r: dict) -> str:
+    s, b, c, p = r["single"], r["batched"], r["chain"], r["sb3"]
+    lines = [
+        f"single step [us]: {s['median_step_us']}  Planar2R / Acrobot = {s['ratio_planar2r_to_acrobot']:.2f} (target <= 0.5)",
+        f"error per control step: Acrobot {s['error']['acrobot_max_state_error_per_step']:.2e} (dt {s['error']['acrobot_dt']}), "
+        f"Planar2R {s['error']['planar2r_max_state_error_per_step']:.2e} (dt {s['error']['planar2r_dt']}): "
+        f"{s['error']['ratio_acrobot_to_planar2r']:.3g}x lower (target >= 100)",
+        f"batched per env-step at {b['num_envs']} [us]: " + ", ".join(f"{k} {v:.3f}" for k, v in b["per_env_step_us"].items()),
+        "  ratio to CartPole: " + ", ".join(f"{k} {v:.2f}" for k, v in b["ratio_to_cartpole"].items()) + " (target <= 3)",
+        f"chain N=100: ABA single {c['rows'][100]['aba_single_us']:.1f} us, per env in batch {c['rows'][100]['aba_batch_per_env_us']:.2f} us; "
+        f"t(400)/t(50) batched {c['t400_over_t50_batched']:.2f}, single {c['t400_over_t50_single']:.2f} (target <= 12)",
+    ]
+    if "n100_single_over_pin" in c:
+        lines.append(f"  vs Pinocchio aba: single {c['n100_single_over_pin']:.2f}x (target <= 3), batched per env {c['n100_batched_per_env_over_pin']:.2f}x (target <= 1)")
+    lines.append(f"mujoco: {r['mujoco']}")
+    lines.append(f"PPO env-steps/s with {p['n_envs']} envs: " + "; ".join(f"{k}: learn {v['learn_env_steps_per_s']:.0f}, rollout {v['rollout_env_steps_per_s']:.0f}" for k, v in p["results"].items()))
+    lines.append(f"  adapter / make_vec_env: learn {p['ratio_learn']:.2f}x, rollout {p['ratio_rollout']:.2f}x (target >= 10)")
+    return "\n".join(lines)
+
+
+def plot(r: dict, path: pathlib.Path) -> None:
+    plt = pyplot()
+    fig, axes = plt.subplots(1, 4, figsize=(18, 4))
+    s = r["single"]["median_step_us"]
+    axes[0].bar(list(s), list(s.values()))
+    axes[0].set_ylabel("median step [us]")
+    axes[0].set_title("single env step")
+    b = r["batched"]["per_env_step_us"]
+    axes[1].bar(range(len(b)), list(b.values()), tick_label=[k.replace(" vector", "\nvector") for k in b])
+    axes[1].set_ylabel("per env-step [us]")
+    axes[1].set_title(f"batched, {r['batched']['num_envs']} envs")
+    rows = r["chain"]["rows"]
+    ns = sorted(rows, key=int)
+    axes[2].loglog(ns, [rows[n]["aba_single_us"] for n in ns], "o-", label="ABA single")
+    axes[2].loglog(ns, [rows[n]["aba_batch_per_env_us"] for n in ns], "o-", label="ABA per env (256)")
+    if "pin_aba_single_us" in rows[ns[0]]:
+        axes[2].loglog(ns, [rows[n]["pin_aba_single_us"] for n in ns], "s--", label="Pinocchio aba")
+    axes[2].set_xlabel("N links")
+    axes[2].set_ylabel("[us]")
+    axes[2].legend()
+    axes[2].set_title("chain forward dynamics")
+    p = r["sb3"]["results"]
+    labels = ["DummyVecEnv", "adapter"]
+    x = np.arange(2)
+    axes[3].bar(x - 0.2, [v["learn_env_steps_per_s"] for v in p.values()], 0.4, label="learn")
+    axes[3].bar(x + 0.2, [v["rollout_env_steps_per_s"] for v in p.values()], 0.4, label="rollout")
+    axes[3].set_xticks(x, labels)
+    axes[3].set_ylabel("env-steps / s")
+    axes[3].legend()
+    axes[3].set_title(f"PPO, {r['sb3']['n_envs']} envs")
+    for ax in axes[:2]:
+        ax.tick_params(axis="x", labelsize=7)
+    save(fig, path)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--out", required=True, type=pathlib.Path)
+    p.add_argument("--quick", action="store_true")
+    a = p.parse_args(argv)
+    run(a.out, a.quick)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

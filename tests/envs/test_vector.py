@@ -1,0 +1,164 @@
+"""The batched vector envs: equal to single envs (with autoresets), Gymnasium and SB3 semantics."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.vector import AutoresetMode
+
+import mbs_envs
+from mbs_envs.envs.vector import MBSVectorEnv
+
+IDS = list(mbs_envs.ENV_IDS)
+SMALL = {"mbs_envs/SerialChain-v0": {"n_links": 4}}
+EPISODE = 40  # short episodes, so 200 steps include several autoresets per member
+
+
+def make_pair(env_id, n, mode=AutoresetMode.NEXT_STEP, **kw):
+    kw = {**SMALL.get(env_id, {}), **kw}
+    venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", max_episode_steps=EPISODE, autoreset_mode=mode, **kw)
+    singles = [gym.make(env_id, max_episode_steps=EPISODE, **kw) for _ in range(n)]
+    return venv, singles
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_vector_env_equals_single_envs_over_200_steps_with_autoresets(env_id):
+    n = 3
+    venv, singles = make_pair(env_id, n)
+    assert isinstance(venv.unwrapped, MBSVectorEnv)
+    assert venv.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
+    obs, _ = venv.reset(seed=11)
+    np.testing.assert_allclose(obs, np.stack([e.reset(seed=11 + i)[0] for i, e in enumerate(singles)]), rtol=0, atol=1e-12)
+    rng = np.random.default_rng(0)
+    done = np.zeros(n, bool)
+    resets = 0
+    for _ in range(200):
+        a = rng.uniform(-1.2, 1.2, venv.action_space.shape)  # includes saturated actions
+        obs, r, term, trunc, info = venv.step(a)
+        for i, e in enumerate(singles):
+            if done[i]:  # NEXT_STEP: this step resets the member and ignores its action
+                o, _ = e.reset()
+                ri, te, tr = 0.0, False, False
+                resets += 1
+            else:
+                o, ri, te, tr, inf = e.step(a[i])
+                assert inf["diverged"] == info["diverged"][i]
+                np.testing.assert_allclose(info["energy"][i], inf["energy"], rtol=1e-12, atol=1e-12)
+            np.testing.assert_allclose(obs[i], o, rtol=0, atol=1e-12)
+            assert r[i] == pytest.approx(ri, rel=1e-12, abs=1e-12)
+            assert (term[i], trunc[i]) == (te, tr)
+            done[i] = te or tr
+    assert resets >= n * 3
+
+
+@pytest.mark.parametrize("env_id", ["mbs_envs/Planar2R-v0", "mbs_envs/RollingDisk-v0"])
+def test_same_step_autoreset_reports_the_final_observation(env_id):
+    venv, singles = make_pair(env_id, 2, AutoresetMode.SAME_STEP)
+    venv.reset(seed=3)
+    for i, e in enumerate(singles):
+        e.reset(seed=3 + i)
+    a = np.zeros(venv.action_space.shape)
+    for k in range(EPISODE):
+        obs, r, term, trunc, info = venv.step(a)
+        last = [e.step(a[i]) for i, e in enumerate(singles)]
+    assert np.all(term | trunc)
+    for i, e in enumerate(singles):
+        np.testing.assert_allclose(info["final_obs"][i], last[i][0], atol=1e-12)
+        np.testing.assert_allclose(obs[i], e.reset()[0], atol=1e-12)  # already the next episode's start
+
+
+def test_bad_actions_raise_and_change_nothing():
+    venv = gym.make_vec("mbs_envs/Planar2R-v0", num_envs=4, vectorization_mode="vector_entry_point")
+    venv.reset(seed=0)
+    q = venv.unwrapped.q
+    bad = np.zeros((4, 2))
+    bad[2, 1] = np.nan
+    with pytest.raises(ValueError, match=r"members \[2\]"):
+        venv.step(bad)
+    with pytest.raises(ValueError, match="shape"):
+        venv.step(np.zeros((3, 2)))
+    np.testing.assert_array_equal(venv.unwrapped.q, q)
+
+
+def test_a_diverging_member_does_not_disturb_the_others():
+    venv, singles = make_pair("mbs_envs/Planar2R-v0", 3, params={"b1": 400.0, "b2": 400.0})
+    venv.reset(seed=5)
+    for i, e in enumerate(singles):
+        e.reset(seed=5 + i)
+    # member 1 restarts with an absurd speed: RK4 blows up on it (stiff friction)
+    wild = {"q": [0.0, 0.0], "v": [1e6, -1e6]}
+    venv.reset(options={**wild, "reset_mask": np.array([False, True, False])})
+    singles[1].reset(options=wild)
+    a = np.zeros((3, 2))
+    obs, r, term, trunc, info = venv.step(a)
+    outs = [e.step(a[i]) for i, e in enumerate(singles)]
+    assert np.all(np.isfinite(obs)) and np.all(np.isfinite(r))
+    assert info["diverged"].tolist() == [False, True, False] and term.tolist() == [False, True, False]
+    for i in range(3):
+        np.testing.assert_allclose(obs[i], outs[i][0], atol=1e-12)
+        assert info["diverged"][i] == outs[i][4]["diverged"]
+
+
+def test_domain_randomization_draws_members_parameters_from_their_seeds():
+    kw = {"randomize": {"m2": 0.3, "l1": 0.2}}
+    venv = gym.make_vec("mbs_envs/Planar2R-v0", num_envs=4, vectorization_mode="vector_entry_point", **kw)
+    venv.reset(seed=1)
+    model = venv.unwrapped.model
+    m2, l1 = model.params.m2, model.params.l1
+    assert m2.shape == (4,) and np.all(np.abs(m2 / 1.0 - 1) <= 0.3 + 1e-12) and np.unique(m2).size == 4
+    # reproducible from the seed, and the batch's dynamics are each member's own
+    venv2 = gym.make_vec("mbs_envs/Planar2R-v0", num_envs=4, vectorization_mode="vector_entry_point", **kw)
+    venv2.reset(seed=1)
+    np.testing.assert_array_equal(venv2.unwrapped.model.params.m2, m2)
+    q, v, u = venv.unwrapped.q, venv.unwrapped.v, np.ones((4, 2))
+    a = model.forward_dynamics(q, v, u)
+    nominal = venv.unwrapped.nominal_model
+    for i in range(4):
+        single = type(nominal)(nominal.params.replace(m2=float(m2[i]), l1=float(l1[i])))
+        np.testing.assert_allclose(a[i], single.forward_dynamics(q[i], v[i], u[i]), rtol=1e-13)
+    with pytest.raises(ValueError, match="per-member"):
+        gym.make_vec("mbs_envs/FourBar-v0", num_envs=2, vectorization_mode="vector_entry_point", randomize={"m2": 0.1})
+    with pytest.raises(ValueError, match="unknown parameter"):
+        gym.make_vec("mbs_envs/Planar2R-v0", num_envs=2, vectorization_mode="vector_entry_point", randomize={"mass": 0.1})
+
+
+def test_reset_mask_and_seed_lists():
+    venv = gym.make_vec("mbs_envs/Planar2R-v0", num_envs=3, vectorization_mode="vector_entry_point")
+    obs0, _ = venv.reset(seed=[4, 5, 6])
+    obs1, _ = venv.reset(seed=[None, 5, None], options={"reset_mask": np.array([False, True, False])})
+    np.testing.assert_array_equal(obs1, obs0)  # member 1 re-seeded identically, others untouched
+    with pytest.raises(ValueError, match="reset_mask"):
+        venv.reset(options={"reset_mask": np.ones(2, bool)})
+
+
+def test_sb3_adapter_trains_ppo_for_a_few_updates():
+    pytest.importorskip("stable_baselines3")
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.env_checker import check_env  # noqa: F401  (single-env checker; VecEnv below)
+
+    from mbs_envs.sb3 import make_sb3_vec_env
+
+    venv = make_sb3_vec_env("mbs_envs/Planar2R-v0", n_envs=8, seed=0, max_episode_steps=50)
+    model = PPO("MlpPolicy", venv, n_steps=64, batch_size=128, n_epochs=2, seed=0, device="cpu")
+    model.learn(3 * 64 * 8)
+    assert model.num_timesteps == 3 * 64 * 8
+    # episodes ended and were reported the SB3 way
+    assert len(model.ep_info_buffer) >= 8
+    obs = venv.reset()
+    action, _ = model.predict(obs, deterministic=True)
+    obs, rewards, dones, infos = venv.step(action)
+    assert obs.shape == (8, 12) and rewards.dtype == np.float32 and len(infos) == 8
+
+
+def test_sb3_adapter_reports_terminal_observations():
+    pytest.importorskip("stable_baselines3")
+    from mbs_envs.sb3 import make_sb3_vec_env
+
+    venv = make_sb3_vec_env("mbs_envs/Planar2R-v0", n_envs=2, seed=0, monitor=False, max_episode_steps=5)
+    venv.reset()
+    for _ in range(5):
+        obs, rewards, dones, infos = venv.step(np.zeros((2, 2)))
+    assert dones.all()
+    for info in infos:
+        assert info["terminal_observation"].shape == (12,) and info["TimeLimit.truncated"]
