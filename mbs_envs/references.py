@@ -54,13 +54,13 @@ class SumOfSines:
         """
         tt = np.asarray(t, float)[..., None, None]
         arg = self.omega * tt + self.phase
-        s, c = np.sin(arg), np.cos(arg)
-        q_ref = self.center + np.sum(self.amplitude * s, axis=-1)
-        v_ref = np.sum(self.amplitude * self.omega * c, axis=-1)
+        As = self.amplitude * np.sin(arg)
+        q_ref = self.center + As.sum(axis=-1)
+        v_ref = (self.amplitude * self.omega * np.cos(arg)).sum(axis=-1)
         if self.rate is not None:
             q_ref = q_ref + self.rate * np.asarray(t, float)[..., None]
             v_ref = v_ref + self.rate
-        a_ref = -np.sum(self.amplitude * self.omega**2 * s, axis=-1)
+        a_ref = -(As * self.omega**2).sum(axis=-1)
         return q_ref, v_ref, a_ref
 
 

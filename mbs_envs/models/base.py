@@ -165,7 +165,11 @@ def smoothed_friction(v: np.ndarray, b: np.ndarray, f: np.ndarray, v_s: float) -
     ndarray, shape (..., n)
         Friction torques opposing the motion [N m].
     """
-    return b * v + f * np.tanh(v / v_s)
+    b, f = np.asarray(b), np.asarray(f)
+    out = b * v if np.any(b) else np.zeros(np.broadcast_shapes(np.shape(v), b.shape))
+    if np.any(f):  # the tanh is the costly part; frictionless models skip it
+        out = out + f * np.tanh(v / v_s)
+    return out
 
 
 # ---------------------------------------------------------------------------

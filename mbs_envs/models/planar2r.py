@@ -113,8 +113,11 @@ class Planar2R(Model):
         """``F_i = b_i v_i + f_i tanh(v_i / v_s)``, shape ``(..., 2)`` [N m]."""
         p = self.params
         v = as_vector(v, 2, "v")
-        b = np.stack(np.broadcast_arrays(p.b1, p.b2), axis=-1)
-        f = np.stack(np.broadcast_arrays(p.f1, p.f2), axis=-1)
+        if isinstance(p.b1, float) and isinstance(p.b2, float) and isinstance(p.f1, float) and isinstance(p.f2, float):
+            b, f = np.array([p.b1, p.b2]), np.array([p.f1, p.f2])
+        else:  # per-member parameters (domain randomization): shape (B, 2)
+            b = np.stack(np.broadcast_arrays(p.b1, p.b2), axis=-1)
+            f = np.stack(np.broadcast_arrays(p.f1, p.f2), axis=-1)
         return smoothed_friction(v, b, f, np.asarray(p.v_s)[..., None])
 
     def joint_positions(self, q: np.ndarray) -> np.ndarray:
