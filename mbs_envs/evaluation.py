@@ -92,3 +92,80 @@ def episode_metrics(ep: Episode, settle_time: float = 1.0) -> dict[str, float]:
         "steps": int(len(ep.t)),
         "diverged": bool(ep.diverged),
     }
+
+
+def rollout_batch(
+    venv: Any,
+    policy: Any,
+    seeds: list[int],
+    deterministic: bool = True,
+    obs_noise: float = 0.0,
+    noise_seed: int = 0,
+) -> list[Episode]:
+    """One episode per seed, all at once on a batched vector env.
+
+    Parameters
+    ----------
+    venv : MBSVectorEnv
+        With ``num_envs == len(seeds)``, ``autoreset_mode=DISABLED`` and a
+        ``max_episode_steps`` (``gym.make_vec(..., autoreset_mode="Disabled")``);
+        ``full_info`` (the default) so ``info`` has the tracking error and ``u``.
+    policy : object with ``predict``
+        Called once per step on the whole batch of observations.
+    seeds : list of int
+        Member ``i`` starts from ``reset(seed=seeds[i])``, the same start as
+        ``rollout(gym.make(id), policy, seeds[i])``.
+    obs_noise : float
+        Standard deviation of Gaussian noise added to every observation entry
+        the policy sees (the environment's state is untouched).
+    noise_seed : int
+
+    Returns
+    -------
+    list of Episode
+        One per seed, each cut at its own end (termination or truncation).
+        ``compute_time`` is the batch's ``predict`` time divided by the batch size.
+    """
+    venv = venv.unwrapped
+    n = len(seeds)
+    if venv.num_envs != n:
+        raise ValueError(f"venv has {venv.num_envs} members for {n} seeds")
+    obs, _ = venv.reset(seed=list(seeds))
+    rng = np.random.default_rng(noise_seed)
+    rows: dict[str, list] = {"t": [], "e": [], "u": [], "r": [], "dt": [], "div": []}
+    done = np.zeros(n, bool)
+    end = np.zeros(n, int)
+    terminated_any = np.zeros(n, bool)
+    state = None
+    start = np.ones(n, dtype=bool)
+    while not done.all():
+        seen = obs + rng.normal(0.0, obs_noise, obs.shape).astype(obs.dtype) if obs_noise > 0 else obs
+        tic = time.perf_counter()
+        action, state = policy.predict(seen, state=state, episode_start=start, deterministic=deterministic)
+        rows["dt"].append((time.perf_counter() - tic) / n)
+        start = np.zeros(n, dtype=bool)
+        obs, reward, terminated, truncated, info = venv.step(action)
+        rows["t"].append(info["t"])
+        rows["e"].append(info["tracking_error"])
+        rows["u"].append(info["u"])
+        rows["r"].append(reward)
+        rows["div"].append(info["diverged"])
+        newly = ~done & (terminated | truncated)
+        end[newly] = len(rows["t"])
+        terminated_any |= newly & terminated
+        done |= newly
+    t, e, u, r = (np.array(rows[k]) for k in ("t", "e", "u", "r"))
+    div = np.array(rows["div"])
+    dt = np.array(rows["dt"])
+    return [
+        Episode(
+            t=t[: end[i], i],
+            tracking_error=e[: end[i], i],
+            u=u[: end[i], i],
+            reward=r[: end[i], i],
+            compute_time=dt[: end[i]],
+            diverged=bool(div[end[i] - 1, i]),
+            terminated=bool(terminated_any[i]),
+        )
+        for i in range(n)
+    ]
