@@ -165,6 +165,11 @@ def train(config: TrainConfig, out: pathlib.Path, tensorboard: bool = False, che
     import stable_baselines3
     import torch
 
+    if tensorboard:
+        try:
+            import tensorboard as _  # noqa: F401
+        except ImportError:
+            raise ValueError("tensorboard logging needs the tensorboard package: pip install tensorboard") from None
     out = pathlib.Path(out)
     out.mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(1)
