@@ -52,21 +52,41 @@ def _cholesky_2x2_3x3(M: np.ndarray) -> np.ndarray:
     return L
 
 
+def _substitute_small(L: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """``L L^T X = B`` for 2 x 2 or 3 x 3 lower factors, by written-out substitution."""
+    l = lambda i, j: L[..., i, j, None]  # noqa: E731  (broadcast over the columns of B)
+    b = [B[..., i, :] for i in range(L.shape[-1])]
+    if L.shape[-1] == 2:
+        y0 = b[0] / l(0, 0)
+        y1 = (b[1] - l(1, 0) * y0) / l(1, 1)
+        x1 = y1 / l(1, 1)
+        x0 = (y0 - l(1, 0) * x1) / l(0, 0)
+        return np.stack([x0, x1], axis=-2)
+    y0 = b[0] / l(0, 0)
+    y1 = (b[1] - l(1, 0) * y0) / l(1, 1)
+    y2 = (b[2] - l(2, 0) * y0 - l(2, 1) * y1) / l(2, 2)
+    x2 = y2 / l(2, 2)
+    x1 = (y1 - l(2, 1) * x2) / l(1, 1)
+    x0 = (y0 - l(1, 0) * x1 - l(2, 0) * x2) / l(0, 0)
+    return np.stack([x0, x1, x2], axis=-2)
+
+
 def cholesky_lower(M: np.ndarray) -> np.ndarray:
     """Lower Cholesky factors of a batch of symmetric positive definite matrices.
 
     A batch member that is not positive definite (a blown-up state) gets a
     NaN factor instead of failing the whole batch, so one diverging
-    environment of a vector env does not stop the others. Batches of 2 x 2
-    and 3 x 3 matrices are factorized in closed form (:func:`_cholesky_2x2_3x3`),
-    everything else by LAPACK.
+    environment of a vector env does not stop the others. 2 x 2 and 3 x 3
+    matrices (the scenes' mass matrices) are factorized in closed form
+    (:func:`_cholesky_2x2_3x3`, NaN where not positive definite), everything
+    else by LAPACK.
 
     Raises
     ------
     numpy.linalg.LinAlgError
         For a single (unbatched) large matrix that is not positive definite.
     """
-    if M.ndim > 2 and M.shape[-1] in (2, 3) and M.shape[0] > 1:
+    if M.shape[-1] in (2, 3):
         return _cholesky_2x2_3x3(M)
     try:
         return np.linalg.cholesky(M)
@@ -109,6 +129,8 @@ def cholesky_solve_columns(M: np.ndarray, B: np.ndarray) -> np.ndarray:
     """
     L = cholesky_lower(M)
     n = L.shape[-1]
+    if n in (2, 3):
+        return _substitute_small(L, B)
     shape = np.broadcast_shapes(L.shape[:-2], B.shape[:-2])
     if L.shape[:-2] != shape:
         L = np.broadcast_to(L, shape + (n, n))
