@@ -17,7 +17,7 @@ PPO and SAC) are rolled out on the same seeds through ``predict``:
 Writes ``report.md``, ``episodes.csv``, ``summary.json`` and PNG plots to ``--out``.
 Cells run in local processes, or on Ray with ``--ray [ADDRESS]``.
 
-    python scripts/compare.py --out results            # 20 seeds, all conditions (~6 min)
+    python scripts/compare.py --out results            # 20 seeds, all conditions (~2 min on 2 cores)
     python scripts/compare.py --out results --quick    # 3 seeds, nominal and +-20 % (~1 min)
 """
 
