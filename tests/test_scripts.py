@@ -134,3 +134,25 @@ def test_stiff_cases_tiny_configuration(tmp_path):
     assert all(r["flagged"] and r["all_outputs_finite"] for r in result["singular"])
     for name in ("stiff_cases.md", "stiff_cases.csv", "stiff_summary.csv", "stiff_cases.json", "stiff_cases.png"):
         assert (tmp_path / name).stat().st_size > 0
+
+
+def test_soak_tiny_configuration(tmp_path):
+    """Random episodes with no non-finite output, long runs and the parameter edges (processes: slow test)."""
+    script = load_script("soak.py")
+    result = script["run"](tmp_path, episodes=20, quick=True, ids=["mbs_envs/Planar2R-v0", "mbs_envs/RollingDisk-v0"], processes=False)
+    for s in result["soak"]:
+        assert s["episodes"] >= 20 and s["nonfinite_observations"] == 0 and s["nonfinite_rewards"] == 0
+    refused = [e for e in result["edges"] if e["value"] != e["value"] or e["value"] <= 0]  # NaN, 0, -1
+    assert refused and all(e["outcome"].startswith("ValueError") and e["parameter"] in e["message"] for e in refused)
+    assert all(e.get("all_finite", True) for e in result["edges"])
+    for name in ("soak.json", "soak.md", "soak.png"):
+        assert (tmp_path / name).stat().st_size > 0
+
+
+@pytest.mark.slow
+def test_determinism_across_vectorizations_and_start_methods():
+    from mbs_envs.reliability import determinism
+
+    for env_id in ("mbs_envs/Planar2R-v0", "mbs_envs/RollingDisk-v0"):
+        d = determinism(env_id, steps=20)
+        assert all(v == 0.0 for v in d["max_difference"].values()), d

@@ -1,0 +1,143 @@
+"""Soak runs, determinism across vectorizations, and parameters at the edges
+(the logic of ``scripts/soak.py``; figures in ``docs/reliability.md``).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from .models import FourBar, Planar2R, RollingDisk, SerialChain
+from .simulate import simulate
+
+
+def random_episodes(env_id: str, episodes: int, num_envs: int = 256, seed: int = 0, wild_fraction: float = 0.1, **kwargs: Any) -> dict:
+    """Random-action episodes on the batched env until ``episodes`` have ended.
+
+    Actions are uniform in ``[-1, 1]``; a ``wild_fraction`` of them are
+    out of range (up to 1e6, saturating). Counts every step's non-finite
+    observations and rewards, divergences reported in ``info``, and episode ends.
+    """
+    venv = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", full_info=False, **kwargs)
+    rng = np.random.default_rng(seed)
+    obs, _ = venv.reset(seed=seed)
+    ended = steps = nonfinite_obs = nonfinite_reward = diverged = terminated_n = 0
+    max_abs_obs = float(np.max(np.abs(obs)))
+    prev_done = np.zeros(num_envs, bool)
+    while ended < episodes:
+        a = rng.uniform(-1, 1, venv.action_space.shape)
+        wild = rng.random(num_envs) < wild_fraction
+        a[wild] *= 1e6
+        obs, reward, term, trunc, info = venv.step(a)
+        live = ~prev_done  # members whose step was a real step (not an autoreset)
+        steps += int(live.sum())
+        nonfinite_obs += int(np.sum(~np.all(np.isfinite(obs), axis=-1)))
+        nonfinite_reward += int(np.sum(~np.isfinite(reward)))
+        diverged += int(np.sum(info["diverged"] & live))
+        terminated_n += int(np.sum(term & live))
+        done = (term | trunc) & live
+        ended += int(done.sum())
+        prev_done = done
+        max_abs_obs = max(max_abs_obs, float(np.max(np.abs(np.where(np.isfinite(obs), obs, 0.0)))))
+    venv.close()
+    return {"env_id": env_id, "episodes": ended, "steps": steps, "nonfinite_observations": nonfinite_obs,
+            "nonfinite_rewards": nonfinite_reward, "divergences_reported": diverged, "terminations": terminated_n,
+            "max_abs_observation": max_abs_obs}  # fmt: skip
+
+
+def _collect(venv_step, reset, actions) -> np.ndarray:
+    obs = [reset()]
+    for a in actions:
+        obs.append(venv_step(a))
+    return np.array(obs)
+
+
+def determinism(env_id: str, steps: int = 100, num_envs: int = 4, seed: int = 123, **kwargs: Any) -> dict:
+    """The same seeds and actions through Sync, Async (spawn), the batched env and SB3's
+    SubprocVecEnv (spawn, forkserver): largest observation difference to the SyncVectorEnv run,
+    over the steps before any member's episode ends (autoreset conventions differ after)."""
+    from stable_baselines3.common.vec_env import SubprocVecEnv
+
+    rng = np.random.default_rng(seed)
+    probe = gym.make(env_id, **kwargs)
+    actions = rng.uniform(-1, 1, (steps, num_envs) + probe.action_space.shape)
+    name = env_id if env_id.startswith("mbs_envs:") else "mbs_envs:" + env_id
+
+    def make():
+        return gym.make(name, **kwargs)
+
+    runs: dict[str, np.ndarray] = {}
+    dones: list[np.ndarray] = []
+
+    def gym_run(venv):
+        obs = [venv.reset(seed=seed)[0]]
+        for a in actions:
+            o, _, te, tr, _ = venv.step(a)
+            obs.append(o)
+            dones.append(te | tr)
+        venv.close()
+        return np.array(obs)
+
+    runs["sync"] = gym_run(gym.vector.SyncVectorEnv([make] * num_envs))
+    runs["async (spawn)"] = gym_run(gym.vector.AsyncVectorEnv([make] * num_envs, context="spawn"))
+    runs["batched"] = gym_run(gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", **kwargs))
+    for method in ("spawn", "forkserver"):
+        venv = SubprocVecEnv([make] * num_envs, start_method=method)
+        venv.seed(seed)
+        obs = [venv.reset()]
+        for a in actions:
+            obs.append(venv.step(a)[0])
+        venv.close()
+        runs[f"SB3 SubprocVecEnv ({method})"] = np.array(obs)
+    first_done = min([k for k, d in enumerate(dones[:steps]) if np.any(d)] + [steps])
+    upto = first_done + 1  # observations up to and including the first episode end
+    ref = runs["sync"][:upto]
+    return {"env_id": env_id, "steps_compared": int(upto - 1), "members": num_envs,
+            "max_difference": {k: float(np.max(np.abs(v[:upto] - ref))) for k, v in runs.items()}}  # fmt: skip
+
+
+#: (model class, parameter, value): the edges tried
+EDGE_VALUES = (0.0, -1.0, math.nan, math.inf, 1e-6, 1e6)
+
+
+def parameter_edges() -> list[dict]:
+    """Every model x mass/length parameter x :data:`EDGE_VALUES`: ``ValueError`` (with its
+    message) or, when accepted, a 1 s simulation's outcome (finite, divergence reported, energy drift)."""
+    cases = [(Planar2R, "m2", {}), (Planar2R, "l1", {}), (Planar2R, "I1", {"r1": 0.0}),
+             (FourBar, "m2", {}), (FourBar, "l2", {}), (RollingDisk, "m", {}), (RollingDisk, "r", {}),
+             (SerialChain, "m", {"n_links": 5}), (SerialChain, "l", {"n_links": 5})]  # fmt: skip
+    rows = []
+    for cls, name, extra in cases:
+        for value in EDGE_VALUES:
+            row = {"model": cls.__name__, "parameter": name, "value": value}
+            try:
+                model = cls(**extra, **{name: value})
+            except ValueError as e:
+                rows.append({**row, "outcome": "ValueError", "message": str(e)})
+                continue
+            try:
+                q0, v0 = start_state(model)
+            except ValueError as e:
+                rows.append({**row, "outcome": "ValueError at assembly", "message": str(e)})
+                continue
+            stab = "projection" if model.constrained else None
+            tr = simulate(model, q0, v0, 1.0, dt=1e-3, integrator="rk4", stabilization=stab)
+            E = model.energy(tr.q, tr.v)
+            finite = bool(np.all(np.isfinite(tr.q)) and np.all(np.isfinite(tr.v)))
+            scale = max(float(np.max(np.abs(E))), 1e-300)
+            rows.append({**row, "outcome": "diverged (reported)" if np.any(tr.diverged) else "stable",
+                         "all_finite": finite, "relative_energy_drift": float(np.max(np.abs(E - E[0]))) / scale})  # fmt: skip
+    return rows
+
+
+def start_state(model) -> tuple[np.ndarray, np.ndarray]:
+    """A moving start state for the edge runs (assembled/rolling for constrained models)."""
+    if isinstance(model, FourBar):
+        return model.consistent_state(0.3, 2.0)
+    if isinstance(model, RollingDisk):
+        return model.rolling_state(lean=0.1, dspin=2 * model.critical_spin)
+    n = model.nq
+    return np.full(n, 0.3), np.full(n, 0.5)

@@ -1,0 +1,108 @@
+#!/usr/bin/env python
+"""Soak and reliability: random-action episodes, determinism, long runs, parameters at the edges.
+
+1. ``--episodes`` random-action episodes per registered id (10 % of actions out
+   of range, up to 1e6) on the batched env: non-finite observations and rewards
+   (target 0), divergences reported, terminations.
+2. Determinism: the same seeds and actions through Gymnasium's Sync and Async
+   (spawn) vector envs, the batched env, and SB3's SubprocVecEnv with spawn and
+   forkserver; largest observation difference (target 0).
+3. Long runs, 1e5 fixed steps of free motion: energy and constraint drift.
+4. Parameters at the edges (0, -1, NaN, inf, 1e-6, 1e6 for masses and lengths
+   of every model): ``ValueError`` naming the parameter, or a 1 s run's outcome.
+
+Writes ``soak.json``, ``soak.md`` and ``soak.png`` to ``--out``.
+
+    python scripts/soak.py --out results/soak                  # 1e4 episodes per id, ~10 min
+    python scripts/soak.py --out results/soak --quick          # 200 episodes, short runs
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import pathlib
+import sys
+
+import numpy as np
+from tqdm import tqdm
+
+import mbs_envs
+from mbs_envs import reliability as rl
+from mbs_envs import stiff_cases as sc
+from mbs_envs.plotting import pyplot, save
+
+
+def run(out: pathlib.Path, episodes: int, quick: bool = False, ids: list[str] | None = None, processes: bool = True) -> dict:
+    out.mkdir(parents=True, exist_ok=True)
+    ids = ids or list(mbs_envs.ENV_IDS)
+    soak = [rl.random_episodes(i, episodes) for i in tqdm(ids, desc="random episodes")]
+    det = [rl.determinism(i, steps=20 if quick else 100) for i in tqdm(ids, desc="determinism")] if processes else []
+    long = [sc.long_run_row(r, "rk4") for r in tqdm(sc.long_runs(quick), desc="long runs")]
+    edges = rl.parameter_edges()
+    result = {"episodes_per_id": episodes, "soak": soak, "determinism": det, "long_runs": long, "edges": edges}
+    (out / "soak.json").write_text(json.dumps(result, indent=2, default=float))
+    text = report(result)
+    (out / "soak.md").write_text(text)
+    plot(result, out / "soak.png")
+    print(text)
+    print(f"written to {out}/soak.json, soak.md, soak.png")
+    return result
+
+
+def report(r: dict) -> str:
+    L = ["# Soak and reliability", "", "## Random-action episodes (batched env, 10 % of actions out of range)", "",
+         "| id | episodes | steps | non-finite observations | non-finite rewards | divergences reported | terminations | max abs observation |",
+         "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    for s in r["soak"]:
+        L.append(f"| {s['env_id']} | {s['episodes']} | {s['steps']} | {s['nonfinite_observations']} | {s['nonfinite_rewards']} | "
+                 f"{s['divergences_reported']} | {s['terminations']} | {s['max_abs_observation']:.3g} |")  # fmt: skip
+    if r["determinism"]:
+        kinds = list(r["determinism"][0]["max_difference"])
+        L += ["", "## Determinism (largest observation difference to SyncVectorEnv; same seeds and actions)", "",
+              "| id | steps | " + " | ".join(kinds) + " |", "|---|---|" + "---|" * len(kinds)]  # fmt: skip
+        for d in r["determinism"]:
+            L.append(f"| {d['env_id']} | {d['steps_compared']} | " + " | ".join(f"{d['max_difference'][k]:.1e}" for k in kinds) + " |")
+    L += ["", "## Long runs (free motion, RK4)", "", "| case | steps | dt [s] | max energy drift [J] | relative | constraint error | diverged |",
+          "|---|---|---|---|---|---|---|"]  # fmt: skip
+    for x in r["long_runs"]:
+        c = "-" if not np.isfinite(x["constraint_error"]) else f"{x['constraint_error']:.1e}"
+        L.append(f"| {x['scene']} | {x['steps']} | {x['dt']:g} | {x['energy_drift']:.2e} | {x['energy_drift_relative']:.2e} | {c} | {x['diverged']} |")
+    L += ["", "## Parameters at the edges", "", "| model | parameter | value | outcome | detail |", "|---|---|---|---|---|"]
+    for e in r["edges"]:
+        detail = e.get("message") or f"finite: {e['all_finite']}, relative energy drift {e['relative_energy_drift']:.1e}"
+        L.append(f"| {e['model']} | {e['parameter']} | {e['value']:g} | {e['outcome']} | {detail[:110]} |")
+    return "\n".join(L) + "\n"
+
+
+def plot(r: dict, path: pathlib.Path) -> None:
+    plt = pyplot()
+    fig, (a0, a1) = plt.subplots(1, 2, figsize=(12, 4))
+    names = [s["env_id"].split("/")[-1] for s in r["soak"]]
+    x = np.arange(len(names))
+    for k, (key, label) in enumerate([("episodes", "episodes"), ("terminations", "terminations"),
+                                      ("divergences_reported", "divergences reported"), ("nonfinite_observations", "non-finite observations")]):  # fmt: skip
+        a0.bar(x + 0.2 * k, [max(s[key], 0.5) for s in r["soak"]], 0.2, label=label)
+    a0.set_yscale("log")
+    a0.set_xticks(x + 0.3, names, fontsize=8)
+    a0.set_title("random-action episodes (bars at 0.5 mean zero)")
+    a0.legend(fontsize=7)
+    outcomes = ["ValueError", "ValueError at assembly", "stable", "diverged (reported)"]
+    counts = [sum(e["outcome"] == o for e in r["edges"]) for o in outcomes]
+    a1.bar(range(len(outcomes)), counts, tick_label=[o.replace(" ", "\n", 1) for o in outcomes])
+    a1.set_title(f"parameters at the edges ({len(r['edges'])} cases)")
+    save(fig, path)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--out", required=True, type=pathlib.Path)
+    p.add_argument("--episodes", type=int, default=10_000)
+    p.add_argument("--quick", action="store_true")
+    a = p.parse_args(argv)
+    run(a.out, 200 if a.quick else a.episodes, a.quick)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
