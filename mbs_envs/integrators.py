@@ -35,6 +35,8 @@ from typing import Any
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from .linalg import per_member
+
 #: ``a(t, q, v) -> accelerations``, batched like ``q`` and ``v``.
 Acceleration = Callable[[float, np.ndarray, np.ndarray], np.ndarray]
 
@@ -450,14 +452,7 @@ class ImplicitRK:
         try:
             return np.linalg.inv(J)
         except np.linalg.LinAlgError:  # singular members: zero, so their Newton fails and halves
-            flat = J.reshape((-1, n, n))
-            out = np.zeros_like(flat)
-            for k, Jk in enumerate(flat):
-                try:
-                    out[k] = np.linalg.inv(Jk)
-                except np.linalg.LinAlgError:
-                    pass
-            return out.reshape(J.shape)
+            return per_member(np.linalg.inv, J, 0.0)
 
     def _newton(self, acc, t, Qh, Vh, g, J_inv, V0, frozen):
         """Solve ``V - Vh - g a(t, Qh + g V, V) = 0`` for the members not ``frozen``.

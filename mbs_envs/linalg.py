@@ -71,6 +71,22 @@ def _substitute_small(L: np.ndarray, B: np.ndarray) -> np.ndarray:
     return np.stack([x0, x1, x2], axis=-2)
 
 
+def per_member(f, A: np.ndarray, fill: float) -> np.ndarray:
+    """``f`` (a LAPACK matrix function) on each matrix of a batch ``A`` of shape ``(..., n, n)``.
+
+    The fallback after a batched call raised ``LinAlgError``: members where
+    ``f`` fails get ``fill`` in every entry, the others their own result.
+    """
+    flat = A.reshape((-1,) + A.shape[-2:])
+    out = np.full(flat.shape, fill, dtype=float)
+    for k, Ak in enumerate(flat):
+        try:
+            out[k] = f(Ak)
+        except np.linalg.LinAlgError:
+            pass
+    return out.reshape(A.shape)
+
+
 def cholesky_lower(M: np.ndarray) -> np.ndarray:
     """Lower Cholesky factors of a batch of symmetric positive definite matrices.
 
@@ -93,14 +109,7 @@ def cholesky_lower(M: np.ndarray) -> np.ndarray:
     except np.linalg.LinAlgError:
         if M.ndim == 2:
             raise
-    flat = M.reshape((-1,) + M.shape[-2:])
-    L = np.full(flat.shape, np.nan)
-    for k, Mk in enumerate(flat):
-        try:
-            L[k] = np.linalg.cholesky(Mk)
-        except np.linalg.LinAlgError:
-            pass
-    return L.reshape(M.shape)
+    return per_member(np.linalg.cholesky, M, np.nan)
 
 
 def cholesky_solve_columns(M: np.ndarray, B: np.ndarray) -> np.ndarray:
