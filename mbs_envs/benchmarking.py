@@ -36,16 +36,20 @@ def median_time(f: Callable[[], Any], repeats: int = 7, min_time: float = 0.02) 
 
 
 def time_steps(env: Any, actions: list, reset_every: int) -> float:
-    """Mean wall time of one ``env.step`` over ``actions`` [s] (resets not timed)."""
+    """Mean wall time of one ``env.step`` over ``actions`` [s] (resets not timed).
+
+    A single env is reset at episode ends and every ``reset_every`` steps; a
+    vector env resets its members itself (autoreset).
+    """
+    single = not hasattr(env, "num_envs")
     env.reset(seed=0)
     total = 0.0
     for k, a in enumerate(actions):
         tic = time.perf_counter()
         _, _, term, trunc, _ = env.step(a)
         total += time.perf_counter() - tic
-        if np.any(term) or np.any(trunc) or (k + 1) % reset_every == 0:
-            if np.ndim(term) == 0:
-                env.reset()
+        if single and (term or trunc or (k + 1) % reset_every == 0):
+            env.reset()
     return total / len(actions)
 
 

@@ -252,14 +252,11 @@ class MBSVectorEnv(VectorEnv):
         info = self._info(now, bad, terms)
         if self.autoreset_mode == AutoresetMode.NEXT_STEP and self._autoreset.any():
             idx = np.flatnonzero(self._autoreset)
-            self._reset_members(idx, {})
-            now_r = env.task_now(self._t[idx], self._pick(self._task, idx))
-            obs[idx] = env.observe(self._q[idx], self._v[idx], now_r, self._pick(self._task, idx))
+            obs[idx] = self._restart(idx)
             reward[idx] = 0.0
             terminated[idx] = False
             truncated[idx] = False
-            for key in ("diverged",):
-                info[key][idx] = False
+            info["diverged"][idx] = False
         done = terminated | truncated
         if self.autoreset_mode == AutoresetMode.SAME_STEP and done.any():
             idx = np.flatnonzero(done)
@@ -269,15 +266,19 @@ class MBSVectorEnv(VectorEnv):
             info["final_obs"], info["_final_obs"] = final_obs, done.copy()
             info["final_info"] = {k: np.copy(x) for k, x in info.items() if not k.startswith(("_", "final"))}
             info["_final_info"] = done.copy()
-            self._reset_members(idx, {})
-            now_r = env.task_now(self._t[idx], self._pick(self._task, idx))
-            obs[idx] = env.observe(self._q[idx], self._v[idx], now_r, self._pick(self._task, idx))
+            obs[idx] = self._restart(idx)
         self._autoreset = done if self.autoreset_mode == AutoresetMode.NEXT_STEP else np.zeros(self.num_envs, bool)
         return obs, np.asarray(reward, float), terminated, truncated, info
 
+    def _restart(self, idx: np.ndarray) -> np.ndarray:
+        """Reset members ``idx`` (autoreset) and return their first observations."""
+        self._reset_members(idx, {})
+        task = self._pick(self._task, idx)
+        return self.env.observe(self._q[idx], self._v[idx], self.env.task_now(self._t[idx], task), task)
+
     @staticmethod
-    def _pick(task: Any, idx: np.ndarray) -> Any:
-        """Members ``idx`` of a stacked task."""
+    def _pick(task: Any, idx: np.ndarray | int) -> Any:
+        """Members ``idx`` of a stacked task (an int gives one member in the single env's shapes)."""
         if task is None:
             return None
         if dataclasses.is_dataclass(task):
@@ -319,23 +320,13 @@ class MBSVectorEnv(VectorEnv):
         saved = (env._q, env._v, env._t, env._task)
         for i in range(self.num_envs):
             env._q, env._v, env._t = self._q[i], self._v[i], float(self._t[i])
-            env._task = self._pick(self._task, np.array([i]))
-            env._task = _unbatch(env._task)
+            env._task = self._pick(self._task, i)
             frames.append(env.render())
         env._q, env._v, env._t, env._task = saved
         return tuple(frames)
 
     def close_extras(self, **kwargs: Any) -> None:
         self.env.close()
-
-
-def _unbatch(task: Any) -> Any:
-    """A stacked task of one member back to the single env's shapes."""
-    if task is None:
-        return None
-    if dataclasses.is_dataclass(task):
-        return type(task)(**{f.name: _unbatch(getattr(task, f.name)) for f in dataclasses.fields(task)})
-    return task[0]
 
 
 def make_vector(entry_point: str, num_envs: int = 1, **kwargs: Any) -> MBSVectorEnv:

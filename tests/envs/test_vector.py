@@ -183,3 +183,11 @@ def test_batched_rollout_scores_like_single_rollouts(env_id):
         np.testing.assert_allclose(ep_b.u, ep.u, atol=1e-11)
         m, mb = episode_metrics(ep), episode_metrics(ep_b)
         assert mb["rms_error"] == pytest.approx(m["rms_error"], rel=1e-11)
+
+
+def test_rgb_array_render_gives_one_frame_per_member():
+    venv = gym.make_vec("mbs_envs/RollingDisk-v0", num_envs=2, vectorization_mode="vector_entry_point", render_mode="rgb_array")
+    venv.reset(seed=0)
+    frames = venv.render()
+    assert len(frames) == 2 and frames[0].ndim == 3 and frames[0].shape[-1] == 3
+    assert not np.array_equal(frames[0], frames[1])  # different members, different pictures
