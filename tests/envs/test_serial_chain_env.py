@@ -57,7 +57,7 @@ def test_random_actions_stay_finite_and_do_not_diverge(n):
         obs, reward, term, trunc, info = env.step(env.action_space.sample())
         assert np.all(np.isfinite(obs)) and np.isfinite(reward)
         assert not info["diverged"] and not term
-    # measured: max |v| 12.6 rad/s (N = 5), 35 rad/s (N = 50)
+    # measured for this seed: final max |v| 5.1 rad/s (N = 5), 11.6 (N = 50); over the episode 12.6 and 17.6
     assert np.max(np.abs(env.unwrapped.v)) < 200
 
 
@@ -71,7 +71,7 @@ def test_the_default_step_is_accurate_against_a_tight_adaptive_reference():
         for _ in range(50):
             env.step(rng.uniform(-1, 1, 20))
         final[name] = env.unwrapped.q
-    # measured 1e-7 rad (N = 5 and 50: 3.8e-8, 8.9e-8)
+    # measured 1.4e-7 rad
     assert np.max(np.abs(final["default"] - final["ref"])) < 1e-6
 
 
@@ -95,5 +95,5 @@ def test_computed_torque_uses_rnea_and_beats_pd():
                 if k >= 100:
                     errs.append(info["tracking_error"])
         rms[C.__name__] = np.sqrt(np.mean(np.square(errs)))
-    # measured: PD 3.9e-2, computed torque 3.6e-5 rad (N = 10, t >= 1 s)
+    # measured: PD 1.7e-2, computed torque 3.0e-5 rad (N = 10, 1 s <= t < 3 s, seeds 0 and 1)
     assert rms["ComputedTorque"] * 100 < rms["PD"], rms
