@@ -56,9 +56,7 @@ def scaled_params(model: Any, s: float) -> dict[str, Any]:
     for name in model.params.names():
         value = getattr(model.params, name)
         head = name.rstrip("0123456789")
-        if head == "m":
-            out[name] = value * s
-        elif head in ("l", "r"):
+        if head in ("m", "l", "r"):
             out[name] = value * s
         elif head == "I":
             out[name] = value * s**3

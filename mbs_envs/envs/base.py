@@ -26,34 +26,42 @@ def _scalar(x: Any) -> Any:
     return x.item() if isinstance(x, np.ndarray) and x.ndim == 0 else x
 
 
-def validate_action(action: Any, nu: int) -> np.ndarray:
-    """Check a normalized action and saturate it to ``[-1, 1]``.
+def validate_action(action: Any, nu: int, num_envs: int | None = None) -> np.ndarray:
+    """Check a normalized action (or a vector env's batch of them) and saturate it to ``[-1, 1]``.
 
     Parameters
     ----------
-    action : array_like, shape (nu,) (a scalar is accepted when ``nu == 1``)
+    action : array_like, shape (nu,), or (num_envs, nu) for a batch
+        A scalar is accepted when ``nu == 1`` (one per member for a batch).
     nu : int
+    num_envs : int, optional
+        Members of a batch (None: a single action).
 
     Returns
     -------
-    ndarray, shape (nu,)
+    ndarray, shape (nu,) or (num_envs, nu)
         The action clipped to ``[-1, 1]`` (finite out-of-range values saturate).
 
     Raises
     ------
     ValueError
-        For a non-numeric, wrongly shaped, NaN or infinite action.
+        For a non-numeric, wrongly shaped, NaN or infinite action (naming the
+        members of a batch that are not finite).
     """
+    batch = () if num_envs is None else (num_envs,)
+    name = "action" if num_envs is None else "actions"
     try:
         a = np.asarray(action, dtype=float)
     except (TypeError, ValueError):
-        raise ValueError(f"action must be numeric, got {action!r}") from None
-    if nu == 1 and a.shape == ():
-        a = a.reshape(1)
-    if a.shape != (nu,):
-        raise ValueError(f"action must have shape ({nu},), got shape {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise ValueError(f"action must be finite, got {a.tolist()}")
+        raise ValueError(f"{name} must be numeric, got {action!r}") from None
+    if nu == 1 and a.shape == batch:
+        a = a[..., None]
+    if a.shape != batch + (nu,):
+        raise ValueError(f"{name} must have shape {batch + (nu,)}, got shape {a.shape}")
+    finite = np.all(np.isfinite(a), axis=-1)
+    if not np.all(finite):
+        which = f"got {a.tolist()}" if num_envs is None else f"members {np.flatnonzero(~finite).tolist()} are not"
+        raise ValueError(f"{name} must be finite; {which}")
     return np.clip(a, -1.0, 1.0)
 
 

@@ -40,7 +40,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from ..simulate import advance
-from .base import MBSEnv
+from .base import MBSEnv, validate_action
 
 
 def tree_stack(items: list[Any]) -> Any:
@@ -62,20 +62,6 @@ def tree_set(batch: Any, i: int, item: Any) -> None:
             tree_set(getattr(batch, f.name), i, getattr(item, f.name))
         return
     batch[i] = item
-
-
-def validate_actions(actions: Any, num_envs: int, nu: int) -> np.ndarray:
-    """Batched :func:`~mbs_envs.envs.base.validate_action`: shape ``(num_envs, nu)``, finite; saturated."""
-    try:
-        a = np.asarray(actions, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"actions must be numeric, got {actions!r}") from None
-    if a.shape != (num_envs, nu):
-        raise ValueError(f"actions must have shape ({num_envs}, {nu}), got shape {a.shape}")
-    finite = np.all(np.isfinite(a), axis=-1)
-    if not np.all(finite):
-        raise ValueError(f"actions must be finite; members {np.flatnonzero(~finite).tolist()} are not")
-    return np.clip(a, -1.0, 1.0)
 
 
 class MBSVectorEnv(VectorEnv):
@@ -231,7 +217,7 @@ class MBSVectorEnv(VectorEnv):
         if not self._started:
             raise gym.error.ResetNeeded("call reset() before step()")
         env = self.env
-        a = validate_actions(actions, self.num_envs, self.model.nu)
+        a = validate_action(actions, self.model.nu, self.num_envs)
         u = a * env.u_max
         q, v = advance(self.model, env.integrator, 0.0, self._q, self._v, env.dt, env.substeps, u, env.stabilization)
         bad = env.state_diverged(q, v)
