@@ -14,7 +14,46 @@ from __future__ import annotations
 
 import dataclasses
 
+from .jit import njit
 import numpy as np
+
+
+@njit
+def sum_of_sines_member(t, center, rate, amplitude, omega, phase, b, q_ref, v_ref, a_ref):  # pragma: no cover
+    """The reference formulas (module docstring) of row ``b`` at time ``t``, written into row ``b`` of the outputs.
+
+    Parameters
+    ----------
+    t : float
+        [s]
+    center, rate : ndarray, shape (L, n)
+    amplitude, omega, phase : ndarray, shape (L, n, K)
+    b : int
+        The row (compiled callers index rows rather than take views).
+    q_ref, v_ref, a_ref : ndarray, shape (L, n)
+        Outputs [rad], [rad/s], [rad/s^2].
+    """
+    n, K = amplitude.shape[1], amplitude.shape[2]
+    for i in range(n):
+        sq = 0.0
+        sv = 0.0
+        sa = 0.0
+        for k in range(K):
+            w = omega[b, i, k]
+            arg = w * t + phase[b, i, k]
+            As = amplitude[b, i, k] * np.sin(arg)
+            sq += As
+            sv += amplitude[b, i, k] * w * np.cos(arg)
+            sa += As * w**2
+        q_ref[b, i] = center[b, i] + sq + rate[b, i] * t
+        v_ref[b, i] = sv + rate[b, i]
+        a_ref[b, i] = -sa
+
+
+@njit
+def _sum_of_sines_rows(t, center, rate, amplitude, omega, phase, q_ref, v_ref, a_ref):  # pragma: no cover
+    for r in range(t.shape[0]):
+        sum_of_sines_member(t[r], center, rate, amplitude, omega, phase, r, q_ref, v_ref, a_ref)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -52,16 +91,23 @@ class SumOfSines:
         -------
         q_ref, v_ref, a_ref : ndarray, shape (n,) or (T, n)
         """
-        tt = np.asarray(t, float)[..., None, None]
-        arg = self.omega * tt + self.phase
-        As = self.amplitude * np.sin(arg)
-        q_ref = self.center + As.sum(axis=-1)
-        v_ref = (self.amplitude * self.omega * np.cos(arg)).sum(axis=-1)
-        if self.rate is not None:
-            q_ref = q_ref + self.rate * np.asarray(t, float)[..., None]
-            v_ref = v_ref + self.rate
-        a_ref = -(As * self.omega**2).sum(axis=-1)
-        return q_ref, v_ref, a_ref
+        t = np.asarray(t, float)
+        rows = self.rows(t.shape)
+        lead = np.broadcast_shapes(t.shape, self.center.shape[:-1])
+        out = np.empty((3,) + rows[0].shape)
+        _sum_of_sines_rows(np.broadcast_to(t, lead).reshape(-1), *rows, out[0], out[1], out[2])
+        n = self.center.shape[-1]
+        return tuple(x.reshape(lead + (n,)) for x in out)
+
+    def rows(self, shape: tuple = ()) -> tuple[np.ndarray, ...]:
+        """``(center, rate, amplitude, omega, phase)`` broadcast to times of ``shape`` and
+        flattened to rows ``(L, n)``, ``(L, n, K)`` (a zero rate when there is none)."""
+        lead = np.broadcast_shapes(shape, self.center.shape[:-1])
+        n, K = self.amplitude.shape[-2:]
+        rate = np.zeros(n) if self.rate is None else self.rate
+        vec = [np.broadcast_to(x, lead + (n,)).reshape(-1, n) for x in (self.center, rate)]
+        mat = [np.broadcast_to(x, lead + (n, K)).reshape(-1, n, K) for x in (self.amplitude, self.omega, self.phase)]
+        return (*vec, *mat)
 
 
 def sample_sum_of_sines(

@@ -51,6 +51,9 @@ def single_step(repeats: int, steps: int) -> dict:
     peers = {
         "Acrobot-v1": (gym.make("Acrobot-v1"), [int(a) for a in rng.integers(0, 3, steps)]),
         "Planar2R-v0": (gym.make("mbs_envs/Planar2R-v0"), list(rng.uniform(-1, 1, (steps, 2)).astype(np.float32))),
+        "Planar2R-v0 (numpy path)": (
+            gym.make("mbs_envs/Planar2R-v0", compiled=False), list(rng.uniform(-1, 1, (steps, 2)).astype(np.float32))
+        ),
     }
     times: dict[str, list[float]] = {k: [] for k in peers}
     for _ in tqdm(range(repeats), desc="single step"):
@@ -78,20 +81,22 @@ def step_errors(n_states: int = 50) -> dict:
         ns = rk4(acro._dsdt, aug, [0, acro.dt])  # what Acrobot-v1's step integrates
         ref = solve_ivp(lambda t, y: acro._dsdt(y), (0, acro.dt), aug, method="DOP853", rtol=1e-12, atol=1e-12).y[:4, -1]
         err_acro = max(err_acro, float(np.max(np.abs(ns[:4] - ref))))
-    env = gym.make("mbs_envs/Planar2R-v0").unwrapped
+    env = gym.make("mbs_envs/Planar2R-v0").unwrapped  # its defaults: RK4, 2 substeps per 10 ms
     model = env.model
     err_ours = 0.0
     for _ in range(n_states):
         q, v = rng.uniform(-np.pi, np.pi, 2), rng.uniform(-4, 4, 2)
-        u = rng.uniform(-1, 1, 2) * env.u_max
-        step = mbs_envs.simulate(model, q, v, env.dt, dt=env.dt, integrator="rk4", u=u)  # what step() integrates
-        ref = mbs_envs.simulate(model, q, v, env.dt, dt=env.dt, integrator="dop853", u=u, rtol=1e-12, atol=1e-12)
-        err = max(np.max(np.abs(step.q[-1] - ref.q[-1])), np.max(np.abs(step.v[-1] - ref.v[-1])))
+        action = rng.uniform(-1, 1, 2)
+        env.reset(options={"q": q, "v": v})
+        env.step(action)  # exactly what a user's step integrates
+        ref = mbs_envs.simulate(model, q, v, env.dt, dt=env.dt, integrator="dop853", u=action * env.u_max, rtol=1e-12, atol=1e-12)
+        err = max(np.max(np.abs(env.q - ref.q[-1])), np.max(np.abs(env.v - ref.v[-1])))
         err_ours = max(err_ours, float(err))
     return {
         "acrobot_dt": acro.dt,
         "acrobot_max_state_error_per_step": err_acro,
         "planar2r_dt": env.dt,
+        "planar2r_substeps": env.substeps,
         "planar2r_max_state_error_per_step": err_ours,
         "ratio_acrobot_to_planar2r": err_acro / err_ours,
     }
@@ -109,6 +114,10 @@ def batched_step(num_envs: int, repeats: int, steps: int) -> dict:
         ),
         "Planar2R-v0 vector (full info)": gym.make_vec(
             "mbs_envs/Planar2R-v0", num_envs=num_envs, vectorization_mode="vector_entry_point"
+        ),
+        "Planar2R-v0 vector (numpy path)": gym.make_vec(
+            "mbs_envs/Planar2R-v0", num_envs=num_envs, vectorization_mode="vector_entry_point", full_info=False,
+            compiled=False,
         ),
     }  # fmt: skip
     actions = {

@@ -13,6 +13,7 @@ from __future__ import annotations
 from typing import Any, ClassVar
 
 import gymnasium as gym
+from ..jit import njit
 import numpy as np
 
 from .. import integrators
@@ -24,6 +25,17 @@ from .rendering import PlanarRenderer, Polyline
 def _scalar(x: Any) -> Any:
     """0-d arrays as Python scalars (a single env's ``info``); arrays unchanged."""
     return x.item() if isinstance(x, np.ndarray) and x.ndim == 0 else x
+
+
+@njit
+def _clip_unit(a, out):  # pragma: no cover - compiled
+    """``out = clip(a, -1, 1)``; False (``out`` unspecified) if any entry is not finite."""
+    for i in range(a.shape[0]):
+        x = a[i]
+        if not np.isfinite(x):
+            return False
+        out[i] = min(max(x, -1.0), 1.0)
+    return True
 
 
 def validate_action(action: Any, nu: int, num_envs: int | None = None) -> np.ndarray:
@@ -49,6 +61,10 @@ def validate_action(action: Any, nu: int, num_envs: int | None = None) -> np.nda
         members of a batch that are not finite).
     """
     batch = () if num_envs is None else (num_envs,)
+    if type(action) is np.ndarray and action.shape == batch + (nu,) and action.dtype.kind == "f":
+        out = np.empty(action.shape)  # the common case, fast: a float array of the right shape
+        if _clip_unit(action.reshape(-1), out.reshape(-1)):
+            return out
     name = "action" if num_envs is None else "actions"
     try:
         a = np.asarray(action, dtype=float)
@@ -231,7 +247,8 @@ class MBSEnv(gym.Env):
         super().reset(seed=seed)
         self._t = 0.0
         self._u = np.zeros(self.model.nu)
-        self._task, self._q, self._v = self.sample_start(options)
+        self._task, q0, v0 = self.sample_start(options)
+        self._q, self._v = np.array(q0, float), np.array(v0, float)  # private: steps may update them in place
         if self.render_mode == "human":
             self.render()
         return self._observation(), self._info(diverged=False)

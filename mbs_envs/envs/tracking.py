@@ -18,18 +18,156 @@ with each term reported in ``info``.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import Any, ClassVar
 
 import gymnasium as gym
+from ..jit import njit
 import numpy as np
 
-from ..references import SumOfSines, sample_sum_of_sines
-from .base import MBSEnv
+from ..compiled import TableauArrays, batch_theta, compiled_stepping, rk_member
+from ..references import SumOfSines, sample_sum_of_sines, sum_of_sines_member
+from .base import MBSEnv, validate_action
 
 
 def wrap_angle(x: np.ndarray) -> np.ndarray:
-    """Wrap angles to ``[-pi, pi)``."""
-    return (np.asarray(x) + np.pi) % (2 * np.pi) - np.pi
+    """Wrap angles to ``[-pi, pi)`` (floats or arrays)."""
+    return (x + np.pi) % (2 * np.pi) - np.pi
+
+
+_wrap = njit(wrap_angle)
+
+
+# ---------------------------------------------------------------------------
+# The task's formulas for one member (compiled), and their batched callers
+# ---------------------------------------------------------------------------
+
+
+@njit
+def encode_member(q, v, q_ref, v_ref, a_ref, b, tracked, obs):  # pragma: no cover - compiled
+    """Row ``b`` of ``obs = [cos q, sin q, v, wrap(q_ref - q[tracked]), v_ref, a_ref]``
+    from row ``b`` of the (L, n) and (L, m) inputs (rows, not views: see :mod:`mbs_envs.compiled`)."""
+    n = q.shape[1]
+    m = tracked.shape[0]
+    for i in range(n):
+        obs[b, i] = np.cos(q[b, i])
+        obs[b, n + i] = np.sin(q[b, i])
+        obs[b, 2 * n + i] = v[b, i]
+    for j in range(m):
+        obs[b, 3 * n + j] = _wrap(q_ref[b, j] - q[b, tracked[j]])
+        obs[b, 3 * n + m + j] = v_ref[b, j]
+        obs[b, 3 * n + 2 * m + j] = a_ref[b, j]
+
+
+@njit
+def reward_member(q, v, q_ref, v_ref, action, b, tracked, weights, terms, e):  # pragma: no cover - compiled
+    """Row ``b``'s reward terms (module docstring) into ``terms[b, :4] = (r, r_e, r_de, r_u)``
+    and its tracking error ``wrap(q_ref - q[tracked])`` into ``e[b]``."""
+    s_e = 0.0
+    s_de = 0.0
+    s_u = 0.0
+    for j in range(tracked.shape[0]):
+        ej = _wrap(q_ref[b, j] - q[b, tracked[j]])
+        de = v_ref[b, j] - v[b, tracked[j]]
+        e[b, j] = ej
+        s_e += ej * ej
+        s_de += de * de
+    for k in range(action.shape[1]):
+        s_u += action[b, k] * action[b, k]
+    r_e = -weights[0] * s_e
+    r_de = -weights[1] * s_de
+    r_u = -weights[2] * s_u
+    terms[b, 0] = r_e + r_de + r_u
+    terms[b, 1] = r_e
+    terms[b, 2] = r_de
+    terms[b, 3] = r_u
+
+
+@njit
+def _encode_rows(q, v, q_ref, v_ref, a_ref, tracked, obs):  # pragma: no cover - compiled
+    for b in range(q.shape[0]):
+        encode_member(q, v, q_ref, v_ref, a_ref, b, tracked, obs)
+
+
+@njit
+def _reward_rows(q, v, q_ref, v_ref, action, tracked, weights, terms, e):  # pragma: no cover - compiled
+    for b in range(q.shape[0]):
+        reward_member(q, v, q_ref, v_ref, action, b, tracked, weights, terms, e)
+
+
+def _as_rows(*arrays: np.ndarray) -> tuple[tuple, list[np.ndarray]]:
+    """Broadcast the leading dimensions of ``(..., k_i)`` arrays and flatten them to rows ``(L, k_i)``."""
+    arrays = [np.asarray(x, float) for x in arrays]
+    lead = np.broadcast_shapes(*(x.shape[:-1] for x in arrays))
+    return lead, [np.broadcast_to(x, lead + x.shape[-1:]).reshape(-1, x.shape[-1]) for x in arrays]
+
+
+@njit(cache=False)
+def _tracking_step_rows(  # pragma: no cover - compiled
+    acc, energy, theta, A_v, A_q, b_v, b_q, needed, substeps, limit,
+    q, v, t, dt, action, u_max, center, rate, amplitude, omega, phase, tracked, weights,
+    u, obs, terms, e, q_ref, bad,
+):  # fmt: skip
+    """One control step of every row: :meth:`MBSEnv.step`'s sequence, compiled.
+
+    Physics (:func:`mbs_envs.compiled.rk_member` with ``u = action * u_max``
+    held; ``B = I``), the divergence test (non-finite or ``|x| > limit``: the row
+    keeps its state and ``bad`` is set), ``t += dt``, the reference at the new
+    time, reward terms, observation and energy. ``q, v, t`` are updated in
+    place; ``u (B, nu)``, ``obs (B, d)``, ``terms (B, 5) = (r, r_e, r_de, r_u, energy)``,
+    ``e (B, m)``, ``q_ref (B, m)`` and ``bad (B,)`` are outputs.
+    """
+    s = A_v.shape[0]
+    B, n = q.shape
+    m = tracked.shape[0]
+    Q = np.empty((s, n))
+    V = np.empty((s, n))
+    K = np.empty((s, n))
+    q_old = np.empty(n)
+    v_old = np.empty(n)
+    v_ref = np.empty((B, m))
+    a_ref = np.empty((B, m))
+    h = dt / substeps
+    for b in range(B):
+        for k in range(u.shape[1]):
+            u[b, k] = action[b, k] * u_max[k]
+        for k in range(n):
+            q_old[k] = q[b, k]
+            v_old[k] = v[b, k]
+        rk_member(acc, theta, A_v, A_q, b_v, b_q, needed, q, v, u, b, h, substeps, Q, V, K)
+        ok = True
+        for k in range(n):
+            if not (abs(q[b, k]) <= limit and abs(v[b, k]) <= limit):
+                ok = False
+        bad[b] = not ok
+        if not ok:
+            for k in range(n):
+                q[b, k] = q_old[k]
+                v[b, k] = v_old[k]
+        t[b] = t[b] + dt
+        sum_of_sines_member(t[b], center, rate, amplitude, omega, phase, b, q_ref, v_ref, a_ref)
+        reward_member(q, v, q_ref, v_ref, action, b, tracked, weights, terms, e)
+        encode_member(q, v, q_ref, v_ref, a_ref, b, tracked, obs)
+        terms[b, 4] = energy(q, v, theta, b)
+
+
+@functools.cache
+def tracking_step_rows(acc, energy):
+    """:func:`_tracking_step_rows` with a model's kernels bound at compile time.
+
+    (Kernels passed as arguments would be type-checked by numba on every call,
+    about 8 us of a single env's step.) One compilation per model class and process.
+    """
+
+    @njit(cache=False)
+    def step(theta, A_v, A_q, b_v, b_q, needed, substeps, limit, q, v, t, dt, action, u_max,
+             center, rate, amplitude, omega, phase, tracked, weights, u, obs, terms, e, q_ref, bad):  # fmt: skip
+        _tracking_step_rows(
+            acc, energy, theta, A_v, A_q, b_v, b_q, needed, substeps, limit, q, v, t, dt, action, u_max,
+            center, rate, amplitude, omega, phase, tracked, weights, u, obs, terms, e, q_ref, bad,
+        )  # fmt: skip
+
+    return step
 
 
 @dataclasses.dataclass(frozen=True)
@@ -49,9 +187,23 @@ class TrackingObservation:
 
 
 def encode_tracking(q, v, q_ref, v_ref, a_ref, tracked: tuple[int, ...]) -> np.ndarray:
-    """Observation ``[cos q, sin q, v, wrap(q_ref - q[tracked]), v_ref, a_ref]`` (float32)."""
-    e = wrap_angle(q_ref - np.asarray(q)[..., list(tracked)])
-    return np.concatenate([np.cos(q), np.sin(q), v, e, v_ref, a_ref], axis=-1).astype(np.float32)
+    """Observation ``[cos q, sin q, v, wrap(q_ref - q[tracked]), v_ref, a_ref]`` (float32), batched.
+
+    Parameters
+    ----------
+    q, v : array_like, shape (..., n)
+    q_ref, v_ref, a_ref : array_like, shape (..., m)
+    tracked : tuple of int, length m
+
+    Returns
+    -------
+    ndarray, float32, shape (..., 3 n + 3 m)
+    """
+    lead, rows = _as_rows(q, v, q_ref, v_ref, a_ref)
+    n, m = rows[0].shape[1], len(tracked)
+    obs = np.empty((rows[0].shape[0], 3 * (n + m)), np.float32)
+    _encode_rows(*rows, np.asarray(tracked, np.int64), obs)
+    return obs.reshape(lead + (3 * (n + m),))
 
 
 def decode_tracking(obs: np.ndarray, n: int, tracked: tuple[int, ...] | None = None) -> TrackingObservation:
@@ -109,7 +261,7 @@ class JointTrackingEnv(MBSEnv):
     #: default (kp, kd) of a PD controller on this task [N m/rad, N m s/rad]
     pd_gains: tuple[float, float] = (100.0, 20.0)
 
-    def __init__(self, model, u_max, *, reward_weights=(1.0, 0.1, 1e-3), start_noise=0.1, **kwargs):
+    def __init__(self, model, u_max, *, reward_weights=(1.0, 0.1, 1e-3), start_noise=0.1, compiled=True, **kwargs):
         super().__init__(model, u_max, **kwargs)
         self.tracked = tuple(getattr(model, "independent", range(model.nq)))
         if len(self.tracked) != model.nu:
@@ -120,6 +272,9 @@ class JointTrackingEnv(MBSEnv):
         if not (np.isfinite(start_noise) and start_noise >= 0):
             raise ValueError(f"start_noise must be finite and >= 0, got {start_noise!r}")
         self.reward_weights = w
+        self._tracked = np.asarray(self.tracked, np.int64)
+        self._compiled = self._compiled_tableau(compiled)
+        self._task_rows: tuple | None = None
         self.start_noise = float(start_noise)
         n, m = model.nq, len(self.tracked)
         # |v| <= divergence_limit is guaranteed (a diverged step keeps the last
@@ -136,6 +291,90 @@ class JointTrackingEnv(MBSEnv):
             ]
         ).astype(np.float32)
         self.observation_space = gym.spaces.Box(-high, high, dtype=np.float32)
+
+    # -- the compiled step (see mbs_envs.compiled) --------------------------------
+
+    @property
+    def compiled(self) -> TableauArrays | None:
+        """The tableau of the compiled step, or None when steps take the numpy path.
+
+        Compiled: models with kernels and ``B = I``, explicit Runge-Kutta
+        integrators, no stabilization (see :func:`mbs_envs.compiled.compiled_stepping`),
+        unless constructed with ``compiled=False``.
+        """
+        return self._compiled
+
+    def _compiled_tableau(self, compiled: bool) -> TableauArrays | None:
+        model = self.model
+        cls = type(self)
+        overridden = any(  # the compiled step is this class's task, not a subclass's variant of it
+            getattr(cls, name) is not getattr(JointTrackingEnv, name)
+            for name in ("task_now", "observe", "reward", "terminated", "task_info", "state_diverged", "_advance")
+        )
+        if not compiled or overridden or model.nu != model.nv or not np.array_equal(model.actuation, np.eye(model.nv)):
+            return None
+        return compiled_stepping(model, self.integrator, self.stabilization)
+
+    def step_rows(self, model, q, v, t, task_rows, action) -> dict[str, np.ndarray]:
+        """The compiled control step of a batch of rows (single env: one row), in place.
+
+        Parameters
+        ----------
+        model : Model
+            The rows' model (per-member parameters allowed).
+        q, v : ndarray, shape (B, n)
+            Updated in place (a diverged row keeps its state).
+        t : ndarray, shape (B,)
+            Updated in place.
+        task_rows : tuple
+            :meth:`SumOfSines.rows` of the rows' references.
+        action : ndarray, shape (B, nu)
+            Validated and clipped.
+
+        Returns
+        -------
+        dict
+            ``obs``, ``u``, ``terms`` ``(B, 5) = (r, r_e, r_de, r_u, energy)``,
+            ``e``, ``q_ref`` and ``bad``.
+        """
+        tab = self._compiled
+        B, n = q.shape
+        m = self._tracked.shape[0]
+        out = {
+            "u": np.empty((B, model.nu)),
+            "obs": np.empty((B, 3 * (n + m)), np.float32),
+            "terms": np.empty((B, 5)),
+            "e": np.empty((B, m)),
+            "q_ref": np.empty((B, m)),
+            "bad": np.empty(B, bool),
+        }
+        tracking_step_rows(*model.kernels)(  # compiled code raises no floating-point warnings
+            batch_theta(model, B), tab.A_v, tab.A_q, tab.b_v, tab.b_q, tab.needed,
+            self.substeps, self.divergence_limit, q, v, t, self.dt, action, self.u_max, *task_rows,
+            self._tracked, self.reward_weights, out["u"], out["obs"], out["terms"], out["e"], out["q_ref"], out["bad"],
+        )  # fmt: skip
+        return out
+
+    def step(self, action: Any):
+        if self._compiled is None:
+            return super().step(action)
+        a = validate_action(action, self.model.nu)  # raises before any change
+        if self._task_rows is None or self._task_rows[0] is not self._task:
+            self._task_rows = (self._task, self._task.rows())
+        t = np.array([self._t])
+        r = self.step_rows(self.model, self._q.reshape(1, -1), self._v.reshape(1, -1), t, self._task_rows[1], a.reshape(1, -1))
+        self._t = float(t[0])
+        self._u = u = r["u"][0]
+        terms = r["terms"][0]
+        bad = bool(r["bad"][0])
+        info = {"t": self._t, "energy": float(terms[4]), "diverged": bad, "tracking_error": r["e"][0], "q_ref": r["q_ref"][0]}
+        for i, k in enumerate(self.reward_terms):
+            info[k] = float(terms[i + 1])
+        info["u"] = u
+        if self.render_mode == "human":
+            self.render()
+        return r["obs"][0], float(terms[0]), bad, False, info
+
     @property
     def reference(self) -> SumOfSines | None:
         """The episode's reference (None before the first reset)."""
@@ -186,15 +425,15 @@ class JointTrackingEnv(MBSEnv):
         idx = list(self.tracked)
         return wrap_angle(q_ref - q[..., idx]), v_ref - v[..., idx]
 
+    #: names in ``info`` of the reward terms (columns 1-3 of :func:`reward_member`'s output)
+    reward_terms: ClassVar[tuple[str, ...]] = ("reward_tracking", "reward_velocity", "reward_effort")
+
     def reward(self, q, v, now, task, u, action) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        e, de = self.errors(q, v, now)
-        w_e, w_de, w_u = (float(w) for w in self.reward_weights)
-        terms = {
-            "reward_tracking": -w_e * np.sum(e * e, axis=-1),
-            "reward_velocity": -w_de * np.sum(de * de, axis=-1),
-            "reward_effort": -w_u * np.sum(action * action, axis=-1),
-        }
-        return terms["reward_tracking"] + terms["reward_velocity"] + terms["reward_effort"], terms
+        lead, (q2, v2, q_ref, v_ref, a2) = _as_rows(q, v, now[0], now[1], action)
+        terms = np.empty((q2.shape[0], 4))
+        _reward_rows(q2, v2, q_ref, v_ref, a2, self._tracked, self.reward_weights, terms, np.empty_like(q_ref))
+        terms = terms.reshape(lead + (4,))
+        return terms[..., 0], {k: terms[..., i + 1] for i, k in enumerate(self.reward_terms)}
 
     def task_info(self, q, v, now, task, u) -> dict[str, Any]:
         e, _ = self.errors(q, v, now)

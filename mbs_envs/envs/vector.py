@@ -218,24 +218,16 @@ class MBSVectorEnv(VectorEnv):
             raise gym.error.ResetNeeded("call reset() before step()")
         env = self.env
         a = validate_action(actions, self.model.nu, self.num_envs)
-        u = a * env.u_max
-        q, v = advance(self.model, env.integrator, 0.0, self._q, self._v, env.dt, env.substeps, u, env.stabilization)
-        bad = env.state_diverged(q, v)
-        keep = bad[:, None]
-        self._q = np.where(keep, self._q, q)
-        self._v = np.where(keep, self._v, v)
-        self._t = self._t + env.dt
-        self._u = u
+        if getattr(env, "compiled", None) is not None:
+            obs, reward, bad, info = self._step_compiled(a)
+        else:
+            obs, reward, bad, info = self._step_numpy(a)
+        terminated = info.pop("_terminated")
         self._elapsed += 1
-        now = env.task_now(self._t, self._task)
-        reward, terms = env.reward(self._q, self._v, now, self._task, u, a)
-        terminated = bad | env.terminated(self._q, self._v, now, self._task)
         if self.max_episode_steps is None:
             truncated = np.zeros(self.num_envs, bool)
         else:
             truncated = self._elapsed >= self.max_episode_steps
-        obs = env.observe(self._q, self._v, now, self._task)
-        info = self._info(now, bad, terms)
         if self.autoreset_mode == AutoresetMode.NEXT_STEP and self._autoreset.any():
             idx = np.flatnonzero(self._autoreset)
             obs[idx] = self._restart(idx)
@@ -255,6 +247,39 @@ class MBSVectorEnv(VectorEnv):
             obs[idx] = self._restart(idx)
         self._autoreset = done if self.autoreset_mode == AutoresetMode.NEXT_STEP else np.zeros(self.num_envs, bool)
         return obs, np.asarray(reward, float), terminated, truncated, info
+
+    def _step_numpy(self, a: np.ndarray) -> tuple:
+        """Physics and task of one step through the single env's numpy functions."""
+        env = self.env
+        u = a * env.u_max
+        q, v = advance(self.model, env.integrator, 0.0, self._q, self._v, env.dt, env.substeps, u, env.stabilization)
+        bad = env.state_diverged(q, v)
+        keep = bad[:, None]
+        self._q = np.where(keep, self._q, q)
+        self._v = np.where(keep, self._v, v)
+        self._t = self._t + env.dt
+        self._u = u
+        now = env.task_now(self._t, self._task)
+        reward, terms = env.reward(self._q, self._v, now, self._task, u, a)
+        info = self._info(now, bad, terms)
+        info["_terminated"] = bad | env.terminated(self._q, self._v, now, self._task)
+        return env.observe(self._q, self._v, now, self._task), np.asarray(reward, float), bad, info
+
+    def _step_compiled(self, a: np.ndarray) -> tuple:
+        """The same step as :meth:`_step_numpy`, compiled (:meth:`JointTrackingEnv.step_rows`)."""
+        env = self.env
+        r = env.step_rows(self.model, self._q, self._v, self._t, self._task.rows(), a)
+        self._u = r["u"]
+        terms = r["terms"]
+        info: dict[str, Any] = {"t": self._t.copy(), "diverged": r["bad"]}
+        if self.full_info:
+            info["energy"] = terms[:, 4]
+            info["u"] = self._u.copy()
+            info.update({k: terms[:, i + 1] for i, k in enumerate(env.reward_terms)})
+            info.update({"tracking_error": r["e"], "q_ref": r["q_ref"]})
+        self._info_masks(info)
+        info["_terminated"] = r["bad"].copy()
+        return r["obs"], terms[:, 0].copy(), r["bad"], info
 
     def _restart(self, idx: np.ndarray) -> np.ndarray:
         """Reset members ``idx`` (autoreset) and return their first observations."""
@@ -278,6 +303,10 @@ class MBSVectorEnv(VectorEnv):
             info["u"] = self._u.copy()
             info.update(terms or {})
             info.update(self.env.task_info(self._q, self._v, now, self._task, self._u))
+        return self._info_masks(info)
+
+    def _info_masks(self, info: dict[str, Any]) -> dict[str, Any]:
+        """Gymnasium's ``info["_key"]`` masks: every member has every key."""
         mask = np.ones(self.num_envs, bool)
         for key in list(info):
             info["_" + key] = mask

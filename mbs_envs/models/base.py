@@ -146,6 +146,11 @@ def as_vector(x: Any, n: int, name: str) -> np.ndarray:
     return arr
 
 
+def friction_law(v, b, f, v_s):
+    """``b v + f tanh(v / v_s)`` [N m] for floats or broadcasting arrays (the formula of :func:`smoothed_friction`)."""
+    return b * v + f * np.tanh(v / v_s)
+
+
 def smoothed_friction(v: np.ndarray, b: np.ndarray, f: np.ndarray, v_s: float) -> np.ndarray:
     """Joint friction ``F_i(v) = b_i v_i + f_i tanh(v_i / v_s)`` (PHYSICS.md).
 
@@ -166,10 +171,10 @@ def smoothed_friction(v: np.ndarray, b: np.ndarray, f: np.ndarray, v_s: float) -
         Friction torques opposing the motion [N m].
     """
     b, f = np.asarray(b), np.asarray(f)
-    out = b * v if np.any(b) else np.zeros(np.broadcast_shapes(np.shape(v), b.shape))
-    if np.any(f):  # the tanh is the costly part; frictionless models skip it
-        out = out + f * np.tanh(v / v_s)
-    return out
+    if np.any(f):
+        return friction_law(v, b, f, v_s)
+    # the tanh is the costly part: frictionless models skip it (and zero b the product)
+    return b * v if np.any(b) else np.zeros(np.broadcast_shapes(np.shape(v), b.shape))
 
 
 # ---------------------------------------------------------------------------
@@ -199,6 +204,13 @@ class Model(abc.ABC):
     constrained: ClassVar[bool] = False
     #: Whether the equations accept per-batch-member parameters (:meth:`Params.batched`).
     batched_params: ClassVar[bool] = False
+    #: Compiled ``(acceleration_kernel, energy_kernel)`` of one member, built on the
+    #: same formulas as the numpy methods, or None (numpy only); see :mod:`mbs_envs.compiled`.
+    kernels: ClassVar[tuple | None] = None
+
+    def kernel_params(self) -> np.ndarray:
+        """The parameters as the kernels take them, shape ``(P,)`` or ``(B, P)`` (models with ``kernels``)."""
+        raise NotImplementedError(f"{type(self).__name__} has no compiled kernels")
 
     def __init__(self, params: Params | Mapping[str, Any] | None = None, **overrides: Any):
         if params is None:

@@ -9,9 +9,10 @@ from __future__ import annotations
 
 import dataclasses
 
+from ..jit import njit
 import numpy as np
 
-from .base import Model, Params, as_vector, param, smoothed_friction
+from .base import Model, Params, as_vector, friction_law, param, smoothed_friction
 
 
 @dataclasses.dataclass(frozen=True)
@@ -49,6 +50,95 @@ class Planar2RParams(Params):
                 )
 
 
+# ---------------------------------------------------------------------------
+# The equations, written once. Each formula takes floats or broadcasting
+# arrays: the numpy methods of :class:`Planar2R` call them with batches, the
+# compiled kernels below with one member's floats.
+# ---------------------------------------------------------------------------
+
+
+def mass_entries(c2, m1, m2, l1, r1, r2, I1, I2):
+    """Entries ``(M11, M12, M22)`` of ``M(q)`` [kg m^2] from ``c2 = cos th2``."""
+    m22 = I2 + m2 * r2**2
+    m12 = m22 + m2 * l1 * r2 * c2
+    m11 = I1 + m1 * r1**2 + I2 + m2 * (l1**2 + r2**2) + 2 * m2 * l1 * r2 * c2
+    return m11, m12, m22
+
+
+def coriolis_entries(s2, d1, d2, m2, l1, r2):
+    """``C(q, v) v`` [N m] from ``s2 = sin th2`` and the joint rates ``d1, d2``."""
+    h = m2 * l1 * r2 * s2
+    return -h * (2 * d1 * d2 + d2**2), h * d1**2
+
+
+def gravity_entries(c1, c12, m1, m2, l1, r1, r2, g):
+    """``G(q)`` [N m] from ``c1 = cos th1`` and ``c12 = cos(th1 + th2)``."""
+    g12 = m2 * r2 * g * c12
+    return (m1 * r1 + m2 * l1) * g * c1 + g12, g12
+
+
+def potential_entry(s1, s12, m1, m2, l1, r1, r2, g):
+    """``V(q)`` [J] from ``s1 = sin th1`` and ``s12 = sin(th1 + th2)``."""
+    return g * (m1 * r1 * s1 + m2 * (l1 * s1 + r2 * s12))
+
+
+_mass_entries = njit(mass_entries)
+_coriolis_entries = njit(coriolis_entries)
+_gravity_entries = njit(gravity_entries)
+_potential_entry = njit(potential_entry)
+_friction_law = njit(friction_law)
+
+
+@njit
+def _friction(v, b, f, v_s):  # pragma: no cover - compiled
+    """:func:`friction_law` for one joint, skipping the costly tanh when ``f = 0`` (as the numpy path)."""
+    return _friction_law(v, b, f, v_s) if f != 0.0 else b * v
+
+
+@njit
+def acceleration_kernel(Q, V, i, tau, theta, b, K):  # pragma: no cover - compiled
+    """Forward dynamics ``a = M^-1 (tau - C v - G - F)`` of one state, written into ``K[i]``.
+
+    The kernel convention of :mod:`mbs_envs.compiled` (rows, not views: a view
+    costs numba a reference count, more than these formulas).
+
+    Parameters
+    ----------
+    Q, V : ndarray, shape (s, 2)
+        Row ``i``: the state [rad], [rad/s].
+    tau : ndarray, shape (B, 2)
+        Row ``b``: joint torques [N m].
+    theta : ndarray, shape (B, 14)
+        Row ``b``: the parameters in :class:`Planar2RParams` field order (:meth:`Planar2R.kernel_params`).
+    K : ndarray, shape (s, 2)
+        Row ``i`` is written [rad/s^2]. The 2 x 2 system is solved by Cramer's
+        rule (``det M >= (I1 + m1 r1^2)(I2 + m2 r2^2) > 0``).
+    """
+    m1, m2, l1, r1, r2 = theta[b, 0], theta[b, 1], theta[b, 2], theta[b, 4], theta[b, 5]
+    I1, I2, g = theta[b, 6], theta[b, 7], theta[b, 8]
+    q1, q2, d1, d2 = Q[i, 0], Q[i, 1], V[i, 0], V[i, 1]
+    c1, c2, c12, s2 = np.cos(q1), np.cos(q2), np.cos(q1 + q2), np.sin(q2)
+    m11, m12, m22 = _mass_entries(c2, m1, m2, l1, r1, r2, I1, I2)
+    h1, h2 = _coriolis_entries(s2, d1, d2, m2, l1, r2)
+    g1, g2 = _gravity_entries(c1, c12, m1, m2, l1, r1, r2, g)
+    rhs1 = tau[b, 0] - (h1 + g1 + _friction(d1, theta[b, 9], theta[b, 11], theta[b, 13]))
+    rhs2 = tau[b, 1] - (h2 + g2 + _friction(d2, theta[b, 10], theta[b, 12], theta[b, 13]))
+    det = m11 * m22 - m12 * m12
+    K[i, 0] = (m22 * rhs1 - m12 * rhs2) / det
+    K[i, 1] = (m11 * rhs2 - m12 * rhs1) / det
+
+
+@njit
+def energy_kernel(q, v, theta, b):  # pragma: no cover - compiled
+    """Mechanical energy ``v^T M v / 2 + V`` [J] of row ``b`` of ``q, v`` (B, 2) with ``theta[b]``."""
+    m1, m2, l1, r1, r2 = theta[b, 0], theta[b, 1], theta[b, 2], theta[b, 4], theta[b, 5]
+    I1, I2, g = theta[b, 6], theta[b, 7], theta[b, 8]
+    m11, m12, m22 = _mass_entries(np.cos(q[b, 1]), m1, m2, l1, r1, r2, I1, I2)
+    d1, d2 = v[b, 0], v[b, 1]
+    T = 0.5 * (m11 * d1 * d1 + 2.0 * m12 * d1 * d2 + m22 * d2 * d2)
+    return T + _potential_entry(np.sin(q[b, 0]), np.sin(q[b, 0] + q[b, 1]), m1, m2, l1, r1, r2, g)
+
+
 class Planar2R(Model):
     """Planar two-link manipulator; equations exactly as PHYSICS.md scene 1.
 
@@ -73,10 +163,7 @@ class Planar2R(Model):
         """``M(q)``, shape ``(..., 2, 2)`` [kg m^2]."""
         p = self.params
         q = as_vector(q, 2, "q")
-        c2 = np.cos(q[..., 1])
-        m22 = p.I2 + p.m2 * p.r2**2
-        m12 = m22 + p.m2 * p.l1 * p.r2 * c2
-        m11 = p.I1 + p.m1 * p.r1**2 + p.I2 + p.m2 * (p.l1**2 + p.r2**2) + 2 * p.m2 * p.l1 * p.r2 * c2
+        m11, m12, m22 = mass_entries(np.cos(q[..., 1]), p.m1, p.m2, p.l1, p.r1, p.r2, p.I1, p.I2)
         M = np.empty(q.shape[:-1] + (2, 2))
         M[..., 0, 0] = m11
         M[..., 0, 1] = m12
@@ -89,25 +176,21 @@ class Planar2R(Model):
         p = self.params
         q = as_vector(q, 2, "q")
         v = as_vector(v, 2, "v")
-        h = p.m2 * p.l1 * p.r2 * np.sin(q[..., 1])
-        d1, d2 = v[..., 0], v[..., 1]
-        return np.stack(np.broadcast_arrays(-h * (2 * d1 * d2 + d2**2), h * d1**2), axis=-1)
+        c = coriolis_entries(np.sin(q[..., 1]), v[..., 0], v[..., 1], p.m2, p.l1, p.r2)
+        return np.stack(np.broadcast_arrays(*c), axis=-1)
 
     def gravity(self, q: np.ndarray) -> np.ndarray:
         """``G(q)``, shape ``(..., 2)`` [N m]."""
         p = self.params
         q = as_vector(q, 2, "q")
-        g12 = p.m2 * p.r2 * p.g * np.cos(q[..., 0] + q[..., 1])
-        g1 = (p.m1 * p.r1 + p.m2 * p.l1) * p.g * np.cos(q[..., 0]) + g12
-        return np.stack([g1, g12], axis=-1)
+        G = gravity_entries(np.cos(q[..., 0]), np.cos(q[..., 0] + q[..., 1]), p.m1, p.m2, p.l1, p.r1, p.r2, p.g)
+        return np.stack(np.broadcast_arrays(*G), axis=-1)
 
     def potential_energy(self, q: np.ndarray) -> np.ndarray:
         """``V = m1 g r1 s1 + m2 g (l1 s1 + r2 s12)`` [J], shape ``(...)``."""
         p = self.params
         q = as_vector(q, 2, "q")
-        s1 = np.sin(q[..., 0])
-        s12 = np.sin(q[..., 0] + q[..., 1])
-        return p.g * (p.m1 * p.r1 * s1 + p.m2 * (p.l1 * s1 + p.r2 * s12))
+        return potential_entry(np.sin(q[..., 0]), np.sin(q[..., 0] + q[..., 1]), p.m1, p.m2, p.l1, p.r1, p.r2, p.g)
 
     def friction(self, v: np.ndarray) -> np.ndarray:
         """``F_i = b_i v_i + f_i tanh(v_i / v_s)``, shape ``(..., 2)`` [N m]."""
@@ -119,6 +202,14 @@ class Planar2R(Model):
             b = np.stack(np.broadcast_arrays(p.b1, p.b2), axis=-1)
             f = np.stack(np.broadcast_arrays(p.f1, p.f2), axis=-1)
         return smoothed_friction(v, b, f, np.asarray(p.v_s)[..., None])
+
+    # -- compiled path (see :mod:`mbs_envs.compiled`) -----------------------------
+
+    kernels = (acceleration_kernel, energy_kernel)
+
+    def kernel_params(self) -> np.ndarray:
+        """Parameters as the kernels take them: shape ``(14,)``, or ``(B, 14)`` when batched."""
+        return np.stack(np.broadcast_arrays(*(getattr(self.params, k) for k in self.Params.names())), axis=-1)
 
     def joint_positions(self, q: np.ndarray) -> np.ndarray:
         """Positions of the base, the elbow and the tip in the plane [m].
