@@ -1,0 +1,153 @@
+"""The compiled path (mbs_envs.compiled) against the numpy path it must reproduce.
+
+The two share the formulas (written once) but not the code that runs them:
+the numpy path solves ``M a = rhs`` by Cholesky over whole arrays and steps
+through :class:`~mbs_envs.integrators.ExplicitRK` and the env's task methods;
+the compiled one uses Cramer's rule per member inside one fused kernel. They
+may differ by rounding only: per step, 1e-12.
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import mbs_envs
+from mbs_envs import integrators
+from mbs_envs.compiled import advance_compiled, batch_theta, compiled_stepping
+from mbs_envs.envs.base import validate_action
+from mbs_envs.models import FourBar, Planar2R
+from mbs_envs.simulate import advance
+
+ID = "mbs_envs/Planar2R-v0"
+
+
+def random_model(rng, batch=None):
+    """A Planar2R with random inertias and friction (per-member parameters with ``batch``)."""
+    draw = {k: rng.uniform(0.3, 2.0, batch) for k in ("m1", "m2", "l1", "l2", "r1", "r2")}
+    draw.update({k: rng.uniform(0.0, 0.5, batch) for k in ("I1", "I2", "b1", "b2", "f1", "f2")})
+    if batch is None:
+        return Planar2R(**draw)
+    return Planar2R().with_params(Planar2R().params.batched(**draw))
+
+
+def test_acceleration_and_energy_kernels_equal_the_numpy_model():
+    rng = np.random.default_rng(0)
+    B = 200
+    model = random_model(rng, B)
+    acc, energy = model.kernels
+    q = rng.uniform(-4, 4, (B, 2))
+    v = rng.uniform(-6, 6, (B, 2))
+    tau = rng.uniform(-30, 30, (B, 2))
+    theta = batch_theta(model, B)
+    K = np.empty((1, 2))
+    a = np.empty((B, 2))
+    E = np.empty(B)
+    for b in range(B):
+        acc(q[b : b + 1], v[b : b + 1], 0, tau, theta, b, K)
+        a[b] = K[0]
+        E[b] = energy(q, v, theta, b)
+    a_np = model.forward_dynamics(q, v, tau)
+    scale = np.max(np.abs(a_np), axis=-1, keepdims=True)
+    assert np.max(np.abs(a - a_np) / scale) < 1e-12
+    np.testing.assert_allclose(E, model.energy(q, v), rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("name", sorted(integrators.TABLEAUX))
+def test_compiled_advance_equals_numpy_advance_for_every_explicit_tableau(name):
+    rng = np.random.default_rng(1)
+    model = random_model(rng, 64)
+    stepper = integrators.get(name)
+    tab = compiled_stepping(model, stepper)
+    q, v = rng.uniform(-3, 3, (64, 2)), rng.uniform(-4, 4, (64, 2))
+    u = rng.uniform(-20, 20, (64, 2))
+    qc, vc = advance_compiled(model, tab, q, v, u, 0.01, 3)
+    qn, vn = advance(model, stepper, 0.0, q, v, 0.01, 3, u)
+    np.testing.assert_allclose(qc, qn, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(vc, vn, rtol=0, atol=1e-12)
+    # the arguments are not touched
+    q2, v2 = advance_compiled(model, tab, q, v, u, 0.01, 3)
+    np.testing.assert_array_equal(q2, qc)
+
+
+def test_the_compiled_path_applies_exactly_where_it_is_exact():
+    assert gym.make(ID).unwrapped.compiled is not None
+    assert gym.make(ID, integrator="midpoint").unwrapped.compiled is not None
+    for kwargs in ({"compiled": False}, {"integrator": "sdirk2"}, {"integrator": "rk45"}):
+        assert gym.make(ID, **kwargs).unwrapped.compiled is None, kwargs
+    assert gym.make("mbs_envs/FourBar-v0").unwrapped.compiled is None  # no kernels: constrained
+    assert compiled_stepping(FourBar(), integrators.get("rk4")) is None
+
+
+def step_both(fast, slow, action):
+    """One step of each env from the same state; returns both results."""
+    fast.unwrapped._q[:] = slow.unwrapped._q  # in place: the compiled step works on these arrays
+    fast.unwrapped._v[:] = slow.unwrapped._v
+    return fast.step(action), slow.step(action)
+
+
+@pytest.mark.parametrize("kwargs", [{}, {"params": {"b1": 0.5, "f2": 1.0}, "substeps": 3}, {"integrator": "euler"}])
+def test_compiled_env_steps_equal_the_numpy_path(kwargs):
+    fast, slow = gym.make(ID, **kwargs), gym.make(ID, compiled=False, **kwargs)
+    assert fast.unwrapped.compiled is not None and slow.unwrapped.compiled is None
+    for seed in range(3):
+        of, inf_f = fast.reset(seed=seed)
+        os_, inf_s = slow.reset(seed=seed)
+        np.testing.assert_array_equal(of, os_)
+        rng = np.random.default_rng(seed)
+        for _ in range(100):
+            a = rng.uniform(-1.3, 1.3, 2)  # includes saturated actions
+            (of, rf, tf, trf, inf_f), (os_, rs, ts, trs, inf_s) = step_both(fast, slow, a)
+            np.testing.assert_allclose(of, os_, rtol=0, atol=1e-12)
+            assert rf == pytest.approx(rs, rel=1e-12, abs=1e-12)
+            assert (tf, trf) == (ts, trs)
+            assert set(inf_f) == set(inf_s)
+            for k in inf_s:
+                np.testing.assert_allclose(inf_f[k], inf_s[k], rtol=1e-12, atol=1e-12, err_msg=k)
+                assert type(inf_f[k]) is type(inf_s[k]), k
+
+
+def test_compiled_divergence_is_reported_like_the_numpy_path():
+    kwargs = {"params": {"b1": 400.0, "b2": 400.0}}
+    fast, slow = gym.make(ID, **kwargs), gym.make(ID, compiled=False, **kwargs)
+    wild = {"q": [0.0, 0.0], "v": [1e6, -1e6]}  # RK4 blows up on the stiff friction
+    fast.reset(seed=0, options=wild)
+    slow.reset(seed=0, options=wild)
+    (of, rf, tf, _, inf_f), (os_, rs, ts, _, inf_s) = step_both(fast, slow, np.zeros(2))
+    assert inf_f["diverged"] and inf_s["diverged"] and tf and ts
+    assert np.all(np.isfinite(of)) and np.isfinite(rf)
+    np.testing.assert_array_equal(of, os_)  # both keep the last finite state
+    np.testing.assert_array_equal(fast.unwrapped.q, wild["q"])
+
+
+def test_compiled_vector_env_with_per_member_parameters_equals_the_numpy_vector_env():
+    kw = {"num_envs": 5, "vectorization_mode": "vector_entry_point", "randomize": {"m2": 0.3, "l1": 0.2, "b2": 0.5}}
+    fast = gym.make_vec(ID, params={"b2": 0.4}, **kw)
+    slow = gym.make_vec(ID, params={"b2": 0.4}, compiled=False, **kw)
+    np.testing.assert_array_equal(fast.reset(seed=2)[0], slow.reset(seed=2)[0])
+    rng = np.random.default_rng(0)
+    for _ in range(50):
+        fast.unwrapped._q[:] = slow.unwrapped._q
+        fast.unwrapped._v[:] = slow.unwrapped._v
+        a = rng.uniform(-1, 1, (5, 2))
+        of, rf, tf, trf, inf_f = fast.step(a)
+        os_, rs, ts, trs, inf_s = slow.step(a)
+        np.testing.assert_allclose(of, os_, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(rf, rs, rtol=1e-12, atol=1e-12)
+        for k in ("energy", "tracking_error", "q_ref", "reward_tracking", "u"):
+            np.testing.assert_allclose(inf_f[k], inf_s[k], rtol=1e-12, atol=1e-12, err_msg=k)
+        assert set(inf_f) == set(inf_s)
+
+
+def test_action_validation_fast_path_keeps_its_guarantees():
+    a = np.array([0.5, -3.0])
+    np.testing.assert_array_equal(validate_action(a, 2), [0.5, -1.0])
+    np.testing.assert_array_equal(a, [0.5, -3.0])  # the caller's array is not clipped in place
+    np.testing.assert_array_equal(validate_action(np.float32([2.0, 0.25]), 2), [1.0, 0.25])
+    for bad in (np.array([np.nan, 0.0]), np.array([0.0, -np.inf])):
+        with pytest.raises(ValueError, match="finite"):
+            validate_action(bad, 2)
+    with pytest.raises(ValueError, match=r"members \[1\]"):
+        validate_action(np.array([[0.0, 0.0], [np.inf, 0.0]]), 2, num_envs=2)
+    assert mbs_envs  # registered ids
