@@ -130,11 +130,37 @@ def batched_step(num_envs: int, repeats: int, steps: int) -> dict:
             times[name].append(time_steps(env, actions[name], reset_every=10**9))
     per_env = {k: float(np.median(v)) / num_envs for k, v in times.items()}
     ref = per_env["CartPole-v1 vector"]
+    floor = trig_floor(num_envs, 51, 3)
     return {
         "num_envs": num_envs,
+        "trig_floor": {**floor, "ratio_to_cartpole": floor["per_env_step_us"] / (ref * 1e6)},
         "per_env_step_us": {k: v * 1e6 for k, v in per_env.items()},
         "ratio_to_cartpole": {k: v / ref for k, v in per_env.items()},
     }
+
+
+def trig_floor(num_envs: int, per_member: int, repeats: int) -> dict:
+    """Time of ``per_member`` sin/cos evaluations per member (a compiled loop) at ``num_envs`` members.
+
+    A lower bound of the batched step: Planar2R-v0's default step evaluates, per
+    member, 4 trig functions in each of 4 RK4 stages of 2 substeps, 12 for the
+    reference (2 joints x 3 sines, sin and cos), 4 for the observation and 3 for
+    the energy: 51.
+    """
+    import numba
+
+    @numba.njit
+    def kernel(x, k, out):
+        for b in range(x.shape[0]):
+            acc = 0.0
+            for j in range(k):
+                acc += np.sin(x[b] + 0.1 * j)
+            out[b] = acc
+
+    x = np.random.default_rng(0).uniform(-3, 3, num_envs)
+    out = np.empty(num_envs)
+    t = [median_time(lambda: kernel(x, per_member, out)) for _ in range(repeats)]
+    return {"trig_per_member": per_member, "per_env_step_us": float(np.median(t)) / num_envs * 1e6}
 
 
 def chain_dynamics(batch: int = 256) -> dict:
@@ -236,6 +262,8 @@ def report(r: dict) -> str:
         f"{s['error']['ratio_acrobot_to_planar2r']:.3g}x lower (target >= 100)",
         f"batched per env-step at {b['num_envs']} [us]: " + ", ".join(f"{k} {v:.3f}" for k, v in b["per_env_step_us"].items()),
         "  ratio to CartPole: " + ", ".join(f"{k} {v:.2f}" for k, v in b["ratio_to_cartpole"].items()) + " (target <= 3)",
+        f"  floor: the step's {b['trig_floor']['trig_per_member']} sin/cos alone take {b['trig_floor']['per_env_step_us']:.3f} us "
+        f"per member, {b['trig_floor']['ratio_to_cartpole']:.2f}x CartPole's whole step",
         f"chain N=100: ABA single {c['rows'][100]['aba_single_us']:.1f} us, per env in batch {c['rows'][100]['aba_batch_per_env_us']:.2f} us; "
         f"t(400)/t(50) batched {c['t400_over_t50_batched']:.2f}, single {c['t400_over_t50_single']:.2f} (target <= 12)",
     ]
