@@ -83,7 +83,7 @@ def rk_member(acc, theta, A_v, A_q, b_v, b_q, needed, q, v, tau, b, h, substeps,
     ``tau[b]`` held. ``Q, V, K`` are work arrays of shape ``(s, n)``; the
     model's kernel is called as ``acc(Q, V, i, tau, theta, b, K)`` and writes
     stage ``i``'s accelerations into ``K[i]`` (kernels index rows rather than
-    take views: a view costs numba a reference count).
+    take views, which measured slower).
     """
     s, n = Q.shape
     for _ in range(substeps):

