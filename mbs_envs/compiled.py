@@ -2,10 +2,16 @@
 as one numba loop over a batch, for models with compiled kernels.
 
 Nothing here knows a mechanism. A model opts in with ``kernels =
-(acceleration_kernel, energy_kernel)``, numba functions of one member built on
-the very formulas its numpy methods use (see :mod:`mbs_envs.models.planar2r`),
-and :meth:`~mbs_envs.models.base.Model.kernel_params` (its parameters as an
-array, ``(P,)`` or ``(B, P)`` with per-member parameters). The stepper runs any
+(acceleration_kernel, energy_kernel)``, numba functions of a batch built on the
+very formulas its numpy methods use (see :mod:`mbs_envs.models.planar2r`), and
+:meth:`~mbs_envs.models.base.Model.kernel_params` (its parameters as an array,
+``(P,)`` or ``(B, P)`` with per-member parameters).
+
+Layout: kernels take the batch in *columns*, the member index last (``q`` is
+``(n, B)``, the parameters ``(P, B)``), and every innermost loop runs over the
+members. With the branch-free :func:`mbs_envs.trig.sincos` those loops compile to
+SIMD code; a loop per member (the previous design) stayed scalar, and its libm
+sines and cosines were most of a step. The stepper runs any
 explicit :class:`~mbs_envs.integrators.Tableau`: the same stages, in the same
 order, as :class:`~mbs_envs.integrators.ExplicitRK`, so the two paths differ
 only by the rounding of the models' linear solves (tested to 1e-12).
@@ -75,74 +81,73 @@ def compiled_stepping(model: Model, stepper: Any, stabilization: Any = None) -> 
 
 
 @njit(cache=False)
-def rk_member(acc, theta, A_v, A_q, b_v, b_q, needed, q, v, tau, b, h, substeps, Q, V, K):  # pragma: no cover
-    """Advance row ``b`` of ``q, v`` (B, n) ``substeps`` steps of size ``h``, in place.
+def rk_columns(acc, theta, A_v, A_q, b_v, b_q, needed, q, v, tau, h, substeps, Q, V, K):  # pragma: no cover
+    """Advance every column of ``q, v`` (n, B) ``substeps`` steps of size ``h``, in place.
 
     The stages are those of :meth:`mbs_envs.integrators.ExplicitRK.step`, term by
-    term in the same order (zero coefficients skipped), with the input
-    ``tau[b]`` held. ``Q, V, K`` are work arrays of shape ``(s, n)``; the
-    model's kernel is called as ``acc(Q, V, i, tau, theta, b, K)`` and writes
-    stage ``i``'s accelerations into ``K[i]`` (kernels index rows rather than
-    take views, which measured slower).
+    term in the same order (zero coefficients skipped), with the input ``tau``
+    (n, B) held. ``Q, V, K`` are work arrays of shape ``(s, n, B)``; the model's
+    kernel is called as ``acc(Q[i], V[i], tau, theta, K[i])``. Every innermost
+    loop runs over the batch, so it vectorizes.
     """
-    s, n = Q.shape
+    s = A_v.shape[0]
+    n, B = q.shape
     for _ in range(substeps):
         for i in range(s):
             for k in range(n):
-                x = v[b, k]
+                for b in range(B):
+                    V[i, k, b] = v[k, b]
                 for j in range(i):
                     if A_v[i, j] != 0.0:
-                        x = x + (h * A_v[i, j]) * K[j, k]
-                V[i, k] = x
-            for k in range(n):
-                x = q[b, k]
+                        c = h * A_v[i, j]
+                        for b in range(B):
+                            V[i, k, b] = V[i, k, b] + c * K[j, k, b]
+                for b in range(B):
+                    Q[i, k, b] = q[k, b]
                 for j in range(i + 1):
                     if A_q[i, j] != 0.0:
-                        x = x + (h * A_q[i, j]) * V[j, k]
-                Q[i, k] = x
+                        c = h * A_q[i, j]
+                        for b in range(B):
+                            Q[i, k, b] = Q[i, k, b] + c * V[j, k, b]
             if needed[i]:
-                acc(Q, V, i, tau, theta, b, K)
+                acc(Q[i], V[i], tau, theta, K[i])
         for k in range(n):
-            xq = q[b, k]
-            xv = v[b, k]
             for i in range(s):
                 if b_q[i] != 0.0:
-                    xq = xq + (h * b_q[i]) * V[i, k]
+                    c = h * b_q[i]
+                    for b in range(B):
+                        q[k, b] = q[k, b] + c * V[i, k, b]
                 if b_v[i] != 0.0:
-                    xv = xv + (h * b_v[i]) * K[i, k]
-            q[b, k] = xq
-            v[b, k] = xv
+                    c = h * b_v[i]
+                    for b in range(B):
+                        v[k, b] = v[k, b] + c * K[i, k, b]
 
 
 @functools.cache
 def rk_batch(acc):
-    """:func:`rk_member` over the rows of a batch, with the acceleration kernel bound at compile time.
+    """:func:`rk_columns` with the acceleration kernel bound at compile time, allocating its work arrays.
 
     The returned function ``(theta, A_v, A_q, b_v, b_q, needed, q, v, tau, h, substeps)``
-    advances every row of ``q, v, tau`` (shape ``(B, n)``) in place; ``theta``
-    is ``(B, P)``. (A kernel passed as an argument would be type-checked on every call.)
+    advances the columns of ``q, v, tau`` (shape ``(n, B)``) in place; ``theta``
+    is ``(P, B)``. (A kernel passed as an argument would be type-checked on every call.)
     """
 
     @njit(cache=False)
     def run(theta, A_v, A_q, b_v, b_q, needed, q, v, tau, h, substeps):  # pragma: no cover - compiled
-        s = A_v.shape[0]
-        B, n = q.shape
-        Q = np.empty((s, n))
-        V = np.empty((s, n))
-        K = np.empty((s, n))
-        for b in range(B):
-            rk_member(acc, theta, A_v, A_q, b_v, b_q, needed, q, v, tau, b, h, substeps, Q, V, K)
+        shape = (A_v.shape[0], q.shape[0], q.shape[1])
+        Q, V, K = np.empty(shape), np.empty(shape), np.empty(shape)
+        rk_columns(acc, theta, A_v, A_q, b_v, b_q, needed, q, v, tau, h, substeps, Q, V, K)
 
     return run
 
 
 def batch_theta(model: Model, batch: int) -> np.ndarray:
-    """``model.kernel_params()`` as a contiguous ``(batch, P)`` array, cached on the model
+    """``model.kernel_params()`` as contiguous columns ``(P, batch)``, cached on the model
     for its current parameters (read only)."""
     cached = model.__dict__.get("_theta_cache")
     if cached is None or cached[0] is not model.params or cached[1] != batch:
         theta = np.asarray(model.kernel_params(), float)
-        theta = np.ascontiguousarray(np.broadcast_to(theta, (batch, theta.shape[-1])))
+        theta = np.ascontiguousarray(np.broadcast_to(theta, (batch, theta.shape[-1])).T)
         theta.flags.writeable = False
         cached = model.__dict__["_theta_cache"] = (model.params, batch, theta)
     return cached[2]
@@ -171,9 +176,10 @@ def advance_compiled(
     """
     shape = np.broadcast_shapes(np.shape(q)[:-1], np.shape(v)[:-1], np.shape(u)[:-1])
     n = model.nv
-    q2 = np.array(np.broadcast_to(q, shape + (n,)), float).reshape(-1, n)
-    v2 = np.array(np.broadcast_to(v, shape + (n,)), float).reshape(-1, n)
-    tau = np.ascontiguousarray(np.broadcast_to(model.generalized_input(u), shape + (n,)), float).reshape(-1, n)
-    theta = batch_theta(model, q2.shape[0])
+    def columns(x):  # a new (n, B) array
+        return np.array(np.broadcast_to(x, shape + (n,)).reshape(-1, n).T, float, order="C")
+
+    q2, v2, tau = columns(q), columns(v), columns(model.generalized_input(u))
+    theta = batch_theta(model, q2.shape[1])
     rk_batch(model.kernels[0])(theta, tab.A_v, tab.A_q, tab.b_v, tab.b_q, tab.needed, q2, v2, tau, duration / substeps, substeps)
-    return q2.reshape(shape + (n,)), v2.reshape(shape + (n,))
+    return q2.T.reshape(shape + (n,)), v2.T.reshape(shape + (n,))

@@ -15,45 +15,44 @@ from __future__ import annotations
 import dataclasses
 
 from .jit import njit
+from .trig import sincos_columns
 import numpy as np
 
 
 @njit
-def sum_of_sines_member(t, center, rate, amplitude, omega, phase, b, q_ref, v_ref, a_ref):  # pragma: no cover
-    """The reference formulas (module docstring) of row ``b`` at time ``t``, written into row ``b`` of the outputs.
+def sum_of_sines_columns(t, center, rate, amplitude, omega, phase, q_ref, v_ref, a_ref):  # pragma: no cover
+    """The reference formulas (module docstring) of ``B`` members at their times ``t``, in columns.
 
     Parameters
     ----------
-    t : float
+    t : ndarray, shape (B,)
         [s]
-    center, rate : ndarray, shape (L, n)
-    amplitude, omega, phase : ndarray, shape (L, n, K)
-    b : int
-        The row (compiled callers index rows rather than take views).
-    q_ref, v_ref, a_ref : ndarray, shape (L, n)
+    center, rate : ndarray, shape (n, B)
+    amplitude, omega, phase : ndarray, shape (n, K, B)
+    q_ref, v_ref, a_ref : ndarray, shape (n, B)
         Outputs [rad], [rad/s], [rad/s^2].
     """
-    n, K = amplitude.shape[1], amplitude.shape[2]
+    n, K, B = amplitude.shape
+    arg, s, c = np.empty(B), np.empty(B), np.empty(B)
     for i in range(n):
-        sq = 0.0
-        sv = 0.0
-        sa = 0.0
+        for b in range(B):
+            q_ref[i, b] = 0.0
+            v_ref[i, b] = 0.0
+            a_ref[i, b] = 0.0
         for k in range(K):
-            w = omega[b, i, k]
-            arg = w * t + phase[b, i, k]
-            As = amplitude[b, i, k] * np.sin(arg)
-            sq += As
-            sv += amplitude[b, i, k] * w * np.cos(arg)
-            sa += As * w**2
-        q_ref[b, i] = center[b, i] + sq + rate[b, i] * t
-        v_ref[b, i] = sv + rate[b, i]
-        a_ref[b, i] = -sa
-
-
-@njit
-def _sum_of_sines_rows(t, center, rate, amplitude, omega, phase, q_ref, v_ref, a_ref):  # pragma: no cover
-    for r in range(t.shape[0]):
-        sum_of_sines_member(t[r], center, rate, amplitude, omega, phase, r, q_ref, v_ref, a_ref)
+            for b in range(B):
+                arg[b] = omega[i, k, b] * t[b] + phase[i, k, b]
+            sincos_columns(arg, s, c)
+            for b in range(B):
+                w = omega[i, k, b]
+                As = amplitude[i, k, b] * s[b]
+                q_ref[i, b] += As
+                v_ref[i, b] += amplitude[i, k, b] * w * c[b]
+                a_ref[i, b] += As * w**2
+        for b in range(B):
+            q_ref[i, b] = center[i, b] + q_ref[i, b] + rate[i, b] * t[b]
+            v_ref[i, b] = v_ref[i, b] + rate[i, b]
+            a_ref[i, b] = -a_ref[i, b]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -92,22 +91,27 @@ class SumOfSines:
         q_ref, v_ref, a_ref : ndarray, shape (n,) or (T, n)
         """
         t = np.asarray(t, float)
-        rows = self.rows(t.shape)
+        columns = self.columns(t.shape)
         lead = np.broadcast_shapes(t.shape, self.center.shape[:-1])
-        out = np.empty((3,) + rows[0].shape)
-        _sum_of_sines_rows(np.broadcast_to(t, lead).reshape(-1), *rows, out[0], out[1], out[2])
+        out = np.empty((3,) + columns[0].shape)
+        sum_of_sines_columns(np.ascontiguousarray(np.broadcast_to(t, lead).reshape(-1)), *columns, *out)
         n = self.center.shape[-1]
-        return tuple(x.reshape(lead + (n,)) for x in out)
+        return tuple(x.T.reshape(lead + (n,)) for x in out)
 
-    def rows(self, shape: tuple = ()) -> tuple[np.ndarray, ...]:
-        """``(center, rate, amplitude, omega, phase)`` broadcast to times of ``shape`` and
-        flattened to rows ``(L, n)``, ``(L, n, K)`` (a zero rate when there is none)."""
+    def columns(self, shape: tuple = ()) -> tuple[np.ndarray, ...]:
+        """``(center, rate, amplitude, omega, phase)`` broadcast to times of ``shape``,
+        flattened to ``L`` members and laid out in contiguous columns ``(n, L)``,
+        ``(n, K, L)`` as :func:`sum_of_sines_columns` reads them (a zero rate when there is none)."""
         lead = np.broadcast_shapes(shape, self.center.shape[:-1])
         n, K = self.amplitude.shape[-2:]
         rate = np.zeros(n) if self.rate is None else self.rate
-        vec = [np.broadcast_to(x, lead + (n,)).reshape(-1, n) for x in (self.center, rate)]
-        mat = [np.broadcast_to(x, lead + (n, K)).reshape(-1, n, K) for x in (self.amplitude, self.omega, self.phase)]
-        return (*vec, *mat)
+
+        def columns(x, tail):
+            rows = np.broadcast_to(x, lead + tail).reshape((-1,) + tail)
+            return np.ascontiguousarray(np.moveaxis(rows, 0, -1), float)
+
+        return (*(columns(x, (n,)) for x in (self.center, rate)),
+                *(columns(x, (n, K)) for x in (self.amplitude, self.omega, self.phase)))  # fmt: skip
 
 
 def sample_sum_of_sines(

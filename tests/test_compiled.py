@@ -32,26 +32,47 @@ def random_model(rng, batch=None):
     return Planar2R().with_params(Planar2R().params.batched(**draw))
 
 
+def run_kernels(model, q, v, tau):
+    """The model's compiled kernels on rows ``(B, 2)`` (they take columns), as rows."""
+    acc, energy = model.kernels
+    theta = batch_theta(model, q.shape[0])
+    a, E = np.empty((2, q.shape[0])), np.empty(q.shape[0])
+    acc(q.T.copy(), v.T.copy(), tau.T.copy(), theta, a)
+    energy(q.T.copy(), v.T.copy(), theta, E)
+    return a.T, E
+
+
 def test_acceleration_and_energy_kernels_equal_the_numpy_model():
     rng = np.random.default_rng(0)
     B = 200
     model = random_model(rng, B)
-    acc, energy = model.kernels
     q = rng.uniform(-4, 4, (B, 2))
     v = rng.uniform(-6, 6, (B, 2))
     tau = rng.uniform(-30, 30, (B, 2))
-    theta = batch_theta(model, B)
-    K = np.empty((1, 2))
-    a = np.empty((B, 2))
-    E = np.empty(B)
-    for b in range(B):
-        acc(q[b : b + 1], v[b : b + 1], 0, tau, theta, b, K)
-        a[b] = K[0]
-        E[b] = energy(q, v, theta, b)
+    a, E = run_kernels(model, q, v, tau)
     a_np = model.forward_dynamics(q, v, tau)
     scale = np.max(np.abs(a_np), axis=-1, keepdims=True)
     assert np.max(np.abs(a - a_np) / scale) < 1e-12
     np.testing.assert_allclose(E, model.energy(q, v), rtol=1e-12, atol=1e-12)
+
+
+def test_kernels_take_libm_for_angles_outside_the_fast_sincos_range():
+    """Members with huge or non-finite angles go through the scalar libm pass; the others are unaffected."""
+    rng = np.random.default_rng(3)
+    model = random_model(rng)
+    q = rng.uniform(-4, 4, (9, 2))
+    # one huge angle, the other zero: then numpy's cos(th1 + th2) is libm's of the huge one, exactly
+    q[2], q[3], q[4] = (3e6, 0.0), (0.0, -1e20), (1e20, 0.0)  # the fast sincos is off by 1e29 at 1e20
+    q[5, 0], q[6, 1] = np.nan, np.inf
+    v, tau = rng.uniform(-6, 6, (9, 2)), rng.uniform(-30, 30, (9, 2))
+    a, E = run_kernels(model, q, v, tau)
+    with np.errstate(invalid="ignore"):
+        a_np, E_np = model.forward_dynamics(q, v, tau), model.energy(q, v)
+    ok = np.isfinite(q).all(axis=-1)
+    scale = np.max(np.abs(a_np[ok]), axis=-1, keepdims=True)
+    assert np.max(np.abs(a - a_np)[ok] / scale) < 1e-12
+    np.testing.assert_allclose(E[ok], E_np[ok], rtol=1e-12, atol=1e-12)
+    assert np.all(np.isnan(a[~ok])) and np.all(np.isnan(E[~ok]))
 
 
 @pytest.mark.parametrize("name", sorted(integrators.TABLEAUX))

@@ -25,8 +25,9 @@ import gymnasium as gym
 from ..jit import njit
 import numpy as np
 
-from ..compiled import TableauArrays, batch_theta, compiled_stepping, rk_member
-from ..references import SumOfSines, sample_sum_of_sines, sum_of_sines_member
+from ..compiled import TableauArrays, batch_theta, compiled_stepping, rk_columns
+from ..references import SumOfSines, sample_sum_of_sines, sum_of_sines_columns
+from ..trig import sincos_columns
 from .base import MBSEnv, validate_action
 
 
@@ -44,116 +45,142 @@ _wrap = njit(wrap_angle)
 
 
 @njit
-def encode_member(q, v, q_ref, v_ref, a_ref, b, tracked, obs):  # pragma: no cover - compiled
-    """Row ``b`` of ``obs = [cos q, sin q, v, wrap(q_ref - q[tracked]), v_ref, a_ref]``
-    from row ``b`` of the (L, n) and (L, m) inputs (rows, not views: see :mod:`mbs_envs.compiled`)."""
-    n = q.shape[1]
+def encode_columns(q, v, q_ref, v_ref, a_ref, tracked, obs):  # pragma: no cover - compiled
+    """``obs = [cos q, sin q, v, wrap(q_ref - q[tracked]), v_ref, a_ref]`` of a batch.
+
+    Parameters
+    ----------
+    q, v : ndarray, shape (n, B)
+        Columns (:mod:`mbs_envs.compiled`).
+    q_ref, v_ref, a_ref : ndarray, shape (m, B)
+    tracked : ndarray of int, shape (m,)
+    obs : ndarray, shape (B, 3 n + 3 m)
+        Written, one row per member (as the env returns it).
+    """
+    n, B = q.shape
     m = tracked.shape[0]
+    s, c = np.empty(B), np.empty(B)
     for i in range(n):
-        obs[b, i] = np.cos(q[b, i])
-        obs[b, n + i] = np.sin(q[b, i])
-        obs[b, 2 * n + i] = v[b, i]
+        sincos_columns(q[i], s, c)
+        for b in range(B):
+            obs[b, i] = c[b]
+            obs[b, n + i] = s[b]
+            obs[b, 2 * n + i] = v[i, b]
     for j in range(m):
-        obs[b, 3 * n + j] = _wrap(q_ref[b, j] - q[b, tracked[j]])
-        obs[b, 3 * n + m + j] = v_ref[b, j]
-        obs[b, 3 * n + 2 * m + j] = a_ref[b, j]
+        for b in range(B):
+            obs[b, 3 * n + j] = _wrap(q_ref[j, b] - q[tracked[j], b])
+            obs[b, 3 * n + m + j] = v_ref[j, b]
+            obs[b, 3 * n + 2 * m + j] = a_ref[j, b]
 
 
 @njit
-def reward_member(q, v, q_ref, v_ref, action, b, tracked, weights, terms, e):  # pragma: no cover - compiled
-    """Row ``b``'s reward terms (module docstring) into ``terms[b, :4] = (r, r_e, r_de, r_u)``
-    and its tracking error ``wrap(q_ref - q[tracked])`` into ``e[b]``."""
-    s_e = 0.0
-    s_de = 0.0
-    s_u = 0.0
+def reward_columns(q, v, q_ref, v_ref, action, tracked, weights, terms, e):  # pragma: no cover - compiled
+    """The reward terms (module docstring) of a batch.
+
+    Parameters
+    ----------
+    q, v : ndarray, shape (n, B)
+    q_ref, v_ref : ndarray, shape (m, B)
+    action : ndarray, shape (nu, B)
+    tracked : ndarray of int, shape (m,)
+    weights : ndarray, shape (3,)
+        ``(w_e, w_de, w_u)``.
+    terms : ndarray, shape (B, >= 4)
+        Written: columns ``(r, r_e, r_de, r_u)``, one row per member.
+    e : ndarray, shape (B, m)
+        Written: the tracking error ``wrap(q_ref - q[tracked])``.
+    """
+    B = q.shape[1]
+    s_e, s_de, s_u = np.zeros(B), np.zeros(B), np.zeros(B)
     for j in range(tracked.shape[0]):
-        ej = _wrap(q_ref[b, j] - q[b, tracked[j]])
-        de = v_ref[b, j] - v[b, tracked[j]]
-        e[b, j] = ej
-        s_e += ej * ej
-        s_de += de * de
-    for k in range(action.shape[1]):
-        s_u += action[b, k] * action[b, k]
-    r_e = -weights[0] * s_e
-    r_de = -weights[1] * s_de
-    r_u = -weights[2] * s_u
-    terms[b, 0] = r_e + r_de + r_u
-    terms[b, 1] = r_e
-    terms[b, 2] = r_de
-    terms[b, 3] = r_u
+        for b in range(B):
+            ej = _wrap(q_ref[j, b] - q[tracked[j], b])
+            de = v_ref[j, b] - v[tracked[j], b]
+            e[b, j] = ej
+            s_e[b] += ej * ej
+            s_de[b] += de * de
+    for k in range(action.shape[0]):
+        for b in range(B):
+            s_u[b] += action[k, b] * action[k, b]
+    for b in range(B):
+        r_e = -weights[0] * s_e[b]
+        r_de = -weights[1] * s_de[b]
+        r_u = -weights[2] * s_u[b]
+        terms[b, 0] = r_e + r_de + r_u
+        terms[b, 1] = r_e
+        terms[b, 2] = r_de
+        terms[b, 3] = r_u
 
 
-@njit
-def _encode_rows(q, v, q_ref, v_ref, a_ref, tracked, obs):  # pragma: no cover - compiled
-    for b in range(q.shape[0]):
-        encode_member(q, v, q_ref, v_ref, a_ref, b, tracked, obs)
-
-
-@njit
-def _reward_rows(q, v, q_ref, v_ref, action, tracked, weights, terms, e):  # pragma: no cover - compiled
-    for b in range(q.shape[0]):
-        reward_member(q, v, q_ref, v_ref, action, b, tracked, weights, terms, e)
-
-
-def _as_rows(*arrays: np.ndarray) -> tuple[tuple, list[np.ndarray]]:
-    """Broadcast the leading dimensions of ``(..., k_i)`` arrays and flatten them to rows ``(L, k_i)``."""
+def _as_columns(*arrays: np.ndarray) -> tuple[tuple, list[np.ndarray]]:
+    """Broadcast the leading dimensions of ``(..., k_i)`` arrays, flatten them to ``L``
+    members and lay each out in contiguous columns ``(k_i, L)``."""
     arrays = [np.asarray(x, float) for x in arrays]
     lead = np.broadcast_shapes(*(x.shape[:-1] for x in arrays))
-    return lead, [np.broadcast_to(x, lead + x.shape[-1:]).reshape(-1, x.shape[-1]) for x in arrays]
+    return lead, [np.ascontiguousarray(np.broadcast_to(x, lead + x.shape[-1:]).reshape(-1, x.shape[-1]).T) for x in arrays]
 
 
 @njit(cache=False)
-def _tracking_step_rows(  # pragma: no cover - compiled
+def _tracking_step_columns(  # pragma: no cover - compiled
     acc, energy, theta, A_v, A_q, b_v, b_q, needed, substeps, limit,
     q, v, t, dt, action, u_max, center, rate, amplitude, omega, phase, tracked, weights,
     u, obs, terms, e, q_ref, bad,
 ):  # fmt: skip
-    """One control step of every row: :meth:`MBSEnv.step`'s sequence, compiled.
+    """One control step of every member: :meth:`MBSEnv.step`'s sequence, compiled.
 
-    Physics (:func:`mbs_envs.compiled.rk_member` with ``u = action * u_max``
-    held; ``B = I``), the divergence test (non-finite or ``|x| > limit``: the row
-    keeps its state and ``bad`` is set), ``t += dt``, the reference at the new
-    time, reward terms, observation and energy. ``q, v, t`` are updated in
-    place; ``u (B, nu)``, ``obs (B, d)``, ``terms (B, 5) = (r, r_e, r_de, r_u, energy)``,
-    ``e (B, m)``, ``q_ref (B, m)`` and ``bad (B,)`` are outputs.
+    Physics (:func:`mbs_envs.compiled.rk_columns` with ``u = action * u_max``
+    held; ``B = I``), the divergence test (non-finite or ``|x| > limit``: the
+    member keeps its state and ``bad`` is set), ``t += dt``, the reference at the
+    new time, reward terms, observation and energy.
+
+    ``q, v`` (B, n) and ``t`` (B,) are the env's arrays, updated in place;
+    ``action`` (B, nu) and the outputs ``u (B, nu)``, ``obs (B, d)``,
+    ``terms (B, 5) = (r, r_e, r_de, r_u, energy)``, ``e (B, m)``, ``q_ref (B, m)``
+    and ``bad (B,)`` are rows too; the reference and ``theta`` come in columns
+    (:meth:`SumOfSines.columns`, :func:`mbs_envs.compiled.batch_theta`).
     """
-    s = A_v.shape[0]
     B, n = q.shape
     m = tracked.shape[0]
-    Q = np.empty((s, n))
-    V = np.empty((s, n))
-    K = np.empty((s, n))
-    q_old = np.empty(n)
-    v_old = np.empty(n)
-    v_ref = np.empty((B, m))
-    a_ref = np.empty((B, m))
-    h = dt / substeps
+    shape = (A_v.shape[0], n, B)
+    Q, V, K = np.empty(shape), np.empty(shape), np.empty(shape)
+    qc, vc = np.ascontiguousarray(q.T), np.ascontiguousarray(v.T)
+    ac = np.ascontiguousarray(action.T)
+    uc = np.empty((u.shape[1], B))
+    for k in range(u.shape[1]):
+        for b in range(B):
+            uc[k, b] = ac[k, b] * u_max[k]
+            u[b, k] = uc[k, b]
+    rk_columns(acc, theta, A_v, A_q, b_v, b_q, needed, qc, vc, uc, dt / substeps, substeps, Q, V, K)
     for b in range(B):
-        for k in range(u.shape[1]):
-            u[b, k] = action[b, k] * u_max[k]
-        for k in range(n):
-            q_old[k] = q[b, k]
-            v_old[k] = v[b, k]
-        rk_member(acc, theta, A_v, A_q, b_v, b_q, needed, q, v, u, b, h, substeps, Q, V, K)
         ok = True
         for k in range(n):
-            if not (abs(q[b, k]) <= limit and abs(v[b, k]) <= limit):
-                ok = False
+            ok &= abs(qc[k, b]) <= limit
+            ok &= abs(vc[k, b]) <= limit
         bad[b] = not ok
-        if not ok:
-            for k in range(n):
-                q[b, k] = q_old[k]
-                v[b, k] = v_old[k]
+        for k in range(n):
+            if ok:
+                q[b, k] = qc[k, b]
+                v[b, k] = vc[k, b]
+            else:  # the member keeps its state
+                qc[k, b] = q[b, k]
+                vc[k, b] = v[b, k]
         t[b] = t[b] + dt
-        sum_of_sines_member(t[b], center, rate, amplitude, omega, phase, b, q_ref, v_ref, a_ref)
-        reward_member(q, v, q_ref, v_ref, action, b, tracked, weights, terms, e)
-        encode_member(q, v, q_ref, v_ref, a_ref, b, tracked, obs)
-        terms[b, 4] = energy(q, v, theta, b)
+    refs = np.empty((3, m, B))
+    sum_of_sines_columns(t, center, rate, amplitude, omega, phase, refs[0], refs[1], refs[2])
+    for j in range(m):
+        for b in range(B):
+            q_ref[b, j] = refs[0, j, b]
+    reward_columns(qc, vc, refs[0], refs[1], ac, tracked, weights, terms, e)
+    encode_columns(qc, vc, refs[0], refs[1], refs[2], tracked, obs)
+    E = np.empty(B)
+    energy(qc, vc, theta, E)
+    for b in range(B):
+        terms[b, 4] = E[b]
 
 
 @functools.cache
-def tracking_step_rows(acc, energy):
-    """:func:`_tracking_step_rows` with a model's kernels bound at compile time.
+def tracking_step_columns(acc, energy):
+    """:func:`_tracking_step_columns` with a model's kernels bound at compile time.
 
     (Kernels passed as arguments would be type-checked by numba on every call,
     about 8 us of a single env's step.) One compilation per model class and process.
@@ -162,7 +189,7 @@ def tracking_step_rows(acc, energy):
     @njit(cache=False)
     def step(theta, A_v, A_q, b_v, b_q, needed, substeps, limit, q, v, t, dt, action, u_max,
              center, rate, amplitude, omega, phase, tracked, weights, u, obs, terms, e, q_ref, bad):  # fmt: skip
-        _tracking_step_rows(
+        _tracking_step_columns(
             acc, energy, theta, A_v, A_q, b_v, b_q, needed, substeps, limit, q, v, t, dt, action, u_max,
             center, rate, amplitude, omega, phase, tracked, weights, u, obs, terms, e, q_ref, bad,
         )  # fmt: skip
@@ -199,10 +226,10 @@ def encode_tracking(q, v, q_ref, v_ref, a_ref, tracked: tuple[int, ...]) -> np.n
     -------
     ndarray, float32, shape (..., 3 n + 3 m)
     """
-    lead, rows = _as_rows(q, v, q_ref, v_ref, a_ref)
-    n, m = rows[0].shape[1], len(tracked)
-    obs = np.empty((rows[0].shape[0], 3 * (n + m)), np.float32)
-    _encode_rows(*rows, np.asarray(tracked, np.int64), obs)
+    lead, columns = _as_columns(q, v, q_ref, v_ref, a_ref)
+    (n, L), m = columns[0].shape, len(tracked)
+    obs = np.empty((L, 3 * (n + m)), np.float32)
+    encode_columns(*columns, np.asarray(tracked, np.int64), obs)
     return obs.reshape(lead + (3 * (n + m),))
 
 
@@ -274,7 +301,7 @@ class JointTrackingEnv(MBSEnv):
         self.reward_weights = w
         self._tracked = np.asarray(self.tracked, np.int64)
         self._compiled = self._compiled_tableau(compiled)
-        self._task_rows: tuple | None = None
+        self._task_columns: tuple | None = None
         self.start_noise = float(start_noise)
         n, m = model.nq, len(self.tracked)
         # |v| <= divergence_limit is guaranteed (a diverged step keeps the last
@@ -315,7 +342,7 @@ class JointTrackingEnv(MBSEnv):
             return None
         return compiled_stepping(model, self.integrator, self.stabilization)
 
-    def step_rows(self, model, q, v, t, task_rows, action) -> dict[str, np.ndarray]:
+    def step_rows(self, model, q, v, t, task_columns, action) -> dict[str, np.ndarray]:
         """The compiled control step of a batch of rows (single env: one row), in place.
 
         Parameters
@@ -326,8 +353,8 @@ class JointTrackingEnv(MBSEnv):
             Updated in place (a diverged row keeps its state).
         t : ndarray, shape (B,)
             Updated in place.
-        task_rows : tuple
-            :meth:`SumOfSines.rows` of the rows' references.
+        task_columns : tuple
+            :meth:`SumOfSines.columns` of the rows' references.
         action : ndarray, shape (B, nu)
             Validated and clipped.
 
@@ -348,9 +375,9 @@ class JointTrackingEnv(MBSEnv):
             "q_ref": np.empty((B, m)),
             "bad": np.empty(B, bool),
         }
-        tracking_step_rows(*model.kernels)(  # compiled code raises no floating-point warnings
+        tracking_step_columns(*model.kernels)(  # compiled code raises no floating-point warnings
             batch_theta(model, B), tab.A_v, tab.A_q, tab.b_v, tab.b_q, tab.needed,
-            self.substeps, self.divergence_limit, q, v, t, self.dt, action, self.u_max, *task_rows,
+            self.substeps, self.divergence_limit, q, v, t, self.dt, action, self.u_max, *task_columns,
             self._tracked, self.reward_weights, out["u"], out["obs"], out["terms"], out["e"], out["q_ref"], out["bad"],
         )  # fmt: skip
         return out
@@ -359,10 +386,10 @@ class JointTrackingEnv(MBSEnv):
         if self._compiled is None:
             return super().step(action)
         a = validate_action(action, self.model.nu)  # raises before any change
-        if self._task_rows is None or self._task_rows[0] is not self._task:
-            self._task_rows = (self._task, self._task.rows())
+        if self._task_columns is None or self._task_columns[0] is not self._task:
+            self._task_columns = (self._task, self._task.columns())
         t = np.array([self._t])
-        r = self.step_rows(self.model, self._q.reshape(1, -1), self._v.reshape(1, -1), t, self._task_rows[1], a.reshape(1, -1))
+        r = self.step_rows(self.model, self._q.reshape(1, -1), self._v.reshape(1, -1), t, self._task_columns[1], a.reshape(1, -1))
         self._t = float(t[0])
         self._u = r["u"][0]
         bad = bool(r["bad"][0])
@@ -430,13 +457,13 @@ class JointTrackingEnv(MBSEnv):
         idx = list(self.tracked)
         return wrap_angle(q_ref - q[..., idx]), v_ref - v[..., idx]
 
-    #: names in ``info`` of the reward terms (columns 1-3 of :func:`reward_member`'s output)
+    #: names in ``info`` of the reward terms (columns 1-3 of :func:`reward_columns`'s output)
     reward_terms: ClassVar[tuple[str, ...]] = ("reward_tracking", "reward_velocity", "reward_effort")
 
     def reward(self, q, v, now, task, u, action) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        lead, (q2, v2, q_ref, v_ref, a2) = _as_rows(q, v, now[0], now[1], action)
-        terms = np.empty((q2.shape[0], 4))
-        _reward_rows(q2, v2, q_ref, v_ref, a2, self._tracked, self.reward_weights, terms, np.empty_like(q_ref))
+        lead, (q2, v2, q_ref, v_ref, a2) = _as_columns(q, v, now[0], now[1], action)
+        terms = np.empty((q2.shape[1], 4))
+        reward_columns(q2, v2, q_ref, v_ref, a2, self._tracked, self.reward_weights, terms, np.empty(q_ref.shape[::-1]))
         terms = terms.reshape(lead + (4,))
         return terms[..., 0], {k: terms[..., i + 1] for i, k in enumerate(self.reward_terms)}
 

@@ -126,6 +126,7 @@ class MBSVectorEnv(VectorEnv):
         self._u = np.zeros((n, self.model.nu))
         self._elapsed = np.zeros(n, int)
         self._task: Any = None
+        self._task_columns: tuple | None = None  # the compiled step's layout of _task, kept in step with it
         self._scales: dict[str, np.ndarray] = {k: np.ones(n) for k in self.randomize}
         self._autoreset = np.zeros(n, bool)
         self._started = False
@@ -175,6 +176,9 @@ class MBSVectorEnv(VectorEnv):
             if self._task is None:
                 self._task = tree_stack([task] * self.num_envs)
             tree_set(self._task, i, task)
+            if self._task_columns is not None:
+                for whole, member in zip(self._task_columns, task.columns()):
+                    whole[..., i] = member[..., 0]
             self._q[i], self._v[i] = q0, v0
         self._t[idx] = 0.0
         self._u[idx] = 0.0
@@ -268,7 +272,9 @@ class MBSVectorEnv(VectorEnv):
     def _step_compiled(self, a: np.ndarray) -> tuple:
         """The same step as :meth:`_step_numpy`, compiled (:meth:`JointTrackingEnv.step_rows`)."""
         env = self.env
-        r = env.step_rows(self.model, self._q, self._v, self._t, self._task.rows(), a)
+        if self._task_columns is None:
+            self._task_columns = self._task.columns()
+        r = env.step_rows(self.model, self._q, self._v, self._t, self._task_columns, a)
         self._u = r["u"]
         terms = r["terms"]
         info: dict[str, Any] = {"t": self._t.copy(), "diverged": r["bad"]}

@@ -12,6 +12,7 @@ import dataclasses
 from ..jit import njit
 import numpy as np
 
+from ..trig import sincos_columns
 from .base import Model, Params, as_vector, friction_law, param, smoothed_friction
 
 
@@ -96,47 +97,72 @@ def _friction(v, b, f, v_s):  # pragma: no cover - compiled
 
 
 @njit
-def acceleration_kernel(Q, V, i, tau, theta, b, K):  # pragma: no cover - compiled
-    """Forward dynamics ``a = M^-1 (tau - C v - G - F)`` of one state, written into ``K[i]``.
-
-    The kernel convention of :mod:`mbs_envs.compiled`: rows, not views (in a
-    micro-benchmark a call on row views took 150 ns, on row indices 72-80 ns).
-
-    Parameters
-    ----------
-    Q, V : ndarray, shape (s, 2)
-        Row ``i``: the state [rad], [rad/s].
-    tau : ndarray, shape (B, 2)
-        Row ``b``: joint torques [N m].
-    theta : ndarray, shape (B, 14)
-        Row ``b``: the parameters in :class:`Planar2RParams` field order (:meth:`Planar2R.kernel_params`).
-    K : ndarray, shape (s, 2)
-        Row ``i`` is written [rad/s^2]. The 2 x 2 system is solved by Cramer's
-        rule (``det M >= (I1 + m1 r1^2)(I2 + m2 r2^2) > 0``).
-    """
-    m1, m2, l1, r1, r2 = theta[b, 0], theta[b, 1], theta[b, 2], theta[b, 4], theta[b, 5]
-    I1, I2, g = theta[b, 6], theta[b, 7], theta[b, 8]
-    q1, q2, d1, d2 = Q[i, 0], Q[i, 1], V[i, 0], V[i, 1]
-    c1, c2, c12, s2 = np.cos(q1), np.cos(q2), np.cos(q1 + q2), np.sin(q2)
+def _acceleration(s1, c1, s2, c2, d1, d2, F1, F2, tau1, tau2, theta, b):  # pragma: no cover - compiled
+    """Forward dynamics ``a = M^-1 (tau - C v - G - F)`` of member ``b`` from the sines and
+    cosines of its joint angles and its friction torques ``F``; the 2 x 2 system by
+    Cramer's rule (``det M >= (I1 + m1 r1^2)(I2 + m2 r2^2) > 0``). Returns ``(a1, a2)`` [rad/s^2]."""
+    m1, m2, l1, r1, r2 = theta[0, b], theta[1, b], theta[2, b], theta[4, b], theta[5, b]
+    I1, I2, g = theta[6, b], theta[7, b], theta[8, b]
     m11, m12, m22 = _mass_entries(c2, m1, m2, l1, r1, r2, I1, I2)
     h1, h2 = _coriolis_entries(s2, d1, d2, m2, l1, r2)
-    g1, g2 = _gravity_entries(c1, c12, m1, m2, l1, r1, r2, g)
-    rhs1 = tau[b, 0] - (h1 + g1 + _friction(d1, theta[b, 9], theta[b, 11], theta[b, 13]))
-    rhs2 = tau[b, 1] - (h2 + g2 + _friction(d2, theta[b, 10], theta[b, 12], theta[b, 13]))
+    g1, g2 = _gravity_entries(c1, c1 * c2 - s1 * s2, m1, m2, l1, r1, r2, g)
+    rhs1 = tau1 - (h1 + g1 + F1)
+    rhs2 = tau2 - (h2 + g2 + F2)
     det = m11 * m22 - m12 * m12
-    K[i, 0] = (m22 * rhs1 - m12 * rhs2) / det
-    K[i, 1] = (m11 * rhs2 - m12 * rhs1) / det
+    return (m22 * rhs1 - m12 * rhs2) / det, (m11 * rhs2 - m12 * rhs1) / det
 
 
 @njit
-def energy_kernel(q, v, theta, b):  # pragma: no cover - compiled
-    """Mechanical energy ``v^T M v / 2 + V`` [J] of row ``b`` of ``q, v`` (B, 2) with ``theta[b]``."""
-    m1, m2, l1, r1, r2 = theta[b, 0], theta[b, 1], theta[b, 2], theta[b, 4], theta[b, 5]
-    I1, I2, g = theta[b, 6], theta[b, 7], theta[b, 8]
-    m11, m12, m22 = _mass_entries(np.cos(q[b, 1]), m1, m2, l1, r1, r2, I1, I2)
-    d1, d2 = v[b, 0], v[b, 1]
+def _trig(q):  # pragma: no cover - compiled
+    """``(s1, c1, s2, c2)`` of the joint angles ``q`` (2, B) as a (4, B) array (:func:`mbs_envs.trig.sincos_columns`)."""
+    T = np.empty((4, q.shape[1]))
+    sincos_columns(q[0], T[0], T[1])
+    sincos_columns(q[1], T[2], T[3])
+    return T
+
+
+@njit
+def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
+    """Forward dynamics of a batch in columns (the kernel convention of :mod:`mbs_envs.compiled`).
+
+    Parameters
+    ----------
+    q, v : ndarray, shape (2, B)
+        Joint angles [rad] and rates [rad/s].
+    tau : ndarray, shape (2, B)
+        Joint torques [N m].
+    theta : ndarray, shape (14, B)
+        The parameters in :class:`Planar2RParams` field order (:meth:`Planar2R.kernel_params`).
+    a : ndarray, shape (2, B)
+        Written: accelerations [rad/s^2].
+    """
+    T = _trig(q)
+    F = np.empty((2, q.shape[1]))  # a pass of its own: the tanh call would keep the main loop scalar
+    for b in range(q.shape[1]):
+        F[0, b] = _friction(v[0, b], theta[9, b], theta[11, b], theta[13, b])
+        F[1, b] = _friction(v[1, b], theta[10, b], theta[12, b], theta[13, b])
+    for b in range(q.shape[1]):
+        a[0, b], a[1, b] = _acceleration(
+            T[0, b], T[1, b], T[2, b], T[3, b], v[0, b], v[1, b], F[0, b], F[1, b], tau[0, b], tau[1, b], theta, b
+        )
+
+
+@njit
+def _energy(s1, c1, s2, c2, d1, d2, theta, b):  # pragma: no cover - compiled
+    """Mechanical energy ``v^T M v / 2 + V`` [J] of member ``b`` from the sines and cosines of its angles."""
+    m1, m2, l1, r1, r2 = theta[0, b], theta[1, b], theta[2, b], theta[4, b], theta[5, b]
+    I1, I2, g = theta[6, b], theta[7, b], theta[8, b]
+    m11, m12, m22 = _mass_entries(c2, m1, m2, l1, r1, r2, I1, I2)
     T = 0.5 * (m11 * d1 * d1 + 2.0 * m12 * d1 * d2 + m22 * d2 * d2)
-    return T + _potential_entry(np.sin(q[b, 0]), np.sin(q[b, 0] + q[b, 1]), m1, m2, l1, r1, r2, g)
+    return T + _potential_entry(s1, s1 * c2 + c1 * s2, m1, m2, l1, r1, r2, g)
+
+
+@njit
+def energy_kernel(q, v, theta, E):  # pragma: no cover - compiled
+    """Mechanical energy [J] of a batch in columns: ``q, v`` (2, B), ``theta`` (14, B); writes ``E`` (B,)."""
+    T = _trig(q)
+    for b in range(q.shape[1]):
+        E[b] = _energy(T[0, b], T[1, b], T[2, b], T[3, b], v[0, b], v[1, b], theta, b)
 
 
 class Planar2R(Model):
@@ -208,7 +234,8 @@ class Planar2R(Model):
     kernels = (acceleration_kernel, energy_kernel)
 
     def kernel_params(self) -> np.ndarray:
-        """Parameters as the kernels take them: shape ``(14,)``, or ``(B, 14)`` when batched."""
+        """Parameters in field order: shape ``(14,)``, or ``(B, 14)`` when batched
+        (the kernels read them as columns, :func:`mbs_envs.compiled.batch_theta`)."""
         return np.stack(np.broadcast_arrays(*(getattr(self.params, k) for k in self.Params.names())), axis=-1)
 
     def joint_positions(self, q: np.ndarray) -> np.ndarray:
