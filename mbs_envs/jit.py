@@ -3,6 +3,13 @@
 ``error_model="numpy"``: a division by zero gives inf/NaN as in numpy (which
 divergence detection then reports) instead of raising, and the compiled code
 skips Python's zero-division checks.
+
+Caching (``cache=True``) keeps compiled kernels in ``__pycache__`` between
+processes. numba invalidates a cached function only when *its own* file changes,
+not when a kernel it calls from another module does (numba issue #1833): after
+editing, say, :mod:`mbs_envs.trig`, delete the ``*.nbi``/``*.nbc`` files
+(``find mbs_envs -name '*.nb[ic]' -delete``) or stale code runs. A fresh install
+has no cache.
 """
 
 from __future__ import annotations

@@ -18,7 +18,8 @@ the same process):
    is installed).
 5. ``sb3``: PPO env-steps per second with our batched env through the SB3
    adapter against SB3's ``make_vec_env`` of single envs (DummyVecEnv), both
-   for the whole ``learn`` and for rollouts alone.
+   for the whole ``learn`` and for rollouts alone, at 64, 256 and 1024 envs, with
+   torch on one thread and on its default (one per core).
 
 Writes ``bench.json`` and ``bench.png`` to ``--out``.
 
@@ -130,37 +131,50 @@ def batched_step(num_envs: int, repeats: int, steps: int) -> dict:
             times[name].append(time_steps(env, actions[name], reset_every=10**9))
     per_env = {k: float(np.median(v)) / num_envs for k, v in times.items()}
     ref = per_env["CartPole-v1 vector"]
-    floor = trig_floor(num_envs, 51, 3)
+    floor = trig_floor(num_envs, 3)
     return {
         "num_envs": num_envs,
-        "trig_floor": {**floor, "ratio_to_cartpole": floor["per_env_step_us"] / (ref * 1e6)},
+        "trig_floor": {**floor, **{k.replace("per_env_step_us", "ratio_to_cartpole"): v / (ref * 1e6) for k, v in floor.items() if k.endswith("_us")}},
         "per_env_step_us": {k: v * 1e6 for k, v in per_env.items()},
         "ratio_to_cartpole": {k: v / ref for k, v in per_env.items()},
     }
 
 
-def trig_floor(num_envs: int, per_member: int, repeats: int) -> dict:
-    """Time of ``per_member`` sin/cos evaluations per member (a compiled loop) at ``num_envs`` members.
+def trig_floor(num_envs: int, repeats: int) -> dict:
+    """Per member, the time of a default step's sines and cosines alone, by libm and by :func:`mbs_envs.trig.sincos`.
 
-    A lower bound of the batched step: Planar2R-v0's default step evaluates, per
-    member, 4 trig functions in each of 4 RK4 stages of 2 substeps, 12 for the
-    reference (2 joints x 3 sines, sin and cos), 4 for the observation and 3 for
-    the energy: 51.
+    The step needs, per member, the sine and cosine of both joint angles in each
+    of 4 RK4 stages of 2 substeps (16 angles), of the 6 reference phases, and of
+    the final angles for the observation and the energy (4): 26 angles. By libm
+    (numba's ``np.sin``, ``np.cos``: scalar calls) that is 52 calls; the compiled
+    step uses the branch-free ``sincos`` instead, which vectorizes.
     """
     import numba
 
+    from mbs_envs.trig import sincos
+
     @numba.njit
-    def kernel(x, k, out):
+    def libm(x, k, out):
         for b in range(x.shape[0]):
             acc = 0.0
             for j in range(k):
-                acc += np.sin(x[b] + 0.1 * j)
+                acc += np.sin(x[b] + 0.1 * j) + np.cos(x[b] + 0.1 * j)
             out[b] = acc
+
+    @numba.njit
+    def simd(x, k, out):
+        for b in range(x.shape[0]):
+            out[b] = 0.0
+        for j in range(k):
+            for b in range(x.shape[0]):
+                s, c = sincos(x[b] + 0.1 * j)
+                out[b] += s + c
 
     x = np.random.default_rng(0).uniform(-3, 3, num_envs)
     out = np.empty(num_envs)
-    t = [median_time(lambda: kernel(x, per_member, out)) for _ in range(repeats)]
-    return {"trig_per_member": per_member, "per_env_step_us": float(np.median(t)) / num_envs * 1e6}
+    times = {name: float(np.median([median_time(lambda: f(x, 26, out)) for _ in range(repeats)])) / num_envs * 1e6
+             for name, f in (("libm", libm), ("simd_sincos", simd))}  # fmt: skip
+    return {"angles_per_member": 26, **{f"{k}_per_env_step_us": v for k, v in times.items()}}
 
 
 def chain_dynamics(batch: int = 256) -> dict:
@@ -200,38 +214,80 @@ def mujoco_step(repeats: int, steps: int) -> dict | None:
     return {"median_step_us": float(np.median(t_m)) * 1e6, "acrobot_us": float(np.median(t_a)) * 1e6}
 
 
-def sb3_throughput(n_envs: int, rollout_steps: int, iterations: int) -> dict:
+def sb3_throughput(n_envs_list: list[int], samples: int, iterations: int, threads: list[int], repeats: int) -> dict:
+    """PPO env-steps per second, adapter against ``make_vec_env`` of single envs, for each
+    torch thread count and ``n_envs``: medians over ``repeats`` interleaved timings.
+
+    Both sides train the same PPO (MlpPolicy, one epoch over ``samples`` env-steps
+    per iteration in minibatches of ``samples / 4``, ``n_steps = samples / n_envs``):
+    only the envs differ. Timed: ``iterations`` iterations of the whole ``learn``,
+    and rollouts alone (policy sampling plus env steps, ``samples`` env-steps). The
+    envs run on one thread; torch uses ``threads`` (its default is one per core).
+    """
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.env_util import make_vec_env
 
     from mbs_envs.sb3 import make_sb3_vec_env
 
-    torch.set_num_threads(1)
-    makers = {
-        "SB3 make_vec_env (DummyVecEnv of single envs)": lambda: make_vec_env("mbs_envs/Planar2R-v0", n_envs=n_envs, seed=0),
-        "mbs_envs SB3 adapter (batched)": lambda: make_sb3_vec_env("mbs_envs/Planar2R-v0", n_envs=n_envs, seed=0),
-    }
-    out = {}
-    for name, make in tqdm(makers.items(), desc="sb3"):
-        venv = make()
-        model = PPO("MlpPolicy", venv, n_steps=rollout_steps, batch_size=rollout_steps * n_envs // 4, n_epochs=1, seed=0, device="cpu")
-        model.learn(rollout_steps * n_envs)  # warm-up
-        t0 = time.perf_counter()
-        model.learn(iterations * rollout_steps * n_envs, reset_num_timesteps=False)
-        learn = (time.perf_counter() - t0) / (iterations * rollout_steps * n_envs)
+    def rollout(model, venv, n_steps):
         obs = venv.reset()
         t0 = time.perf_counter()
-        for _ in range(rollout_steps):
+        for _ in range(n_steps):
             action, _ = model.predict(obs, deterministic=False)
             obs, _, _, _ = venv.step(action)
-        rollout = (time.perf_counter() - t0) / (rollout_steps * n_envs)
-        out[name] = {"learn_env_steps_per_s": 1 / learn, "rollout_env_steps_per_s": 1 / rollout}
-        venv.close()
-    a, b = (out[k] for k in makers)
-    return {"n_envs": n_envs, "results": out,
-            "ratio_learn": b["learn_env_steps_per_s"] / a["learn_env_steps_per_s"],
-            "ratio_rollout": b["rollout_env_steps_per_s"] / a["rollout_env_steps_per_s"]}  # fmt: skip
+        return (time.perf_counter() - t0) / samples
+
+    def learn(model):
+        t0 = time.perf_counter()
+        model.learn(iterations * samples, reset_num_timesteps=False)
+        return (time.perf_counter() - t0) / (iterations * samples)
+
+    default_threads = torch.get_num_threads()
+    out = {}
+    for n_threads, n_envs in tqdm([(t, n) for t in threads for n in n_envs_list], desc="sb3"):
+        torch.set_num_threads(n_threads)
+        n_steps = samples // n_envs
+        venvs = {
+            "SB3 make_vec_env (DummyVecEnv of single envs)": make_vec_env("mbs_envs/Planar2R-v0", n_envs=n_envs, seed=0),
+            "mbs_envs SB3 adapter (batched)": make_sb3_vec_env("mbs_envs/Planar2R-v0", n_envs=n_envs, seed=0),
+        }
+        models = {k: PPO("MlpPolicy", v, n_steps=n_steps, batch_size=samples // 4, n_epochs=1, seed=0, device="cpu") for k, v in venvs.items()}
+        for model in models.values():
+            model.learn(samples)  # warm-up
+        times: dict[str, dict[str, list[float]]] = {k: {"learn": [], "rollout": []} for k in venvs}
+        for _ in range(repeats):  # interleaved, so that both sides see the same machine
+            for k in venvs:
+                times[k]["learn"].append(learn(models[k]))
+                times[k]["rollout"].append(rollout(models[k], venvs[k], n_steps))
+        for venv in venvs.values():
+            venv.close()
+        res = {k: {f"{what}_env_steps_per_s": 1 / float(np.median(t)) for what, t in v.items()} for k, v in times.items()}
+        a, b = res.values()
+        out[f"{n_threads} torch threads, {n_envs} envs"] = {"torch_threads": n_threads, "n_envs": n_envs, "n_steps": n_steps, "results": res,
+                       "ratio_learn": b["learn_env_steps_per_s"] / a["learn_env_steps_per_s"],
+                       "ratio_rollout": b["rollout_env_steps_per_s"] / a["rollout_env_steps_per_s"]}  # fmt: skip
+    torch.set_num_threads(default_threads)
+    return {"samples_per_iteration": samples, "iterations": iterations, "repeats": repeats,
+            "torch_default_threads": default_threads, "runs": out}  # fmt: skip
+
+
+def add_zero_cost_env_bound(result: dict) -> None:
+    """For PPO runs at the batched section's ``num_envs``: the largest whole-``learn`` ratio
+    any env could reach, ``t_baseline / (t_adapter - t_env)`` per env-step, where
+    ``t_env`` is the batched step measured in the same run (PPO's own cost stays)."""
+    b = result["batched"]
+    t_env = b["per_env_step_us"]["Planar2R-v0 vector"] * 1e-6
+    for q in result["sb3"]["runs"].values():
+        if q["n_envs"] == b["num_envs"]:
+            base, ours = (1 / v["learn_env_steps_per_s"] for v in q["results"].values())
+            q["ratio_learn_zero_cost_env_bound"] = base / (ours - t_env)
+
+
+def _torch_threads() -> int:
+    import torch
+
+    return torch.get_num_threads()
 
 
 def run(out: pathlib.Path, quick: bool = False) -> dict:
@@ -244,8 +300,10 @@ def run(out: pathlib.Path, quick: bool = False) -> dict:
         "batched": batched_step(1024, reps, 20 if quick else 100),
         "chain": chain_dynamics(),
         "mujoco": mujoco_step(reps, 200),
-        "sb3": sb3_throughput(16 if quick else 64, 64 if quick else 256, 1 if quick else 3),
+        "sb3": sb3_throughput([16, 256] if quick else [64, 256, 1024], 4096 if quick else 16384, 1 if quick else 2,
+                              [1] if quick else sorted({1, _torch_threads()}), reps if quick else 5),
     }
+    add_zero_cost_env_bound(result)
     (out / "bench.json").write_text(json.dumps(result, indent=2, default=float))
     plot(result, out / "bench.png")
     print(report(result))
@@ -262,16 +320,19 @@ def report(r: dict) -> str:
         f"{s['error']['ratio_acrobot_to_planar2r']:.3g}x lower (target >= 100)",
         f"batched per env-step at {b['num_envs']} [us]: " + ", ".join(f"{k} {v:.3f}" for k, v in b["per_env_step_us"].items()),
         "  ratio to CartPole: " + ", ".join(f"{k} {v:.2f}" for k, v in b["ratio_to_cartpole"].items()) + " (target <= 3)",
-        f"  floor: the step's {b['trig_floor']['trig_per_member']} sin/cos alone take {b['trig_floor']['per_env_step_us']:.3f} us "
-        f"per member, {b['trig_floor']['ratio_to_cartpole']:.2f}x CartPole's whole step",
+        f"  the step's sines and cosines of {b['trig_floor']['angles_per_member']} angles per member alone: by libm "
+        f"{b['trig_floor']['libm_per_env_step_us']:.3f} us ({b['trig_floor']['libm_ratio_to_cartpole']:.2f}x CartPole's whole step), "
+        f"by the SIMD sincos {b['trig_floor']['simd_sincos_per_env_step_us']:.3f} us ({b['trig_floor']['simd_sincos_ratio_to_cartpole']:.2f}x)",
         f"chain N=100: ABA single {c['rows'][100]['aba_single_us']:.1f} us, per env in batch {c['rows'][100]['aba_batch_per_env_us']:.2f} us; "
         f"t(400)/t(50) batched {c['t400_over_t50_batched']:.2f}, single {c['t400_over_t50_single']:.2f} (target <= 12)",
     ]
     if "n100_single_over_pin" in c:
         lines.append(f"  vs Pinocchio aba: single {c['n100_single_over_pin']:.2f}x (target <= 3), batched per env {c['n100_batched_per_env_over_pin']:.2f}x (target <= 1)")
     lines.append(f"mujoco: {r['mujoco']}")
-    lines.append(f"PPO env-steps/s with {p['n_envs']} envs: " + "; ".join(f"{k}: learn {v['learn_env_steps_per_s']:.0f}, rollout {v['rollout_env_steps_per_s']:.0f}" for k, v in p["results"].items()))
-    lines.append(f"  adapter / make_vec_env: learn {p['ratio_learn']:.2f}x, rollout {p['ratio_rollout']:.2f}x (target >= 10)")
+    for n, q in p["runs"].items():
+        lines.append(f"PPO env-steps/s, {n}: " + "; ".join(f"{k}: learn {v['learn_env_steps_per_s']:.0f}, rollout {v['rollout_env_steps_per_s']:.0f}" for k, v in q["results"].items()))
+        lines.append(f"  adapter / make_vec_env: learn {q['ratio_learn']:.2f}x, rollout {q['ratio_rollout']:.2f}x (target >= 10)"
+                     + (f"; learn with a zero-cost env at most {q['ratio_learn_zero_cost_env_bound']:.2f}x" if "ratio_learn_zero_cost_env_bound" in q else ""))
     return "\n".join(lines)
 
 
@@ -296,15 +357,17 @@ def plot(r: dict, path: pathlib.Path) -> None:
     axes[2].set_ylabel("[us]")
     axes[2].legend()
     axes[2].set_title("chain forward dynamics")
-    p = r["sb3"]["results"]
-    labels = ["DummyVecEnv", "adapter"]
-    x = np.arange(2)
-    axes[3].bar(x - 0.2, [v["learn_env_steps_per_s"] for v in p.values()], 0.4, label="learn")
-    axes[3].bar(x + 0.2, [v["rollout_env_steps_per_s"] for v in p.values()], 0.4, label="rollout")
-    axes[3].set_xticks(x, labels)
-    axes[3].set_ylabel("env-steps / s")
+    runs = list(r["sb3"]["runs"].values())
+    for n_threads in sorted({q["torch_threads"] for q in runs}):
+        sel = [q for q in runs if q["torch_threads"] == n_threads]
+        ns = [q["n_envs"] for q in sel]
+        axes[3].semilogx(ns, [q["ratio_learn"] for q in sel], "o-", base=2, label=f"whole learn, torch {n_threads} thr.")
+        axes[3].semilogx(ns, [q["ratio_rollout"] for q in sel], "s--", base=2, label=f"rollouts, torch {n_threads} thr.")
+    axes[3].axhline(10, color="k", ls=":", label="target")
+    axes[3].set_xlabel("n_envs")
+    axes[3].set_ylabel("adapter / make_vec_env env-steps per s")
     axes[3].legend()
-    axes[3].set_title(f"PPO, {r['sb3']['n_envs']} envs")
+    axes[3].set_title("PPO throughput ratio")
     for ax in axes[:2]:
         ax.tick_params(axis="x", labelsize=7)
     save(fig, path)
