@@ -14,7 +14,9 @@ SIMD code; a loop per member (the previous design) stayed scalar, and its libm
 sines and cosines were most of a step. The stepper runs any
 explicit :class:`~mbs_envs.integrators.Tableau`: the same stages, in the same
 order, as :class:`~mbs_envs.integrators.ExplicitRK`, so the two paths differ
-only by the rounding of the models' linear solves (tested to 1e-12).
+only by rounding: of the models' linear solves (Cramer's rule against Cholesky)
+and of sines and cosines (:func:`mbs_envs.trig.sincos` against libm, 1 ulp);
+tested to 1e-12.
 
 The numpy path stays the general one (constrained models, implicit and
 adaptive integrators, stabilization); :func:`compiled_stepping` says when the
@@ -176,6 +178,7 @@ def advance_compiled(
     """
     shape = np.broadcast_shapes(np.shape(q)[:-1], np.shape(v)[:-1], np.shape(u)[:-1])
     n = model.nv
+
     def columns(x):  # a new (n, B) array
         return np.array(np.broadcast_to(x, shape + (n,)).reshape(-1, n).T, float, order="C")
 
