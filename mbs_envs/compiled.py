@@ -10,8 +10,7 @@ very formulas its numpy methods use (see :mod:`mbs_envs.models.planar2r`), and
 Layout: kernels take the batch in *columns*, the member index last (``q`` is
 ``(n, B)``, the parameters ``(P, B)``), and every innermost loop runs over the
 members. With the branch-free :func:`mbs_envs.trig.sincos` those loops compile to
-SIMD code; a loop per member (the previous design) stayed scalar, and its libm
-sines and cosines were most of a step. The stepper runs any
+SIMD code (a loop that calls libm's ``sin`` stays scalar). The stepper runs any
 explicit :class:`~mbs_envs.integrators.Tableau`: the same stages, in the same
 order, as :class:`~mbs_envs.integrators.ExplicitRK`, so the two paths differ
 only by rounding: of the models' linear solves (Cramer's rule against Cholesky)

@@ -23,8 +23,8 @@ the same process):
 
 Writes ``bench.json`` and ``bench.png`` to ``--out``.
 
-    python scripts/bench.py --out results/bench            # ~3 min
-    python scripts/bench.py --out results/bench --quick    # ~30 s
+    python scripts/bench.py --out results/bench            # ~4-6 min here
+    python scripts/bench.py --out results/bench --quick    # ~1 min
 """
 
 from __future__ import annotations
