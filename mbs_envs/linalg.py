@@ -25,6 +25,25 @@ def batched_matvec(A: np.ndarray, x: np.ndarray) -> np.ndarray:
     return np.einsum("...ij,...j->...i", A, x)
 
 
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross product ``a x b`` over leading batch dimensions.
+
+    The same products and differences as :func:`numpy.cross`, spelt out: for
+    3-vectors that function spends ~20 us on axis bookkeeping, this ~8 us.
+
+    Parameters
+    ----------
+    a, b : ndarray, shape (..., 3), broadcastable
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+    """
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
 def _sqrt_pivot(d: np.ndarray) -> np.ndarray:
     """``sqrt(d)``, NaN where ``d <= 0`` (not positive definite)."""
     with np.errstate(invalid="ignore"):

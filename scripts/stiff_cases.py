@@ -45,6 +45,7 @@ def run(out: pathlib.Path, quick: bool = False, cases: list[str] | None = None, 
     if quick and cases is None:
         cases = list(QUICK_CASES)
     chosen = [c for c in sc.stiff_cases(quick) if cases is None or c.scene in cases]
+    picked = methods  # None: every method; else also restricts the singular and long-run tables
     methods = list(methods or numerics.FIXED)
     adaptive = [] if quick else ["dop853", "radau", "bdf"]
     dts = numerics.fixed_steps(0.05, 7 if quick else 11)
@@ -67,9 +68,12 @@ def run(out: pathlib.Path, quick: bool = False, cases: list[str] | None = None, 
             adaptive_rows.append(numerics.score(case, ref, method, 1e-6))
             bar.update()
     bar.close()
-    singular = [sc.singular_case_row(c, m, 0.01) for c in sc.singular_cases() for m in ("rk4", "sdirk2", "dop853")]
-    long_methods = {"2R free swing": ["rk4", "semi_implicit_euler", "sdirk2"], "four-bar free, projection": ["rk4", "sdirk2"]}
-    long_rows = [sc.long_run_row(r, m) for r in tqdm(sc.long_runs(quick), desc="long runs") for m in long_methods[r.scene]]
+    def among_picked(names: tuple[str, ...]) -> list[str]:
+        return [m for m in names if picked is None or m in picked]
+
+    singular = [sc.singular_case_row(c, m, 0.01) for c in sc.singular_cases() for m in among_picked(("rk4", "sdirk2", "dop853"))]
+    long_methods = {"2R free swing": ("rk4", "semi_implicit_euler", "sdirk2"), "four-bar free, projection": ("rk4", "sdirk2")}
+    long_rows = [sc.long_run_row(r, m) for r in tqdm(sc.long_runs(quick), desc="long runs") for m in among_picked(long_methods[r.scene])]
     write_csv(runs, out / "stiff_cases.csv")
     write_csv(summary, out / "stiff_summary.csv")
     result = {"cases": meta, "summary": summary, "adaptive": adaptive_rows, "singular": singular, "long_runs": long_rows, "dts": dts}
@@ -161,7 +165,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", required=True, type=pathlib.Path)
     p.add_argument("--quick", action="store_true")
     p.add_argument("--cases", nargs="+", help="subset of case names")
-    p.add_argument("--methods", nargs="+", help="subset of fixed-step integrators")
+    p.add_argument("--methods", nargs="+", help="subset of integrators (fixed-step scans; also the singular and long-run tables)")
     a = p.parse_args(argv)
     run(a.out, a.quick, a.cases, a.methods)
     return 0

@@ -34,6 +34,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from ..linalg import cross
 from .base import Params, as_vector, param
 from .constrained import ConstrainedModel
 
@@ -227,7 +228,7 @@ class RollingDisk(ConstrainedModel):
         drC = -r * np.stack(
             [c1 * s2 * d1 + s1 * c2 * d2, s1 * s2 * d1 - c1 * c2 * d2, -s2 * d2], axis=-1
         )
-        return np.cross(dJw_v, self.contact_offset(q)) + np.cross(self.angular_velocity(q, v), drC)
+        return cross(dJw_v, self.contact_offset(q)) + cross(self.angular_velocity(q, v), drC)
 
     # -- states -------------------------------------------------------------------
 
