@@ -84,6 +84,13 @@ def in_range(x):  # pragma: no cover - compiled
 
 
 @njit
+def sincos_checked(x):  # pragma: no cover - compiled
+    """``(sin x, cos x)`` of one argument as :func:`sincos_columns` gives it: :func:`sincos`
+    where accurate, libm elsewhere (the scalar code path of one-member kernels)."""
+    return sincos(x) if in_range(x) else sincos_libm(x)
+
+
+@njit
 def sincos_libm(x):  # pragma: no cover - compiled
     """``(sin x, cos x)`` by libm: the scalar pass for arguments outside :data:`SINCOS_RANGE`."""
     return np.sin(x), np.cos(x)

@@ -12,7 +12,7 @@ import dataclasses
 from ..jit import njit
 import numpy as np
 
-from ..trig import sincos_columns
+from ..trig import sincos_checked, sincos_columns
 from .base import Model, Params, as_vector, friction_law, param, smoothed_friction
 
 
@@ -136,6 +136,13 @@ def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
     a : ndarray, shape (2, B)
         Written: accelerations [rad/s^2].
     """
+    if q.shape[1] == 1:  # one member (a single env): straight-line scalar code (78 against 175 ns per call here)
+        s1, c1 = sincos_checked(q[0, 0])
+        s2, c2 = sincos_checked(q[1, 0])
+        F1 = _friction(v[0, 0], theta[9, 0], theta[11, 0], theta[13, 0])
+        F2 = _friction(v[1, 0], theta[10, 0], theta[12, 0], theta[13, 0])
+        a[0, 0], a[1, 0] = _acceleration(s1, c1, s2, c2, v[0, 0], v[1, 0], F1, F2, tau[0, 0], tau[1, 0], theta, 0)
+        return
     T = _trig(q)
     F = np.empty((2, q.shape[1]))  # a pass of its own: the tanh call would keep the main loop scalar
     for b in range(q.shape[1]):
