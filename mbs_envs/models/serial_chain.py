@@ -112,6 +112,7 @@ def _aba_kernel(th, w, px, py, m, cx, cy, Ic, arm, tau, g):  # pragma: no cover 
     U = np.empty((N, 3))
     D = np.empty(N)
     u = np.empty(N)
+    Ia = np.empty((3, 3))  # one work array, not one allocation per link and member
     for b in range(B):
         vp0 = 0.0
         vp1 = 0.0
@@ -147,7 +148,6 @@ def _aba_kernel(th, w, px, py, m, cx, cy, Ic, arm, tau, g):  # pragma: no cover 
             D[i] = s0 * U[i, 0] + s1 * U[i, 1] + s2 * U[i, 2] + arm[i]
             u[i] = tau[b, i] - (s0 * pA[i, 0] + s1 * pA[i, 1] + s2 * pA[i, 2])
             if i > 0:
-                Ia = np.empty((3, 3))
                 for r_ in range(3):
                     for k in range(3):
                         Ia[r_, k] = IA[i, r_, k] - U[i, r_] * U[i, k] / D[i]
