@@ -7,15 +7,17 @@ the same process):
 1. ``single``: Planar2R-v0 against Gymnasium's Acrobot-v1, both through
    ``gym.make`` (their default wrappers); and the integration error each
    makes over one control step at its default settings, against DOP853 at
-   rtol 1e-12 on the same equations.
+   rtol 1e-12 on the same equations. Also Planar2R-v0 at Acrobot's control
+   step (0.2 s, 40 RK4 substeps: the default 5 ms physics step), time and error.
 2. ``batched``: Planar2R-v0 as the numpy-batched vector env (RK4) against
    Gymnasium's CartPole-v1 vector env (``vector_entry_point``), per env-step at
    1024 envs.
 3. ``chain``: SerialChain forward dynamics (ABA) at N = 100, single call and per
    env in a batch of 256, against Pinocchio's ``aba`` (when ``pin`` is
    installed); ``t(N=400) / t(N=50)``.
-4. ``mujoco``: MuJoCo's InvertedDoublePendulum-v5 single step (when ``mujoco``
-   is installed).
+4. ``mujoco``: MuJoCo's InvertedDoublePendulum-v5 single step, and its error
+   per control step against the same MuJoCo model at a 200x finer RK4 step (when
+   ``mujoco`` is installed: ``pip install -e ".[bench]"``, which also brings ``pin``).
 5. ``sb3``: PPO env-steps per second with our batched env through the SB3
    adapter against SB3's ``make_vec_env`` of single envs (DummyVecEnv), both
    for the whole ``learn`` and for rollouts alone, at 64, 256 and 1024 envs, with
@@ -47,6 +49,10 @@ from mbs_envs.models import SerialChain
 from mbs_envs.plotting import pyplot, save
 
 
+#: Planar2R-v0 at Acrobot-v1's control step (0.2 s) with its default physics step (5 ms): 40 RK4 substeps.
+AT_ACROBOT_DT = {"dt": 0.2, "substeps": 40}
+
+
 def single_step(repeats: int, steps: int) -> dict:
     rng = np.random.default_rng(0)
     peers = {
@@ -55,6 +61,7 @@ def single_step(repeats: int, steps: int) -> dict:
         "Planar2R-v0 (numpy path)": (
             gym.make("mbs_envs/Planar2R-v0", compiled=False), list(rng.uniform(-1, 1, (steps, 2)).astype(np.float32))
         ),
+        "Planar2R-v0 at dt 0.2 s": (gym.make("mbs_envs/Planar2R-v0", **AT_ACROBOT_DT), list(rng.uniform(-1, 1, (steps, 2)).astype(np.float32))),
     }
     times: dict[str, list[float]] = {k: [] for k in peers}
     for _ in tqdm(range(repeats), desc="single step"):
@@ -64,12 +71,14 @@ def single_step(repeats: int, steps: int) -> dict:
     return {
         "median_step_us": {k: v * 1e6 for k, v in med.items()},
         "ratio_planar2r_to_acrobot": med["Planar2R-v0"] / med["Acrobot-v1"],
+        "ratio_planar2r_at_acrobot_dt_to_acrobot": med["Planar2R-v0 at dt 0.2 s"] / med["Acrobot-v1"],
         "error": step_errors(),
     }
 
 
 def step_errors(n_states: int = 50) -> dict:
-    """Largest state error over one control step, each env at its defaults, against DOP853 (rtol 1e-12)."""
+    """Largest state error over one control step against DOP853 (rtol 1e-12): Acrobot-v1 and
+    Planar2R-v0 each at its defaults, and Planar2R-v0 at Acrobot's control step (:data:`AT_ACROBOT_DT`)."""
     from gymnasium.envs.classic_control.acrobot import AcrobotEnv, rk4
 
     rng = np.random.default_rng(1)
@@ -83,16 +92,10 @@ def step_errors(n_states: int = 50) -> dict:
         ref = solve_ivp(lambda t, y: acro._dsdt(y), (0, acro.dt), aug, method="DOP853", rtol=1e-12, atol=1e-12).y[:4, -1]
         err_acro = max(err_acro, float(np.max(np.abs(ns[:4] - ref))))
     env = gym.make("mbs_envs/Planar2R-v0").unwrapped  # its defaults: RK4, 2 substeps per 10 ms
-    model = env.model
-    err_ours = 0.0
-    for _ in range(n_states):
-        q, v = rng.uniform(-np.pi, np.pi, 2), rng.uniform(-4, 4, 2)
-        action = rng.uniform(-1, 1, 2)
-        env.reset(options={"q": q, "v": v})
-        env.step(action)  # exactly what a user's step integrates
-        ref = mbs_envs.simulate(model, q, v, env.dt, dt=env.dt, integrator="dop853", u=action * env.u_max, rtol=1e-12, atol=1e-12)
-        err = max(np.max(np.abs(env.q - ref.q[-1])), np.max(np.abs(env.v - ref.v[-1])))
-        err_ours = max(err_ours, float(err))
+    states = rng.bit_generator.state  # the same states and actions for both settings
+    err_ours = planar2r_step_error(env, rng, n_states)
+    rng.bit_generator.state = states
+    err_02 = planar2r_step_error(gym.make("mbs_envs/Planar2R-v0", **AT_ACROBOT_DT).unwrapped, rng, n_states)
     return {
         "acrobot_dt": acro.dt,
         "acrobot_max_state_error_per_step": err_acro,
@@ -100,7 +103,21 @@ def step_errors(n_states: int = 50) -> dict:
         "planar2r_substeps": env.substeps,
         "planar2r_max_state_error_per_step": err_ours,
         "ratio_acrobot_to_planar2r": err_acro / err_ours,
+        "planar2r_at_acrobot_dt": {**AT_ACROBOT_DT, "max_state_error_per_step": err_02, "ratio_acrobot_to_planar2r": err_acro / err_02},
     }
+
+
+def planar2r_step_error(env, rng: np.random.Generator, n_states: int) -> float:
+    """Largest state error of one ``env.step`` from random states and actions, against DOP853 (rtol 1e-12)."""
+    model, err = env.model, 0.0
+    for _ in range(n_states):
+        q, v = rng.uniform(-np.pi, np.pi, 2), rng.uniform(-4, 4, 2)
+        action = rng.uniform(-1, 1, 2)
+        env.reset(options={"q": q, "v": v})
+        env.step(action)  # exactly what a user's step integrates
+        ref = mbs_envs.simulate(model, q, v, env.dt, dt=env.dt, integrator="dop853", u=action * env.u_max, rtol=1e-12, atol=1e-12)
+        err = max(err, float(np.max(np.abs(env.q - ref.q[-1]))), float(np.max(np.abs(env.v - ref.v[-1]))))
+    return err
 
 
 def batched_step(num_envs: int, repeats: int, steps: int) -> dict:
@@ -203,15 +220,60 @@ def chain_dynamics(batch: int = 256) -> dict:
 
 
 def mujoco_step(repeats: int, steps: int) -> dict | None:
+    """InvertedDoublePendulum-v5's step time (and Acrobot-v1's, same run) and its integration error."""
     try:
         env = gym.make("InvertedDoublePendulum-v5")
     except Exception as e:  # mujoco not installed
         return {"skipped": f"{type(e).__name__}: {e}"}
     acro = gym.make("Acrobot-v1")
     rng = np.random.default_rng(0)
-    t_m = [time_steps(env, list(rng.uniform(-1, 1, (steps, 1)).astype(np.float32)), 400) for _ in range(repeats)]
-    t_a = [time_steps(acro, [int(a) for a in rng.integers(0, 3, steps)], 400) for _ in range(repeats)]
-    return {"median_step_us": float(np.median(t_m)) * 1e6, "acrobot_us": float(np.median(t_a)) * 1e6}
+    t_m, t_a = [], []
+    for _ in tqdm(range(repeats), desc="mujoco step"):  # interleaved, as in the single section
+        t_m.append(time_steps(env, list(rng.uniform(-1, 1, (steps, 1)).astype(np.float32)), 400))
+        t_a.append(time_steps(acro, [int(a) for a in rng.integers(0, 3, steps)], 400))
+    return {"median_step_us": float(np.median(t_m)) * 1e6, "acrobot_us": float(np.median(t_a)) * 1e6,
+            "error": mujoco_step_error(env)}  # fmt: skip
+
+
+def mujoco_step_error(env, n_states: int = 50, refine: int = 200) -> dict:
+    """Largest state error of InvertedDoublePendulum-v5 over one control step at its defaults
+    (RK4, ``frame_skip`` steps of ``timestep``), against the same MuJoCo model integrated by RK4
+    at ``timestep / refine``; that reference's own error is estimated against ``timestep / (2 refine)``.
+
+    States as in :func:`step_errors` (angles in [-pi, pi], rates in [-4, 4] rad/s), the cart
+    within [-0.3, 0.3] m at [-1, 1] m/s so that its joint limit stays inactive (checked).
+    """
+    import mujoco
+
+    u = env.unwrapped
+    model, frame_skip, h = u.model, u.frame_skip, u.model.opt.timestep
+
+    def fine(k: int) -> tuple[mujoco.MjModel, mujoco.MjData]:
+        m = mujoco.MjModel.from_xml_path(u.fullpath)
+        m.opt.timestep, m.opt.integrator = h / k, mujoco.mjtIntegrator.mjINT_RK4
+        return m, mujoco.MjData(m)
+
+    runs = {k: fine(k) for k in (refine, 2 * refine)}
+    runs[1] = (model, mujoco.MjData(model))
+    rng = np.random.default_rng(1)
+    err, err_ref, limit_active = 0.0, 0.0, 0
+    for _ in range(n_states):
+        qpos = np.r_[rng.uniform(-0.3, 0.3), rng.uniform(-np.pi, np.pi, 2)]
+        qvel = np.r_[rng.uniform(-1, 1), rng.uniform(-4, 4, 2)]
+        ctrl = rng.uniform(-1, 1, 1)
+        end = {}
+        for k, (m, d) in runs.items():
+            mujoco.mj_resetData(m, d)
+            d.qpos[:], d.qvel[:], d.ctrl[:] = qpos, qvel, ctrl
+            for _ in range(frame_skip * k):
+                mujoco.mj_step(m, d)
+                limit_active += d.nefc > 0
+            end[k] = np.r_[d.qpos, d.qvel]
+        err = max(err, float(np.max(np.abs(end[1] - end[2 * refine]))))
+        err_ref = max(err_ref, float(np.max(np.abs(end[refine] - end[2 * refine]))))
+    return {"dt": frame_skip * h, "timestep": h, "frame_skip": frame_skip, "integrator": "RK4",
+            "max_state_error_per_step": err, "reference_error_estimate": err_ref,
+            "steps_with_active_constraints": int(limit_active)}  # fmt: skip
 
 
 def sb3_throughput(n_envs_list: list[int], samples: int, iterations: int, threads: list[int], repeats: int) -> dict:
@@ -318,6 +380,9 @@ def report(r: dict) -> str:
         f"error per control step: Acrobot {s['error']['acrobot_max_state_error_per_step']:.2e} (dt {s['error']['acrobot_dt']}), "
         f"Planar2R {s['error']['planar2r_max_state_error_per_step']:.2e} (dt {s['error']['planar2r_dt']}): "
         f"{s['error']['ratio_acrobot_to_planar2r']:.3g}x lower (target >= 100)",
+        f"  at Acrobot's control step (dt 0.2 s, {AT_ACROBOT_DT['substeps']} RK4 substeps: the default 5 ms physics step): "
+        f"{s['ratio_planar2r_at_acrobot_dt_to_acrobot']:.2f}x Acrobot's time, error {s['error']['planar2r_at_acrobot_dt']['max_state_error_per_step']:.2e}, "
+        f"{s['error']['planar2r_at_acrobot_dt']['ratio_acrobot_to_planar2r']:.3g}x lower",
         f"batched per env-step at {b['num_envs']} [us]: " + ", ".join(f"{k} {v:.3f}" for k, v in b["per_env_step_us"].items()),
         "  ratio to CartPole: " + ", ".join(f"{k} {v:.2f}" for k, v in b["ratio_to_cartpole"].items()) + " (target <= 3)",
         f"  the step's sines and cosines of {b['trig_floor']['angles_per_member']} angles per member alone: by libm "
@@ -328,7 +393,15 @@ def report(r: dict) -> str:
     ]
     if "n100_single_over_pin" in c:
         lines.append(f"  vs Pinocchio aba: single {c['n100_single_over_pin']:.2f}x (target <= 3), batched per env {c['n100_batched_per_env_over_pin']:.2f}x (target <= 1)")
-    lines.append(f"mujoco: {r['mujoco']}")
+    m = r["mujoco"]
+    if "skipped" in m:
+        lines.append(f"mujoco: skipped ({m['skipped']})")
+    else:
+        e = m["error"]
+        lines.append(f"InvertedDoublePendulum-v5 step: {m['median_step_us']:.1f} us (Acrobot-v1 {m['acrobot_us']:.1f} us in the same section); "
+                     f"Planar2R-v0 / IDP: {s['median_step_us']['Planar2R-v0'] / m['median_step_us']:.2f}x")
+        lines.append(f"  error per control step (dt {e['dt']:g} s, RK4 {e['frame_skip']} x {e['timestep']:g} s): {e['max_state_error_per_step']:.1e} "
+                     f"(reference error {e['reference_error_estimate']:.0e}; steps with active constraints {e['steps_with_active_constraints']})")
     for n, q in p["runs"].items():
         lines.append(f"PPO env-steps/s, {n}: " + "; ".join(f"{k}: learn {v['learn_env_steps_per_s']:.0f}, rollout {v['rollout_env_steps_per_s']:.0f}" for k, v in q["results"].items()))
         lines.append(f"  adapter / make_vec_env: learn {q['ratio_learn']:.2f}x, rollout {q['ratio_rollout']:.2f}x (target >= 10)"

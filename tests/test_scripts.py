@@ -104,6 +104,26 @@ def test_bench_chain_runs(tmp_path):
     assert (tmp_path / "bench_chain.json").exists() and (tmp_path / "bench_chain.png").exists()
 
 
+def test_bench_integration_errors():
+    """The bench's accuracy figures (deterministic, unlike its timings): Planar2R-v0 at its defaults makes
+    >= 100x less error per control step than Acrobot-v1 (the issue's target); at Acrobot's 0.2 s step with the
+    default 5 ms physics step, more error than at 0.01 s but less than Acrobot."""
+    e = load_script("bench.py")["step_errors"](n_states=10)
+    assert e["ratio_acrobot_to_planar2r"] >= 100
+    at_02 = e["planar2r_at_acrobot_dt"]
+    assert e["planar2r_max_state_error_per_step"] < at_02["max_state_error_per_step"] < e["acrobot_max_state_error_per_step"]
+
+
+def test_bench_mujoco_error_reference_is_converged():
+    """MuJoCo's InvertedDoublePendulum-v5 error per control step, against its own model at a 200x finer RK4 step."""
+    pytest.importorskip("mujoco")
+    env = gym.make("InvertedDoublePendulum-v5")
+    e = load_script("bench.py")["mujoco_step_error"](env, n_states=5)
+    assert e["dt"] == 0.05 and e["integrator"] == "RK4"
+    assert e["steps_with_active_constraints"] == 0  # the slider's limit stays out of the measured steps
+    assert 0 < e["reference_error_estimate"] < 1e-6 * e["max_state_error_per_step"]
+
+
 def test_work_precision_tiny_configuration(tmp_path):
     script = load_script("work_precision.py")
     rows = script["run"](tmp_path, quick=True, scenes=["planar2r", "fourbar-projection"], methods=["rk4", "sdirk2", "dop853"], n_fixed=2, n_adaptive=2)
