@@ -78,7 +78,11 @@ def compiled_stepping(model: Model, stepper: Any, stabilization: Any = None) -> 
         or type(model).singular is not Model.singular
     ):
         return None
-    return TableauArrays.of(stepper.tableau)
+    return _arrays_of(stepper.tableau)
+
+
+#: One :class:`TableauArrays` per tableau (``advance`` asks for it on every call; the kernels only read it).
+_arrays_of = functools.cache(TableauArrays.of)
 
 
 @njit(cache=False)

@@ -206,7 +206,8 @@ def long_run_row(run: LongRun, method: str) -> dict[str, Any]:
     import time
 
     c0 = time.process_time()
-    tr = simulate(run.model, run.q0, run.v0, run.steps * run.dt, dt=run.dt, integrator=method, stabilization=run.stabilization)
+    tr = simulate(run.model, run.q0, run.v0, run.steps * run.dt, dt=run.dt, integrator=method,
+                  stabilization=run.stabilization, compiled=False)  # CPU times of methods on one implementation
     cpu = time.process_time() - c0
     E = run.model.energy(tr.q, tr.v)
     return {

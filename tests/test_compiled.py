@@ -103,12 +103,38 @@ def test_compiled_advance_equals_numpy_advance_for_every_explicit_tableau(name):
     q, v = rng.uniform(-3, 3, (64, 2)), rng.uniform(-4, 4, (64, 2))
     u = rng.uniform(-20, 20, (64, 2))
     qc, vc = advance_compiled(model, tab, q, v, u, 0.01, 3)
-    qn, vn = advance(model, stepper, 0.0, q, v, 0.01, 3, u)
+    qn, vn = advance(model, stepper, 0.0, q, v, 0.01, 3, u, compiled=False)
     np.testing.assert_allclose(qc, qn, rtol=0, atol=1e-12)
+    qa, va = advance(model, stepper, 0.0, q, v, 0.01, 3, u)  # routed to the compiled kernels
+    np.testing.assert_array_equal(qa, qc)
+    np.testing.assert_array_equal(va, vc)
     np.testing.assert_allclose(vc, vn, rtol=0, atol=1e-12)
     # the arguments are not touched
     q2, v2 = advance_compiled(model, tab, q, v, u, 0.01, 3)
     np.testing.assert_array_equal(q2, qc)
+
+
+@pytest.mark.parametrize("u", [None, np.array([3.0, -2.0]), "callable"])
+def test_simulate_runs_compiled_where_it_can_and_equals_the_numpy_path(u):
+    """A held input takes the kernels, a callable the numpy path; both give the same trajectory."""
+    model = random_model(np.random.default_rng(5))
+    if isinstance(u, str):
+        u = lambda t, q, v: np.stack([np.full(v.shape[:-1], np.sin(t)), -v[..., 0]], axis=-1)  # noqa: E731
+    q0, v0 = np.array([[1.0, -0.5], [2.5, 0.3]]), np.array([[0.0, 2.0], [-3.0, 1.0]])
+    fast = mbs_envs.simulate(model, q0, v0, 2.0, dt=0.01, u=u)
+    slow = mbs_envs.simulate(model, q0, v0, 2.0, dt=0.01, u=u, compiled=False)
+    np.testing.assert_allclose(fast.q, slow.q, rtol=0, atol=1e-11)
+    np.testing.assert_allclose(fast.v, slow.v, rtol=0, atol=1e-11)
+    if callable(u):
+        np.testing.assert_array_equal(fast.q, slow.q)
+
+
+def test_simulate_reports_a_compiled_blow_up_like_the_numpy_path():
+    model = Planar2R(g=1e6)  # the state leaves |x| <= 1e6 within a few steps
+    runs = [mbs_envs.simulate(model, [1.0, 0.0], [0.0, 0.0], 1.0, dt=0.05, compiled=c) for c in (True, False)]
+    assert runs[0].diverged and runs[1].diverged
+    np.testing.assert_array_equal(runs[0].q, runs[1].q)  # held at the same last finite state
+    assert np.all(np.isfinite(runs[0].q))
 
 
 def test_the_compiled_path_applies_exactly_where_it_is_exact():

@@ -55,9 +55,12 @@ def test_work_energy_balance_with_input_and_friction():
 
 def test_constant_and_callable_inputs_agree():
     model = Planar2R()
-    a = simulate(model, Q0, V0, 1.0, dt=1e-2, u=np.array([1.0, -2.0]))
+    a = simulate(model, Q0, V0, 1.0, dt=1e-2, u=np.array([1.0, -2.0]), compiled=False)
     b = simulate(model, Q0, V0, 1.0, dt=1e-2, u=lambda t, q, v: np.array([1.0, -2.0]))
     np.testing.assert_array_equal(a.q, b.q)
+    # a held input runs compiled by default: the same stages, equal to rounding
+    c = simulate(model, Q0, V0, 1.0, dt=1e-2, u=np.array([1.0, -2.0]))
+    np.testing.assert_allclose(c.q, a.q, rtol=0, atol=1e-12)
 
 
 def test_batch_matches_individual_runs():

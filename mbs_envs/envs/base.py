@@ -329,7 +329,7 @@ class MBSEnv(gym.Env):
         """One control step of physics with ``u`` held; non-finite on blow-up."""
         return advance(
             self.model, self.integrator, self._t, self._q, self._v, self.dt, self.substeps, u,
-            self.stabilization,
+            self.stabilization, compiled=False,  # the numpy path; the compiled one is the task's fused step
         )
 
     def _info(self, diverged: bool, now: Any = None) -> dict[str, Any]:

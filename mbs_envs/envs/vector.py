@@ -256,7 +256,7 @@ class MBSVectorEnv(VectorEnv):
         """Physics and task of one step through the single env's numpy functions."""
         env = self.env
         u = a * env.u_max
-        q, v = advance(self.model, env.integrator, 0.0, self._q, self._v, env.dt, env.substeps, u, env.stabilization)
+        q, v = advance(self.model, env.integrator, 0.0, self._q, self._v, env.dt, env.substeps, u, env.stabilization, compiled=False)
         bad = env.state_diverged(q, v)
         keep = bad[:, None]
         self._q = np.where(keep, self._q, q)
