@@ -28,6 +28,7 @@ from typing import Any
 import numba
 import numpy as np
 
+from ..trig import sincos_columns
 from .base import Model, Params, as_vector, param, smoothed_friction
 
 
@@ -91,7 +92,7 @@ class SerialChainParams(Params):
 
 
 @numba.njit(cache=True)
-def _aba_kernel(th, w, px, py, m, cx, cy, Ic, arm, tau, g):  # pragma: no cover - compiled
+def _aba_kernel(q, w, l, r, m, Ic, arm, tau, g):  # pragma: no cover - compiled
     """Articulated-body forward dynamics for a batch of planar chains (world frame).
 
     Spatial motion vectors are ``(w, vOx, vOy)`` (angular rate and the velocity
@@ -99,11 +100,13 @@ def _aba_kernel(th, w, px, py, m, cx, cy, Ic, arm, tau, g):  # pragma: no cover 
     ``s_i = (1, p_iy, -p_ix)``; body inertia about the origin
     ``[[Ic + m |c|^2, -m c_y, m c_x], [-m c_y, m, 0], [m c_x, 0, m]]``; gravity
     as a base acceleration ``(0, 0, g)``; the joint armature ``arm`` (N,) adds
-    to each joint's articulated inertia ``D_i = s_i^T I^A_i s_i + arm_i``.
+    to each joint's articulated inertia ``D_i = s_i^T I^A_i s_i + arm_i``. The
+    joint positions ``p_i`` and centres ``c_i`` of each member come from
+    :func:`_member_kinematics` (``l, r`` (N,)).
 
-    Arrays are (B, N) with B the flattened batch; returns ddq (B, N).
+    Arrays ``q, w, m, Ic, tau`` are (B, N) with B the flattened batch; returns ddq (B, N).
     """
-    B, N = th.shape
+    B, N = q.shape
     out = np.empty((B, N))
     IA = np.empty((N, 3, 3))
     pA = np.empty((N, 3))
@@ -113,12 +116,15 @@ def _aba_kernel(th, w, px, py, m, cx, cy, Ic, arm, tau, g):  # pragma: no cover 
     D = np.empty(N)
     u = np.empty(N)
     Ia = np.empty((3, 3))  # one work array, not one allocation per link and member
+    th, sn, cs = np.empty(N), np.empty(N), np.empty(N)
+    P, C = np.empty((N, 2)), np.empty((N, 2))
     for b in range(B):
+        _member_kinematics(q[b], l, r, th, sn, cs, P, C)
         vp0 = 0.0
         vp1 = 0.0
         vp2 = 0.0
         for i in range(N):  # pass 1: velocities, bias accelerations, body inertias and bias forces
-            s0, s1, s2 = 1.0, py[b, i], -px[b, i]
+            s0, s1, s2 = 1.0, P[i, 1], -P[i, 0]
             qd = w[b, i]
             # c_i = v_parent x (s_i qd)  (the joint axis moves with the parent)
             c[i, 0] = 0.0
@@ -128,7 +134,7 @@ def _aba_kernel(th, w, px, py, m, cx, cy, Ic, arm, tau, g):  # pragma: no cover 
             v1 = vp1 + s1 * qd
             v2 = vp2 + s2 * qd
             v[i, 0], v[i, 1], v[i, 2] = v0, v1, v2
-            mi, x, y = m[b, i], cx[b, i], cy[b, i]
+            mi, x, y = m[b, i], C[i, 0], C[i, 1]
             I00 = Ic[b, i] + mi * (x * x + y * y)
             IA[i, 0, 0], IA[i, 0, 1], IA[i, 0, 2] = I00, -mi * y, mi * x
             IA[i, 1, 0], IA[i, 1, 1], IA[i, 1, 2] = -mi * y, mi, 0.0
@@ -142,7 +148,7 @@ def _aba_kernel(th, w, px, py, m, cx, cy, Ic, arm, tau, g):  # pragma: no cover 
             pA[i, 2] = v0 * h1
             vp0, vp1, vp2 = v0, v1, v2
         for i in range(N - 1, -1, -1):  # pass 2: articulated inertias
-            s0, s1, s2 = 1.0, py[b, i], -px[b, i]
+            s0, s1, s2 = 1.0, P[i, 1], -P[i, 0]
             for k in range(3):
                 U[i, k] = IA[i, k, 0] * s0 + IA[i, k, 1] * s1 + IA[i, k, 2] * s2
             D[i] = s0 * U[i, 0] + s1 * U[i, 1] + s2 * U[i, 2] + arm[i]
@@ -159,7 +165,7 @@ def _aba_kernel(th, w, px, py, m, cx, cy, Ic, arm, tau, g):  # pragma: no cover 
                     pA[i - 1, r_] += pa
         a0, a1, a2 = 0.0, 0.0, g  # pass 3: accelerations (gravity as base acceleration)
         for i in range(N):
-            s0, s1, s2 = 1.0, py[b, i], -px[b, i]
+            s0, s1, s2 = 1.0, P[i, 1], -P[i, 0]
             a0 += c[i, 0]
             a1 += c[i, 1]
             a2 += c[i, 2]
@@ -169,6 +175,42 @@ def _aba_kernel(th, w, px, py, m, cx, cy, Ic, arm, tau, g):  # pragma: no cover 
             a1 += s1 * qdd
             a2 += s2 * qdd
     return out
+
+
+@numba.njit(cache=True)
+def _member_kinematics(q, l, r, th, sn, cs, p, c):  # pragma: no cover - compiled
+    """Kinematics of one chain: ``q, l, r`` (N,) joint angles [rad], link lengths and
+    centre-of-mass offsets [m]; writes the work arrays ``th, sn, cs`` (N,) and ``p, c`` (N, 2).
+
+    ``th_i = q_1 + ... + q_i`` (a running sum, in ``np.cumsum``'s order);
+    ``(sn_i, cs_i) = (sin th_i, cos th_i)`` (:func:`mbs_envs.trig.sincos_columns`, a SIMD pass);
+    joint positions ``p_1 = 0``, ``p_{i+1} = p_i + l_i e_i`` with ``e_i = (cs_i, sn_i)``;
+    centres ``c_i = p_i + r_i e_i``.
+    """
+    a = 0.0
+    for i in range(q.shape[0]):
+        a += q[i]
+        th[i] = a
+    sincos_columns(th, sn, cs)
+    x, y = 0.0, 0.0
+    for i in range(q.shape[0]):
+        p[i, 0], p[i, 1] = x, y
+        c[i, 0], c[i, 1] = x + r[i] * cs[i], y + r[i] * sn[i]
+        x += l[i] * cs[i]
+        y += l[i] * sn[i]
+
+
+@numba.njit(cache=True)
+def _kinematics_kernel(q, l, r):  # pragma: no cover - compiled
+    """:func:`_member_kinematics` for rows ``q`` (B, N): returns ``th`` (B, N), ``e, p, c`` (B, N, 2)."""
+    B, N = q.shape
+    sn, cs = np.empty(N), np.empty(N)
+    th, e, p, c = np.empty((B, N)), np.empty((B, N, 2)), np.empty((B, N, 2)), np.empty((B, N, 2))
+    for b in range(B):
+        _member_kinematics(q[b], l, r, th[b], sn, cs, p[b], c[b])
+        for i in range(N):
+            e[b, i, 0], e[b, i, 1] = cs[i], sn[i]
+    return th, e, p, c
 
 
 def _suffix_sum(x: np.ndarray, axis: int = -1) -> np.ndarray:
@@ -204,19 +246,20 @@ class SerialChain(Model):
     def kinematics(self, q: np.ndarray) -> dict[str, np.ndarray]:
         """Absolute angles, joint positions and centres of mass (world frame).
 
+        Computed by :func:`_kinematics_kernel` over the flattened batch.
+
         Returns
         -------
         dict with ``th`` (..., N), ``p`` (..., N, 2) joint i positions (``p_1 = 0``),
         ``c`` (..., N, 2) centres of mass, ``e`` (..., N, 2) link unit vectors.
         """
         p_ = self.params
-        q = as_vector(q, self.n_links, "q")
-        th = np.cumsum(q, axis=-1)
-        e = np.stack([np.cos(th), np.sin(th)], axis=-1)
-        ends = np.cumsum(p_.l[:, None] * e, axis=-2)  # tip of link i
-        p = np.concatenate([np.zeros(ends.shape[:-2] + (1, 2)), ends[..., :-1, :]], axis=-2)
-        c = p + p_.r[:, None] * e
-        return {"th": th, "p": p, "c": c, "e": e}
+        n = self.n_links
+        q = as_vector(q, n, "q")
+        lead = q.shape[:-1]
+        th, e, p, c = _kinematics_kernel(np.ascontiguousarray(q.reshape(-1, n), dtype=float), p_.l, p_.r)
+        return {"th": th.reshape(lead + (n,)), "p": p.reshape(lead + (n, 2)), "c": c.reshape(lead + (n, 2)),
+                "e": e.reshape(lead + (n, 2))}  # fmt: skip
 
     def joint_positions(self, q: np.ndarray) -> np.ndarray:
         """Base, joints and tip [m], shape ``(..., N + 1, 2)``."""
@@ -322,13 +365,9 @@ class SerialChain(Model):
         v = as_vector(v, self.n_links, "v")
         tau = as_vector(tau, self.n_links, "tau")
         shape = np.broadcast_shapes(q.shape, v.shape, tau.shape)
-        k = self.kinematics(np.broadcast_to(q, shape))
         n = self.n_links
         flat = lambda x: np.ascontiguousarray(np.broadcast_to(x, shape).reshape(-1, n), dtype=float)  # noqa: E731
-        out = _aba_kernel(
-            flat(k["th"]), flat(v), flat(k["p"][..., 0]), flat(k["p"][..., 1]),
-            flat(p_.m), flat(k["c"][..., 0]), flat(k["c"][..., 1]), flat(p_.I), p_.armature, flat(tau), float(p_.g),
-        )  # fmt: skip
+        out = _aba_kernel(flat(q), flat(v), p_.l, p_.r, flat(p_.m), flat(p_.I), p_.armature, flat(tau), float(p_.g))
         return out.reshape(shape)
 
     def forward_dynamics(self, q: np.ndarray, v: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
