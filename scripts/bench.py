@@ -411,9 +411,11 @@ def report(r: dict) -> str:
 
 def plot(r: dict, path: pathlib.Path) -> None:
     plt = pyplot()
-    fig, axes = plt.subplots(1, 4, figsize=(18, 4))
-    s = r["single"]["median_step_us"]
-    axes[0].bar(list(s), list(s.values()))
+    fig, axes = plt.subplots(1, 4, figsize=(20, 4.5))
+    s = dict(r["single"]["median_step_us"])
+    if "median_step_us" in r["mujoco"]:
+        s["InvertedDouble-\nPendulum-v5 (MuJoCo)"] = r["mujoco"]["median_step_us"]
+    axes[0].bar(range(len(s)), list(s.values()), tick_label=[k.replace(" (", "\n(").replace(" at ", "\nat ") for k in s])
     axes[0].set_ylabel("median step [us]")
     axes[0].set_title("single env step")
     b = r["batched"]["per_env_step_us"]
