@@ -56,12 +56,15 @@ class ConstrainedModel(Model):
         return tuple(range(self.nc)) if self.position_rows is None else self.position_rows
 
     def solve(
-        self, q: np.ndarray, v: np.ndarray, u: np.ndarray | None = None, alpha: float = 0.0, beta: float = 0.0
+        self, q: np.ndarray, v: np.ndarray, u: np.ndarray | None = None, alpha: float = 0.0, beta: float = 0.0,
+        conditioning: bool = True,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Accelerations, multipliers and the conditioning of ``Psi M^-1 Psi^T``.
 
         ``gamma = -dPsi v - 2 alpha Psi v - beta^2 phi`` (Baumgarte when
-        ``alpha, beta > 0``; ``phi`` enters the holonomic rows only).
+        ``alpha, beta > 0``; ``phi`` enters the holonomic rows only). With
+        ``conditioning=False`` the condition number is only computed where the
+        solve needs it (NaN elsewhere; see :func:`constrained_accelerations`).
 
         Returns
         -------
@@ -81,17 +84,17 @@ class ConstrainedModel(Model):
             full[..., rows] = phi
             gamma = gamma - beta**2 * full
         f = self.generalized_input(u) - self.bias(q, v)
-        return constrained_accelerations(self.mass_matrix(q), f, Psi, gamma)
+        return constrained_accelerations(self.mass_matrix(q), f, Psi, gamma, conditioning=conditioning)
 
     def forward_dynamics(
         self, q: np.ndarray, v: np.ndarray, u: np.ndarray | None = None, alpha: float = 0.0, beta: float = 0.0
     ) -> np.ndarray:
         """Accelerations with the constraints enforced (Schur complement), shape ``(..., nv)``."""
-        return self.solve(q, v, u, alpha, beta)[0]
+        return self.solve(q, v, u, alpha, beta, conditioning=False)[0]
 
     def multipliers(self, q: np.ndarray, v: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
         """Lagrange multipliers ``lam`` with ``M a + C v + G + F = B u + Psi^T lam``, shape ``(..., nc)``."""
-        return self.solve(q, v, u)[1]
+        return self.solve(q, v, u, conditioning=False)[1]
 
     def constraint_conditioning(self, q: np.ndarray) -> np.ndarray:
         """Condition number of ``Psi M^-1 Psi^T`` (inf where ``Psi`` loses rank), shape ``(...)``."""
