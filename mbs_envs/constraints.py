@@ -10,7 +10,8 @@ Eliminating ``a`` gives the Schur complement ``S = Psi M^-1 Psi^T`` and
 ``S lam = gamma - Psi M^-1 f``. Near a rank loss of ``Psi`` (a change point),
 ``S`` is singular: it is inverted by its symmetric eigendecomposition with
 eigenvalues below ``rcond * max`` dropped (the least-squares, minimum-norm
-multipliers), and its condition number is reported.
+multipliers), and its condition number is reported. The solve runs compiled,
+member by member (:func:`constrained_accelerations`).
 
 All functions are batched over leading dimensions.
 """
@@ -75,8 +76,9 @@ def constrained_accelerations(
     With ``conditioning=False`` (when ``cond`` is not wanted) a member whose ``S``
     is provably well conditioned, ``trace(S) trace(S^-1) < 1 / rcond`` (which bounds
     ``max / min`` eigenvalue, so the pseudo-inverse drops nothing), is solved by the
-    Cholesky factors of ``S`` instead: the same multipliers to rounding, about 40x
-    cheaper than the eigendecomposition; its ``cond`` is NaN. The choice is made per
+    Cholesky factors of ``S`` instead: the same multipliers to rounding, while the
+    eigendecomposition is most of the solve's cost (1024 disk members: 0.5-0.7 ms
+    against 1.4 ms with it); its ``cond`` is NaN. The choice is made per
     member, so results do not depend on the batch.
 
     Parameters
