@@ -46,20 +46,29 @@ def symmetric_pinv_solve(S: np.ndarray, r: np.ndarray, rcond: float = RCOND) -> 
     cond : ndarray, shape (...)
         ``max / min`` eigenvalue of ``S`` (inf when singular).
     """
-    bad = ~(np.all(np.isfinite(S), axis=(-2, -1)) & np.all(np.isfinite(r), axis=-1))
-    if np.any(bad):  # a blown-up batch member: NaN for it, the others solved
-        S = np.where(bad[..., None, None], np.eye(S.shape[-1]), S)
-        r = np.where(bad[..., None], 0.0, r)
-        x, cond = symmetric_pinv_solve(S, r, rcond)
-        return np.where(bad[..., None], np.nan, x), np.where(bad, np.nan, cond)
-    w, V = np.linalg.eigh(S)
-    w_max = np.max(np.abs(w), axis=-1, keepdims=True)
-    keep = w > rcond * w_max
-    w_inv = np.where(keep, 1.0 / np.where(keep, w, 1.0), 0.0)
-    x = batched_matvec(V, w_inv * np.einsum("...ji,...j->...i", V, r))
-    with np.errstate(divide="ignore"):
-        cond = np.where(w[..., 0] > 0, w_max[..., 0] / np.where(w[..., 0] > 0, w[..., 0], 1.0), np.inf)
-    return x, cond
+    k = S.shape[-1]
+    lead = np.broadcast_shapes(S.shape[:-2], r.shape[:-1])
+    Sr = np.ascontiguousarray(np.broadcast_to(S, lead + (k, k)).reshape(-1, k, k), dtype=float)
+    rr = np.ascontiguousarray(np.broadcast_to(r, lead + (k,)).reshape(-1, k), dtype=float)
+    x, cond = np.empty(rr.shape), np.empty(rr.shape[0])
+    _pinv_rows(Sr, rr, float(rcond), x, cond)
+    return x.reshape(lead + (k,)), cond.reshape(lead)
+
+
+@njit
+def _pinv_rows(S, r, rcond, x, cond):  # pragma: no cover - compiled
+    """:func:`_pinv_solve` for every row (B, k, k) / (B, k); NaN for a member with non-finite input."""
+    for b in range(r.shape[0]):
+        ok = True
+        for i in range(r.shape[1]):
+            ok &= np.isfinite(r[b, i])
+            for j in range(r.shape[1]):
+                ok &= np.isfinite(S[b, i, j])
+        if ok:
+            _pinv_solve(S[b], r[b], rcond, x[b], cond[b : b + 1])
+        else:
+            x[b, :] = np.nan
+            cond[b] = np.nan
 
 
 def constrained_accelerations(
