@@ -123,6 +123,8 @@ def test_simulate_runs_compiled_where_it_can_and_equals_the_numpy_path(u):
     q0, v0 = np.array([[1.0, -0.5], [2.5, 0.3]]), np.array([[0.0, 2.0], [-3.0, 1.0]])
     fast = mbs_envs.simulate(model, q0, v0, 2.0, dt=0.01, u=u)
     slow = mbs_envs.simulate(model, q0, v0, 2.0, dt=0.01, u=u, compiled=False)
+    # per step the paths agree to 1e-12 (above); over 200 steps the rounding differences
+    # (1-ulp sincos) grow along the trajectory: measured max 1.2e-12 on v, 9e-14 on q
     np.testing.assert_allclose(fast.q, slow.q, rtol=0, atol=1e-11)
     np.testing.assert_allclose(fast.v, slow.v, rtol=0, atol=1e-11)
     if callable(u):
