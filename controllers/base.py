@@ -52,6 +52,16 @@ class Controller(abc.ABC):
     def input(self, obs: Any) -> np.ndarray:
         """Actuator inputs ``u`` [N m], shape ``(..., nu)``, from a decoded observation."""
 
+    def control(self, obs: Any, state: Any, episode_start: Any) -> tuple[np.ndarray, Any]:
+        """Inputs ``u`` and the controller's next internal state.
+
+        Stateless controllers (the default) pass ``state`` through; controllers
+        with memory (integral action) override this and keep it in SB3's
+        ``state``, reset where ``episode_start`` is true, so ``evaluate_policy``
+        and batched rollouts carry it as they carry a recurrent policy's.
+        """
+        return self.input(obs), state
+
     def predict(
         self,
         observation: np.ndarray,
@@ -59,8 +69,8 @@ class Controller(abc.ABC):
         episode_start: Any = None,
         deterministic: bool = True,
     ) -> tuple[np.ndarray, Any]:
-        """Action for an observation (or a batch); ``state`` is passed through."""
-        u = self.input(self.decode_observation(observation))
+        """Action for an observation (or a batch), and the controller's state (see :meth:`control`)."""
+        u, state = self.control(self.decode_observation(observation), state, episode_start)
         action = np.clip(u / self.u_max, -1.0, 1.0).astype(np.float32)
         return action, state
 

@@ -14,6 +14,26 @@ import gymnasium as gym
 import numpy as np
 
 
+def make_controller(spec: str, env: gym.Env, **kwargs: Any) -> Any:
+    """A controller named ``"module:Class"`` (e.g. ``"controllers:LQR"``), built on ``env``.
+
+    Raises
+    ------
+    ValueError
+        If ``spec`` is not of that form or names nothing importable.
+    """
+    import importlib
+
+    if not (isinstance(spec, str) and spec.count(":") == 1 and all(spec.split(":"))):
+        raise ValueError(f"a controller is named 'module:Class', got {spec!r}")
+    module, cls = spec.split(":")
+    try:
+        factory = getattr(importlib.import_module(module), cls)
+    except (ImportError, AttributeError):
+        raise ValueError(f"no controller {spec!r}") from None
+    return factory(env, **kwargs)
+
+
 @dataclasses.dataclass(frozen=True)
 class Episode:
     """One recorded episode; arrays have one row per control step.

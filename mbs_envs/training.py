@@ -31,10 +31,21 @@ from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback,
 from stable_baselines3.common.noise import NormalActionNoise
 from tqdm import tqdm
 
-from .evaluation import episode_metrics, rollout_batch
+from . import seeds as seed_ranges
+from .evaluation import episode_metrics, make_controller, rollout_batch
+from .residual import ResidualPolicy, check_bound, residual_vec_env
 from .sb3 import make_sb3_vec_env
 
 ALGOS = {"ppo": PPO, "sac": SAC, "td3": TD3}
+
+#: the base controller of a residual agent when none is named: the best model-based controller of the scene
+RESIDUAL_BASE = {"mbs_envs/RollingDisk-v0": "controllers:LQR"}
+DEFAULT_RESIDUAL_BASE = "controllers:ComputedTorque"
+
+
+def residual_base(env_id: str) -> str:
+    """The default base controller (``"module:Class"``) of a residual agent on ``env_id``."""
+    return RESIDUAL_BASE.get(env_id, DEFAULT_RESIDUAL_BASE)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -49,15 +60,23 @@ class TrainConfig:
         Environment steps (summed over the parallel members).
     seed : int
     n_envs : int, optional
-        Parallel members (default 64 for PPO, 4 for SAC/TD3).
+        Parallel members (default 64 for PPO, 8 for SAC/TD3). Member ``i`` of
+        run ``seed`` starts from ``reset(seed=100_000 + 1_000 seed + i)``
+        (:func:`mbs_envs.seeds.training_members`), apart from test seeds.
     env_kwargs : dict
         Arguments of the environment (``params``, ``n_links``, ...).
-    net_arch : tuple of int
-        Hidden layers of the policy (and value/Q) networks.
+    net_arch : tuple of int, optional
+        Hidden layers of the policy (and value/Q) networks; default SB3's:
+        (64, 64) for PPO, (256, 256) for SAC and TD3.
     eval_every : int, optional
         Env-steps between evaluations (default ``steps / 10``).
     eval_seeds : int
-        Episodes per evaluation (seeds 10_000 ...; disjoint from comparison seeds 0 ...).
+        Episodes per evaluation (validation seeds 10_000 ..., :mod:`mbs_envs.seeds`).
+    residual : str, optional
+        Train a residual agent on top of this controller (``"module:Class"``,
+        built on the nominal env with its default gains); see :mod:`mbs_envs.residual`.
+    residual_bound : float
+        Largest correction, as a fraction of the actuator limit.
     """
 
     env_id: str
@@ -66,45 +85,79 @@ class TrainConfig:
     seed: int = 0
     n_envs: int | None = None
     env_kwargs: dict = dataclasses.field(default_factory=dict)
-    net_arch: tuple[int, ...] = (64, 64)
+    net_arch: tuple[int, ...] | None = None
     eval_every: int | None = None
-    eval_seeds: int = 5
+    eval_seeds: int = 10
+    residual: str | None = None
+    residual_bound: float = 0.25
 
     def __post_init__(self) -> None:
         if self.algo not in ALGOS:
             raise ValueError(f"algo must be one of {sorted(ALGOS)}, got {self.algo!r}")
         if not (isinstance(self.steps, int) and self.steps > 0):
             raise ValueError(f"steps must be a positive integer, got {self.steps!r}")
-        if self.n_envs is not None and not (isinstance(self.n_envs, int) and self.n_envs > 0):
-            raise ValueError(f"n_envs must be a positive integer, got {self.n_envs!r}")
+        if self.n_envs is not None and not (isinstance(self.n_envs, int) and 0 < self.n_envs <= seed_ranges.MAX_MEMBERS):
+            raise ValueError(f"n_envs must be an integer in [1, {seed_ranges.MAX_MEMBERS}], got {self.n_envs!r}")
+        if not (isinstance(self.seed, int) and self.seed >= 0):
+            raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
+        if self.net_arch is not None and not (len(self.net_arch) > 0 and all(isinstance(k, int) and k > 0 for k in self.net_arch)):
+            raise ValueError(f"net_arch must be positive layer widths, got {self.net_arch!r}")
+        check_bound(self.residual_bound)
 
     @property
     def members(self) -> int:
-        return self.n_envs or (64 if self.algo == "ppo" else 4)
+        return self.n_envs or (64 if self.algo == "ppo" else 8)
+
+    @property
+    def layers(self) -> list[int]:
+        return list(self.net_arch) if self.net_arch else ([64, 64] if self.algo == "ppo" else [256, 256])
 
 
 def hyperparameters(config: TrainConfig, action_dim: int) -> dict[str, Any]:
-    """SB3 constructor arguments used for ``config`` (recorded in ``config.json``)."""
-    policy_kwargs = {"net_arch": list(config.net_arch)}
+    """SB3 constructor arguments used for ``config`` (recorded in ``config.json``).
+
+    PPO: 128 steps per member and update, minibatches of a quarter of the
+    rollout, 10 epochs, SB3's learning rate. SAC and TD3 (SB3-zoo settings of
+    continuous-control tasks): one gradient step per transition
+    (``gradient_steps=-1`` with ``train_freq=1``: as many steps as members),
+    batch 256, SB3's default networks; TD3 explores with Gaussian action noise
+    of 0.1 (a tenth of the actuator range). SAC's temperature is learned toward
+    a target entropy of ``-4`` per action dimension instead of SB3's ``-1``:
+    the tracking rewards are of order 1e-3 per step, so at SB3's target the
+    entropy bonus outweighs the reward and the learned policy keeps action
+    noise of a third of the actuator range (measured on the previous agents).
+    """
+    policy_kwargs = {"net_arch": config.layers}
     if config.algo == "ppo":
         n_steps = 128
         return {"n_steps": n_steps, "batch_size": n_steps * config.members // 4, "n_epochs": 10,
                 "learning_rate": 3e-4, "gamma": 0.99, "gae_lambda": 0.95, "ent_coef": 0.0,
                 "policy_kwargs": policy_kwargs}  # fmt: skip
-    common = {"learning_rate": 1e-3, "buffer_size": min(config.steps, 1_000_000), "learning_starts": 2_000,
-              "batch_size": 256, "gamma": 0.99, "train_freq": 1, "gradient_steps": 1, "policy_kwargs": policy_kwargs}  # fmt: skip
+    common = {"learning_rate": 1e-3, "buffer_size": min(config.steps, 1_000_000), "learning_starts": 5_000,
+              "batch_size": 256, "gamma": 0.99, "tau": 0.005, "train_freq": 1, "gradient_steps": -1,
+              "policy_kwargs": policy_kwargs}  # fmt: skip
     if config.algo == "td3":
         common["action_noise"] = NormalActionNoise(np.zeros(action_dim), 0.1 * np.ones(action_dim))
+    else:
+        common["learning_rate"] = 3e-4
+        common["target_entropy"] = -4.0 * action_dim
     return common
 
 
 def evaluate(policy: Any, env_id: str, seeds: list[int], env_kwargs: dict, **rollout_kwargs: Any) -> dict[str, float]:
-    """Mean episode metrics of ``policy`` over ``seeds`` (one batched rollout), plus the failure rate."""
+    """Mean episode metrics of ``policy`` over ``seeds`` (one batched rollout), plus the failure rate.
+
+    ``rms_error_settled`` is the mean over the episodes that did not fail: a
+    failed episode's truncated error would flatter it (the failure rate says
+    how many failed).
+    """
     venv = gym.make_vec(env_id, num_envs=len(seeds), vectorization_mode="vector_entry_point", autoreset_mode="Disabled", **env_kwargs)
     episodes = rollout_batch(venv, policy, seeds, **rollout_kwargs)
     venv.close()
     metrics = [episode_metrics(ep) for ep in episodes]
-    out = {k: float(np.mean([m[k] for m in metrics])) for k in ("return", "rms_error", "rms_error_settled", "max_error", "rms_torque", "peak_torque")}
+    ok = [m for m, ep in zip(metrics, episodes) if not ep.terminated]
+    out = {k: float(np.mean([m[k] for m in metrics])) for k in ("return", "rms_error", "max_error", "rms_torque", "peak_torque")}
+    out["rms_error_settled"] = float(np.mean([m["rms_error_settled"] for m in ok])) if ok else float("nan")
     out["failure_rate"] = float(np.mean([ep.terminated for ep in episodes]))
     return out
 
@@ -112,9 +165,10 @@ def evaluate(policy: Any, env_id: str, seeds: list[int], env_kwargs: dict, **rol
 class TrainingLog(BaseCallback):
     """Progress bar, and the deterministic policy's metrics every ``eval_every`` env-steps."""
 
-    def __init__(self, config: TrainConfig, eval_every: int):
+    def __init__(self, config: TrainConfig, eval_every: int, as_policy: Any = None):
         super().__init__()
         self.config = config
+        self.as_policy = as_policy or (lambda model: model)
         self.eval_every = eval_every
         self.rows: list[dict[str, float]] = []
         self.eval_time = 0.0
@@ -129,8 +183,8 @@ class TrainingLog(BaseCallback):
 
     def _evaluate(self) -> None:
         tic = time.perf_counter()
-        seeds = list(range(10_000, 10_000 + self.config.eval_seeds))
-        metrics = evaluate(self.model, self.config.env_id, seeds, self.config.env_kwargs)
+        seeds = seed_ranges.validation_seeds(self.config.eval_seeds)
+        metrics = evaluate(self.as_policy(self.model), self.config.env_id, seeds, self.config.env_kwargs)
         self.eval_time += time.perf_counter() - tic
         wall = time.perf_counter() - self._t0 - self.eval_time
         self.rows.append({"timesteps": int(self.num_timesteps), "train_wall_s": wall, **metrics})
@@ -173,13 +227,19 @@ def train(config: TrainConfig, out: pathlib.Path, tensorboard: bool = False, che
     out = pathlib.Path(out)
     out.mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(1)
-    venv = make_sb3_vec_env(config.env_id, n_envs=config.members, seed=config.seed, **config.env_kwargs)
+    members = seed_ranges.training_members(config.seed, config.members)
+    venv = make_sb3_vec_env(config.env_id, n_envs=config.members, seed=members[0], **config.env_kwargs)
+    as_policy = None
+    if config.residual:
+        base = make_controller(config.residual, gym.make(config.env_id, **config.env_kwargs))
+        venv = residual_vec_env(venv, base, config.residual_bound)
+        as_policy = lambda model: ResidualPolicy(base, model, config.residual_bound)  # noqa: E731
     hyper = hyperparameters(config, venv.action_space.shape[0])
     model = ALGOS[config.algo](
         "MlpPolicy", venv, seed=config.seed, device="cpu", verbose=0,
         tensorboard_log=str(out / "tensorboard") if tensorboard else None, **hyper,
     )  # fmt: skip
-    log = TrainingLog(config, config.eval_every or max(config.steps // 10, 1))
+    log = TrainingLog(config, config.eval_every or max(config.steps // 10, 1), as_policy)
     callbacks: list[BaseCallback] = [log]
     if checkpoint_every:
         callbacks.append(CheckpointCallback(max(checkpoint_every // config.members, 1), str(out / "checkpoints"), name_prefix="agent"))
@@ -198,7 +258,10 @@ def train(config: TrainConfig, out: pathlib.Path, tensorboard: bool = False, che
         "steps": config.steps,
         "seed": config.seed,
         "n_envs": config.members,
-        "net_arch": list(config.net_arch),
+        "training_member_seeds": [members[0], members[-1]],
+        "validation_seeds": [seed_ranges.VALIDATION[0], seed_ranges.VALIDATION[config.eval_seeds - 1]],
+        "net_arch": config.layers,
+        "residual": {"base": config.residual, "bound": config.residual_bound} if config.residual else None,
         "hyperparameters": {k: (repr(v) if k == "action_noise" else v) for k, v in hyper.items()},
         "command": "python " + " ".join(sys.argv) if sys.argv and sys.argv[0].endswith("train.py") else None,
         "train_wall_s": wall,
@@ -211,8 +274,16 @@ def train(config: TrainConfig, out: pathlib.Path, tensorboard: bool = False, che
 
 
 def load_agent(folder: pathlib.Path) -> tuple[Any, dict[str, Any]]:
-    """An agent saved by :func:`train` and its ``config.json``."""
+    """An agent saved by :func:`train` and its ``config.json``.
+
+    A residual agent comes back as a :class:`~mbs_envs.residual.ResidualPolicy`
+    around its base controller, built on the nominal env of its record.
+    """
     folder = pathlib.Path(folder)
     record = json.loads((folder / "config.json").read_text())
     model = ALGOS[record["algo"]].load(folder / "agent.zip", device="cpu")
+    residual = record.get("residual")
+    if residual:
+        base = make_controller(residual["base"], gym.make(record["env_id"], **record.get("env_kwargs", {})))
+        return ResidualPolicy(base, model, residual["bound"]), record
     return model, record

@@ -10,6 +10,11 @@ tensorboard logs. With several ``--seed`` values the runs go to
 
     python scripts/train.py --env mbs_envs/Planar2R-v0 --algo ppo --steps 1000000 --seed 0 --out agents/Planar2R-v0/ppo
     python scripts/train.py --env mbs_envs/SerialChain-v0 --env-kwargs '{"n_links": 5}' --algo sac --steps 100000 --out runs/chain
+    python scripts/train.py --env mbs_envs/FourBar-v0 --algo ppo --residual --steps 2000000 --seed 0 1 2 --out runs/fourbar-res
+
+``--residual [CONTROLLER]`` trains a correction on top of a model-based
+controller (default: computed torque; LQR on the disk), bounded by
+``--residual-bound`` (a fraction of the actuator limit; see ``mbs_envs.residual``).
 """
 
 from __future__ import annotations
@@ -21,7 +26,7 @@ import sys
 
 import mbs_envs  # noqa: F401
 from mbs_envs.parallel import run_tasks
-from mbs_envs.training import ALGOS, TrainConfig, train
+from mbs_envs.training import ALGOS, TrainConfig, residual_base, train
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -33,7 +38,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--out", required=True, type=pathlib.Path)
     p.add_argument("--n-envs", type=int, help="parallel members (default 64 for PPO, 4 otherwise)")
     p.add_argument("--env-kwargs", type=json.loads, default={}, help="JSON dict of env arguments")
-    p.add_argument("--net-arch", type=int, nargs="+", default=[64, 64])
+    p.add_argument("--net-arch", type=int, nargs="+", help="hidden layers (default SB3's: 64 64 for PPO, 256 256 otherwise)")
+    p.add_argument("--residual", nargs="?", const="default", help="train a residual agent on this controller ('module:Class'; default the scene's best)")
+    p.add_argument("--residual-bound", type=float, default=0.25, help="largest correction, fraction of the actuator limit (default 0.25)")
     p.add_argument("--eval-every", type=int, help="env-steps between evaluations (default steps/10)")
     p.add_argument("--checkpoint-every", type=int, help="env-steps between checkpoints")
     p.add_argument("--tensorboard", action="store_true")
@@ -48,10 +55,15 @@ def _train_one(task: dict) -> dict:
 
 def run(args: argparse.Namespace) -> list[dict]:
     tasks = []
+    residual = residual_base(args.env) if args.residual == "default" else args.residual
     for seed in args.seed:
         config = dict(env_id=args.env, algo=args.algo, steps=args.steps, seed=seed, n_envs=args.n_envs,
-                      env_kwargs=args.env_kwargs, net_arch=tuple(args.net_arch), eval_every=args.eval_every)  # fmt: skip
-        TrainConfig(**config)  # validate before starting anything
+                      env_kwargs=args.env_kwargs, net_arch=tuple(args.net_arch) if args.net_arch else None,
+                      eval_every=args.eval_every, residual=residual, residual_bound=args.residual_bound)  # fmt: skip
+        try:
+            TrainConfig(**config)  # validate before starting anything
+        except ValueError as exc:
+            raise SystemExit(f"train.py: {exc}") from None
         out = args.out if len(args.seed) == 1 else args.out / f"seed{seed}"
         tasks.append({"config": config, "out": str(out), "tensorboard": args.tensorboard, "checkpoint_every": args.checkpoint_every})
     records = run_tasks(_train_one, tasks, ray_address=args.ray)
