@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from .base import Controller, gain
+from .tuned import tuned_gains
 
 
 class PD(Controller):
@@ -34,11 +35,14 @@ class PD(Controller):
     ----------
     env : gymnasium.Env
     kp : float or array_like (m,), optional
-        Proportional gain [N m/rad]; default the env's ``pd_gains[0]``
-        (100 on Planar2R-v0).
+        Proportional gain [N m/rad]; default the tuned one (``controllers/tuned.json``):
+        ``J omega^2`` with the env's ``joint_inertia`` ``J`` and the tuned bandwidth.
     kd : float or array_like (m,), optional
-        Derivative gain [N m s/rad]; default the env's ``pd_gains[1]`` (20).
+        Derivative gain [N m s/rad]; default ``2 J zeta omega``.
     """
+
+    #: the entry of controllers/tuned.json
+    tuned_name = "PD"
 
     def __init__(self, env: Any, kp: Any = None, kd: Any = None):
         super().__init__(env)
@@ -46,9 +50,17 @@ class PD(Controller):
         self.kp = gain(default[0] if kp is None else kp, self.model.nu, "kp")
         self.kd = gain(default[1] if kd is None else kd, self.model.nu, "kd")
 
+    @classmethod
+    def default_gains(cls, env: Any) -> tuple[Any, Any]:
+        """``(kp, kd)`` from the tuned bandwidth and damping ratio (see :mod:`controllers.tuned`)."""
+        g = tuned_gains(env, cls.tuned_name)
+        return cls.gains_from_bandwidth(env, g["omega"], g["zeta"])
+
     @staticmethod
-    def default_gains(env: Any) -> tuple[Any, Any]:
-        return tuple(getattr(env.unwrapped, "pd_gains", (100.0, 20.0)))
+    def gains_from_bandwidth(env: Any, omega: float, zeta: float) -> tuple[Any, Any]:
+        """``(J omega^2, 2 J zeta omega)`` with the env's ``joint_inertia`` ``J``."""
+        J = np.asarray(getattr(env.unwrapped, "joint_inertia", 1.0), float)
+        return J * omega**2, 2.0 * J * zeta * omega
 
     def feedback(self, obs: Any) -> np.ndarray:
         """``Kp (q_ref - q) + Kd (v_ref - v)`` on the tracked coordinates, shape ``(..., m)``."""
@@ -61,6 +73,8 @@ class PD(Controller):
 
 class PDGravity(PD):
     """PD plus gravity compensation ``u_g(q) = inverse_dynamics(q, 0, 0)`` (= ``G(q)`` when ``B = I``)."""
+
+    tuned_name = "PD+gravity"
 
     def input(self, obs: Any) -> np.ndarray:
         rest = np.zeros_like(obs.v)
@@ -76,14 +90,17 @@ class ComputedTorque(PD):
     ----------
     env : gymnasium.Env
     kp : float or array_like (n,)
-        [1/s^2], default 100 (natural frequency 10 rad/s).
+        [1/s^2], default the tuned ``omega^2`` (``controllers/tuned.json``).
     kd : float or array_like (n,)
-        [1/s], default 20 (critical damping).
+        [1/s], default the tuned ``2 zeta omega``.
     """
 
+    tuned_name = "computed torque"
+
     @staticmethod
-    def default_gains(env: Any) -> tuple[float, float]:
-        return (100.0, 20.0)
+    def gains_from_bandwidth(env: Any, omega: float, zeta: float) -> tuple[Any, Any]:
+        """``(omega^2, 2 zeta omega)``: the closed loop ``e'' + 2 zeta omega e' + omega^2 e = 0``."""
+        return omega**2, 2.0 * zeta * omega
 
     def input(self, obs: Any) -> np.ndarray:
         a_tracked = obs.a_ref + self.feedback(obs)

@@ -102,6 +102,7 @@ class FourBarEnv(JointTrackingEnv):
             except ValueError:
                 pass
         self.mean_crank_inertia = float(np.mean(J))
+        self.joint_inertia = self.mean_crank_inertia
         self.pd_gains = (100.0 * self.mean_crank_inertia, 20.0 * self.mean_crank_inertia)
 
     def _state_from_tracked(self, q_t: np.ndarray, v_t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

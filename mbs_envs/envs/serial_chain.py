@@ -112,6 +112,7 @@ class SerialChainEnv(JointTrackingEnv):
         # joint, on the apparent inertia 1 / (M^-1)_ii (the others free to move)
         M = model.mass_matrix(np.r_[-np.pi / 2, np.zeros(n - 1)])
         J = 1.0 / np.diag(np.linalg.inv(M))
+        self.joint_inertia = J
         self.pd_gains = (100.0 * J, 20.0 * J)
 
     @staticmethod

@@ -285,8 +285,11 @@ class JointTrackingEnv(MBSEnv):
     omega_range: ClassVar[tuple[float, float]] = (0.5, 3.0)
     rate_range: ClassVar[tuple[float, float] | None] = None
     n_components: ClassVar[int] = 3
-    #: default (kp, kd) of a PD controller on this task [N m/rad, N m s/rad]
+    #: the pre-tuning (kp, kd) of a PD controller on this task [N m/rad, N m s/rad]
     pd_gains: tuple[float, float] = (100.0, 20.0)
+    #: inertia [kg m^2] (scalar or per tracked joint) that turns a bandwidth into PD gains:
+    #: ``kp = J omega^2``, ``kd = 2 J zeta omega`` (controllers/tuned.py)
+    joint_inertia: Any = 1.0
 
     def __init__(self, model, u_max, *, reward_weights=(1.0, 0.1, 1e-3), start_noise=0.1, compiled=True, **kwargs):
         super().__init__(model, u_max, **kwargs)

@@ -1,0 +1,63 @@
+"""The default gains of the model-based controllers: the tuned ones.
+
+``controllers/tuned.json`` is written by ``scripts/tune.py`` (the procedure is
+:mod:`mbs_envs.tuning`: a grid over each controller's closed-loop bandwidth or
+weights, scored on tuning seeds only, at the nominal plant and +-20 % mass
+and length mismatch). Each entry is keyed by env id and controller name:
+
+- joint controllers: ``{"omega": w, "zeta": z}``, a bandwidth [rad/s] and a
+  damping ratio. Computed torque takes ``kp = w^2``, ``kd = 2 z w``
+  [1/s^2, 1/s]; PD and PD + gravity ``kp = J w^2``, ``kd = 2 J z w`` with the
+  env's ``joint_inertia`` ``J`` [kg m^2], so the numbers carry over to other
+  parameters and chain lengths;
+- ``LQR`` (disk): ``Q`` (5 diagonal weights), ``R`` (2, on the normalized
+  input), ``q_integral``;
+- ``PD steering`` (disk): ``k_dlean, k_lean, k_h, k_r, k_w``.
+
+Ids or controllers without an entry get :data:`FALLBACK` (the pre-tuning
+defaults: bandwidth 10 rad/s, critical damping).
+"""
+
+from __future__ import annotations
+
+import copy
+import functools
+import json
+import pathlib
+from typing import Any
+
+PATH = pathlib.Path(__file__).with_name("tuned.json")
+
+FALLBACK: dict[str, dict[str, Any]] = {
+    "PD": {"omega": 10.0, "zeta": 1.0},
+    "PD+gravity": {"omega": 10.0, "zeta": 1.0},
+    "computed torque": {"omega": 10.0, "zeta": 1.0},
+    "LQR": {"Q": [10.0, 10.0, 1.0, 1.0, 0.1], "R": [1.0, 1.0], "q_integral": 1.0},
+    "PD steering": {"k_dlean": 0.3, "k_lean": 0.05, "k_h": 0.5, "k_r": 0.0, "k_w": 0.05},
+}
+
+
+@functools.lru_cache(maxsize=1)
+def _table() -> dict[str, Any]:
+    if not PATH.exists():
+        return {}
+    return json.loads(PATH.read_text()).get("gains", {})
+
+
+def env_id(env: Any) -> str | None:
+    """The registered id of ``env`` (wrapped or not), or None."""
+    spec = getattr(env.unwrapped, "spec", None) or getattr(env, "spec", None)
+    return None if spec is None else spec.id
+
+
+def tuned_gains(env: Any, controller: str) -> dict[str, Any]:
+    """The default gains of ``controller`` (a display name, e.g. ``"computed torque"``) on ``env``."""
+    if controller not in FALLBACK:
+        raise ValueError(f"no tuned gains for controller {controller!r}; known: {sorted(FALLBACK)}")
+    entry = _table().get(env_id(env) or "", {}).get(controller)
+    return copy.deepcopy(entry if entry is not None else FALLBACK[controller])
+
+
+def clear_cache() -> None:
+    """Re-read ``tuned.json`` at the next call (after ``scripts/tune.py --write``)."""
+    _table.cache_clear()
