@@ -1,0 +1,176 @@
+"""One documented procedure that picks the gains of every model-based controller.
+
+For each scene and controller a small grid of candidates is rolled out on
+the **tuning seeds** (:func:`mbs_envs.seeds.tuning_seeds`, disjoint from the
+test seeds of the comparison) under three plant conditions: nominal, and the
+plant's masses and lengths x 0.8 and x 1.2 (the controller keeps the nominal
+model). A candidate's score is
+
+    (failure rate over all its episodes,
+     mean over the three conditions of the settled RMS error of the episodes that did not fail),
+
+compared lexicographically: a candidate that loses an episode never beats
+one that loses none, whatever its error. The grids:
+
+- PD, PD + gravity, computed torque: closed-loop bandwidth
+  ``omega = 3 * 1.5^k`` rad/s, ``k = 0..10`` (3 to 173 rad/s; the control
+  rate is 100 Hz, so the top of the grid is past where the sampled loop
+  loses stability), and damping ratio ``zeta`` in {0.7, 1}; the gains follow
+  from ``(omega, zeta)`` (``controllers/tuned.py``);
+- LQR (disk): heading and lean weight ``q_h`` in {3, 10, ..., 1000} on
+  ``Q = diag(q_h, q_h, 1, 1, 0.1)``, ``R = I`` on the normalized input,
+  integral weight in {0, 1, 10, 100};
+- PD steering (disk): ``k_h`` in {0.5, 1, 2, 4} 1/s, ``k_dlean`` in {0.3, 0.6, 1}
+  N m s/rad, ``k_lean`` in {0.05, 0.15} N m/rad (``k_r = 0``, ``k_w = 0.05``).
+
+A pick at the edge of its grid is reported as such by ``scripts/tune.py``
+(the grid should then be widened).
+
+``scripts/tune.py`` runs it and writes the chosen entries to
+``controllers/tuned.json``, which the controllers read as their defaults.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+from collections.abc import Callable
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from .comparison import SCENES, Condition, plant_kwargs
+from .evaluation import episode_metrics, make_controller, rollout_batch
+from .seeds import tuning_seeds
+
+#: the plant conditions every candidate is scored on
+TUNING_CONDITIONS = (Condition("nominal"), Condition("mismatch -20%", 0.8), Condition("mismatch +20%", 1.2))
+
+BANDWIDTHS = tuple(3.0 * 1.5**k for k in range(11))
+DAMPING = (0.7, 1.0)
+
+
+def joint_grid() -> list[dict[str, float]]:
+    """Bandwidth and damping candidates of PD, PD + gravity and computed torque."""
+    return [{"omega": w, "zeta": z} for w, z in itertools.product(BANDWIDTHS, DAMPING)]
+
+
+def lqr_grid() -> list[dict[str, Any]]:
+    """Weight candidates of the disk's LQR."""
+    return [
+        {"Q": [q_h, q_h, 1.0, 1.0, 0.1], "R": [1.0, 1.0], "q_integral": q_i}
+        for q_h, q_i in itertools.product((3.0, 10.0, 30.0, 100.0, 300.0, 1000.0), (0.0, 1.0, 10.0, 100.0))
+    ]
+
+
+def steering_grid() -> list[dict[str, float]]:
+    """Gain candidates of the disk's cascaded PD steering law."""
+    return [
+        {"k_dlean": kd, "k_lean": kl, "k_h": kh, "k_r": 0.0, "k_w": 0.05}
+        for kh, kd, kl in itertools.product((0.5, 1.0, 2.0, 4.0), (0.3, 0.6, 1.0), (0.05, 0.15))
+    ]
+
+
+#: controller display name -> its grid
+GRIDS: dict[str, Callable[[], list[dict[str, Any]]]] = {
+    "PD": joint_grid,
+    "PD+gravity": joint_grid,
+    "computed torque": joint_grid,
+    "LQR": lqr_grid,
+    "PD steering": steering_grid,
+}
+
+
+def controller_kwargs(spec: str, env: gym.Env, entry: dict[str, Any]) -> dict[str, Any]:
+    """Constructor arguments of the controller ``spec`` for a tuned-gains ``entry``."""
+    import importlib
+
+    module, name = spec.split(":")
+    cls = getattr(importlib.import_module(module), name)
+    if "omega" in entry:
+        kp, kd = cls.gains_from_bandwidth(env, entry["omega"], entry["zeta"])
+        return {"kp": kp, "kd": kd}
+    return dict(entry)
+
+
+def build(scene: str, name: str, entry: dict[str, Any] | None, env: gym.Env) -> Any:
+    """Controller ``name`` of ``scene`` on ``env`` with gains ``entry`` (None: its defaults)."""
+    spec = SCENES[scene][2][name]
+    return make_controller(spec, env, **({} if entry is None else controller_kwargs(spec, env, entry)))
+
+
+@dataclasses.dataclass(frozen=True)
+class Score:
+    """A candidate's result on the tuning seeds (module docstring)."""
+
+    failure_rate: float
+    error: float
+    per_condition: dict[str, float]
+
+    @property
+    def key(self) -> tuple[float, float]:
+        """Sort key: failures first, then error (NaN error, i.e. every episode failed, last)."""
+        return (self.failure_rate, self.error if np.isfinite(self.error) else np.inf)
+
+
+def score(scene: str, name: str, entry: dict[str, Any] | None, seeds: list[int],
+          conditions: tuple[Condition, ...] = TUNING_CONDITIONS, max_episode_steps: int | None = None) -> Score:  # fmt: skip
+    """Roll out one candidate on ``seeds`` under ``conditions`` (batched, one rollout per condition)."""
+    env_id, kwargs, _ = SCENES[scene]
+    nominal = gym.make(env_id, **kwargs)
+    policy = build(scene, name, entry, nominal)
+    failures, errors, per = [], [], {}
+    for cond in conditions:
+        extra = {} if max_episode_steps is None else {"max_episode_steps": max_episode_steps}
+        venv = gym.make_vec(env_id, num_envs=len(seeds), vectorization_mode="vector_entry_point",
+                            autoreset_mode="Disabled", **plant_kwargs(scene, cond), **extra)  # fmt: skip
+        episodes = rollout_batch(venv, policy, seeds)
+        venv.close()
+        ok = [episode_metrics(ep)["rms_error_settled"] for ep in episodes if not ep.terminated]
+        failures += [ep.terminated for ep in episodes]
+        per[cond.name] = float(np.mean(ok)) if ok else float("nan")
+        errors.append(per[cond.name])
+    error = float(np.mean(errors)) if np.all(np.isfinite(errors)) else float("nan")
+    return Score(float(np.mean(failures)), error, per)
+
+
+def tune(scene: str, name: str, n_seeds: int = 10, grid: list[dict[str, Any]] | None = None,
+         progress: Callable[[], None] | None = None, **score_kwargs: Any) -> tuple[dict[str, Any], list[dict[str, Any]]]:  # fmt: skip
+    """The best candidate of ``name`` on ``scene`` and every candidate's row.
+
+    Returns
+    -------
+    best : dict
+        The chosen entry (as stored in ``controllers/tuned.json``).
+    rows : list of dict
+        ``{"scene", "controller", "entry", "failure_rate", "error", <condition>: error, ...}``.
+    """
+    seeds = tuning_seeds(n_seeds)
+    rows = []
+    best, best_key = None, None
+    for entry in grid if grid is not None else GRIDS[name]():
+        s = score(scene, name, entry, seeds, **score_kwargs)
+        rows.append({"scene": scene, "controller": name, "entry": entry, "failure_rate": s.failure_rate,
+                     "error": s.error, **s.per_condition})  # fmt: skip
+        if best_key is None or s.key < best_key:
+            best, best_key = entry, s.key
+        if progress is not None:
+            progress()
+    return dict(best), rows
+
+
+def at_grid_edge(best: dict[str, Any], grid: list[dict[str, Any]]) -> list[str]:
+    """Names of the numeric settings of ``best`` that sit at the end of their range in ``grid``."""
+    edges = []
+    for key, value in best.items():
+        values = [g[key] for g in grid]
+        if isinstance(value, (int, float)) and len({v for v in values}) > 1:
+            if value in (min(values), max(values)):
+                edges.append(key)
+        elif isinstance(value, list):
+            for i, v in enumerate(value):
+                col = [g[key][i] for g in grid]
+                if len(set(col)) > 1 and v in (min(col), max(col)):
+                    edges.append(f"{key}[{i}]")
+    return edges

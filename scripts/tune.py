@@ -1,0 +1,139 @@
+#!/usr/bin/env python
+"""Tune the gains of every model-based controller (the procedure of ``mbs_envs.tuning``).
+
+Rolls out each controller's grid of gains on the tuning seeds (disjoint from
+the comparison's test seeds), nominal and at +-20 % mass/length mismatch, and
+picks per scene the candidate with the fewest failures, then the smallest
+mean settled tracking error. The pre-tuning defaults are scored beside them.
+Writes ``tuning.csv``, ``tuning.json`` and ``tuning.png`` to ``--out``; with
+``--write`` the chosen gains become the controllers' defaults
+(``controllers/tuned.json``).
+
+    python scripts/tune.py --out results/tune --write        # about 15 minutes on 2 cores
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import multiprocessing
+import pathlib
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+
+import numpy as np
+from tqdm import tqdm
+
+import mbs_envs  # noqa: F401
+from controllers import tuned
+from mbs_envs import tuning
+from mbs_envs.comparison import SCENES
+from mbs_envs.plotting import pyplot, save
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--out", required=True, type=pathlib.Path, help="folder for the results")
+    p.add_argument("--seeds", type=int, default=10, help="tuning seeds per condition (default 10)")
+    p.add_argument("--scene", action="append", choices=list(SCENES), help="scene(s) (default all)")
+    p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--write", action="store_true", help="store the chosen gains in controllers/tuned.json")
+    return p.parse_args(argv)
+
+
+def tune_one(task: dict) -> dict:
+    """Tune one controller of one scene; also score its pre-tuning default."""
+    import torch
+
+    torch.set_num_threads(1)
+    tic = time.perf_counter()
+    best, rows = tuning.tune(task["scene"], task["controller"], n_seeds=task["seeds"])
+    old = tuning.score(task["scene"], task["controller"], tuned.FALLBACK[task["controller"]], tuning.tuning_seeds(task["seeds"]))
+    return {**task, "best": best, "rows": rows, "wall_s": time.perf_counter() - tic,
+            "pre_tuning": {"entry": tuned.FALLBACK[task["controller"]], "failure_rate": old.failure_rate, "error": old.error}}  # fmt: skip
+
+
+def run(args: argparse.Namespace) -> dict:
+    scenes = args.scene or list(SCENES)
+    tasks = [{"scene": s, "controller": c, "seeds": args.seeds} for s in scenes for c in SCENES[s][2] if c in tuning.GRIDS]
+    args.out.mkdir(parents=True, exist_ok=True)
+    results = []
+    with ProcessPoolExecutor(args.workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        futures = [pool.submit(tune_one, t) for t in tasks]
+        for f in tqdm(as_completed(futures), total=len(futures), desc="controllers tuned"):
+            results.append(f.result())
+    results.sort(key=lambda r: (scenes.index(r["scene"]), r["controller"]))
+    rows = [dict(r, entry=json.dumps(r["entry"])) for res in results for r in res["rows"]]
+    with open(args.out / "tuning.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=sorted({k for r in rows for k in r}))
+        w.writeheader()
+        w.writerows(rows)
+    record = {
+        "procedure": tuning.__doc__,
+        "tuning_seeds": [tuning.tuning_seeds(args.seeds)[0], tuning.tuning_seeds(args.seeds)[-1]],
+        "conditions": [c.name for c in tuning.TUNING_CONDITIONS],
+        "command": "python scripts/tune.py " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("tune.py") else None,
+        "gains": {},
+        "scores": {},
+    }
+    for r in results:
+        env_id = SCENES[r["scene"]][0]
+        record["gains"].setdefault(env_id, {})[r["controller"]] = r["best"]
+        chosen = next(x for x in r["rows"] if x["entry"] == r["best"])
+        edge = tuning.at_grid_edge(r["best"], tuning.GRIDS[r["controller"]]())
+        record["scores"].setdefault(env_id, {})[r["controller"]] = {
+            "tuned": {"failure_rate": chosen["failure_rate"], "error": chosen["error"]},
+            "pre_tuning": r["pre_tuning"], "at_grid_edge": edge, "wall_s": r["wall_s"]}  # fmt: skip
+        print(f"{r['scene']:12s} {r['controller']:16s} tuned {r['best']}: failures {chosen['failure_rate']:.0%}, "
+              f"error {chosen['error']:.3g} (pre-tuning: {r['pre_tuning']['failure_rate']:.0%}, {r['pre_tuning']['error']:.3g})"
+              + (f"; at the grid's edge in {', '.join(edge)}" if edge else ""))  # fmt: skip
+    (args.out / "tuning.json").write_text(json.dumps(record, indent=2))
+    plot(results, args.out / "tuning.png")
+    if args.write:  # scenes not tuned in this run keep their stored entries
+        if tuned.PATH.exists():
+            stored = json.loads(tuned.PATH.read_text())
+            for key in ("gains", "scores"):
+                record[key] = {**{k: v for k, v in stored.get(key, {}).items() if k not in record[key]}, **record[key]}
+        tuned.PATH.write_text(json.dumps(record, indent=2) + "\n")
+        tuned.clear_cache()
+        print(f"written {tuned.PATH}")
+    return record
+
+
+def plot(results: list[dict], path: pathlib.Path) -> None:
+    """Error against bandwidth for the joint controllers (one panel per scene); failures marked."""
+    plt = pyplot()
+    joint = [r for r in results if "omega" in r["best"]]
+    scenes = list(dict.fromkeys(r["scene"] for r in joint))
+    if not scenes:
+        return
+    fig, axes = plt.subplots(1, len(scenes), figsize=(4.5 * len(scenes), 4), squeeze=False)
+    for ax, scene in zip(axes[0], scenes):
+        for r in (x for x in joint if x["scene"] == scene):
+            for zeta, style in ((0.7, "--"), (1.0, "-")):
+                pts = [(x["entry"]["omega"], x["error"], x["failure_rate"]) for x in r["rows"] if x["entry"]["zeta"] == zeta]
+                w, e, fr = (np.array(v, float) for v in zip(*pts))
+                line = ax.plot(w, e, style + "o", ms=3, label=f"{r['controller']}, zeta {zeta}")[0]
+                bad = fr > 0
+                ax.plot(w[bad], np.where(np.isfinite(e[bad]), e[bad], np.nanmax(e)), "x", color=line.get_color(), ms=8)
+            ax.plot(r["best"]["omega"], next(x["error"] for x in r["rows"] if x["entry"] == r["best"]), "k*", ms=10)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("closed-loop bandwidth omega [rad/s]")
+        ax.set_ylabel("mean settled RMS error, nominal and +-20 % [rad]")
+        ax.set_title(f"{scene} (x: failures, *: chosen)", fontsize=9)
+        ax.legend(fontsize=6)
+    save(fig, path)
+
+
+def main(argv: list[str] | None = None) -> int:
+    run(parse_args(argv))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
