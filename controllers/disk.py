@@ -143,12 +143,19 @@ class LQR(Controller):
         Weight on ``z_I``; 0 switches integral action off.
     integral_limit : float
         Clamp of ``|z_I|`` [rad s].
+    heading_error_limit : float
+        The heading error the controller acts on is clamped to this [rad]: a
+        large error (a start far off the reference) asks for a gentle turn
+        instead of a lean the disk cannot hold at low spin.
     """
 
     n_grid = 40
     grid_span = (0.15, 3.0)  # |W| / W_c
+    #: the entry of controllers/tuned.json
+    tuned_name = "LQR"
 
-    def __init__(self, env: Any, Q: Any = None, R: Any = None, q_integral: Any = None, integral_limit: float = 1.0):
+    def __init__(self, env: Any, Q: Any = None, R: Any = None, q_integral: Any = None, integral_limit: float = 1.0,
+                 heading_error_limit: float = 0.3):  # fmt: skip
         super().__init__(env)
         tuned = tuned_gains(env, "LQR")
         self.Q = weights(tuned["Q"] if Q is None else Q, 5, "Q")
@@ -156,8 +163,10 @@ class LQR(Controller):
         q_i = tuned["q_integral"] if q_integral is None else q_integral
         if not (isinstance(q_i, (int, float, np.floating)) and np.isfinite(q_i) and q_i >= 0):
             raise ValueError(f"q_integral must be a finite number >= 0, got {q_integral!r}")
-        if not (np.isfinite(integral_limit) and integral_limit > 0):
-            raise ValueError(f"integral_limit must be finite and > 0, got {integral_limit!r}")
+        for name, value in (("integral_limit", integral_limit), ("heading_error_limit", heading_error_limit)):
+            if not (isinstance(value, (int, float, np.floating)) and np.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+        self.heading_error_limit = float(heading_error_limit)
         if np.min(np.linalg.eigvalsh(self.R)) <= 0:
             raise ValueError(f"R must be positive definite, got {R!r}")
         self.q_integral = float(q_i)
@@ -219,6 +228,7 @@ class LQR(Controller):
 
     def control(self, obs: Any, state: Any, episode_start: Any) -> tuple[np.ndarray, Any]:
         z = reference_error(self.model, obs)
+        z[..., 0] = np.clip(z[..., 0], -self.heading_error_limit, self.heading_error_limit)
         lead = z.shape[:-1]
         z_i = np.zeros(lead) if state is None else np.array(state, float).reshape(lead)
         if episode_start is not None:
@@ -261,6 +271,8 @@ class SteeringPD(Controller):
     """
 
     names = ("k_dlean", "k_lean", "k_h", "k_r", "k_w")
+    #: the entry of controllers/tuned.json
+    tuned_name = "PD steering"
 
     def __init__(self, env: Any, **gains: Any):
         super().__init__(env)

@@ -14,8 +14,8 @@ import gymnasium as gym
 import numpy as np
 
 
-def make_controller(spec: str, env: gym.Env, **kwargs: Any) -> Any:
-    """A controller named ``"module:Class"`` (e.g. ``"controllers:LQR"``), built on ``env``.
+def controller_class(spec: str) -> Any:
+    """The class named ``"module:Class"`` (e.g. ``"controllers:LQR"``).
 
     Raises
     ------
@@ -28,10 +28,33 @@ def make_controller(spec: str, env: gym.Env, **kwargs: Any) -> Any:
         raise ValueError(f"a controller is named 'module:Class', got {spec!r}")
     module, cls = spec.split(":")
     try:
-        factory = getattr(importlib.import_module(module), cls)
+        return getattr(importlib.import_module(module), cls)
     except (ImportError, AttributeError):
         raise ValueError(f"no controller {spec!r}") from None
-    return factory(env, **kwargs)
+
+
+def controller_kwargs(spec: str, env: gym.Env, entry: dict[str, Any]) -> dict[str, Any]:
+    """Constructor arguments of the controller ``spec`` for a gains ``entry`` of ``controllers/tuned.json``
+    (a bandwidth ``{"omega", "zeta"}`` becomes ``kp, kd``; other entries are the arguments)."""
+    if "omega" in entry:
+        kp, kd = controller_class(spec).gains_from_bandwidth(env, entry["omega"], entry["zeta"])
+        return {"kp": kp, "kd": kd}
+    return dict(entry)
+
+
+def make_controller(spec: str, env: gym.Env, gains: dict[str, Any] | None = None) -> Any:
+    """The controller ``spec`` (``"module:Class"``) built on ``env``, with its default gains or ``gains``
+    (an entry of ``controllers/tuned.json``)."""
+    cls = controller_class(spec)
+    return cls(env) if gains is None else cls(env, **controller_kwargs(spec, env, gains))
+
+
+def default_gains_entry(spec: str, env: gym.Env) -> dict[str, Any] | None:
+    """The tuned-gains entry ``spec`` takes by default on ``env`` (None for a controller without gains)."""
+    from controllers.tuned import tuned_gains
+
+    name = getattr(controller_class(spec), "tuned_name", None)
+    return None if name is None else tuned_gains(env, name)
 
 
 @dataclasses.dataclass(frozen=True)

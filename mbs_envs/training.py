@@ -32,7 +32,7 @@ from stable_baselines3.common.noise import NormalActionNoise
 from tqdm import tqdm
 
 from . import seeds as seed_ranges
-from .evaluation import episode_metrics, make_controller, rollout_batch
+from .evaluation import default_gains_entry, episode_metrics, make_controller, rollout_batch
 from .residual import ResidualPolicy, check_bound, residual_vec_env
 from .sb3 import make_sb3_vec_env
 
@@ -229,9 +229,11 @@ def train(config: TrainConfig, out: pathlib.Path, tensorboard: bool = False, che
     torch.set_num_threads(1)
     members = seed_ranges.training_members(config.seed, config.members)
     venv = make_sb3_vec_env(config.env_id, n_envs=config.members, seed=members[0], **config.env_kwargs)
-    as_policy = None
+    as_policy = base_gains = None
     if config.residual:
-        base = make_controller(config.residual, gym.make(config.env_id, **config.env_kwargs))
+        nominal = gym.make(config.env_id, **config.env_kwargs)
+        base_gains = default_gains_entry(config.residual, nominal)  # recorded: a later retune leaves this agent's base alone
+        base = make_controller(config.residual, nominal, base_gains)
         venv = residual_vec_env(venv, base, config.residual_bound)
         as_policy = lambda model: ResidualPolicy(base, model, config.residual_bound)  # noqa: E731
     hyper = hyperparameters(config, venv.action_space.shape[0])
@@ -261,7 +263,7 @@ def train(config: TrainConfig, out: pathlib.Path, tensorboard: bool = False, che
         "training_member_seeds": [members[0], members[-1]],
         "validation_seeds": [seed_ranges.VALIDATION[0], seed_ranges.VALIDATION[config.eval_seeds - 1]],
         "net_arch": config.layers,
-        "residual": {"base": config.residual, "bound": config.residual_bound} if config.residual else None,
+        "residual": {"base": config.residual, "gains": base_gains, "bound": config.residual_bound} if config.residual else None,
         "hyperparameters": {k: (repr(v) if k == "action_noise" else v) for k, v in hyper.items()},
         "command": "python " + " ".join(sys.argv) if sys.argv and sys.argv[0].endswith("train.py") else None,
         "train_wall_s": wall,
@@ -277,13 +279,14 @@ def load_agent(folder: pathlib.Path) -> tuple[Any, dict[str, Any]]:
     """An agent saved by :func:`train` and its ``config.json``.
 
     A residual agent comes back as a :class:`~mbs_envs.residual.ResidualPolicy`
-    around its base controller, built on the nominal env of its record.
+    around its base controller, built on the nominal env of its record with
+    the gains it was trained with.
     """
     folder = pathlib.Path(folder)
     record = json.loads((folder / "config.json").read_text())
     model = ALGOS[record["algo"]].load(folder / "agent.zip", device="cpu")
     residual = record.get("residual")
     if residual:
-        base = make_controller(residual["base"], gym.make(record["env_id"], **record.get("env_kwargs", {})))
+        base = make_controller(residual["base"], gym.make(record["env_id"], **record.get("env_kwargs", {})), residual.get("gains"))
         return ResidualPolicy(base, model, residual["bound"]), record
     return model, record

@@ -19,9 +19,9 @@ one that loses none, whatever its error. The grids:
   from ``(omega, zeta)`` (``controllers/tuned.py``);
 - LQR (disk): heading and lean weight ``q_h`` in {3, 10, ..., 1000} on
   ``Q = diag(q_h, q_h, 1, 1, 0.1)``, ``R = I`` on the normalized input,
-  integral weight in {0, 1, 10, 100};
-- PD steering (disk): ``k_h`` in {0.5, 1, 2, 4} 1/s, ``k_dlean`` in {0.3, 0.6, 1}
-  N m s/rad, ``k_lean`` in {0.05, 0.15} N m/rad (``k_r = 0``, ``k_w = 0.05``).
+  integral weight in {0, 1, 10, 100, 1000};
+- PD steering (disk): ``k_h`` in {0.5, 1, 2, 4, 8} 1/s, ``k_dlean`` in {0.3, 0.6, 1}
+  N m s/rad, ``k_lean`` in {0.02, 0.05, 0.15} N m/rad (``k_r = 0``, ``k_w = 0.05``).
 
 A pick at the edge of its grid is reported as such by ``scripts/tune.py``
 (the grid should then be widened).
@@ -60,7 +60,7 @@ def lqr_grid() -> list[dict[str, Any]]:
     """Weight candidates of the disk's LQR."""
     return [
         {"Q": [q_h, q_h, 1.0, 1.0, 0.1], "R": [1.0, 1.0], "q_integral": q_i}
-        for q_h, q_i in itertools.product((3.0, 10.0, 30.0, 100.0, 300.0, 1000.0), (0.0, 1.0, 10.0, 100.0))
+        for q_h, q_i in itertools.product((3.0, 10.0, 30.0, 100.0, 300.0, 1000.0), (0.0, 1.0, 10.0, 100.0, 1000.0))
     ]
 
 
@@ -68,7 +68,7 @@ def steering_grid() -> list[dict[str, float]]:
     """Gain candidates of the disk's cascaded PD steering law."""
     return [
         {"k_dlean": kd, "k_lean": kl, "k_h": kh, "k_r": 0.0, "k_w": 0.05}
-        for kh, kd, kl in itertools.product((0.5, 1.0, 2.0, 4.0), (0.3, 0.6, 1.0), (0.05, 0.15))
+        for kh, kd, kl in itertools.product((0.5, 1.0, 2.0, 4.0, 8.0), (0.3, 0.6, 1.0), (0.02, 0.05, 0.15))
     ]
 
 
@@ -82,22 +82,9 @@ GRIDS: dict[str, Callable[[], list[dict[str, Any]]]] = {
 }
 
 
-def controller_kwargs(spec: str, env: gym.Env, entry: dict[str, Any]) -> dict[str, Any]:
-    """Constructor arguments of the controller ``spec`` for a tuned-gains ``entry``."""
-    import importlib
-
-    module, name = spec.split(":")
-    cls = getattr(importlib.import_module(module), name)
-    if "omega" in entry:
-        kp, kd = cls.gains_from_bandwidth(env, entry["omega"], entry["zeta"])
-        return {"kp": kp, "kd": kd}
-    return dict(entry)
-
-
 def build(scene: str, name: str, entry: dict[str, Any] | None, env: gym.Env) -> Any:
     """Controller ``name`` of ``scene`` on ``env`` with gains ``entry`` (None: its defaults)."""
-    spec = SCENES[scene][2][name]
-    return make_controller(spec, env, **({} if entry is None else controller_kwargs(spec, env, entry)))
+    return make_controller(SCENES[scene][2][name], env, entry)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -163,14 +150,14 @@ def tune(scene: str, name: str, n_seeds: int = 10, grid: list[dict[str, Any]] | 
 def at_grid_edge(best: dict[str, Any], grid: list[dict[str, Any]]) -> list[str]:
     """Names of the numeric settings of ``best`` that sit at the end of their range in ``grid``."""
     edges = []
-    for key, value in best.items():
-        values = [g[key] for g in grid]
-        if isinstance(value, (int, float)) and len({v for v in values}) > 1:
-            if value in (min(values), max(values)):
+    for key, value in best.items():  # a setting with two values is a choice, not a range
+        if isinstance(value, (int, float)):
+            values = [g[key] for g in grid]
+            if len(set(values)) > 2 and value in (min(values), max(values)):
                 edges.append(key)
         elif isinstance(value, list):
             for i, v in enumerate(value):
                 col = [g[key][i] for g in grid]
-                if len(set(col)) > 1 and v in (min(col), max(col)):
+                if len(set(col)) > 2 and v in (min(col), max(col)):
                     edges.append(f"{key}[{i}]")
     return edges

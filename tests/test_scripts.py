@@ -32,12 +32,37 @@ def test_compare_quick_end_to_end(tmp_path, capsys):
         assert (tmp_path / name).stat().st_size > 0
     nominal = out["summary"]["Planar2R"]["nominal"]
     assert nominal["computed torque"]["rms_error_settled"] * 10 < nominal["PD"]["rms_error_settled"]
-    assert {"PPO", "SAC"} <= set(nominal)  # the shipped agents were found and evaluated
+    assert {"PPO", "TD3", "residual PPO"} <= set(nominal)  # the shipped agents were found and evaluated
+    assert nominal["PPO"]["train_seeds"] >= 3 and nominal["PPO"]["episodes"] == 3 * nominal["PPO"]["train_seeds"]
+    assert nominal["residual PPO"]["kind"] == "model-based + RL"
+    for m in nominal.values():  # every headline figure has its confidence interval
+        assert m["rms_error_settled_lo"] <= m["rms_error_settled"] <= m["rms_error_settled_hi"]
+        assert np.isfinite(m["latency_us"]) and np.isfinite(m["latency_noisy_us"])
     assert all(np.isfinite(r["rms_error"]) for r in out["rows"])
+    assert {r["seed"] for r in out["rows"]} == {0, 1, 2}  # test seeds
     assert set(out["summary"]["Planar2R"]) == {"nominal", "mismatch +20%", "mismatch -20%", "obs noise 0.01"}
     report = (tmp_path / "report.md").read_text()
-    assert "Headline" in report and "Actuator sizing" in report
+    assert "Headline" in report and "Actuator sizing" in report and "disjoint" in report
+    assert (tmp_path / "learning_curves.png").stat().st_size > 0
     assert "best model-based" in capsys.readouterr().out
+
+
+def test_train_residual_writes_a_residual_agent(tmp_path):
+    script = load_script("train.py")
+    script["run"](script["parse_args"](["--env", "mbs_envs/FourBar-v0", "--algo", "ppo", "--steps", "1024", "--n-envs", "8",
+                                        "--residual", "--out", str(tmp_path)]))  # fmt: skip
+    from mbs_envs.residual import ResidualPolicy
+    from mbs_envs.training import load_agent
+
+    policy, cfg = load_agent(tmp_path)
+    from controllers.tuned import tuned_gains
+
+    env = gym.make("mbs_envs/FourBar-v0")
+    assert isinstance(policy, ResidualPolicy)
+    assert cfg["residual"] == {"base": "controllers:ComputedTorque", "gains": tuned_gains(env, "computed torque"), "bound": 0.25}
+    assert cfg["training_member_seeds"] == [100_000, 100_007]
+    obs, _ = env.reset(seed=0)
+    assert policy.predict(obs)[0].shape == (1,)
 
 
 def test_train_writes_an_agent_that_loads_and_predicts(tmp_path):
@@ -56,10 +81,12 @@ def test_train_writes_an_agent_that_loads_and_predicts(tmp_path):
 def test_shipped_agents_load_predict_and_document_their_training():
     from mbs_envs.training import load_agent
 
-    folders = sorted((ROOT / "agents").glob("*/*/agent.zip"))
-    assert len(folders) >= 8  # PPO and SAC for each of the four scenes
+    folders = sorted((ROOT / "agents").glob("*/*/seed*/agent.zip"))
+    for scene in ("Planar2R-v0", "FourBar-v0", "SerialChain-v0", "RollingDisk-v0"):
+        assert len(list((ROOT / "agents" / scene / "ppo").glob("seed*/agent.zip"))) >= 3
+        assert len(list((ROOT / "agents" / scene / "residual-ppo").glob("seed*/agent.zip"))) >= 3
     total = sum(p.stat().st_size for p in (ROOT / "agents").rglob("*") if p.is_file())
-    assert total < 10 * 2**20
+    assert total < 20 * 2**20  # the budget for all shipped agents
     for path in folders:
         model, cfg = load_agent(path.parent)
         assert cfg["command"].startswith("python scripts/train.py") and cfg["train_wall_s"] > 0

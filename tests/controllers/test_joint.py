@@ -55,8 +55,8 @@ def test_pd_with_gravity_compensation_holds_a_posture_exactly():
     ref = SumOfSines(np.array([-0.6, 1.1]), np.zeros((2, 1)), np.ones((2, 1)), np.zeros((2, 1)))
     tr = simulate(env.unwrapped.model, [-1.5, 0.0], [0.0, 0.0], 8.0, dt=2e-3, u=continuous_law(ctrl, ref))
     np.testing.assert_allclose(tr.q[-1], [-0.6, 1.1], atol=1e-6)
-    # plain PD sags under gravity
-    tr_pd = simulate(env.unwrapped.model, [-1.5, 0.0], [0.0, 0.0], 8.0, dt=2e-3, u=continuous_law(PD(env), ref))
+    # plain PD sags under gravity (by about kp^-1 G: at kp = 100 N m/rad, by more than 0.05 rad)
+    tr_pd = simulate(env.unwrapped.model, [-1.5, 0.0], [0.0, 0.0], 8.0, dt=2e-3, u=continuous_law(PD(env, kp=100.0, kd=20.0), ref))
     assert np.max(np.abs(tr_pd.q[-1] - [-0.6, 1.1])) > 0.05
 
 
