@@ -1,14 +1,22 @@
 """RL agents against model-based controllers (the logic of ``scripts/compare.py``).
 
 For each scene, each policy (the model-based controllers that apply, and the
-shipped SB3 agents) is rolled out on the same seeds, in one batched rollout per
-(scene, condition, policy). Conditions: the nominal plant; model mismatch, where
-the plant's masses and lengths are scaled by ``1 +- p`` (inertias by
-``(1 +- p)^3``, i.e. the same bodies made bigger or smaller) while every
-controller keeps the nominal model and the actuators keep their nominal limits;
-and observation noise (Gaussian, in observation units). Policies are built
-inside the worker from names (controllers from the nominal env, agents loaded
-from disk), so the cells can run in processes or on Ray.
+shipped SB3 agents, every training seed of each) is rolled out on the same
+test seeds (:mod:`mbs_envs.seeds`: disjoint from every training, validation
+and tuning seed), in one batched rollout per (scene, condition, policy).
+Conditions: the nominal plant; model mismatch, where the plant's masses and
+lengths are scaled by ``1 +- p`` (inertias by ``(1 +- p)^3``, i.e. the same
+bodies made bigger or smaller) while every controller keeps the nominal model
+and the actuators keep their nominal limits; and observation noise (Gaussian,
+in observation units). Policies are built inside the worker from names
+(controllers from the nominal env, agents loaded from disk), so the cells can
+run in processes or on Ray.
+
+Scoring (:func:`summarize_policy`): an episode fails when it ends early (a
+fall or divergence); the success rate and the error over the *successful*
+episodes are reported side by side, so a failed episode never improves an
+error; means carry 95 % confidence intervals from a bootstrap over training
+seeds and test episodes (:func:`hierarchical_bootstrap`).
 """
 
 from __future__ import annotations
@@ -21,7 +29,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from .evaluation import episode_metrics, rollout_batch
+from .evaluation import episode_metrics, make_controller, rollout_batch
 
 #: scene -> (env id, env kwargs, model-based controllers by display name -> "module:class")
 SCENES: dict[str, tuple[str, dict, dict[str, str]]] = {
@@ -41,7 +49,8 @@ class Condition:
     obs_noise: float = 0.0
 
 
-def conditions(levels: tuple[float, ...] = (0.1, 0.2, 0.3), noise: float = 0.01) -> list[Condition]:
+def conditions(levels: tuple[float, ...] = (0.2,), noise: float = 0.01) -> list[Condition]:
+    """Nominal, mismatch ``+-p`` for each level, and observation noise (if ``noise``)."""
     out = [Condition("nominal")]
     for p in levels:
         out += [Condition(f"mismatch +{p:.0%}", 1 + p), Condition(f"mismatch -{p:.0%}", 1 - p)]
@@ -80,33 +89,74 @@ def plant_kwargs(scene: str, condition: Condition) -> dict[str, Any]:
 def load_policy(spec: str, nominal_env: gym.Env) -> Any:
     """A controller (``"module:Class"``) built on the nominal env, or an agent (a folder with ``agent.zip``)."""
     if ":" in spec and not pathlib.Path(spec).exists():
-        module, cls = spec.split(":")
-        return getattr(__import__(module, fromlist=[cls]), cls)(nominal_env)
+        return make_controller(spec, nominal_env)
     from .training import load_agent
 
     return load_agent(pathlib.Path(spec))[0]
 
 
-def find_agents(root: pathlib.Path, scene: str) -> dict[str, str]:
-    """Shipped agents of a scene: ``{"PPO": ".../ppo", ...}`` for every ``<root>/<id>/<algo>/agent.zip``."""
+#: agent folder name -> (display name, kind)
+AGENT_GROUPS = {
+    "ppo": ("PPO", "RL"),
+    "sac": ("SAC", "RL"),
+    "td3": ("TD3", "RL"),
+    "residual-ppo": ("residual PPO", "model-based + RL"),
+    "residual-sac": ("residual SAC", "model-based + RL"),
+    "residual-td3": ("residual TD3", "model-based + RL"),
+}
+
+
+def find_agents(root: pathlib.Path, scene: str) -> dict[str, list[str]]:
+    """Shipped agents of a scene by algorithm: ``{"PPO": [".../ppo/seed0", ...], ...}``.
+
+    Reads ``<root>/<id>/<algo>/seed<k>/agent.zip`` (every training seed) and
+    ``<root>/<id>/<algo>/agent.zip`` (a single one).
+    """
     env_id = SCENES[scene][0].split("/")[-1]
     folder = pathlib.Path(root) / env_id
-    return {p.parent.name.upper(): str(p.parent) for p in sorted(folder.glob("*/agent.zip"))}
+    out: dict[str, list[str]] = {}
+    for algo_dir in sorted(p for p in folder.glob("*") if p.is_dir()):
+        runs = sorted(p.parent for p in algo_dir.glob("seed*/agent.zip")) or ([algo_dir] if (algo_dir / "agent.zip").exists() else [])
+        if runs:
+            name = AGENT_GROUPS.get(algo_dir.name, (algo_dir.name.upper(), "RL"))[0]
+            out[name] = [str(r) for r in runs]
+    return out
 
 
-def latency_us(policy: Any, obs: np.ndarray, repeats: int = 200) -> float:
-    """Median wall time of one ``predict`` on a single observation [us]."""
-    policy.predict(obs, deterministic=True)
+def kind_of(name: str) -> str:
+    """``"model-based"``, ``"RL"`` or ``"model-based + RL"`` for a policy's display name."""
+    for display, kind in AGENT_GROUPS.values():
+        if display == name:
+            return kind
+    return "model-based"
+
+
+def latency_us(policy: Any, obs: np.ndarray, noise: float = 0.0, repeats: int = 200, seed: int = 0) -> float:
+    """Median wall time of one ``predict`` on a single observation [us].
+
+    With ``noise > 0`` each call sees a different observation (``obs`` plus
+    Gaussian noise), as under observation noise: a policy that caches per
+    observed value shows its uncached cost here.
+    """
+    rng = np.random.default_rng(seed)
+    inputs = obs + (rng.normal(0.0, noise, (repeats + 1,) + obs.shape) if noise > 0 else np.zeros((repeats + 1,) + obs.shape))
+    inputs = inputs.astype(obs.dtype)
+    policy.predict(inputs[0], deterministic=True)
     times = []
-    for _ in range(repeats):
+    for x in inputs[1:]:
         tic = time.perf_counter()
-        policy.predict(obs, deterministic=True)
+        policy.predict(x, deterministic=True)
         times.append(time.perf_counter() - tic)
     return float(np.median(times) * 1e6)
 
 
 def evaluate_cell(task: dict[str, Any]) -> list[dict[str, Any]]:
-    """All policies of one (scene, condition) on the same seeds; one row per policy and seed."""
+    """All policies of one (scene, condition) on the same seeds; one row per policy, training seed and test seed.
+
+    ``task["policies"]``: display name -> list of specs (one per training seed;
+    a controller has one). Compute per action is measured in the nominal cell,
+    single-threaded, on the nominal and the noisy path (:func:`latency_us`).
+    """
     import torch
 
     torch.set_num_threads(1)
@@ -116,13 +166,91 @@ def evaluate_cell(task: dict[str, Any]) -> list[dict[str, Any]]:
     venv = gym.make_vec(env_id, num_envs=len(task["seeds"]), vectorization_mode="vector_entry_point",
                         autoreset_mode="Disabled", **plant_kwargs(scene, condition))  # fmt: skip
     rows = []
-    for name, spec in task["policies"].items():
-        policy = load_policy(spec, nominal)
-        episodes = rollout_batch(venv, policy, task["seeds"], obs_noise=condition.obs_noise, noise_seed=1)
-        lat = latency_us(policy, nominal.reset(seed=0)[0]) if condition.name == "nominal" else float("nan")
-        for seed, ep in zip(task["seeds"], episodes):
-            rows.append({"scene": scene, "condition": condition.name, "policy": name,
-                         "kind": "RL" if name in task.get("agents", ()) else "model-based", "seed": seed,
-                         **episode_metrics(ep), "failed": bool(ep.terminated), "latency_us": lat})  # fmt: skip
+    obs0 = nominal.reset(seed=task["seeds"][0])[0]
+    for name, specs in task["policies"].items():
+        for k, spec in enumerate([specs] if isinstance(specs, str) else specs):
+            policy = load_policy(spec, nominal)
+            episodes = rollout_batch(venv, policy, task["seeds"], obs_noise=condition.obs_noise, noise_seed=1)
+            lat = lat_noisy = float("nan")
+            if condition.name == "nominal" and k == 0:
+                lat, lat_noisy = latency_us(policy, obs0), latency_us(policy, obs0, noise=task.get("latency_noise", 0.01))
+            for seed, ep in zip(task["seeds"], episodes):
+                rows.append({"scene": scene, "condition": condition.name, "policy": name, "kind": kind_of(name),
+                             "train_seed": k, "seed": seed, **episode_metrics(ep), "failed": bool(ep.terminated),
+                             "start_peak_torque": float(np.max(np.abs(ep.u[ep.t <= 1.0]))) if len(ep.t) else float("nan"),
+                             "latency_us": lat, "latency_noisy_us": lat_noisy})  # fmt: skip
     venv.close()
     return rows
+
+
+def hierarchical_bootstrap(groups: list[np.ndarray], n_boot: int = 2000, seed: int = 0, level: float = 0.95) -> tuple[float, float, float]:
+    """Mean of the pooled values and its bootstrap confidence interval.
+
+    Each replicate resamples the groups (training seeds) with replacement,
+    then the values (test episodes) within each drawn group, and takes the
+    mean of everything drawn; with one group this is the ordinary bootstrap
+    over episodes. Empty groups contribute nothing (a replicate that draws
+    only empty groups is skipped).
+
+    Parameters
+    ----------
+    groups : list of 1-D arrays
+        Values per training seed.
+
+    Returns
+    -------
+    mean, low, high : float
+        NaN when there are no values at all.
+    """
+    groups = [np.asarray(g, float).ravel() for g in groups]
+    pooled = np.concatenate(groups) if groups else np.array([])
+    if pooled.size == 0:
+        return float("nan"), float("nan"), float("nan")
+    rng = np.random.default_rng(seed)
+    G = len(groups)
+    pick = rng.integers(0, G, (n_boot, G))  # replicate b, slot s: which group is drawn
+    sums = np.zeros((G, n_boot, G))  # sums[j, b, s]: a resample of group j for that slot
+    for j, g in enumerate(groups):
+        if len(g):
+            sums[j] = g[rng.integers(0, len(g), (n_boot, G, len(g)))].sum(axis=-1)
+    sizes = np.array([len(g) for g in groups], float)
+    b, s_ = np.meshgrid(np.arange(n_boot), np.arange(G), indexing="ij")
+    total = sums[pick, b, s_].sum(axis=1)
+    count = sizes[pick].sum(axis=1)
+    stats = total[count > 0] / count[count > 0]
+    alpha = (1 - level) / 2
+    lo, hi = np.quantile(stats, [alpha, 1 - alpha])
+    return float(pooled.mean()), float(lo), float(hi)
+
+
+def summarize_policy(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """Success rate and errors (over successful episodes) with 95 % CIs for one policy in one condition.
+
+    ``rows``: one per (training seed, test episode), as from :func:`evaluate_cell`.
+    """
+    by_seed: dict[int, list[dict]] = {}
+    for r in rows:
+        by_seed.setdefault(int(r["train_seed"]), []).append(r)
+    seeds = sorted(by_seed)
+    success = [np.array([not r["failed"] for r in by_seed[k]], float) for k in seeds]
+    out: dict[str, Any] = {"kind": rows[0]["kind"], "episodes": len(rows), "train_seeds": len(seeds)}
+    out["success"], out["success_lo"], out["success_hi"] = hierarchical_bootstrap(success)
+    for m in ("rms_error_settled", "max_error", "rms_torque", "peak_torque", "return"):
+        groups = [np.array([float(r[m]) for r in by_seed[k] if not r["failed"] and np.isfinite(float(r[m]))]) for k in seeds]
+        out[m], out[m + "_lo"], out[m + "_hi"] = hierarchical_bootstrap(groups)
+    for m in ("latency_us", "latency_noisy_us"):
+        values = [float(r[m]) for r in rows if np.isfinite(float(r.get(m, float("nan"))))]
+        out[m] = float(np.median(values)) if values else float("nan")
+    start = [float(r["start_peak_torque"]) for r in rows if np.isfinite(float(r.get("start_peak_torque", float("nan"))))]
+    out["start_peak_torque"] = float(np.max(start)) if start else float("nan")
+    return out
+
+
+def best_policy(by_policy: dict[str, dict[str, Any]], kind: str, min_success: float = 0.95) -> str | None:
+    """The policy of ``kind`` with the smallest error among those with success >= ``min_success``.
+
+    A policy below the success threshold is never "best", whatever its error
+    (its error averages only the episodes it survived).
+    """
+    names = [n for n, m in by_policy.items() if m["kind"] == kind and m["success"] >= min_success and np.isfinite(m["rms_error_settled"])]
+    return min(names, key=lambda n: by_policy[n]["rms_error_settled"]) if names else None

@@ -2,23 +2,29 @@
 """The main job: RL agents against model-based controllers on every scene.
 
 For each scene (Planar2R, FourBar, SerialChain with 10 links, RollingDisk) the
-model-based controllers (PD, PD + gravity, computed torque; on the disk LQR,
-PD steering, no control) and the shipped agents (``agents/<id>/<algo>/``,
-PPO and SAC) are rolled out on the same seeds through ``predict``:
+model-based controllers with their tuned gains (PD, PD + gravity, computed
+torque; on the disk LQR, PD steering, no control; ``scripts/tune.py``) and the
+shipped agents (``agents/<id>/<algo>/seed<k>/``: PPO, TD3 and residual PPO on
+top of the best model-based controller, every training seed) are rolled out
+on the same held-out test seeds through ``predict``:
 
-- nominal plant; model mismatch (masses and lengths of the plant x (1 +- p),
-  p = 10, 20, 30 %, while controllers keep the nominal model); observation noise;
-- metrics: return, RMS (after 1 s) and max tracking error, RMS and peak
-  torque, failure rate (falls, divergence), compute time per action;
-- each agent's error against its training wall time (from its training log)
-  beside the model-based controllers' error;
-- actuator sizing by inverse dynamics for a reference motion of each actuated scene.
+- nominal plant; model mismatch (masses and lengths of the plant x (1 +- 0.2),
+  controllers keep the nominal model; ``--full`` adds 10 and 30 %); observation noise;
+- per policy and condition: success rate, and over the successful episodes
+  the settled RMS error, max error, torque, with 95 % bootstrap confidence
+  intervals over training seeds and test episodes; "best" per side among
+  policies with >= 95 % success;
+- compute per action (single thread, nominal and noisy observations);
+- learning curves of every algorithm (mean and range over training seeds)
+  against env steps and training wall time, model-based errors as lines;
+- actuator sizing by inverse dynamics over the references of all test seeds,
+  and the start transient of the best controller.
 
 Writes ``report.md``, ``episodes.csv``, ``summary.json`` and PNG plots to ``--out``.
 Cells run in local processes, or on Ray with ``--ray [ADDRESS]``.
 
-    python scripts/compare.py --out results            # 20 seeds, all conditions (~2 min on 2 cores)
-    python scripts/compare.py --out results --quick    # 3 seeds, nominal and +-20 % (~1 min)
+    python scripts/compare.py --out results            # 20 seeds, nominal, +-20 %, noise (~4 min on 2 cores)
+    python scripts/compare.py --out results --quick    # 3 seeds
 """
 
 from __future__ import annotations
@@ -34,20 +40,23 @@ import numpy as np
 from tqdm import tqdm
 
 import mbs_envs  # noqa: F401  (registers the ids)
+from controllers import tuned
 from mbs_envs import comparison as cmp
+from mbs_envs import seeds as seed_ranges
 from mbs_envs.parallel import run_tasks
 from mbs_envs.plotting import pyplot, save
 from mbs_envs.sizing import actuator_sizing
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-METRICS = ["rms_error_settled", "max_error", "rms_torque", "peak_torque", "return", "failed", "latency_us"]
+KINDS = ("model-based", "RL", "model-based + RL")
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", required=True, type=pathlib.Path, help="folder for the results")
-    p.add_argument("--seeds", type=int, default=20, help="episodes per policy and condition (default 20)")
-    p.add_argument("--quick", action="store_true", help="3 seeds, nominal and +-20 %% only")
+    p.add_argument("--seeds", type=int, default=20, help="test episodes per policy and condition (default 20)")
+    p.add_argument("--quick", action="store_true", help="3 test seeds")
+    p.add_argument("--full", action="store_true", help="also +-10 %% and +-30 %% mismatch")
     p.add_argument("--scene", action="append", choices=list(cmp.SCENES), help="scene(s) (default all)")
     p.add_argument("--agents", type=pathlib.Path, default=ROOT / "agents", help="folder of shipped agents")
     p.add_argument("--no-agents", action="store_true", help="model-based controllers only")
@@ -58,20 +67,19 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 def run(args: argparse.Namespace) -> dict:
     n_seeds = 3 if args.quick else args.seeds
-    if n_seeds < 1:
-        raise SystemExit("--seeds must be >= 1")
+    if not 1 <= n_seeds <= len(seed_ranges.TEST):
+        raise SystemExit(f"--seeds must be in [1, {len(seed_ranges.TEST)}]")
     scenes = args.scene or list(cmp.SCENES)
-    conds = cmp.conditions((0.2,), 0.01) if args.quick else cmp.conditions()
+    conds = cmp.conditions((0.1, 0.2, 0.3) if args.full else (0.2,), 0.01)
     args.out.mkdir(parents=True, exist_ok=True)
-    seeds = list(range(n_seeds))
+    seeds = seed_ranges.test_seeds(n_seeds)
     tasks, agents = [], {}
     for scene in scenes:
         agents[scene] = {} if args.no_agents else cmp.find_agents(args.agents, scene)
-        policies = {**cmp.SCENES[scene][2], **agents[scene]}
+        policies = {**{k: [v] for k, v in cmp.SCENES[scene][2].items()}, **agents[scene]}
         for c in conds:
-            tasks.append({"scene": scene, "condition": vars(c), "seeds": seeds, "policies": policies, "agents": list(agents[scene])})
-    print(f"{len(tasks)} cells ({len(scenes)} scenes x {len(conds)} conditions), {n_seeds} seeds each")
-    results = []
+            tasks.append({"scene": scene, "condition": vars(c), "seeds": seeds, "policies": policies})
+    print(f"{len(tasks)} cells ({len(scenes)} scenes x {len(conds)} conditions), {n_seeds} test seeds each")
     if args.ray is None and args.workers > 1:
         results = run_tasks(cmp.evaluate_cell, tasks, max_workers=args.workers)
     elif args.ray is None:
@@ -84,149 +92,226 @@ def run(args: argparse.Namespace) -> dict:
         w.writeheader()
         w.writerows(rows)
     summary = summarize(rows)
-    sizing = {scene: sizing_tables(scene) for scene in scenes if scene != "RollingDisk"}
+    sizing = {scene: sizing_tables(scene, seeds) for scene in tqdm(scenes, desc="sizing") if scene != "RollingDisk"}
     curves = {scene: training_curves(agents[scene]) for scene in scenes}
     for scene in scenes:
-        plot_scene(scene, summary[scene], curves[scene], args.out / f"comparison_{scene}.png")
-    report = make_report(summary, sizing, agents, n_seeds, conds)
+        plot_scene(scene, summary[scene], args.out / f"comparison_{scene}.png")
+    plot_learning_curves(summary, curves, args.out / "learning_curves.png")
+    report = make_report(summary, sizing, agents, curves, seeds, conds)
     (args.out / "report.md").write_text(report)
-    (args.out / "summary.json").write_text(json.dumps({"config": {"seeds": n_seeds, "conditions": [c.name for c in conds], "agents": agents},
-                                                        "summary": summary, "sizing": sizing}, indent=2, default=float))  # fmt: skip
+    config = {"test_seeds": [seeds[0], seeds[-1]], "conditions": [c.name for c in conds], "agents": agents}
+    (args.out / "summary.json").write_text(json.dumps({"config": config, "summary": summary, "sizing": sizing}, indent=2, default=float))
     print(headline(summary))
-    print(f"written to {args.out}/report.md, episodes.csv, summary.json and comparison_<scene>.png")
+    print(f"written to {args.out}/report.md, episodes.csv, summary.json, learning_curves.png and comparison_<scene>.png")
     return {"summary": summary, "rows": rows, "sizing": sizing}
 
 
 def summarize(rows: list[dict]) -> dict:
-    """``summary[scene][condition][policy]`` = mean metrics over seeds (failure rate for ``failed``)."""
-    out: dict = {}
+    """``summary[scene][condition][policy]`` = :func:`mbs_envs.comparison.summarize_policy` of its rows."""
+    grouped: dict = {}
     for r in rows:
-        out.setdefault(r["scene"], {}).setdefault(r["condition"], {}).setdefault(r["policy"], []).append(r)
-    for scene, by_cond in out.items():
-        for cond, by_policy in by_cond.items():
-            for policy, rs in by_policy.items():
-                values = {m: np.array([float(x[m]) for x in rs]) for m in METRICS}
-                # an episode that failed within the first second has no settled error:
-                # means are over the episodes that have one (the failure rate says how many did not)
-                means = {m: float(np.mean(v[np.isfinite(v)])) if np.isfinite(v).any() else float("nan") for m, v in values.items()}
-                by_policy[policy] = {"kind": rs[0]["kind"], **means}
-    return out
+        grouped.setdefault(r["scene"], {}).setdefault(r["condition"], {}).setdefault(r["policy"], []).append(r)
+    return {scene: {cond: {p: cmp.summarize_policy(rs) for p, rs in by_p.items()} for cond, by_p in by_c.items()}
+            for scene, by_c in grouped.items()}  # fmt: skip
 
 
-def worst_mismatch(by_cond: dict, policy: str, p: str = "20%") -> dict:
-    """The worse (larger error) of the +p and -p mismatch conditions for ``policy``."""
-    cells = [by_cond[c][policy] for c in (f"mismatch +{p}", f"mismatch -{p}") if c in by_cond]
-    return max(cells, key=lambda m: (m["failed"], m["rms_error_settled"])) if cells else {}
+def ci(m: dict, key: str, digits: int = 3) -> str:
+    """``mean [lo, hi]`` of a summary entry, or ``-``."""
+    if not np.isfinite(m.get(key, float("nan"))):
+        return "-"
+    return f"{m[key]:.{digits}g} [{m[key + '_lo']:.{digits}g}, {m[key + '_hi']:.{digits}g}]"
 
 
-def best(by_policy: dict, kind: str) -> str | None:
-    """Best policy of a kind: fewest failures, then smallest settled RMS error."""
-    names = [n for n, m in by_policy.items() if m["kind"] == kind]
-    return min(names, key=lambda n: (by_policy[n]["failed"], by_policy[n]["rms_error_settled"])) if names else None
+def success(m: dict) -> str:
+    return f"{m['success']:.0%}" + ("" if m["success"] == 1 else f" [{m['success_lo']:.0%}, {m['success_hi']:.0%}]")
 
 
 def headline(summary: dict) -> str:
-    lines = ["| scene | | policy | RMS error t>=1 s [rad] | RMS torque [N m] | at 20 % mismatch: error / failures | compute per action [us] |",
-             "|---|---|---|---|---|---|---|"]  # fmt: skip
+    lines = ["| scene | side | policy | nominal: error [95 % CI] | success | -20 %: error | success | +20 %: error | success | us per action (noisy obs) |",
+             "|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
     for scene, by_cond in summary.items():
         nominal = by_cond["nominal"]
-        for kind in ("model-based", "RL"):
-            name = best(nominal, kind)
-            if name is None:
-                lines.append(f"| {scene} | best {kind} | (none shipped) | | | | |")
+        for kind in KINDS:
+            if not any(m["kind"] == kind for m in nominal.values()):
                 continue
-            m, w = nominal[name], worst_mismatch(by_cond, name)
-            rob = f"{w['rms_error_settled']:.3g} / {w['failed']:.0%}" if w else "-"
-            lines.append(f"| {scene} | best {kind} | {name} | {m['rms_error_settled']:.3g} | {m['rms_torque']:.3g} | {rob} | {m['latency_us']:.0f} |")
+            name = cmp.best_policy(nominal, kind)
+            if name is None:
+                lines.append(f"| {scene} | best {kind} | (none with >= 95 % success) | | | | | | | |")
+                continue
+            m = nominal[name]
+            cells = [f"{ci(m, 'rms_error_settled')} | {success(m)}"]
+            for c in ("mismatch -20%", "mismatch +20%"):
+                cells.append(f"{ci(by_cond[c][name], 'rms_error_settled')} | {success(by_cond[c][name])}" if c in by_cond else "- | -")
+            lines.append(f"| {scene} | best {kind} | {name} | " + " | ".join(cells) + f" | {m['latency_us']:.0f} ({m['latency_noisy_us']:.0f}) |")
     return "\n".join(lines)
 
 
-def sizing_tables(scene: str) -> dict:
-    """Inverse-dynamics sizing for the reference of seed 0 of the scene's task."""
+def sizing_tables(scene: str, seeds: list[int]) -> dict:
+    """Inverse-dynamics sizing along the references of all ``seeds`` (5 s each): max and 95th percentile per drive."""
     env_id, kwargs, _ = cmp.SCENES[scene]
     env = gym.make(env_id, **kwargs).unwrapped
-    env.reset(seed=0)
-    s = actuator_sizing(env.model, env.reference, t_final=5.0, dt=1e-3, branch=getattr(env, "branch", 1))
-    out = {"drives": s.table(), "torque_limit": env.u_max.tolist()}
-    if s.peak_joint_force is not None:
-        out["peak_joint_force_N"] = dict(zip(["O (ground-crank)", "A (crank-coupler)", "B (coupler-rocker)", "C (rocker-ground)"], s.peak_joint_force.tolist()))
+    per_seed = []
+    for seed in seeds:
+        env.reset(seed=seed)
+        t_final = gym.spec(env_id).max_episode_steps * env.dt
+        s = actuator_sizing(env.model, env.reference, t_final=t_final, dt=2e-3, branch=getattr(env, "branch", 1))
+        per_seed.append(s)
+    peak_t = np.array([s.peak_torque for s in per_seed])
+    rms_t = np.array([s.rms_torque for s in per_seed])
+    peak_p = np.array([s.peak_power for s in per_seed])
+    drives = [{"drive": j, "peak_torque_max": float(peak_t[:, j].max()), "peak_torque_p95": float(np.percentile(peak_t[:, j], 95)),
+               "rms_torque_max": float(rms_t[:, j].max()), "peak_power_max": float(peak_p[:, j].max()),
+               "peak_power_p95": float(np.percentile(peak_p[:, j], 95))} for j in range(peak_t.shape[1])]  # fmt: skip
+    out = {"seeds": [seeds[0], seeds[-1]], "drives": drives, "torque_limit": env.u_max.tolist()}
+    if per_seed[0].peak_joint_force is not None:
+        f = np.array([s.peak_joint_force for s in per_seed]).max(axis=0)
+        out["peak_joint_force_N"] = dict(zip(["O (ground-crank)", "A (crank-coupler)", "B (coupler-rocker)", "C (rocker-ground)"], f.tolist()))
     return out
 
 
-def training_curves(agents: dict[str, str]) -> dict[str, dict]:
+def training_curves(agents: dict[str, list[str]]) -> dict[str, dict]:
+    """Per algorithm: every training seed's log (error, failures against env steps and wall time) and record."""
     curves = {}
-    for name, folder in agents.items():
-        path = pathlib.Path(folder) / "training_log.csv"
-        if path.exists():
+    for name, folders in agents.items():
+        runs = []
+        for folder in folders:
+            path = pathlib.Path(folder) / "training_log.csv"
+            if not path.exists():
+                continue
             rows = list(csv.DictReader(open(path)))
             cfg = json.loads((pathlib.Path(folder) / "config.json").read_text())
-            curves[name] = {"train_wall_s": [float(r["train_wall_s"]) for r in rows],
-                            "rms_error_settled": [float(r["rms_error_settled"]) for r in rows],
-                            "failure_rate": [float(r["failure_rate"]) for r in rows],
-                            "steps": cfg["steps"], "command": cfg.get("command"), "wall": cfg["train_wall_s"]}  # fmt: skip
+            runs.append({"timesteps": [float(r["timesteps"]) for r in rows], "train_wall_s": [float(r["train_wall_s"]) for r in rows],
+                         "rms_error_settled": [float(r["rms_error_settled"]) for r in rows],
+                         "failure_rate": [float(r["failure_rate"]) for r in rows],
+                         "steps": cfg["steps"], "seed": cfg["seed"], "command": cfg.get("command"), "wall": cfg["train_wall_s"],
+                         "hyperparameters": cfg.get("hyperparameters"), "n_envs": cfg.get("n_envs")})  # fmt: skip
+        if runs:
+            curves[name] = {"runs": runs}
     return curves
 
 
-def plot_scene(scene: str, by_cond: dict, curves: dict, path: pathlib.Path) -> None:
+def plot_scene(scene: str, by_cond: dict, path: pathlib.Path) -> None:
+    """Error over successful episodes with 95 % CIs per condition and policy; success rates annotated."""
     plt = pyplot()
-    fig, (a0, a1) = plt.subplots(1, 2, figsize=(13, 4.5))
+    fig, ax = plt.subplots(figsize=(12, 4.5))
     conds = list(by_cond)
-    policies = list(by_cond["nominal"])
+    policies = [p for p in by_cond["nominal"] if p != "no control"]
     x = np.arange(len(conds))
     width = 0.8 / len(policies)
     for k, name in enumerate(policies):
-        y = [by_cond[c][name]["rms_error_settled"] for c in conds]
-        a0.bar(x + k * width, y, width, label=name)
-    a0.set_yscale("log")
-    a0.set_xticks(x + 0.4 - width / 2, conds, rotation=30, ha="right", fontsize=7)
-    a0.set_ylabel("RMS tracking error, t >= 1 s [rad]")
-    a0.legend(fontsize=7)
-    a0.set_title(f"{scene}: error per condition (mean over seeds)")
-    for name, c in curves.items():
-        a1.plot(c["train_wall_s"], c["rms_error_settled"], "o-", label=f"{name} (training)")
-    for name, m in by_cond["nominal"].items():
-        if m["kind"] == "model-based":
-            a1.axhline(m["rms_error_settled"], ls="--", lw=1, color="gray")
-            a1.text(a1.get_xlim()[1] if curves else 1, m["rms_error_settled"], f" {name}", fontsize=7, va="center")
-    a1.set_yscale("log")
-    a1.set_xlabel("training wall time [s]")
-    a1.set_ylabel("RMS error, t >= 1 s [rad]")
-    a1.set_title("agents' error against training time (dashed: model-based)")
-    if curves:
-        a1.legend(fontsize=7)
+        m = [by_cond[c][name] for c in conds]
+        y = np.array([v["rms_error_settled"] for v in m])
+        err = np.array([[v["rms_error_settled"] - v["rms_error_settled_lo"], v["rms_error_settled_hi"] - v["rms_error_settled"]] for v in m]).T
+        ax.bar(x + k * width, y, width, yerr=err, capsize=2, label=name)
+        for xi, v in zip(x + k * width, m):
+            if v["success"] < 1:
+                ax.text(xi, v["rms_error_settled"] if np.isfinite(v["rms_error_settled"]) else 1e-3, f"{v['success']:.0%}", fontsize=6, ha="center", va="bottom", rotation=90)
+    ax.set_yscale("log")
+    ax.set_xticks(x + 0.4 - width / 2, conds, fontsize=8)
+    ax.set_ylabel("settled RMS error, successful episodes [rad]")
+    ax.legend(fontsize=7, ncol=2)
+    ax.set_title(f"{scene}: mean and 95 % CI over test episodes (and training seeds); labels: success rate if < 100 %")
     save(fig, path)
 
 
-def make_report(summary: dict, sizing: dict, agents: dict, n_seeds: int, conds: list) -> str:
+def plot_learning_curves(summary: dict, curves: dict, path: pathlib.Path) -> None:
+    """Per scene: validation error of each algorithm (mean, range over training seeds) against env steps and wall time."""
+    scenes = [s for s in summary if curves.get(s)]
+    if not scenes:
+        return
+    plt = pyplot()
+    fig, axes = plt.subplots(len(scenes), 2, figsize=(12, 3.6 * len(scenes)), squeeze=False)
+    for row, scene in zip(axes, scenes):
+        for name, c in curves[scene].items():
+            runs = c["runs"]
+            n = min(len(r["timesteps"]) for r in runs)
+            for ax, key in zip(row, ("timesteps", "train_wall_s")):
+                xs = np.mean([r[key][:n] for r in runs], axis=0)
+                ys = np.array([r["rms_error_settled"][:n] for r in runs], float)
+                mean = np.nanmean(ys, axis=0) if np.isfinite(ys).any() else ys[0]
+                line = ax.plot(xs, mean, "o-", ms=3, label=f"{name} ({len(runs)} seeds)")[0]
+                if len(runs) > 1:
+                    ax.fill_between(xs, np.nanmin(ys, axis=0), np.nanmax(ys, axis=0), color=line.get_color(), alpha=0.2)
+        for ax in row:
+            for name, m in summary[scene]["nominal"].items():
+                if m["kind"] == "model-based" and np.isfinite(m["rms_error_settled"]) and name != "no control":
+                    ax.axhline(m["rms_error_settled"], ls="--", lw=1, color="gray")
+                    ax.annotate(f" {name}", (1.0, m["rms_error_settled"]), xycoords=("axes fraction", "data"), fontsize=7, va="center")
+            ax.set_yscale("log")
+            ax.set_ylabel("validation RMS error [rad]")
+            ax.legend(fontsize=7)
+        row[0].set_xlabel("env steps")
+        row[1].set_xlabel("training wall time [s] (one thread)")
+        row[0].set_title(f"{scene}: learning curves (band: range over training seeds; dashed: model-based on test seeds)", fontsize=9)
+    save(fig, path)
+
+
+def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: list[int], conds: list) -> str:
+    tuned_record = json.loads(tuned.PATH.read_text()) if tuned.PATH.exists() else {}
     L = ["# RL agents against model-based controllers", ""]
-    L.append(f"{n_seeds} seeds per policy and condition (the same starts and references for every policy); "
-             "errors are the Euclidean norm over tracked joints (the disk: its heading error), after the first second; "
-             "failure: the episode ended early (fell or diverged); errors average the episodes that lasted past 1 s. "
-             "Compute per action: one `predict` on a single observation. Mismatch: the plant's masses and lengths "
-             "x (1 +- p), inertias x (1 +- p)^3, controllers and actuator limits nominal; noise: Gaussian, std 0.01 on every observation entry.")  # fmt: skip
+    L.append(f"**Protocol.** {len(seeds)} test episodes per policy and condition, seeds {seeds[0]}-{seeds[-1]} (the same starts and "
+             "references for every policy). Test seeds are disjoint from every other seed used: training members start from "
+             f"{seed_ranges.TRAINING_BASE} + 1000 k + i (run k, member i), learning curves use validation seeds "
+             f"{seed_ranges.VALIDATION[0]}-, gain tuning uses seeds {seed_ranges.TUNING[0]}- (`mbs_envs/seeds.py`). "
+             "An episode fails when it ends early (fall or divergence); errors (Euclidean norm over tracked joints, the disk: its "
+             "heading error, RMS after the first second) average the *successful* episodes only and stand beside the success "
+             "rate, and a policy is \"best\" on its side only with >= 95 % success at the nominal plant. Brackets: 95 % confidence "
+             "intervals from a bootstrap over training seeds and test episodes. Mismatch: the plant's masses and lengths "
+             "x (1 +- p), inertias x (1 +- p)^3, controllers and actuator limits nominal; noise: Gaussian, std 0.01 on every "
+             "observation entry. On the disk, scaling `r` also moves the critical spin `sqrt(g / 3r)` against which each "
+             "episode's commanded spin is drawn (0.3-2 times the plant's), so mismatch changes the task as well as the plant. "
+             "Compute per action: one `predict` on one observation, one thread, median of 200; in brackets with a fresh noisy "
+             "observation at every call. Training wall times are as each run recorded them (one torch thread, evaluation "
+             "excluded); runs may have shared the machine with other runs, so they bound the cost from above.")  # fmt: skip
     L += ["", "## Headline", "", headline(summary), ""]
+    L += ["![learning curves](learning_curves.png)", ""]
+    if tuned_record:
+        L += ["## Model-based gains: how they were chosen", "", "```", (tuned_record.get("procedure") or "").strip(), "```", "",
+              f"Tuning seeds {tuned_record['tuning_seeds'][0]}-{tuned_record['tuning_seeds'][1]}, conditions {', '.join(tuned_record['conditions'])}; "
+              f"command `{tuned_record.get('command')}`. Score: failure rate, then mean settled error over the conditions.", "",
+              "| env | controller | tuned gains | tuned: failures / error | pre-tuning default | pre-tuning: failures / error |", "|---|---|---|---|---|---|"]  # fmt: skip
+        for env_id, by_c in tuned_record["gains"].items():
+            for name, entry in by_c.items():
+                sc = tuned_record["scores"][env_id][name]
+                L.append(f"| {env_id} | {name} | `{json.dumps(entry)}` | {sc['tuned']['failure_rate']:.0%} / {sc['tuned']['error']:.3g} | "
+                         f"`{json.dumps(sc['pre_tuning']['entry'])}` | {sc['pre_tuning']['failure_rate']:.0%} / {sc['pre_tuning']['error']:.3g} |")  # fmt: skip
+        L.append("")
     for scene, by_cond in summary.items():
         L += [f"## {scene}", "", f"![{scene}](comparison_{scene}.png)", ""]
-        L.append("| condition | policy | RMS error t>=1 s | max error | RMS torque | peak torque | failures | return |")
-        L.append("|---|---|---|---|---|---|---|---|")
+        L.append("| condition | policy | success | RMS error t>=1 s | max error | RMS torque | peak torque | return | us/action (noisy) |")
+        L.append("|---|---|---|---|---|---|---|---|---|")
         for cond, by_policy in by_cond.items():
             for name, m in by_policy.items():
-                L.append(f"| {cond} | {name} | {m['rms_error_settled']:.3g} | {m['max_error']:.3g} | {m['rms_torque']:.3g} | "
-                         f"{m['peak_torque']:.3g} | {m['failed']:.0%} | {m['return']:.1f} |")  # fmt: skip
+                lat = f"{m['latency_us']:.0f} ({m['latency_noisy_us']:.0f})" if np.isfinite(m["latency_us"]) else ""
+                L.append(f"| {cond} | {name} | {success(m)} | {ci(m, 'rms_error_settled')} | {m['max_error']:.3g} | {m['rms_torque']:.3g} | "
+                         f"{m['peak_torque']:.3g} | {m['return']:.1f} | {lat} |")  # fmt: skip
         L.append("")
-        for name, folder in agents.get(scene, {}).items():
-            cfg = json.loads((pathlib.Path(folder) / "config.json").read_text())
-            L.append(f"- {name}: `{cfg.get('command')}` ({cfg['train_wall_s']:.0f} s of training)")
+        best_mb = cmp.best_policy(by_cond["nominal"], "model-based")
+        pd = by_cond["nominal"].get("PD") or by_cond["nominal"].get("PD steering")
+        for name, c in curves.get(scene, {}).items():
+            m = by_cond["nominal"][name]
+            beats = pd is not None and m["success"] >= pd["success"] and m["rms_error_settled"] < pd["rms_error_settled"]
+            verdict = "beats PD at the nominal plant" if beats else "**does not beat PD at the nominal plant** (not a \"best RL\" candidate by this rule; see its curve)"
+            L.append(f"- {name}: {len(c['runs'])} training seed(s), {verdict}.")
+            for r in c["runs"]:
+                L.append(f"  - seed {r['seed']}: `{r['command']}` ({r['steps']:,} env steps, {r['wall']:.0f} s of training)")
+        if best_mb:
+            L.append(f"- Best model-based at the nominal plant: {best_mb}.")
         L.append("")
     if sizing:
-        L += ["## Actuator sizing (inverse dynamics along the reference of seed 0, 5 s)", ""]
+        L += [f"## Actuator sizing (inverse dynamics along the references of the {len(seeds)} test seeds, whole episodes)", "",
+              "The torque the reference motion itself needs; the start transient (correcting the initial error) comes on top "
+              "and is listed separately: the largest torque computed torque applied in the first second of any nominal test episode.", ""]  # fmt: skip
         for scene, s in sizing.items():
-            L += [f"### {scene}", "", "| drive | peak torque [N m] | RMS torque [N m] | peak power [W] | RMS power [W] | torque limit [N m] |", "|---|---|---|---|---|---|"]
+            transient = summary[scene]["nominal"].get("computed torque", {}).get("start_peak_torque", float("nan"))
+            L += [f"### {scene}", "", "| drive | peak torque: max / 95th pct [N m] | RMS torque max [N m] | peak power: max / 95th pct [W] | torque limit [N m] |", "|---|---|---|---|---|"]
             for d in s["drives"]:
-                L.append(f"| {d['drive'] + 1} | {d['peak_torque']:.3g} | {d['rms_torque']:.3g} | {d['peak_power']:.3g} | {d['rms_power']:.3g} | {s['torque_limit'][d['drive']]:.3g} |")
+                L.append(f"| {d['drive'] + 1} | {d['peak_torque_max']:.3g} / {d['peak_torque_p95']:.3g} | {d['rms_torque_max']:.3g} | "
+                         f"{d['peak_power_max']:.3g} / {d['peak_power_p95']:.3g} | {s['torque_limit'][d['drive']]:.3g} |")  # fmt: skip
+            L.append("")
+            L.append(f"Start transient (computed torque, t <= 1 s, nominal, any drive): peak {transient:.3g} N m.")
             if "peak_joint_force_N" in s:
-                L.append("")
-                L.append("Peak joint reaction forces [N] (from the Lagrange multipliers): " + ", ".join(f"{k} {v:.3g}" for k, v in s["peak_joint_force_N"].items()))
+                L.append("Peak joint reaction forces over all seeds [N] (from the Lagrange multipliers): " + ", ".join(f"{k} {v:.3g}" for k, v in s["peak_joint_force_N"].items()))
             L.append("")
     return "\n".join(L) + "\n"
 

@@ -1,0 +1,166 @@
+"""The comparison's fairness rules: seeds, failure scoring, confidence intervals, residual policies, tuning."""
+
+from __future__ import annotations
+
+import json
+import pathlib
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import mbs_envs  # noqa: F401
+from controllers import ComputedTorque, tuned
+from mbs_envs import comparison as cmp
+from mbs_envs import seeds, tuning
+from mbs_envs.residual import ResidualPolicy, check_bound, combine
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+
+def test_seed_ranges_are_disjoint():
+    training = set()
+    for run in range(0, 1000, 7):
+        training |= set(seeds.training_members(run, 64))
+    for block in (seeds.TEST, seeds.VALIDATION, seeds.TUNING):
+        assert not training & set(block)
+    assert not set(seeds.TEST) & set(seeds.VALIDATION) and not set(seeds.TEST) & set(seeds.TUNING)
+    assert not set(seeds.training_members(0, 1000)) & set(seeds.training_members(1, 1000))  # runs apart too
+    with pytest.raises(ValueError, match="n_envs"):
+        seeds.training_members(0, 1001)
+    with pytest.raises(ValueError, match="test"):
+        seeds.test_seeds(10_001)
+
+
+def test_shipped_agents_never_trained_or_validated_on_test_seeds():
+    test = set(seeds.test_seeds(1000))
+    configs = list((ROOT / "agents").rglob("config.json"))
+    assert configs
+    for path in configs:
+        cfg = json.loads(path.read_text())
+        lo, hi = cfg["training_member_seeds"]
+        assert not set(range(lo, hi + 1)) & test, path
+        lo, hi = cfg["validation_seeds"]
+        assert not set(range(lo, hi + 1)) & test, path
+
+
+def _rows(policy, kind, errors, failed, train_seed=0):
+    return [{"policy": policy, "kind": kind, "train_seed": train_seed, "rms_error_settled": e, "max_error": e, "rms_torque": 1.0,
+             "peak_torque": 1.0, "return": -e, "failed": f, "latency_us": 1.0, "latency_noisy_us": 1.0, "start_peak_torque": 1.0}
+            for e, f in zip(errors, failed)]  # fmt: skip
+
+
+def test_a_failing_policy_is_never_best_and_failures_never_lower_the_error():
+    # the failing policy's failed episodes have tiny truncated errors: they must not count
+    failing = cmp.summarize_policy(_rows("A", "RL", [1e-6] * 5 + [0.5] * 15, [True] * 5 + [False] * 15))
+    steady = cmp.summarize_policy(_rows("B", "RL", [0.1] * 20, [False] * 20))
+    assert failing["success"] == pytest.approx(0.75)
+    assert failing["rms_error_settled"] == pytest.approx(0.5)  # successful episodes only
+    assert cmp.best_policy({"A": failing, "B": steady}, "RL") == "B"
+    # even when A's surviving episodes beat B's error
+    better_but_failing = cmp.summarize_policy(_rows("A", "RL", [0.01] * 20, [True] + [False] * 19))
+    assert better_but_failing["success"] == pytest.approx(0.95)
+    assert cmp.best_policy({"A": better_but_failing, "B": steady}, "RL") == "A"  # 95 % is the stated threshold
+    worse = cmp.summarize_policy(_rows("A", "RL", [0.01] * 20, [True, True] + [False] * 18))
+    assert cmp.best_policy({"A": worse, "B": steady}, "RL") == "B"
+    all_failed = cmp.summarize_policy(_rows("C", "RL", [0.0] * 4, [True] * 4))
+    assert np.isnan(all_failed["rms_error_settled"]) and cmp.best_policy({"C": all_failed}, "RL") is None
+
+
+def test_hierarchical_bootstrap():
+    mean, lo, hi = cmp.hierarchical_bootstrap([np.full(10, 0.3)])
+    assert mean == lo == hi == pytest.approx(0.3)
+    rng = np.random.default_rng(1)
+    groups = [rng.normal(1.0, 0.1, 20), rng.normal(2.0, 0.1, 20), rng.normal(3.0, 0.1, 20)]
+    mean, lo, hi = cmp.hierarchical_bootstrap(groups)
+    assert mean == pytest.approx(np.mean(np.concatenate(groups)))
+    assert lo < mean < hi
+    # the spread between training seeds widens the interval far beyond the episodes' own spread
+    _, lo1, hi1 = cmp.hierarchical_bootstrap([np.concatenate(groups)])
+    assert hi - lo > 3 * (hi1 - lo1)
+    assert all(np.isnan(cmp.hierarchical_bootstrap([np.array([]), np.array([])])))
+
+
+class _Fixed:
+    """A stand-in correction policy returning fixed actions."""
+
+    def __init__(self, action):
+        self.action = np.asarray(action, np.float32)
+
+    def predict(self, obs, state=None, episode_start=None, deterministic=True):
+        return np.broadcast_to(self.action, np.shape(obs)[:-1] + self.action.shape[-1:]).copy(), None
+
+
+def test_residual_with_zero_correction_is_the_base_controller():
+    env = gym.make("mbs_envs/FourBar-v0")
+    base = ComputedTorque(env)
+    obs, _ = env.reset(seed=3)
+    policy = ResidualPolicy(base, _Fixed([0.0]), 0.25)
+    np.testing.assert_array_equal(policy.predict(obs)[0], base.predict(obs)[0])
+
+
+@pytest.mark.parametrize("correction", [[5.0, -7.0], [1e30, -1e30], [0.3, 0.1], [-1.0, 1.0]])
+def test_residual_correction_is_bounded(correction):
+    env = gym.make("mbs_envs/Planar2R-v0")
+    base = ComputedTorque(env)
+    bound = 0.2
+    policy = ResidualPolicy(base, _Fixed(correction), bound)
+    rng = np.random.default_rng(0)
+    for seed in range(5):
+        obs, _ = env.reset(seed=seed)
+        obs = obs + rng.normal(0, 0.1, obs.shape).astype(np.float32)
+        a, a0 = policy.predict(obs)[0], base.predict(obs)[0]
+        assert np.all(np.abs(a) <= 1.0)
+        assert np.all(np.abs(a.astype(float) - a0) <= bound + 1e-6)
+
+
+@pytest.mark.parametrize("bound", [0.0, -0.1, np.nan, 3.0, "x"])
+def test_residual_bound_is_validated(bound):
+    with pytest.raises(ValueError, match="bound"):
+        check_bound(bound)
+
+
+def test_residual_training_env_with_zero_correction_replays_the_base_controller():
+    """The training wrapper applies base + correction: zero corrections give the base controller's episodes."""
+    pytest.importorskip("stable_baselines3")
+    from mbs_envs.residual import residual_vec_env
+    from mbs_envs.sb3 import make_sb3_vec_env
+
+    env_id = "mbs_envs/FourBar-v0"
+    base = ComputedTorque(gym.make(env_id))
+    venv = residual_vec_env(make_sb3_vec_env(env_id, n_envs=2, seed=5, monitor=False), base, 0.25)
+    obs = venv.reset()
+    ref = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", autoreset_mode="Disabled")
+    ref_obs, _ = ref.reset(seed=[5, 6])
+    np.testing.assert_array_equal(obs, ref_obs)
+    for _ in range(20):
+        obs, _, _, _ = venv.step(np.zeros((2, 1), np.float32))
+        ref_obs, *_ = ref.step(base.predict(ref_obs)[0])
+        np.testing.assert_array_equal(obs, ref_obs)
+    a = combine(np.array([[0.9]]), np.array([[1.0]]), 0.25)
+    assert a[0, 0] == 1.0  # saturates at the actuator limit
+
+
+def test_tuning_returns_gains_no_worse_than_the_old_defaults_on_its_own_seeds():
+    """The procedure on a short budget (3 tuning seeds, 2 s episodes): its pick scores at least as well as
+    the pre-tuning default (10 rad/s, critical damping, which is not on the grid) on the same seeds."""
+    for name in ("computed torque", "PD"):
+        best, rows = tuning.tune("Planar2R", name, n_seeds=3, max_episode_steps=200)
+        assert len(rows) == len(tuning.joint_grid()) and best in [r["entry"] for r in rows]
+        chosen = next(r for r in rows if r["entry"] == best)
+        old = tuning.score("Planar2R", name, tuned.FALLBACK[name], tuning.tuning_seeds(3), max_episode_steps=200)
+        assert (chosen["failure_rate"], chosen["error"]) <= old.key
+        assert best != tuned.FALLBACK[name]
+
+
+def test_controllers_default_to_the_tuned_gains():
+    record = json.loads(tuned.PATH.read_text())
+    for env_id, by_controller in record["gains"].items():
+        env = gym.make(env_id)
+        for name, entry in by_controller.items():
+            assert tuned.tuned_gains(env, name) == entry
+        if "computed torque" in by_controller:
+            w, z = by_controller["computed torque"]["omega"], by_controller["computed torque"]["zeta"]
+            ct = ComputedTorque(env)
+            np.testing.assert_allclose(ct.kp, w**2, rtol=1e-15)
+            np.testing.assert_allclose(ct.kd, 2 * z * w, rtol=1e-15)
