@@ -38,6 +38,17 @@ def _clip_unit(a, out):  # pragma: no cover - compiled
     return True
 
 
+#: dtypes the compiled clip takes as they are (native byte order)
+_FAST_DTYPES = (np.dtype(np.float64), np.dtype(np.float32))
+
+
+def _is_real(x: Any) -> bool:
+    """A real number (bool, integer or float, Python or numpy), not a string, complex or date."""
+    import numbers
+
+    return isinstance(x, numbers.Real) and not isinstance(x, (np.datetime64, np.timedelta64))
+
+
 def validate_action(action: Any, nu: int, num_envs: int | None = None) -> np.ndarray:
     """Check a normalized action (or a vector env's batch of them) and saturate it to ``[-1, 1]``.
 
@@ -57,19 +68,24 @@ def validate_action(action: Any, nu: int, num_envs: int | None = None) -> np.nda
     Raises
     ------
     ValueError
-        For a non-numeric, wrongly shaped, NaN or infinite action (naming the
-        members of a batch that are not finite).
+        For an action that is not real numbers (strings, complex numbers,
+        dates), wrongly shaped, NaN or infinite (naming the members of a
+        batch that are not finite). Real numbers of any dtype and byte order
+        (float16, big-endian, integers) are converted.
     """
     batch = () if num_envs is None else (num_envs,)
-    if type(action) is np.ndarray and action.shape == batch + (nu,) and action.dtype.kind == "f":
-        out = np.empty(action.shape)  # the common case, fast: a float array of the right shape
+    if type(action) is np.ndarray and action.shape == batch + (nu,) and action.dtype in _FAST_DTYPES:
+        out = np.empty(action.shape)  # the common case, fast: a native float array of the right shape
         if _clip_unit(action.reshape(-1), out.reshape(-1)):
             return out
     name = "action" if num_envs is None else "actions"
+    raw = np.asarray(action) if not isinstance(action, (str, bytes)) else np.asarray(action, dtype=object)
+    if raw.dtype.kind not in "biuf" and not (raw.dtype.kind == "O" and all(_is_real(x) for x in raw.reshape(-1))):
+        raise ValueError(f"{name} must be real numbers, got {action!r} (dtype {raw.dtype})")
     try:
-        a = np.asarray(action, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be numeric, got {action!r}") from None
+        a = raw.astype(float)  # any real dtype and byte order, as native float64
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"{name} must be real numbers, got {action!r}") from None
     if nu == 1 and a.shape == batch:
         a = a[..., None]
     if a.shape != batch + (nu,):
