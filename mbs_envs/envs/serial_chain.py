@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from ..models.serial_chain import SerialChain
+from ..models.serial_chain import SerialChain, link_count
 from .rendering import Polyline
 from .tracking import JointTrackingEnv
 
@@ -82,6 +82,8 @@ class SerialChainEnv(JointTrackingEnv):
     """
 
     omega_range = (0.5, 3.0)
+    #: the longest chain of the task (its construction forms the N x N mass matrix once)
+    max_links = 500
     #: a drive at full torque accelerates its own rotor alone at this rate [rad/s^2]
     rotor_acceleration = 30.0
 
@@ -93,6 +95,7 @@ class SerialChainEnv(JointTrackingEnv):
         reward_weights: Any = (1.0, 0.1, 1e-3),
         **kwargs: Any,
     ):
+        n_links = link_count(n_links, self.max_links)
         if "n_links" in (params or {}):
             raise ValueError("params: pass n_links as the make kwarg n_links, not inside params")
         nominal = SerialChain(n_links=n_links, **{k: v for k, v in (params or {}).items() if k != "armature"})

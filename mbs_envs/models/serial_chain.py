@@ -32,6 +32,18 @@ from ..trig import sincos_columns
 from .base import Model, Params, as_vector, param, smoothed_friction
 
 
+#: the longest chain the model takes (its O(N) algorithms; ``mass_matrix`` is N x N)
+MAX_LINKS = 100_000
+
+
+def link_count(n: Any, upper: int, name: str = "n_links") -> int:
+    """``n`` as an int in ``[1, upper]`` (integer-valued floats accepted); ``ValueError`` naming ``name`` otherwise."""
+    integral = isinstance(n, (int, np.integer)) or (isinstance(n, (float, np.floating)) and float(n).is_integer())
+    if isinstance(n, (bool, np.bool_)) or not integral or not 1 <= n <= upper:
+        raise ValueError(f"{name} must be an integer in [1, {upper}], got {n!r}")
+    return int(n)
+
+
 @dataclasses.dataclass(frozen=True)
 class SerialChainParams(Params):
     """Parameters of :class:`SerialChain`: per-link arrays of length ``n_links``
@@ -52,10 +64,7 @@ class SerialChainParams(Params):
     v_s: float = param(0.01, "positive", "rad/s", "Coulomb smoothing speed")
 
     def __post_init__(self) -> None:
-        n = self.n_links
-        if isinstance(n, bool) or not float(n).is_integer() or not 1 <= n <= 100_000:
-            raise ValueError(f"parameter 'n_links' must be an integer >= 1, got {n!r}")
-        n = int(n)
+        n = link_count(self.n_links, MAX_LINKS, "parameter 'n_links'")
         object.__setattr__(self, "n_links", n)
         defaults = {"m": 1.0 / n, "l": 1.0 / n}
         for name in ("m", "l", "r", "I", "armature", "b", "f"):

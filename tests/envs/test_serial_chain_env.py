@@ -78,14 +78,14 @@ def test_the_default_step_is_accurate_against_a_tight_adaptive_reference():
 def test_computed_torque_uses_rnea_and_beats_pd():
     env = gym.make(ENV_ID, n_links=10)
     obs, _ = env.reset(seed=0)
-    ct = ComputedTorque(env)
+    ct = ComputedTorque(env, kp=100.0, kd=20.0)  # PD and computed torque at the same bandwidth (10 rad/s)
     ob = env.unwrapped.decode_observation(obs)
     a_cmd = ob.a_ref + 100.0 * (ob.q_ref - ob.q) + 20.0 * (ob.v_ref - ob.v)
     model = env.unwrapped.model
     np.testing.assert_allclose(ct.input(ob), model.rnea(ob.q, ob.v, a_cmd) + model.friction(ob.v), atol=1e-12)
     rms = {}
     for C in (PD, ComputedTorque):
-        c = C(env)
+        c = C(env, *(env.unwrapped.pd_gains if C is PD else (100.0, 20.0)))
         errs = []
         for seed in range(2):
             obs, _ = env.reset(seed=seed)
@@ -97,3 +97,17 @@ def test_computed_torque_uses_rnea_and_beats_pd():
         rms[C.__name__] = np.sqrt(np.mean(np.square(errs)))
     # measured: PD 1.7e-2, computed torque 3.0e-5 rad (N = 10, 1 s <= t < 3 s, seeds 0 and 1)
     assert rms["ComputedTorque"] * 100 < rms["PD"], rms
+
+
+@pytest.mark.parametrize("n", [0, 501, "10", 2.5, True, 100_001, None])
+def test_n_links_outside_the_task_range_is_refused_naming_the_bound(n):
+    with pytest.raises(ValueError, match=r"n_links must be an integer in \[1, 500\]"):
+        gym.make("mbs_envs/SerialChain-v0", n_links=n)
+
+
+def test_model_n_links_bound_is_named():
+    from mbs_envs.models import SerialChain
+
+    with pytest.raises(ValueError, match=r"n_links' must be an integer in \[1, 100000\]"):
+        SerialChain(n_links=100_001)
+    assert SerialChain(n_links=3.0).n_links == 3
