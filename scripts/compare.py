@@ -267,14 +267,16 @@ def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: 
     L += ["![learning curves](learning_curves.png)", ""]
     if tuned_record:
         L += ["## Model-based gains: how they were chosen", "", "```", (tuned_record.get("procedure") or "").strip(), "```", "",
-              f"Tuning seeds {tuned_record['tuning_seeds'][0]}-{tuned_record['tuning_seeds'][1]}, conditions {', '.join(tuned_record['conditions'])}; "
-              f"command `{tuned_record.get('command')}`. Score: failure rate, then mean settled error over the conditions.", "",
-              "| env | controller | tuned gains | tuned: failures / error | pre-tuning default | pre-tuning: failures / error |", "|---|---|---|---|---|---|"]  # fmt: skip
+              f"Tuning seeds {tuned_record['tuning_seeds'][0]}-{tuned_record['tuning_seeds'][1]}, conditions {', '.join(tuned_record['conditions'])}. "
+              "Score: failure rate, then mean settled error over the conditions. Commands: "
+              + "; ".join(sorted({f"`{sc['command']}`" for by_c in tuned_record["scores"].values() for sc in by_c.values() if sc.get("command")})) + ".", "",
+              "| env | controller | tuned gains | tuned: failures / error | pre-tuning default | pre-tuning: failures / error | at grid edge |", "|---|---|---|---|---|---|---|"]  # fmt: skip
         for env_id, by_c in tuned_record["gains"].items():
             for name, entry in by_c.items():
                 sc = tuned_record["scores"][env_id][name]
                 L.append(f"| {env_id} | {name} | `{json.dumps(entry)}` | {sc['tuned']['failure_rate']:.0%} / {sc['tuned']['error']:.3g} | "
-                         f"`{json.dumps(sc['pre_tuning']['entry'])}` | {sc['pre_tuning']['failure_rate']:.0%} / {sc['pre_tuning']['error']:.3g} |")  # fmt: skip
+                         f"`{json.dumps(sc['pre_tuning']['entry'])}` | {sc['pre_tuning']['failure_rate']:.0%} / {sc['pre_tuning']['error']:.3g} | "
+                         f"{', '.join(sc.get('at_grid_edge') or []) or 'no'} |")  # fmt: skip
         L.append("")
     for scene, by_cond in summary.items():
         L += [f"## {scene}", "", f"![{scene}](comparison_{scene}.png)", ""]

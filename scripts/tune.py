@@ -76,10 +76,10 @@ def run(args: argparse.Namespace) -> dict:
         "procedure": tuning.__doc__,
         "tuning_seeds": [tuning.tuning_seeds(args.seeds)[0], tuning.tuning_seeds(args.seeds)[-1]],
         "conditions": [c.name for c in tuning.TUNING_CONDITIONS],
-        "command": "python scripts/tune.py " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("tune.py") else None,
         "gains": {},
         "scores": {},
     }
+    command = "python scripts/tune.py " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("tune.py") else None
     for r in results:
         env_id = SCENES[r["scene"]][0]
         record["gains"].setdefault(env_id, {})[r["controller"]] = r["best"]
@@ -87,7 +87,7 @@ def run(args: argparse.Namespace) -> dict:
         edge = tuning.at_grid_edge(r["best"], tuning.GRIDS[r["controller"]]())
         record["scores"].setdefault(env_id, {})[r["controller"]] = {
             "tuned": {"failure_rate": chosen["failure_rate"], "error": chosen["error"]},
-            "pre_tuning": r["pre_tuning"], "at_grid_edge": edge, "wall_s": r["wall_s"], "command": record["command"]}  # fmt: skip
+            "pre_tuning": r["pre_tuning"], "at_grid_edge": edge, "wall_s": r["wall_s"], "command": command}  # fmt: skip
         print(f"{r['scene']:12s} {r['controller']:16s} tuned {r['best']}: failures {chosen['failure_rate']:.0%}, "
               f"error {chosen['error']:.3g} (pre-tuning: {r['pre_tuning']['failure_rate']:.0%}, {r['pre_tuning']['error']:.3g})"
               + (f"; at the grid's edge in {', '.join(edge)}" if edge else ""))  # fmt: skip
