@@ -81,11 +81,11 @@ def validate_action(action: Any, nu: int, num_envs: int | None = None) -> np.nda
     name = "action" if num_envs is None else "actions"
     raw = np.asarray(action) if not isinstance(action, (str, bytes)) else np.asarray(action, dtype=object)
     if raw.dtype.kind not in "biuf" and not (raw.dtype.kind == "O" and all(_is_real(x) for x in raw.reshape(-1))):
-        raise ValueError(f"{name} must be real numbers, got {action!r} (dtype {raw.dtype})")
+        raise ValueError(f"{name} must be numeric (real numbers), got {action!r} (dtype {raw.dtype})")
     try:
         a = raw.astype(float)  # any real dtype and byte order, as native float64
     except (TypeError, ValueError, OverflowError):
-        raise ValueError(f"{name} must be real numbers, got {action!r}") from None
+        raise ValueError(f"{name} must be numeric (real numbers), got {action!r}") from None
     if nu == 1 and a.shape == batch:
         a = a[..., None]
     if a.shape != batch + (nu,):
