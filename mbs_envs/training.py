@@ -126,8 +126,14 @@ def hyperparameters(config: TrainConfig, action_dim: int) -> dict[str, Any]:
     the tracking rewards are of order 1e-3 per step, so at SB3's target the
     entropy bonus outweighs the reward and the learned policy keeps action
     noise of a third of the actuator range (measured on the previous agents).
+    Residual agents start with a small exploration noise (``log_std_init = -2``).
     """
-    policy_kwargs = {"net_arch": config.layers}
+    policy_kwargs: dict[str, Any] = {"net_arch": config.layers}
+    if config.residual and config.algo in ("ppo", "sac"):
+        # a residual starts as the base controller and explores gently around it: Gaussian
+        # std e^-2 = 0.14 of the correction bound (SB3's default std 1 would push the
+        # plant by the whole bound at every step and bury the base controller's precision)
+        policy_kwargs["log_std_init"] = -2.0
     if config.algo == "ppo":
         n_steps = 128
         return {"n_steps": n_steps, "batch_size": n_steps * config.members // 4, "n_epochs": 10,

@@ -108,6 +108,13 @@ def test_pd_default_gains_match_the_mean_crank_inertia():
     env = gym.make(ENV_ID)
     J = env.unwrapped.mean_crank_inertia
     assert 0.03 < J < 0.2
+    assert env.unwrapped.joint_inertia == J
+    np.testing.assert_allclose(env.unwrapped.pd_gains, (100 * J, 20 * J))  # the pre-tuning gains
+    # the defaults: the tuned bandwidth, scaled by the same inertia for PD (computed torque needs none)
+    from controllers.tuned import tuned_gains
+
+    g = tuned_gains(env, "PD")
     pd = PD(env)
-    np.testing.assert_allclose([pd.kp[0], pd.kd[0]], [100 * J, 20 * J])
-    np.testing.assert_allclose(ComputedTorque(env).kp, 100.0)
+    np.testing.assert_allclose([pd.kp[0], pd.kd[0]], [J * g["omega"] ** 2, 2 * J * g["zeta"] * g["omega"]], rtol=1e-15)
+    g = tuned_gains(env, "computed torque")
+    np.testing.assert_allclose(ComputedTorque(env).kp, g["omega"] ** 2, rtol=1e-15)
