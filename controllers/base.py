@@ -5,7 +5,10 @@ from __future__ import annotations
 import abc
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
+
+from mbs_envs import validation as check
 
 
 def gain(value: Any, n: int, name: str) -> np.ndarray:
@@ -16,13 +19,7 @@ def gain(value: Any, n: int, name: str) -> np.ndarray:
     ValueError
         Naming the gain, if it is negative, non-finite or of the wrong length.
     """
-    try:
-        k = np.broadcast_to(np.asarray(value, dtype=float), (n,)).copy()
-    except ValueError:
-        raise ValueError(f"{name} must be a scalar or have length {n}, got {value!r}") from None
-    if not np.all(np.isfinite(k) & (k >= 0)):
-        raise ValueError(f"{name} must be finite and >= 0, got {value!r}")
-    return k
+    return check.vector(value, name, n, 0.0)
 
 
 class Controller(abc.ABC):
@@ -42,8 +39,15 @@ class Controller(abc.ABC):
         ``unwrapped`` must expose ``model``, ``u_max`` and ``decode_observation``.
     """
 
+    #: the environment classes this controller can act on (its observation decoding and model use)
+    fits: tuple[type, ...] = ()
+
     def __init__(self, env: Any):
-        base = env.unwrapped
+        base = env.unwrapped if isinstance(env, (gym.Env, gym.vector.VectorEnv)) else None
+        base = getattr(base, "env", base) if isinstance(base, gym.vector.VectorEnv) else base
+        if base is None or not isinstance(base, self.fits):
+            kinds = ", ".join(c.__name__ for c in self.fits)
+            raise ValueError(f"{type(self).__name__} acts on {kinds} environments, got {type(getattr(env, 'unwrapped', env)).__name__}")
         self.model = base.model
         self.u_max = np.asarray(base.u_max, float)
         self.decode_observation = base.decode_observation

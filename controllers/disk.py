@@ -22,6 +22,9 @@ from typing import Any
 import control
 import numpy as np
 
+from mbs_envs import validation as check
+from mbs_envs.envs.rolling_disk import RollingDiskEnv
+
 from .base import Controller
 from .tuned import tuned_gains
 
@@ -100,10 +103,10 @@ def reference_error(model: Any, obs: Any) -> np.ndarray:
 
 def weights(value: Any, n: int, name: str) -> np.ndarray:
     """A symmetric positive semi-definite ``n x n`` weight from a diagonal or a matrix."""
-    try:
-        W = np.diag(np.asarray(value, float)) if np.ndim(value) == 1 else np.asarray(value, float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be numbers, got {value!r}") from None
+    raw = np.asarray(value, dtype=object if isinstance(value, (str, bytes)) else None)
+    if raw.dtype.kind not in "iuf":
+        raise ValueError(f"{name} must be numbers, got {value!r}")
+    W = np.diag(raw.astype(float)) if raw.ndim == 1 else raw.astype(float)
     if W.shape != (n, n) or not np.all(np.isfinite(W)) or not np.allclose(W, W.T):
         raise ValueError(f"{name} must be a finite symmetric {n} x {n} matrix or {n} diagonal entries, got {value!r}")
     if np.min(np.linalg.eigvalsh(W)) < -1e-12 * max(1.0, np.max(np.abs(W))):
@@ -149,6 +152,8 @@ class LQR(Controller):
         instead of a lean the disk cannot hold at low spin.
     """
 
+    fits = (RollingDiskEnv,)
+
     n_grid = 40
     grid_span = (0.15, 3.0)  # |W| / W_c
     #: the entry of controllers/tuned.json
@@ -160,17 +165,11 @@ class LQR(Controller):
         tuned = tuned_gains(env, "LQR")
         self.Q = weights(tuned["Q"] if Q is None else Q, 5, "Q")
         self.R = weights(tuned["R"] if R is None else R, 2, "R")
-        q_i = tuned["q_integral"] if q_integral is None else q_integral
-        if not (isinstance(q_i, (int, float, np.floating)) and np.isfinite(q_i) and q_i >= 0):
-            raise ValueError(f"q_integral must be a finite number >= 0, got {q_integral!r}")
-        for name, value in (("integral_limit", integral_limit), ("heading_error_limit", heading_error_limit)):
-            if not (isinstance(value, (int, float, np.floating)) and np.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
-        self.heading_error_limit = float(heading_error_limit)
+        self.q_integral = check.nonnegative(tuned["q_integral"] if q_integral is None else q_integral, "q_integral")
+        self.integral_limit = check.positive(integral_limit, "integral_limit")
+        self.heading_error_limit = check.positive(heading_error_limit, "heading_error_limit")
         if np.min(np.linalg.eigvalsh(self.R)) <= 0:
             raise ValueError(f"R must be positive definite, got {R!r}")
-        self.q_integral = float(q_i)
-        self.integral_limit = float(integral_limit)
         self.dt = float(env.unwrapped.dt)
         Wc = self.model.critical_spin
         half = np.geomspace(self.grid_span[0] * Wc, self.grid_span[1] * Wc, self.n_grid)
@@ -270,6 +269,8 @@ class SteeringPD(Controller):
     Gains in N m per rad (or rad/s), ``k_h`` in 1/s; defaults the tuned ones.
     """
 
+    fits = (RollingDiskEnv,)
+
     names = ("k_dlean", "k_lean", "k_h", "k_r", "k_w")
     #: the entry of controllers/tuned.json
     tuned_name = "PD steering"
@@ -282,10 +283,7 @@ class SteeringPD(Controller):
         tuned = tuned_gains(env, "PD steering")
         self.k = {}
         for name in self.names:
-            value = gains.get(name, tuned[name])
-            if not (isinstance(value, (int, float, np.floating)) and np.isfinite(value) and value >= 0):
-                raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
-            self.k[name] = float(value)
+            self.k[name] = check.nonnegative(gains.get(name, tuned[name]), name)
 
     def input(self, obs: Any) -> np.ndarray:
         k = self.k
@@ -302,6 +300,8 @@ class SteeringPD(Controller):
 
 class NoControl(Controller):
     """Zero input (the passive disk)."""
+
+    fits = (RollingDiskEnv,)
 
     def input(self, obs: Any) -> np.ndarray:
         return np.zeros(np.shape(obs.lean) + (self.model.nu,))

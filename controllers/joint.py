@@ -24,6 +24,8 @@ from typing import Any
 
 import numpy as np
 
+from mbs_envs.envs.tracking import JointTrackingEnv
+
 from .base import Controller, gain
 from .tuned import tuned_gains
 
@@ -43,6 +45,7 @@ class PD(Controller):
 
     #: the entry of controllers/tuned.json
     tuned_name = "PD"
+    fits = (JointTrackingEnv,)
 
     def __init__(self, env: Any, kp: Any = None, kd: Any = None):
         super().__init__(env)

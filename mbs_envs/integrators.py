@@ -20,8 +20,16 @@ solved by a simplified Newton iteration on the stage velocity with a
 finite-difference Jacobian of ``a(t, q, v)``; where Newton fails the step is
 halved (member by member), so a stiff start does not end an episode.
 
-Adaptive and stiff methods come from :func:`scipy.integrate.solve_ivp`
-(:class:`ScipyIVP`), taking ``rtol`` and ``atol``.
+Adaptive and stiff methods are scipy's solvers (:class:`ScipyIVP`), taking
+``rtol`` and ``atol``.
+
+Bounded work: every stepper returns within a fixed amount of work, whatever
+the dynamics do. Explicit methods evaluate a fixed number of stages; the
+implicit ones at most ``max_evaluations`` accelerations per step (then the
+failing members get NaN); the scipy ones at most ``max_evaluations`` per
+output interval, and stop at the first non-finite or runaway evaluation
+(:data:`RUNAWAY`). A NaN state is how a step reports a blow-up: callers flag
+it as divergence (:func:`mbs_envs.simulate.diverged`), never raise.
 
 All steppers are batched: ``q`` and ``v`` may carry leading batch dimensions.
 """
@@ -33,8 +41,9 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-from scipy.integrate import solve_ivp
+from scipy.integrate import BDF, DOP853, LSODA, RK45, Radau
 
+from . import validation as check
 from .linalg import per_member
 
 #: ``a(t, q, v) -> accelerations``, batched like ``q`` and ``v``.
@@ -119,7 +128,7 @@ TABLEAUX: dict[str, Tableau] = {
     ),
 }
 
-#: Our names for :func:`scipy.integrate.solve_ivp` methods.
+#: Our names for scipy's ODE solvers (as :func:`scipy.integrate.solve_ivp` names them).
 SCIPY_METHODS: dict[str, str] = {
     "rk45": "RK45",
     "dop853": "DOP853",
@@ -127,6 +136,8 @@ SCIPY_METHODS: dict[str, str] = {
     "bdf": "BDF",
     "lsoda": "LSODA",
 }
+
+_SCIPY_SOLVERS = {"RK45": RK45, "DOP853": DOP853, "Radau": Radau, "BDF": BDF, "LSODA": LSODA}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -184,26 +195,40 @@ class ExplicitRK:
         return q_new, v_new
 
 
+#: A state or acceleration entry beyond this magnitude (or non-finite) inside a
+#: step is a runaway: the step stops and returns NaN (the caller flags divergence).
+RUNAWAY = 1e150
+
+
 @dataclasses.dataclass(frozen=True)
 class ScipyIVP:
-    """Adaptive or stiff integration through :func:`scipy.integrate.solve_ivp`.
+    """Adaptive or stiff integration with scipy's solvers (``RK45``, ``DOP853``, ``Radau``, ``BDF``, ``LSODA``).
 
     The batch is flattened into one first-order system ``y = (q, v)``. For
     stiff methods scipy estimates the Jacobian by finite differences.
+
+    The solver is driven step by step (as :func:`scipy.integrate.solve_ivp`
+    does) behind a guard on the right-hand side: a non-finite or runaway
+    (``|y|`` or ``|dy/dt|`` beyond :data:`RUNAWAY`) evaluation, or more than
+    ``max_evaluations`` evaluations per output interval, ends the solve there
+    (scipy's step-size control loops forever on NaN, and Radau/BDF raise on
+    it); what was reached is returned and ``success`` is False. So one
+    control step costs at most ``max_evaluations`` evaluations, whatever the
+    dynamics do.
     """
 
     name: str
     method: str
     rtol: float = 1e-8
     atol: float = 1e-10
+    max_evaluations: int = 20_000
     adaptive = True
     order = None
 
     def __post_init__(self) -> None:
         for key in ("rtol", "atol"):
-            value = getattr(self, key)
-            if not (np.isfinite(value) and value > 0):
-                raise ValueError(f"{key} must be a positive finite number, got {value!r}")
+            object.__setattr__(self, key, check.positive(getattr(self, key), key, 1.0))
+        object.__setattr__(self, "max_evaluations", check.integer(self.max_evaluations, "max_evaluations", 10, 10**9))
 
     def solve(
         self,
@@ -213,12 +238,12 @@ class ScipyIVP:
         v: np.ndarray,
         t_eval: np.ndarray,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
-        """Integrate from ``t0`` and return the states at the times ``t_eval``.
+        """Integrate from ``t0`` and return the states at the times ``t_eval`` (increasing, > ``t0``).
 
         Returns
         -------
         t : ndarray, shape (K,)
-            The times reached (fewer than ``t_eval`` if the solver failed).
+            The times reached (fewer than ``t_eval`` if the solve stopped early).
         q : ndarray, shape (K, ..., nq)
         v : ndarray, shape (K, ..., nv)
         success : bool
@@ -226,28 +251,48 @@ class ScipyIVP:
         q = np.asarray(q, float)
         v = np.asarray(v, float)
         nq = q.size
+        t_eval = np.asarray(t_eval, float)
+        budget = self.max_evaluations * len(t_eval)
+        guard = {"count": 0, "tripped": False}
 
         def rhs(t: float, y: np.ndarray) -> np.ndarray:
+            guard["count"] += 1
+            if guard["tripped"] or guard["count"] > budget or not np.all(np.abs(y) <= RUNAWAY):
+                guard["tripped"] = True
+                return np.zeros_like(y)  # finite, so the solver's step ends; the result is discarded
             qq = y[:nq].reshape(q.shape)
             vv = y[nq:].reshape(v.shape)
-            return np.concatenate([vv.ravel(), np.asarray(acc(t, qq, vv)).ravel()])
+            dy = np.concatenate([vv.ravel(), np.asarray(acc(t, qq, vv), float).ravel()])
+            if not np.all(np.abs(dy) <= RUNAWAY):
+                guard["tripped"] = True
+                return np.zeros_like(y)
+            return dy
 
         y0 = np.concatenate([q.ravel(), v.ravel()])
-        t_eval = np.asarray(t_eval, float)
+        ts: list[float] = []
+        ys: list[np.ndarray] = []
         with np.errstate(all="ignore"):
-            sol = solve_ivp(
-                rhs,
-                (t0, float(t_eval[-1])),
-                y0,
-                method=self.method,
-                t_eval=t_eval,
-                rtol=self.rtol,
-                atol=self.atol,
-            )
-        K = sol.y.shape[1]
-        qs = sol.y[:nq].T.reshape((K,) + q.shape)
-        vs = sol.y[nq:].T.reshape((K,) + v.shape)
-        return sol.t, qs, vs, bool(sol.success)
+            solver = _SCIPY_SOLVERS[self.method](rhs, t0, y0, float(t_eval[-1]), rtol=self.rtol, atol=self.atol)
+            while len(ts) < len(t_eval) and not guard["tripped"]:
+                solver.step()
+                if guard["tripped"] or solver.status == "failed":
+                    break
+                if t_eval[len(ts)] <= solver.t:
+                    dense = solver.dense_output()
+                    while len(ts) < len(t_eval) and t_eval[len(ts)] <= solver.t:
+                        y = solver.y if t_eval[len(ts)] == solver.t else dense(t_eval[len(ts)])
+                        if not np.all(np.abs(y) <= RUNAWAY):
+                            guard["tripped"] = True
+                            break
+                        ts.append(float(t_eval[len(ts)]))
+                        ys.append(y)
+                if solver.status == "finished":
+                    break
+        K = len(ts)
+        Y = np.array(ys).reshape(K, y0.size)
+        qs = Y[:, :nq].reshape((K,) + q.shape)
+        vs = Y[:, nq:].reshape((K,) + v.shape)
+        return np.array(ts), qs, vs, K == len(t_eval)
 
     def step(
         self, acc: Acceleration, t: float, q: np.ndarray, v: np.ndarray, h: float
@@ -378,6 +423,10 @@ class ImplicitRK:
     max_halvings : int
         Depth of step halving before the member's state is set to NaN
         (reported as divergence by the caller).
+    max_evaluations : int
+        Calls of ``a`` per step (a Jacobian is one batched call): once spent,
+        no further halving, members that have not converged get NaN. Bounds
+        the cost of a diverging step (a normal one takes about 10).
     """
 
     name: str
@@ -386,6 +435,7 @@ class ImplicitRK:
     max_iter: int = 8
     max_refresh: int = 3
     max_halvings: int = 6
+    max_evaluations: int = 300
     adaptive = False
 
     @property
@@ -401,17 +451,23 @@ class ImplicitRK:
         -------
         q, v : ndarray
         """
-        return self._step(acc, t, np.asarray(q, float), np.asarray(v, float), h, self.max_halvings)
+        calls = [0]
 
-    def _step(self, acc, t, q, v, h, halvings):
+        def counted(t, q, v):
+            calls[0] += 1
+            return acc(t, q, v)
+
+        return self._step(counted, t, np.asarray(q, float), np.asarray(v, float), h, self.max_halvings, calls)
+
+    def _step(self, acc, t, q, v, h, halvings, calls):
         q1, v1, ok = self._try_step(acc, t, q, v, h)
         if np.all(ok):
             return q1, v1
-        if halvings == 0:
+        if halvings == 0 or calls[0] >= self.max_evaluations:
             bad = ~ok[..., None]
             return np.where(bad, np.nan, q1), np.where(bad, np.nan, v1)
-        qm, vm = self._step(acc, t, q, v, h / 2, halvings - 1)
-        q2, v2 = self._step(acc, t + h / 2, qm, vm, h / 2, halvings - 1)
+        qm, vm = self._step(acc, t, q, v, h / 2, halvings - 1, calls)
+        q2, v2 = self._step(acc, t + h / 2, qm, vm, h / 2, halvings - 1, calls)
         keep = ok[..., None]
         return np.where(keep, q1, q2), np.where(keep, v1, v2)
 
@@ -517,5 +573,5 @@ def get(name: str, **options: Any) -> Stepper:
         unknown = sorted(set(options) - {"rtol", "atol"})
         if unknown:
             raise ValueError(f"integrator {name!r} takes rtol and atol only, got {unknown}")
-        return ScipyIVP(key, SCIPY_METHODS[key], **{k: float(v) for k, v in options.items()})
+        return ScipyIVP(key, SCIPY_METHODS[key], **{k: check.positive(v, k, 1.0) for k, v in options.items()})
     raise ValueError(f"unknown integrator {name!r}; available: {list(available())}")

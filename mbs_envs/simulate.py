@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from . import integrators
+from . import validation as check
 from .compiled import advance_compiled, compiled_stepping
 from .integrators import Acceleration, ScipyIVP, Stepper
 from .models.base import Model, as_vector
@@ -204,12 +205,13 @@ def simulate(
     Raises
     ------
     ValueError
-        For a non-positive or non-finite ``t_final``/``dt``, badly shaped or
-        non-finite initial states, or an unknown integrator.
+        For a non-positive or non-finite ``t_final``/``dt``/``divergence_limit``,
+        badly shaped or non-finite initial states, an initial state already
+        beyond ``divergence_limit`` (or singular), or an unknown integrator.
     """
-    for name, value in (("t_final", t_final), ("dt", dt)):
-        if not (np.isfinite(value) and value > 0):
-            raise ValueError(f"{name} must be positive and finite, got {value!r}")
+    t_final = check.positive(t_final, "t_final")
+    dt = check.positive(dt, "dt")
+    divergence_limit = check.positive(divergence_limit, "divergence_limit")
     q0 = as_vector(q0, model.nq, "q0")
     v0 = as_vector(v0, model.nv, "v0")
     if not (np.all(np.isfinite(q0)) and np.all(np.isfinite(v0))):
@@ -217,6 +219,12 @@ def simulate(
     batch = np.broadcast_shapes(q0.shape[:-1], v0.shape[:-1])
     q0 = np.broadcast_to(q0, batch + (model.nq,)).copy()
     v0 = np.broadcast_to(v0, batch + (model.nv,)).copy()
+    start_bad = diverged(q0, v0, divergence_limit, model)
+    if np.any(start_bad):
+        raise ValueError(
+            f"the initial state is beyond divergence_limit = {divergence_limit:g} or singular "
+            f"(members {np.flatnonzero(start_bad.reshape(-1)).tolist()} of the batch)"
+        )
     stepper = integrators.get(integrator, **integrator_options)
     stab = model.stabilization(stabilization)
     n_steps = max(1, int(np.ceil(t_final / dt - 1e-9)))

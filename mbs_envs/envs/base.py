@@ -17,6 +17,7 @@ from ..jit import njit
 import numpy as np
 
 from .. import integrators
+from .. import validation as check
 from ..models.base import Model, as_vector
 from ..simulate import DIVERGENCE_LIMIT, advance, diverged
 from .rendering import PlanarRenderer, Polyline
@@ -125,6 +126,12 @@ class MBSEnv(gym.Env):
 
     metadata: ClassVar[dict] = {"render_modes": ["human", "rgb_array"], "render_fps": 50}
 
+    # settings validated on every assignment (constructor, ``set_attr``, ``env.dt = ...``)
+    dt = check.Checked(lambda x, name: check.positive(x, name, 1e3))
+    substeps = check.Checked(lambda x, name: check.integer(x, name, 1, 100_000))
+    divergence_limit = check.Checked(lambda x, name: check.real(x, name, 0.0, 1e30, low_open=True), fixed=True)
+    integrator = check.Checked(lambda x, name: x if isinstance(x, integrators.Stepper) else integrators.get(x), fixed=True)
+
     def __init__(
         self,
         model: Model,
@@ -139,10 +146,6 @@ class MBSEnv(gym.Env):
         stabilization: Any = None,
         render_mode: str | None = None,
     ):
-        if not (np.isfinite(dt) and dt > 0):
-            raise ValueError(f"dt must be positive and finite, got {dt!r}")
-        if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or substeps < 1:
-            raise ValueError(f"substeps must be an integer >= 1, got {substeps!r}")
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
                 f"render_mode must be one of {self.metadata['render_modes']} or None, "
@@ -152,17 +155,10 @@ class MBSEnv(gym.Env):
         self.model = model
         self.integrator = integrators.get(integrator, **options)
         self.stabilization = model.stabilization(stabilization)
-        self.dt = float(dt)
-        self.substeps = int(substeps)
-        u_max = np.broadcast_to(np.asarray(u_max, float), (model.nu,)).copy()
-        if not np.all(np.isfinite(u_max) & (u_max > 0)):
-            raise ValueError(f"torque_limit must be positive and finite, got {u_max.tolist()}")
+        self.dt = dt
+        self.substeps = substeps
         self.u_max = u_max
-        if not (np.isfinite(divergence_limit) and 0 < divergence_limit <= 1e30):
-            raise ValueError(
-                f"divergence_limit must be in (0, 1e30] (float32 observations), got {divergence_limit!r}"
-            )
-        self.divergence_limit = float(divergence_limit)
+        self.divergence_limit = divergence_limit
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": max(1, int(round(1.0 / self.dt)))}
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(model.nu,), dtype=np.float32)
@@ -172,6 +168,15 @@ class MBSEnv(gym.Env):
         self._u = np.zeros(model.nu)  # the input applied in the last step
         self._task: Any = None
         self._renderer: PlanarRenderer | None = None
+
+    @property
+    def u_max(self) -> np.ndarray:
+        """Actuator limits [N m], shape ``(nu,)``; the action ``a`` applies ``a * u_max``."""
+        return self._u_max
+
+    @u_max.setter
+    def u_max(self, value: Any) -> None:
+        self._u_max = check.vector(value, "torque_limit", self.model.nu, 0.0, low_open=True)
 
     # -- state ---------------------------------------------------------------
 
@@ -271,7 +276,7 @@ class MBSEnv(gym.Env):
 
     def check_reset_options(self, options: dict | None) -> dict:
         """Validate reset options (unknown keys, ``q``/``v`` shape and finiteness) before any change."""
-        options = dict(options or {})
+        options = check.mapping(options, "options")
         unknown = sorted(set(options) - {"q", "v"} - set(self.task_options))
         if unknown:
             raise ValueError(
@@ -292,7 +297,41 @@ class MBSEnv(gym.Env):
         elif v0 is None:
             v0 = np.zeros(self.model.nv)
         q0, v0 = self._make_consistent(q0, v0)
+        self._check_start(q0, v0, task, given=options.get("q") is not None or options.get("v") is not None)
         return task, q0, v0
+
+    def _check_start_bound(self, bound: float) -> None:
+        """Refuse at construction a ``divergence_limit`` below ``bound``, an upper bound on
+        the entries ``|q|, |v|`` of the task's start distribution (each episode would start diverged)."""
+        if not bound <= self.divergence_limit:
+            raise ValueError(
+                f"divergence_limit = {self.divergence_limit:g} is below the start states of this task "
+                f"(|q|, |v| entries up to {bound:.3g}); raise it"
+            )
+
+    def _check_start(self, q0: np.ndarray, v0: np.ndarray, task: Any, given: bool) -> None:
+        """Refuse a start state the episode cannot begin from: non-finite, beyond
+        ``divergence_limit``, singular, or whose observation leaves ``observation_space``.
+
+        Raises
+        ------
+        ValueError
+            Naming the state (given in ``options`` or sampled) and the limit.
+        """
+        source = "the start state given in options" if given else "a sampled start state"
+        if bool(self.state_diverged(q0, v0)):
+            raise ValueError(
+                f"{source} (q = {np.asarray(q0).tolist()}, v = {np.asarray(v0).tolist()}) is not finite, "
+                f"singular, or beyond divergence_limit = {self.divergence_limit:g}"
+                + ("" if given else "; raise divergence_limit")
+            )
+        with np.errstate(all="ignore"):
+            obs = self.observe(q0, v0, self.task_now(np.asarray(0.0), task), task)
+        if not (np.all(np.isfinite(obs)) and self.observation_space.contains(obs)):
+            raise ValueError(
+                f"{source} (q = {np.asarray(q0).tolist()}, v = {np.asarray(v0).tolist()}) gives an observation "
+                f"outside observation_space: {np.asarray(obs).tolist()}"
+            )
 
     @staticmethod
     def _checked_state(options: dict, key: str, n: int) -> np.ndarray | None:

@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from .. import validation as check
 from ..models.fourbar import FourBar
 from .rendering import Polyline
 from .tracking import JointTrackingEnv
@@ -77,6 +78,8 @@ class FourBarEnv(JointTrackingEnv):
     center_high = np.array([np.pi])
     max_amplitude = np.array([0.5])
     rate_range = (1.0, 4.0)
+    #: Grashof classes whose crank turns fully (the task spins it)
+    turning_classes = ("crank-rocker", "double-crank")
 
     def __init__(
         self,
@@ -87,21 +90,19 @@ class FourBarEnv(JointTrackingEnv):
         stabilization: str = "projection",
         **kwargs: Any,
     ):
-        if branch not in (1, -1):
-            raise ValueError(f"branch must be +1 or -1, got {branch!r}")
-        if not (np.isfinite(residual_limit) and residual_limit > 0):
-            raise ValueError(f"residual_limit must be positive and finite, got {residual_limit!r}")
-        self.branch = branch
-        self.residual_limit = float(residual_limit)
-        super().__init__(FourBar(params), torque_limit, stabilization=stabilization, **kwargs)
+        self.branch = check.one_of(branch, "branch", (1, -1))
+        self.residual_limit = check.positive(residual_limit, "residual_limit", 1.0)
+        model = FourBar(params)
+        if model.grashof not in self.turning_classes:
+            p = model.params
+            raise ValueError(
+                f"params: FourBar-v0 spins the crank, but l0 = {p.l0:g}, l1 = {p.l1:g}, l2 = {p.l2:g}, l3 = {p.l3:g} "
+                f"make a {model.grashof} linkage whose crank cannot turn fully; the crank turns fully only in a "
+                f"Grashof linkage (shortest + longest < sum of the other two) whose crank or ground link is the shortest"
+            )
+        super().__init__(model, torque_limit, stabilization=stabilization, **kwargs)
         th1 = np.linspace(-np.pi, np.pi, 360, endpoint=False)
-        J = []
-        for th in th1:  # angles where a non-Grashof linkage cannot assemble are skipped
-            try:
-                J.append(float(self.model.effective_inertia(self.model.assemble(th, branch))))
-            except ValueError:
-                pass
-        self.mean_crank_inertia = float(np.mean(J))
+        self.mean_crank_inertia = float(np.mean(self.model.effective_inertia(self.model.assemble(th1, self.branch))))
         self.joint_inertia = self.mean_crank_inertia
         self.pd_gains = (100.0 * self.mean_crank_inertia, 20.0 * self.mean_crank_inertia)
 
@@ -130,10 +131,7 @@ class FourBarEnv(JointTrackingEnv):
     def _polylines(self) -> list[Polyline]:
         p = self.model.params
         lines: list[Polyline] = [(np.array([[0.0, 0.0], [p.l0, 0.0]]), (160, 160, 160))]
-        try:
-            q_ref = self.model.assemble(self.reference_now()[0][0], self.branch)
-            lines.append((self.model.joint_positions(q_ref), (180, 200, 240)))
-        except ValueError:  # the reference crank angle may not assemble for non-Grashof linkages
-            pass
+        q_ref = self.model.assemble(self.reference_now()[0][0], self.branch)
+        lines.append((self.model.joint_positions(q_ref), (180, 200, 240)))
         lines.append((self.model.joint_positions(self._q), (0, 90, 200)))
         return lines

@@ -9,6 +9,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from .. import validation as check
 from ..models.rolling_disk import RollingDisk
 from ..references import SumOfSines, sample_sum_of_sines
 from .base import MBSEnv
@@ -106,9 +107,7 @@ class RollingDiskEnv(MBSEnv):
         **kwargs: Any,
     ):
         model = RollingDisk(params)
-        if not (0 < lean_limit < model.flat_lean):
-            raise ValueError(f"lean_limit must be in (0, {model.flat_lean:.3f}) rad, got {lean_limit!r}")
-        self.lean_limit = float(lean_limit)
+        self.lean_limit = check.real(lean_limit, "lean_limit", 0.0, model.flat_lean, low_open=True, high_open=True)
         super().__init__(model, torque_limit, stabilization=stabilization, **kwargs)
         Wc = model.critical_spin
         w_max = self.heading_omega[1]
@@ -118,17 +117,17 @@ class RollingDiskEnv(MBSEnv):
             dtype=np.float32,
         )  # fmt: skip
         self.observation_space = gym.spaces.Box(-high, high, dtype=np.float32)
+        # starts: heading within pi + amplitude + 0.1, spin up to the top of spin_range, the
+        # centre's speed r times it, lean and heading rates below 1 rad/s
+        W_top = self.spin_range[1] * Wc
+        self._check_start_bound(max(np.pi + self.heading_amplitude + 0.1, model.params.r, W_top * max(1.0, model.params.r) + 1.0))
 
     def _reset_task(self, options: dict) -> DiskTask:
         rng = self.np_random
         spin_ref = float(rng.uniform(*self.spin_range) * self.model.critical_spin)
         if options.get("spin_ref") is not None:
-            W = options["spin_ref"]
-            if not (np.isfinite(W) and abs(W) <= self.spin_range[1] * self.model.critical_spin):
-                raise ValueError(
-                    f"options['spin_ref'] must be finite with |W| <= {self.spin_range[1]} W_c, got {W!r}"
-                )
-            spin_ref = float(W)
+            W_max = self.spin_range[1] * self.model.critical_spin
+            spin_ref = check.real(options["spin_ref"], "options['spin_ref']", -W_max, W_max)
         heading = sample_sum_of_sines(rng, [-np.pi], [np.pi], [self.heading_amplitude], self.heading_omega, n_components=2)
         return DiskTask(heading=heading, spin_ref=np.asarray(spin_ref))
 

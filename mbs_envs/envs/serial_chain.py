@@ -7,7 +7,8 @@ from typing import Any
 
 import numpy as np
 
-from ..models.serial_chain import SerialChain, link_count
+from .. import validation as check
+from ..models.serial_chain import SerialChain, SerialChainParams, link_count
 from .rendering import Polyline
 from .tracking import JointTrackingEnv
 
@@ -96,19 +97,25 @@ class SerialChainEnv(JointTrackingEnv):
         **kwargs: Any,
     ):
         n_links = link_count(n_links, self.max_links)
-        if "n_links" in (params or {}):
-            raise ValueError("params: pass n_links as the make kwarg n_links, not inside params")
-        nominal = SerialChain(n_links=n_links, **{k: v for k, v in (params or {}).items() if k != "armature"})
-        holding = self.horizontal_gravity_torque(nominal)
+        if isinstance(params, SerialChainParams):  # a ready parameter set: the model exactly as given
+            if params.n_links != n_links:
+                raise ValueError(f"params has n_links = {params.n_links}, but n_links = {n_links}; pass the same number")
+            model = SerialChain(params)
+            holding = self.horizontal_gravity_torque(model)
+        else:
+            params = check.mapping(params, "params")
+            if "n_links" in params:
+                raise ValueError("params: pass n_links as the make kwarg n_links, not inside params")
+            nominal = SerialChain(n_links=n_links, **{k: v for k, v in params.items() if k != "armature"})
+            holding = self.horizontal_gravity_torque(nominal)
+            model = SerialChain({"armature": holding / self.rotor_acceleration, **params, "n_links": n_links})
         if torque_limit is None:
             torque_limit = holding
-        params = {"armature": holding / self.rotor_acceleration, **(params or {})}
-        model = SerialChain({**params, "n_links": n_links})
         n = model.n_links
         self.center_low = np.r_[-np.pi / 2 - 0.5, np.full(n - 1, -1.0 / n)]
         self.center_high = np.r_[-np.pi / 2 + 0.5, np.full(n - 1, 1.0 / n)]
         self.max_amplitude = np.full(n, 0.8 / n)
-        weights = np.asarray(reward_weights, float) / n
+        weights = check.vector(reward_weights, "reward_weights", 3, 0.0, broadcast=False) / n
         kwargs.setdefault("start_noise", 0.1 / n)
         super().__init__(model, torque_limit, reward_weights=weights, **kwargs)
         # PD gains with computed torque's bandwidth at the hanging posture, joint by

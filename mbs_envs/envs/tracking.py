@@ -28,6 +28,7 @@ import numpy as np
 from ..compiled import TableauArrays, batch_theta, compiled_stepping, rk_columns
 from ..references import SumOfSines, sample_sum_of_sines, sum_of_sines_columns
 from ..trig import sincos_columns
+from .. import validation as check
 from .base import MBSEnv, validate_action
 
 
@@ -291,21 +292,19 @@ class JointTrackingEnv(MBSEnv):
     #: ``kp = J omega^2``, ``kd = 2 J zeta omega`` (controllers/tuned.py)
     joint_inertia: Any = 1.0
 
+    reward_weights = check.Checked(lambda x, name: check.vector(x, name, 3, 0.0, broadcast=False))
+    start_noise = check.Checked(lambda x, name: check.nonnegative(x, name, 10.0))
+
     def __init__(self, model, u_max, *, reward_weights=(1.0, 0.1, 1e-3), start_noise=0.1, compiled=True, **kwargs):
         super().__init__(model, u_max, **kwargs)
         self.tracked = tuple(getattr(model, "independent", range(model.nq)))
         if len(self.tracked) != model.nu:
             raise ValueError("JointTrackingEnv needs one input per tracked coordinate")
-        w = np.asarray(reward_weights, float)
-        if w.shape != (3,) or not np.all(np.isfinite(w) & (w >= 0)):
-            raise ValueError(f"reward_weights must be 3 finite values >= 0, got {reward_weights!r}")
-        if not (np.isfinite(start_noise) and start_noise >= 0):
-            raise ValueError(f"start_noise must be finite and >= 0, got {start_noise!r}")
-        self.reward_weights = w
+        self.reward_weights = reward_weights
         self._tracked = np.asarray(self.tracked, np.int64)
         self._compiled = self._compiled_tableau(compiled)
         self._task_columns: tuple | None = None
-        self.start_noise = float(start_noise)
+        self.start_noise = start_noise
         n, m = model.nq, len(self.tracked)
         # |v| <= divergence_limit is guaranteed (a diverged step keeps the last
         # finite state); the reference's rates are bounded by |s| + sum A w and sum A w^2.
@@ -321,6 +320,8 @@ class JointTrackingEnv(MBSEnv):
             ]
         ).astype(np.float32)
         self.observation_space = gym.spaces.Box(-high, high, dtype=np.float32)
+        span = np.maximum(np.abs(self.center_low), np.abs(self.center_high)) + self.max_amplitude
+        self._check_start_bound(float(np.max(np.concatenate([span, s_max + self.max_amplitude * w_max]))) + self.start_noise)
 
     # -- the compiled step (see mbs_envs.compiled) --------------------------------
 

@@ -39,6 +39,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from .. import validation as check
 from ..simulate import advance
 from .base import MBSEnv, validate_action
 
@@ -97,10 +98,9 @@ class MBSVectorEnv(VectorEnv):
         render_mode: str | None = None,
         **env_kwargs: Any,
     ):
-        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
-            raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
-        if max_episode_steps is not None and (not isinstance(max_episode_steps, (int, np.integer)) or max_episode_steps < 1):
-            raise ValueError(f"max_episode_steps must be an integer >= 1 or None, got {max_episode_steps!r}")
+        num_envs = check.integer(num_envs, "num_envs", 1, 10**7)
+        if max_episode_steps is not None:
+            max_episode_steps = check.integer(max_episode_steps, "max_episode_steps", 1, 10**12)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be 'rgb_array' or None, got {render_mode!r}")
         self.autoreset_mode = AutoresetMode(autoreset_mode)
@@ -134,13 +134,12 @@ class MBSVectorEnv(VectorEnv):
     # -- domain randomization --------------------------------------------------
 
     def _checked_randomize(self, randomize: dict[str, float] | None) -> dict[str, float]:
-        randomize = dict(randomize or {})
+        randomize = check.mapping(randomize, "randomize")
         names = set(self.nominal_params.names())
         for name, s in randomize.items():
             if name not in names:
                 raise ValueError(f"randomize: unknown parameter {name!r} of {type(self.nominal_params).__name__}")
-            if not (np.isfinite(s) and 0 <= s < 1):
-                raise ValueError(f"randomize[{name!r}] must be in [0, 1), got {s!r}")
+            randomize[name] = check.real(s, f"randomize[{name!r}]", 0.0, 1.0, high_open=True)
         if randomize and not getattr(self.model, "batched_params", False):
             raise ValueError(f"{type(self.model).__name__} does not support per-member parameters (randomize)")
         return randomize
@@ -196,7 +195,7 @@ class MBSVectorEnv(VectorEnv):
         ``seed``: an int seeds member ``i`` with ``seed + i``; a list gives each
         its own. Other ``options`` go to every member's reset (see the single env).
         """
-        options = dict(options or {})
+        options = check.mapping(options, "options")
         mask = options.pop("reset_mask", None)
         options = self.env.check_reset_options(options)
         self._seed_members(seed)

@@ -22,6 +22,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from .. import validation as check
 from ..linalg import batched_matvec, cholesky_solve
 
 # ---------------------------------------------------------------------------
@@ -66,21 +67,30 @@ class Params:
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
+            scalar = f.type in (float, int, "float", "int")  # fields typed Any may hold arrays
             try:
-                arr = np.array(value, dtype=float)
-            except (TypeError, ValueError):
-                raise ValueError(
-                    f"parameter {f.name!r} must be a real number, got {value!r}"
-                ) from None
+                if scalar:
+                    x = check.real(value, f"parameter {f.name!r}")
+                else:
+                    raw = value if isinstance(value, np.ndarray) else np.asarray(value, dtype=object if isinstance(value, (str, bytes)) else None)
+                    arr = check.vector(raw.reshape(-1), f"parameter {f.name!r}", raw.size, broadcast=False).reshape(raw.shape)
+            except ValueError:
+                kind = "a real number" if scalar else "an array of real numbers"
+                raise ValueError(f"parameter {f.name!r} must be {kind}, got {value!r}") from None
             test, message = _CHECKS[f.metadata.get("check", "finite")]
-            if not np.all(np.isfinite(arr)) or not np.all(test(arr)):
-                raise ValueError(f"parameter {f.name!r} {message} and finite, got {value!r}")
-            if arr.ndim == 0:
-                object.__setattr__(self, f.name, float(arr))
+            values = np.asarray(x if scalar else arr)
+            if not np.all(test(values)) or not np.all(np.abs(values) <= check.PARAM_MAX):
+                raise ValueError(f"parameter {f.name!r} {message}, finite and at most {check.PARAM_MAX:g} in magnitude, got {value!r}")
+            if scalar:
+                object.__setattr__(self, f.name, x)
             else:
                 arr.flags.writeable = False
                 object.__setattr__(self, f.name, arr)
-        self._check()
+        with np.errstate(all="raise"):
+            try:
+                self._check()
+            except (OverflowError, FloatingPointError) as err:
+                raise ValueError(f"parameters of {type(self).__name__} overflow in their consistency checks ({err}): {self!r}") from None
 
     def _check(self) -> None:
         """Cross-parameter validity checks (override); raise ``ValueError``."""

@@ -1,0 +1,185 @@
+"""One validation path for every user-facing parameter.
+
+Every entry point (``gym.make`` keywords, ``reset`` options, ``set_attr`` on
+the vector and SB3 adapters, model constructors, controllers, ``simulate``)
+checks its arguments with these functions: each takes the value and the
+name the user gave it under, returns it converted (a Python ``float`` or
+``int``, a float array, a ``dict``), or raises ``ValueError`` naming the
+argument and the value, before anything has changed. Strings, booleans,
+complex numbers, dates and containers are refused where a number is meant
+(no silent conversion of ``"0.01"``).
+
+:class:`Checked` turns a validator into an attribute: every later assignment
+(``env.dt = ...``, ``venv.set_attr("dt", ...)``) goes through it too.
+"""
+
+from __future__ import annotations
+
+import numbers
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+
+#: Largest magnitude any physical parameter may have (SI units): beyond it the
+#: equations' products overflow float64 (e.g. ``m l^2`` at 1e200) or the
+#: observation bounds stop being representable in float32.
+PARAM_MAX = 1e12
+
+
+def _is_number(x: Any) -> bool:
+    """A real scalar: Python or numpy int/float (or a 0-d real array), not bool, str, complex or date."""
+    if isinstance(x, np.ndarray):
+        return x.ndim == 0 and x.dtype.kind in "iuf"
+    return isinstance(x, numbers.Real) and not isinstance(x, (bool, np.bool_, np.datetime64, np.timedelta64))
+
+
+def _interval(low: float, high: float, low_open: bool, high_open: bool) -> str:
+    return f"{'(' if low_open else '['}{low:g}, {high:g}{')' if high_open else ']'}"
+
+
+def real(
+    value: Any,
+    name: str,
+    low: float = -np.inf,
+    high: float = np.inf,
+    *,
+    low_open: bool = False,
+    high_open: bool = False,
+) -> float:
+    """A finite real number in ``[low, high]`` (ends open where asked).
+
+    Parameters
+    ----------
+    value : Any
+    name : str
+        How the user called it (used in the message).
+    low, high : float
+    low_open, high_open : bool
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    ValueError
+        Naming ``name`` and ``value``: not a real number, not finite, or out of range.
+    """
+    if not _is_number(value):
+        raise ValueError(f"{name} must be a real number, got {value!r} ({type(value).__name__})")
+    x = float(value)
+    ok = np.isfinite(x) and (x > low if low_open else x >= low) and (x < high if high_open else x <= high)
+    if not ok:
+        raise ValueError(f"{name} must be finite and in {_interval(low, high, low_open, high_open)}, got {value!r}")
+    return x
+
+
+def positive(value: Any, name: str, high: float = np.inf) -> float:
+    """A finite number ``> 0`` (and ``<= high``)."""
+    return real(value, name, 0.0, high, low_open=True)
+
+
+def nonnegative(value: Any, name: str, high: float = np.inf) -> float:
+    """A finite number ``>= 0`` (and ``<= high``)."""
+    return real(value, name, 0.0, high)
+
+
+def integer(value: Any, name: str, low: int, high: int) -> int:
+    """An integer in ``[low, high]`` (Python or numpy int; not bool, float or str)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (numbers.Integral, np.integer)):
+        raise ValueError(f"{name} must be an integer in [{low}, {high}], got {value!r} ({type(value).__name__})")
+    if not low <= int(value) <= high:
+        raise ValueError(f"{name} must be an integer in [{low}, {high}], got {value!r}")
+    return int(value)
+
+
+def vector(
+    value: Any,
+    name: str,
+    n: int,
+    low: float = -np.inf,
+    high: float = np.inf,
+    *,
+    low_open: bool = False,
+    broadcast: bool = True,
+) -> np.ndarray:
+    """A float array of shape ``(n,)`` (a scalar broadcast when ``broadcast``), every entry finite and in range.
+
+    Raises
+    ------
+    ValueError
+        Naming ``name``: not numbers (strings, objects, complex), wrong shape,
+        or an entry not finite or out of range.
+    """
+    raw = np.asarray(value, dtype=object) if isinstance(value, (str, bytes)) else np.asarray(value)
+    if raw.dtype.kind not in "iuf" and not (raw.dtype.kind == "O" and raw.size and all(_is_number(x) for x in raw.reshape(-1))):
+        raise ValueError(f"{name} must be real numbers, got {value!r}")
+    x = raw.astype(float)
+    if x.shape != (n,):
+        if not (broadcast and x.ndim == 0):
+            raise ValueError(f"{name} must have shape ({n},){' or be a scalar' if broadcast else ''}, got shape {x.shape}")
+        x = np.full(n, float(x))
+    ok = np.isfinite(x) & ((x > low) if low_open else (x >= low)) & (x <= high)
+    if not np.all(ok):
+        interval = _interval(low, high, low_open, False)
+        raise ValueError(f"{name} must be finite and in {interval}, got {np.asarray(value).tolist()!r}")
+    return x
+
+
+def mapping(value: Any, name: str) -> dict:
+    """A mapping (``None`` -> ``{}``) with string keys, as a new ``dict``."""
+    if value is None:
+        return {}
+    if not isinstance(value, Mapping):
+        raise ValueError(f"{name} must be a dict (or None), got {value!r} ({type(value).__name__})")
+    bad = [k for k in value if not isinstance(k, str)]
+    if bad:
+        raise ValueError(f"{name} keys must be names (str), got {bad!r}")
+    return dict(value)
+
+
+def one_of(value: Any, name: str, options: tuple) -> Any:
+    """The option ``value`` equals: ``None``, a string, or an integer (not bool, not float)."""
+    for o in options:
+        if o is None and value is None:
+            return o
+        if isinstance(o, str) and isinstance(value, str) and value == o:
+            return o
+        if isinstance(o, int) and isinstance(value, (numbers.Integral, np.integer)) and not isinstance(value, (bool, np.bool_)) and value == o:
+            return o
+    raise ValueError(f"{name} must be one of {list(options)}, got {value!r}")
+
+
+class Checked:
+    """A data descriptor validating every assignment through ``check(value, name)``.
+
+    ``dt = Checked(positive)`` in a class body makes ``obj.dt = x`` store
+    ``positive(x, "dt")``; reading gives the stored value. So a value set
+    after construction (``set_attr`` on a vector env) is checked exactly as
+    the constructor checks it. With ``fixed=True`` the attribute is set once
+    (at construction) and any later assignment is refused: for settings
+    that other state was derived from (the observation space, the compiled
+    step).
+    """
+
+    def __init__(self, check: Callable[[Any, str], Any], fixed: bool = False):
+        self.check = check
+        self.fixed = fixed
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+        self.slot = f"_checked_{name}"
+
+    def __get__(self, obj: Any, owner: type | None = None) -> Any:
+        if obj is None:
+            return self
+        try:
+            return obj.__dict__[self.slot]
+        except KeyError:
+            raise AttributeError(self.name) from None
+
+    def __set__(self, obj: Any, value: Any) -> None:
+        if self.fixed and self.slot in obj.__dict__:
+            raise ValueError(f"{self.name} is fixed at construction (other settings derive from it); make a new env instead")
+        obj.__dict__[self.slot] = self.check(value, self.name)
