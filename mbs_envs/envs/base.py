@@ -266,9 +266,10 @@ class MBSEnv(gym.Env):
         """
         options = self.check_reset_options(options)
         super().reset(seed=seed)
+        task, q0, v0 = self.sample_start(options)  # may refuse the start: nothing has changed yet
         self._t = 0.0
         self._u = np.zeros(self.model.nu)
-        self._task, q0, v0 = self.sample_start(options)
+        self._task = task
         self._q, self._v = np.array(q0, float), np.array(v0, float)  # private: steps may update them in place
         if self.render_mode == "human":
             self.render()

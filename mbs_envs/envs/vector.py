@@ -165,13 +165,20 @@ class MBSVectorEnv(VectorEnv):
     def _reset_members(self, idx: np.ndarray, options: dict) -> None:
         """Draw task and start state of members ``idx`` with the single env's code."""
         env = self.env
-        for i in idx:
-            env._np_random = self._rngs[i]
-            if self.randomize:  # the member's parameters first: start states may depend on them
-                for k, s in self.randomize.items():
-                    self._scales[k][i] = self._rngs[i].uniform(1 - s, 1 + s)
-                self._set_single_params(i)
-            task, q0, v0 = env.sample_start(options)
+        scales = {k: s.copy() for k, s in self._scales.items()}
+        drawn = []
+        try:  # draw every member's start first: a refused one leaves the batch as it was
+            for i in idx:
+                env._np_random = self._rngs[i]
+                if self.randomize:  # the member's parameters first: start states may depend on them
+                    for k, s in self.randomize.items():
+                        self._scales[k][i] = self._rngs[i].uniform(1 - s, 1 + s)
+                    self._set_single_params(i)
+                drawn.append(env.sample_start(options))
+        except ValueError:
+            self._scales = scales
+            raise
+        for i, (task, q0, v0) in zip(idx, drawn):
             if self._task is None:
                 self._task = tree_stack([task] * self.num_envs)
             tree_set(self._task, i, task)
