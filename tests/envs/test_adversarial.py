@@ -244,3 +244,47 @@ def test_report_case_counts(capsys):
     """Runs last in this module: prints how many generated cases each class ran."""
     with capsys.disabled():
         print("\ngenerated adversarial cases:", dict(CASES))
+
+
+# -- the reproductions of issue 17, one line each ------------------------------------
+
+
+def test_disk_flat_start_is_refused_not_nan():
+    env = gym.make("mbs_envs/RollingDisk-v0")
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="start state given in options"):
+        env.reset(seed=0, options={"q": [0, 0, 0, 0, np.pi / 2, 0]})
+    obs, reward, *_ = env.step([0, 0])  # the episode before is intact
+    assert np.all(np.isfinite(obs)) and np.isfinite(reward)
+
+
+def test_fourbar_whose_crank_cannot_turn_is_refused_at_construction():
+    with pytest.raises(ValueError, match="crank cannot turn fully"):
+        gym.make("mbs_envs/FourBar-v0", params={"l1": 0.9})
+
+
+@pytest.mark.parametrize("kwargs, match", [({"divergence_limit": 1.0}, "divergence_limit"), ({"params": {"g": 1e300}}, "'g'")])
+@pytest.mark.parametrize("env_id", ["mbs_envs/Planar2R-v0", "mbs_envs/RollingDisk-v0"])
+def test_settings_that_would_start_outside_the_space_are_refused(env_id, kwargs, match):
+    if "params" in kwargs and env_id.endswith("Planar2R-v0"):
+        kwargs = {"params": {"g": 1e300}}
+    with pytest.raises(ValueError, match=match):
+        gym.make(env_id, **kwargs)
+
+
+def test_controllers_refuse_envs_they_do_not_fit():
+    from controllers import LQR, ComputedTorque
+
+    with pytest.raises(ValueError, match="LQR acts on RollingDiskEnv"):
+        LQR(gym.make("mbs_envs/Planar2R-v0"))
+    with pytest.raises(ValueError, match="ComputedTorque acts on JointTrackingEnv"):
+        ComputedTorque(gym.make("mbs_envs/RollingDisk-v0"))
+    with pytest.raises(ValueError, match="kp"):
+        ComputedTorque(gym.make("mbs_envs/Planar2R-v0"), kp=np.nan)
+
+
+@pytest.mark.parametrize("env_id", ["mbs_envs/Planar2R-v0", "mbs_envs/FourBar-v0", "mbs_envs/RollingDisk-v0", "mbs_envs/SerialChain-v0"])
+def test_a_ready_params_instance_works_for_every_id(env_id):
+    env = gym.make(env_id)
+    params = env.unwrapped.model.params
+    _usable(gym.make(env_id, params=params))
