@@ -48,6 +48,93 @@ def random_episodes(env_id: str, episodes: int, num_envs: int = 256, seed: int =
             "max_abs_observation": max_abs_obs}  # fmt: skip
 
 
+class StepTimeout(Exception):
+    """A step exceeded the soak's wall-clock bound (counted as a hang)."""
+
+
+def _alarm(*_: Any) -> None:
+    raise StepTimeout
+
+
+def integrator_soak(env_id: str, integrator: str, episodes: int = 32, num_envs: int = 16, episode_steps: int = 100,
+                    runaway_episodes: int = 4, hang_s: int = 60, seed: int = 0) -> dict:  # fmt: skip
+    """Random-action episodes, then runaway episodes, of one id under one integrator.
+
+    1. ``episodes`` random-action episodes of ``episode_steps`` steps on the
+       batched env (10 % of actions out of range, up to 1e6), as
+       :func:`random_episodes`, counting exceptions as well.
+    2. ``runaway_episodes`` single-env episodes with a 1e200 N m torque limit and
+       random full-scale actions until the step that diverges: whether it was
+       flagged, non-finite outputs, exceptions, and the wall time of the
+       diverging step (the first step of the first episode is a warm-up: it
+       may compile kernels).
+
+    A step taking longer than ``hang_s`` seconds counts as a hang (SIGALRM,
+    main thread only).
+
+    Returns
+    -------
+    dict
+        ``steps, episodes, nonfinite, exceptions, hangs, divergences_reported``
+        for the random part; ``runaway_*`` for the runaway part, with
+        ``runaway_worst_step_s``, the slowest diverging step.
+    """
+    import signal
+    import time
+
+    out = {"env_id": env_id, "integrator": integrator, "exceptions": 0, "hangs": 0, "nonfinite": 0, "errors": []}
+    old = signal.signal(signal.SIGALRM, _alarm)
+
+    def guarded(fn: Any) -> Any:
+        signal.alarm(hang_s)
+        try:
+            return fn()
+        except StepTimeout:
+            out["hangs"] += 1
+        except Exception as err:  # noqa: BLE001 - counted and reported: the target is none
+            out["exceptions"] += 1
+            out["errors"].append(f"{type(err).__name__}: {err}"[:200])
+        finally:
+            signal.alarm(0)
+        return None
+
+    try:
+        r = guarded(lambda: random_episodes(env_id, episodes, num_envs=num_envs, seed=seed, integrator=integrator,
+                                            max_episode_steps=episode_steps))  # fmt: skip
+        r = r or {}
+        out.update({k: r.get(k, 0) for k in ("episodes", "steps", "divergences_reported", "terminations")})
+        out["nonfinite"] += r.get("nonfinite_observations", 0) + r.get("nonfinite_rewards", 0)
+        rng = np.random.default_rng(seed)
+        env = gym.make(env_id, integrator=integrator, torque_limit=1e200)
+        out.update(runaway_episodes=0, runaway_flagged=0, runaway_steps=0, runaway_worst_step_s=0.0)
+        for k in range(runaway_episodes):
+            if guarded(lambda: env.reset(seed=seed + k)) is None:
+                continue
+            if k == 0:
+                guarded(lambda: env.step(np.zeros(env.action_space.shape)))  # warm-up (compilation)
+            for _ in range(200):
+                a = rng.uniform(-1, 1, env.action_space.shape)
+                t0 = time.perf_counter()
+                res = guarded(lambda: env.step(a))
+                dt = time.perf_counter() - t0
+                if res is None:
+                    break
+                obs, reward, term, trunc, info = res
+                out["runaway_steps"] += 1
+                out["nonfinite"] += int(not (np.all(np.isfinite(obs)) and np.isfinite(reward)))
+                if info["diverged"]:
+                    out["runaway_flagged"] += 1
+                    out["runaway_worst_step_s"] = max(out["runaway_worst_step_s"], dt)
+                if term or trunc:
+                    break
+            out["runaway_episodes"] += 1
+        env.close()
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)
+    return out
+
+
 def _collect(venv_step, reset, actions) -> np.ndarray:
     obs = [reset()]
     for a in actions:

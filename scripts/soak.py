@@ -10,6 +10,10 @@
 3. Long runs, 1e5 fixed steps of free motion: energy and constraint drift.
 4. Parameters at the edges (0, -1, NaN, inf, 1e-6, 1e6 for masses and lengths
    of every model): ``ValueError`` naming the parameter, or a 1 s run's outcome.
+5. Every integrator name on every id (:func:`mbs_envs.reliability.integrator_soak`):
+   random-action episodes, then runaway episodes (1e200 N m torque limit):
+   non-finite outputs, exceptions, hangs (> 60 s per step), divergences
+   flagged, and the worst wall time of a diverging step.
 
 Writes ``soak.json``, ``soak.md`` and ``soak.png`` to ``--out``.
 
@@ -28,6 +32,7 @@ import numpy as np
 from tqdm import tqdm
 
 import mbs_envs
+from mbs_envs import integrators
 from mbs_envs import reliability as rl
 from mbs_envs import stiff_cases as sc
 from mbs_envs.plotting import pyplot, save
@@ -40,7 +45,10 @@ def run(out: pathlib.Path, episodes: int, quick: bool = False, ids: list[str] | 
     det = [rl.determinism(i, steps=20 if quick else 100) for i in tqdm(ids, desc="determinism")] if processes else []
     long = [sc.long_run_row(r, "rk4") for r in tqdm(sc.long_runs(quick), desc="long runs")]
     edges = rl.parameter_edges()
-    result = {"episodes_per_id": episodes, "soak": soak, "determinism": det, "long_runs": long, "edges": edges}
+    pairs = [(i, name) for name in integrators.available() for i in ids]
+    per_integrator = [rl.integrator_soak(i, name, episodes=8 if quick else 32) for i, name in tqdm(pairs, desc="integrators")]
+    result = {"episodes_per_id": episodes, "soak": soak, "determinism": det, "long_runs": long, "edges": edges,
+              "integrators": per_integrator}  # fmt: skip
     (out / "soak.json").write_text(json.dumps(result, indent=2, default=float))
     text = report(result)
     (out / "soak.md").write_text(text)
@@ -68,6 +76,15 @@ def report(r: dict) -> str:
     for x in r["long_runs"]:
         c = "-" if not np.isfinite(x["constraint_error"]) else f"{x['constraint_error']:.1e}"
         L.append(f"| {x['scene']} | {x['steps']} | {x['dt']:g} | {x['energy_drift']:.2e} | {x['energy_drift_relative']:.2e} | {c} | {x['diverged']} |")
+    L += ["", "## Every integrator (random-action episodes of 100 steps on 16 batched members; then 4 runaway episodes at a 1e200 N m torque limit)", "",
+          "| integrator | id | episodes | steps | divergences reported | non-finite outputs | exceptions | hangs | runaway steps flagged | worst diverging step [ms] |",
+          "|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    for x in r.get("integrators", []):
+        L.append(f"| {x['integrator']} | {x['env_id'].split('/')[-1]} | {x.get('episodes', 0)} | {x.get('steps', 0)} | {x.get('divergences_reported', 0)} | "
+                 f"{x['nonfinite']} | {x['exceptions']} | {x['hangs']} | {x.get('runaway_flagged', 0)} / {x.get('runaway_episodes', 0)} | "
+                 f"{1e3 * x.get('runaway_worst_step_s', float('nan')):.1f} |")  # fmt: skip
+        for e in x["errors"]:
+            L.append(f"|  | error: {e} | | | | | | | | |")
     L += ["", "## Parameters at the edges", "", "| model | parameter | value | outcome | detail |", "|---|---|---|---|---|"]
     for e in r["edges"]:
         detail = e.get("message") or f"finite: {e['all_finite']}, relative energy drift {e['relative_energy_drift']:.1e}"
