@@ -94,6 +94,25 @@ def integer(value: Any, name: str, low: int, high: int) -> int:
     return int(value)
 
 
+def reals(value: Any, name: str, *, bools: bool = False) -> np.ndarray:
+    """``value`` as a native float64 array, if it holds real numbers only.
+
+    Any real dtype and byte order converts (float16, big-endian, integers;
+    booleans only with ``bools``); strings, bytes, complex numbers, dates,
+    ``None``, ragged or other objects raise ``ValueError`` naming ``name``.
+    Finiteness and range are the caller's business.
+    """
+    try:
+        raw = np.asarray(value, dtype=object) if isinstance(value, (str, bytes)) else np.asarray(value)
+        kinds = "biuf" if bools else "iuf"
+        element = (lambda x: _is_number(x) or (bools and isinstance(x, (bool, np.bool_))))
+        if raw.dtype.kind not in kinds and not (raw.dtype.kind == "O" and raw.size and all(element(x) for x in raw.reshape(-1))):
+            raise TypeError
+        return raw.astype(float)
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"{name} must be real numbers, got {value!r}") from None
+
+
 def vector(
     value: Any,
     name: str,
@@ -112,10 +131,7 @@ def vector(
         Naming ``name``: not numbers (strings, objects, complex), wrong shape,
         or an entry not finite or out of range.
     """
-    raw = np.asarray(value, dtype=object) if isinstance(value, (str, bytes)) else np.asarray(value)
-    if raw.dtype.kind not in "iuf" and not (raw.dtype.kind == "O" and raw.size and all(_is_number(x) for x in raw.reshape(-1))):
-        raise ValueError(f"{name} must be real numbers, got {value!r}")
-    x = raw.astype(float)
+    x = reals(value, name)
     if x.shape != (n,):
         if not (broadcast and x.ndim == 0):
             raise ValueError(f"{name} must have shape ({n},){' or be a scalar' if broadcast else ''}, got shape {x.shape}")

@@ -43,13 +43,6 @@ def _clip_unit(a, out):  # pragma: no cover - compiled
 _FAST_DTYPES = (np.dtype(np.float64), np.dtype(np.float32))
 
 
-def _is_real(x: Any) -> bool:
-    """A real number (bool, integer or float, Python or numpy), not a string, complex or date."""
-    import numbers
-
-    return isinstance(x, numbers.Real) and not isinstance(x, (np.datetime64, np.timedelta64))
-
-
 def validate_action(action: Any, nu: int, num_envs: int | None = None) -> np.ndarray:
     """Check a normalized action (or a vector env's batch of them) and saturate it to ``[-1, 1]``.
 
@@ -80,13 +73,7 @@ def validate_action(action: Any, nu: int, num_envs: int | None = None) -> np.nda
         if _clip_unit(action.reshape(-1), out.reshape(-1)):
             return out
     name = "action" if num_envs is None else "actions"
-    raw = np.asarray(action) if not isinstance(action, (str, bytes)) else np.asarray(action, dtype=object)
-    if raw.dtype.kind not in "biuf" and not (raw.dtype.kind == "O" and all(_is_real(x) for x in raw.reshape(-1))):
-        raise ValueError(f"{name} must be numeric (real numbers), got {action!r} (dtype {raw.dtype})")
-    try:
-        a = raw.astype(float)  # any real dtype and byte order, as native float64
-    except (TypeError, ValueError, OverflowError):
-        raise ValueError(f"{name} must be numeric (real numbers), got {action!r}") from None
+    a = check.reals(action, name, bools=True)  # any real dtype and byte order, as native float64
     if nu == 1 and a.shape == batch:
         a = a[..., None]
     if a.shape != batch + (nu,):

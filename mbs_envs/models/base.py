@@ -68,21 +68,14 @@ class Params:
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
             scalar = f.type in (float, int, "float", "int")  # fields typed Any may hold arrays
-            try:
-                if scalar:
-                    x = check.real(value, f"parameter {f.name!r}")
-                else:
-                    raw = value if isinstance(value, np.ndarray) else np.asarray(value, dtype=object if isinstance(value, (str, bytes)) else None)
-                    arr = check.vector(raw.reshape(-1), f"parameter {f.name!r}", raw.size, broadcast=False).reshape(raw.shape)
-            except ValueError:
-                kind = "a real number" if scalar else "an array of real numbers"
-                raise ValueError(f"parameter {f.name!r} must be {kind}, got {value!r}") from None
+            arr = check.reals(value, f"parameter {f.name!r}")
+            if scalar and arr.ndim != 0:
+                raise ValueError(f"parameter {f.name!r} must be a real number, got {value!r}")
             test, message = _CHECKS[f.metadata.get("check", "finite")]
-            values = np.asarray(x if scalar else arr)
-            if not np.all(test(values)) or not np.all(np.abs(values) <= check.PARAM_MAX):
+            if not np.all(np.isfinite(arr) & test(arr) & (np.abs(arr) <= check.PARAM_MAX)):
                 raise ValueError(f"parameter {f.name!r} {message}, finite and at most {check.PARAM_MAX:g} in magnitude, got {value!r}")
             if scalar:
-                object.__setattr__(self, f.name, x)
+                object.__setattr__(self, f.name, float(arr))
             else:
                 arr.flags.writeable = False
                 object.__setattr__(self, f.name, arr)
