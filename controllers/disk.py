@@ -4,7 +4,8 @@ Both act on the reduced state ``x = (heading, lean, dheading, dlean, dspin)``
 (see :meth:`mbs_envs.models.RollingDisk.reduced_dynamics`) and follow the
 commanded heading by leaning into the turn. For the commanded spin ``W`` and
 heading rate ``Omega`` the lean of steady circular rolling solves
-(the model's :meth:`~mbs_envs.models.RollingDisk.steady_turning_spin`)
+(:func:`mbs_envs.models.rolling_disk.steady_turn_residual`, also behind the model's
+:meth:`~mbs_envs.models.RollingDisk.steady_turning_spin`)
 
     F(lean; W, Omega) = (C + m r^2) W Omega cos(lean)
                         + (C - A + m r^2) Omega^2 sin(lean) cos(lean) + m g r sin(lean) = 0,
@@ -24,6 +25,7 @@ import numpy as np
 
 from mbs_envs import validation as check
 from mbs_envs.envs.rolling_disk import RollingDiskEnv
+from mbs_envs.models.rolling_disk import steady_turn_residual
 
 from .base import Controller
 from .tuned import tuned_gains
@@ -59,7 +61,7 @@ def linearize(f: Any, x0: np.ndarray, u0: np.ndarray, eps: float = 1e-6) -> tupl
 def steady_lean(model: Any, W: Any, Omega: Any, dOmega: Any = 0.0, iterations: int = 4) -> tuple[np.ndarray, np.ndarray]:
     """Lean of steady turning at spin ``W`` and heading rate ``Omega``, and its rate.
 
-    Newton's method on ``F`` of the module docstring from the small-angle root
+    Newton's method on ``F`` (:func:`mbs_envs.models.rolling_disk.steady_turn_residual`) from the small-angle root
     ``lean = -(C + m r^2) W Omega / (m g r + (C - A + m r^2) Omega^2)``
     (batched; four iterations reach rounding for the turns of RollingDisk-v0,
     ``|Omega| <= 0.5`` rad/s, where ``|lean| < 0.1``).
@@ -75,19 +77,13 @@ def steady_lean(model: Any, W: Any, Omega: Any, dOmega: Any = 0.0, iterations: i
     lean, dlean : ndarray, shape (...)
         [rad], [rad/s].
     """
-    p = model.params
-    A, C = model.inertias
     W, Omega, dOmega = np.broadcast_arrays(*(np.asarray(x, float) for x in (W, Omega, dOmega)))
-    a, b, c = (C + p.m * p.r**2), (C - A + p.m * p.r**2), p.m * p.g * p.r
+    a, b, c = model.steady_turning_coefficients()
     lean = -a * W * Omega / (c + b * Omega**2)
     for _ in range(iterations):
-        s, co = np.sin(lean), np.cos(lean)
-        F = a * W * Omega * co + b * Omega**2 * s * co + c * s
-        dF = -a * W * Omega * s + b * Omega**2 * (co**2 - s**2) + c * co
+        F, dF, _ = steady_turn_residual(lean, W, Omega, a, b, c)
         lean = lean - F / dF
-    s, co = np.sin(lean), np.cos(lean)
-    dF_dlean = -a * W * Omega * s + b * Omega**2 * (co**2 - s**2) + c * co
-    dF_dOmega = a * W * co + 2 * b * Omega * s * co
+    _, dF_dlean, dF_dOmega = steady_turn_residual(lean, W, Omega, a, b, c)
     return lean, -dF_dOmega * dOmega / dF_dlean
 
 
@@ -103,10 +99,8 @@ def reference_error(model: Any, obs: Any) -> np.ndarray:
 
 def weights(value: Any, n: int, name: str) -> np.ndarray:
     """A symmetric positive semi-definite ``n x n`` weight from a diagonal or a matrix."""
-    raw = np.asarray(value, dtype=object if isinstance(value, (str, bytes)) else None)
-    if raw.dtype.kind not in "iuf":
-        raise ValueError(f"{name} must be numbers, got {value!r}")
-    W = np.diag(raw.astype(float)) if raw.ndim == 1 else raw.astype(float)
+    W = check.reals(value, name)
+    W = np.diag(W) if W.ndim == 1 else W
     if W.shape != (n, n) or not np.all(np.isfinite(W)) or not np.allclose(W, W.T):
         raise ValueError(f"{name} must be a finite symmetric {n} x {n} matrix or {n} diagonal entries, got {value!r}")
     if np.min(np.linalg.eigvalsh(W)) < -1e-12 * max(1.0, np.max(np.abs(W))):

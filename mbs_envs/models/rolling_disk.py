@@ -80,6 +80,27 @@ def critical_spin(m: float, r: float, g: float, A: float | None = None, C: float
     return float(np.sqrt(m * g * r * A / (C * (C + m * r**2))))
 
 
+def steady_turn_residual(lean, W, Omega, a, b, c):
+    """Euler's equation about the centre for steady circular rolling, and its partials.
+
+    The centre moves on a circle at speed ``V = r (W + Omega s2)`` with angular
+    rate ``Omega``; with ``(a, b, c)`` from :meth:`RollingDisk.steady_turning_coefficients`,
+
+        F = a W Omega c2 + b Omega^2 s2 c2 + c s2 = 0,
+
+    ``s2, c2 = sin, cos(lean)``. Floats or broadcasting arrays.
+
+    Returns
+    -------
+    F, dF/dlean, dF/dOmega
+    """
+    s, co = np.sin(lean), np.cos(lean)
+    F = a * W * Omega * co + b * Omega**2 * s * co + c * s
+    dF_dlean = -a * W * Omega * s + b * Omega**2 * (co**2 - s**2) + c * co
+    dF_dOmega = a * W * co + 2 * b * Omega * s * co
+    return F, dF_dlean, dF_dOmega
+
+
 class RollingDisk(ConstrainedModel):
     """Thin disk rolling without slipping (PHYSICS.md scene 3); see the module docstring."""
 
@@ -262,13 +283,16 @@ class RollingDisk(ConstrainedModel):
         Simulations stop there (reported as divergence) rather than return NaN."""
         return np.abs(as_vector(q, 6, "q")[..., 4]) > self.flat_lean
 
+    def steady_turning_coefficients(self) -> tuple[float, float, float]:
+        """``(a, b, c) = (C + m r^2, C - A + m r^2, m g r)`` of the steady-turn equation
+        (:func:`steady_turn_residual`)."""
+        p = self.params
+        A, C = self.inertias
+        return C + p.m * p.r**2, C - A + p.m * p.r**2, p.m * p.g * p.r
+
     def steady_turning_spin(self, lean: float, heading_rate: float) -> float:
-        """Spin rate ``W`` of steady circular rolling at constant ``lean`` and ``heading_rate``.
-
-        From Euler's equation about the centre (the centre moves on a circle at
-        speed ``V = r (W + Omega s2)`` with angular rate ``Omega``):
-
-            (C + m r^2) W Omega c2 + (C - A + m r^2) Omega^2 s2 c2 + m g r s2 = 0.
+        """Spin rate ``W`` of steady circular rolling at constant ``lean`` and ``heading_rate``:
+        the root in ``W`` of :func:`steady_turn_residual` (linear in ``W``).
 
         Raises
         ------
@@ -277,11 +301,9 @@ class RollingDisk(ConstrainedModel):
         """
         if heading_rate == 0:
             raise ValueError("heading_rate must be non-zero for a steady turn")
-        p = self.params
-        A, C = self.inertias
-        s2, c2 = np.sin(lean), np.cos(lean)
-        W = -(p.m * p.g * p.r * s2 + (C - A + p.m * p.r**2) * heading_rate**2 * s2 * c2)
-        return float(W / ((C + p.m * p.r**2) * heading_rate * c2))
+        a, b, c = self.steady_turning_coefficients()
+        F0 = steady_turn_residual(lean, 0.0, heading_rate, a, b, c)[0]  # the terms without W
+        return float(-F0 / (a * heading_rate * np.cos(lean)))
 
     def reduced_dynamics(self, x: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
         """The motion in the independent coordinates, ``dx/dt = f(x, u)``.
