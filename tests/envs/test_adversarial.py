@@ -9,7 +9,7 @@
 - every integrator under runaway inputs on every scene: the step returns within
   the test's own wall-clock bound, flags divergence, never NaN.
 
-Each generated class records how many cases it ran in ``CASES`` (printed with ``-s``).
+Each generated class records how many cases it ran in ``CASES`` (printed after the module with ``-s``).
 """
 
 from __future__ import annotations
@@ -33,6 +33,13 @@ from mbs_envs.models.serial_chain import SerialChain
 from mbs_envs.simulate import simulate
 
 CASES: collections.Counter = collections.Counter()
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _report_case_counts(request):
+    """After the module: how many generated cases each class ran (visible with ``-s``)."""
+    yield
+    print("\ngenerated adversarial cases:", dict(CASES))
 IDS = list(mbs_envs.ENV_IDS)
 
 #: values a user may pass by mistake, beyond the documented types and ranges
@@ -238,12 +245,6 @@ def test_simulate_refuses_a_bad_divergence_limit(value):
 def test_simulate_refuses_a_start_beyond_the_limit_alike_for_every_method(integrator):
     with pytest.raises(ValueError, match="initial state is beyond divergence_limit"):
         simulate(Planar2R(), [1e9, 0.0], [0.0, 0.0], 0.01, integrator=integrator)
-
-
-def test_report_case_counts(capsys):
-    """Runs last in this module: prints how many generated cases each class ran."""
-    with capsys.disabled():
-        print("\ngenerated adversarial cases:", dict(CASES))
 
 
 # -- the reproductions of issue 17, one line each ------------------------------------
