@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 import math
+import signal
 from typing import Any
 
 import gymnasium as gym
@@ -14,14 +15,21 @@ from .models import FourBar, Planar2R, RollingDisk, SerialChain
 from .simulate import simulate
 
 
-def random_episodes(env_id: str, episodes: int, num_envs: int = 256, seed: int = 0, wild_fraction: float = 0.1, **kwargs: Any) -> dict:
+def random_episodes(env_id: str, episodes: int, num_envs: int = 256, seed: int = 0, wild_fraction: float = 0.1,
+                    step_bound_s: int | None = None, **kwargs: Any) -> dict:  # fmt: skip
     """Random-action episodes on the batched env until ``episodes`` have ended.
 
     Actions are uniform in ``[-1, 1]``; a ``wild_fraction`` of them are
     out of range (up to 1e6, saturating). Counts every step's non-finite
     observations and rewards, divergences reported in ``info``, and episode ends.
+    With ``step_bound_s``, a single batched step taking longer raises
+    :class:`StepTimeout` (SIGALRM, main thread only): a hang.
     """
+    import time
+
     venv = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", full_info=False, **kwargs)
+    old_handler = signal.signal(signal.SIGALRM, _alarm) if step_bound_s else None
+    slowest = 0.0
     rng = np.random.default_rng(seed)
     obs, _ = venv.reset(seed=seed)
     ended = steps = nonfinite_obs = nonfinite_reward = diverged = terminated_n = 0
@@ -31,7 +39,15 @@ def random_episodes(env_id: str, episodes: int, num_envs: int = 256, seed: int =
         a = rng.uniform(-1, 1, venv.action_space.shape)
         wild = rng.random(num_envs) < wild_fraction
         a[wild] *= 1e6
-        obs, reward, term, trunc, info = venv.step(a)
+        if step_bound_s:
+            signal.alarm(step_bound_s)
+        t0 = time.perf_counter()
+        try:
+            obs, reward, term, trunc, info = venv.step(a)
+        finally:
+            if step_bound_s:
+                signal.alarm(0)
+        slowest = max(slowest, time.perf_counter() - t0)
         live = ~prev_done  # members whose step was a real step (not an autoreset)
         steps += int(live.sum())
         nonfinite_obs += int(np.sum(~np.all(np.isfinite(obs), axis=-1)))
@@ -43,7 +59,9 @@ def random_episodes(env_id: str, episodes: int, num_envs: int = 256, seed: int =
         prev_done = done
         max_abs_obs = max(max_abs_obs, float(np.max(np.abs(np.where(np.isfinite(obs), obs, 0.0)))))
     venv.close()
-    return {"env_id": env_id, "episodes": ended, "steps": steps, "nonfinite_observations": nonfinite_obs,
+    if step_bound_s:
+        signal.signal(signal.SIGALRM, old_handler)
+    return {"env_id": env_id, "episodes": ended, "slowest_step_s": slowest, "steps": steps, "nonfinite_observations": nonfinite_obs,
             "nonfinite_rewards": nonfinite_reward, "divergences_reported": diverged, "terminations": terminated_n,
             "max_abs_observation": max_abs_obs}  # fmt: skip
 
@@ -69,8 +87,8 @@ def integrator_soak(env_id: str, integrator: str, episodes: int = 32, num_envs: 
        diverging step (the first step of the first episode is a warm-up: it
        may compile kernels).
 
-    A step taking longer than ``hang_s`` seconds counts as a hang (SIGALRM,
-    main thread only).
+    A single step taking longer than ``hang_s`` seconds counts as a hang
+    (SIGALRM, main thread only), in both parts.
 
     Returns
     -------
@@ -79,14 +97,14 @@ def integrator_soak(env_id: str, integrator: str, episodes: int = 32, num_envs: 
         for the random part; ``runaway_*`` for the runaway part, with
         ``runaway_worst_step_s``, the slowest diverging step.
     """
-    import signal
     import time
 
     out = {"env_id": env_id, "integrator": integrator, "exceptions": 0, "hangs": 0, "nonfinite": 0, "errors": []}
     old = signal.signal(signal.SIGALRM, _alarm)
 
-    def guarded(fn: Any) -> Any:
-        signal.alarm(hang_s)
+    def guarded(fn: Any, bound: int | None = hang_s) -> Any:
+        if bound:
+            signal.alarm(bound)
         try:
             return fn()
         except StepTimeout:
@@ -99,10 +117,10 @@ def integrator_soak(env_id: str, integrator: str, episodes: int = 32, num_envs: 
         return None
 
     try:
-        r = guarded(lambda: random_episodes(env_id, episodes, num_envs=num_envs, seed=seed, integrator=integrator,
-                                            max_episode_steps=episode_steps))  # fmt: skip
+        r = guarded(bound=None, fn=lambda: random_episodes(env_id, episodes, num_envs=num_envs, seed=seed, integrator=integrator,
+                                            max_episode_steps=episode_steps, step_bound_s=hang_s))  # fmt: skip
         r = r or {}
-        out.update({k: r.get(k, 0) for k in ("episodes", "steps", "divergences_reported", "terminations")})
+        out.update({k: r.get(k, 0) for k in ("episodes", "steps", "divergences_reported", "terminations", "slowest_step_s")})
         out["nonfinite"] += r.get("nonfinite_observations", 0) + r.get("nonfinite_rewards", 0)
         rng = np.random.default_rng(seed)
         env = gym.make(env_id, integrator=integrator, torque_limit=1e200)
