@@ -3,9 +3,12 @@ as one numba loop over a batch, for models with compiled kernels.
 
 Nothing here knows a mechanism. A model opts in with ``kernels =
 (acceleration_kernel, energy_kernel)``, numba functions of a batch built on the
-very formulas its numpy methods use (see :mod:`mbs_envs.models.planar2r`), and
-:meth:`~mbs_envs.models.base.Model.kernel_params` (its parameters as an array,
-``(P,)`` or ``(B, P)`` with per-member parameters).
+very formulas its numpy methods use (see :mod:`mbs_envs.models.planar2r`),
+``advance_kernel``, its module-level binding of :func:`rk_run` (a kernel
+passed from one compiled function to another is bound at compile time, and
+such a module-level function is cached on disk: nothing is compiled again in
+a new process), and :meth:`~mbs_envs.models.base.Model.kernel_params` (its
+parameters as an array, ``(P,)`` or ``(B, P)`` with per-member parameters).
 
 Layout: kernels take the batch in *columns*, the member index last (``q`` is
 ``(n, B)``, the parameters ``(P, B)``), and every innermost loop runs over the
@@ -26,13 +29,15 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from .jit import njit
 import numpy as np
 
 from .integrators import ExplicitRK, Tableau
-from .models.base import Model
+from .jit import njit
+
+if TYPE_CHECKING:  # models import this module for their kernels
+    from .models.base import Model
 
 
 @dataclasses.dataclass(frozen=True)
@@ -53,6 +58,10 @@ class TableauArrays:
     b_q: np.ndarray
     needed: np.ndarray
 
+    def packed(self, h: float, substeps: int) -> tuple:
+        """``(A_v, A_q, b_v, b_q, needed, h, substeps)``: the stepper argument of :func:`rk_run`."""
+        return (self.A_v, self.A_q, self.b_v, self.b_q, self.needed, float(h), int(substeps))
+
     @classmethod
     def of(cls, tableau: Tableau) -> "TableauArrays":
         return cls(
@@ -70,8 +79,11 @@ def compiled_stepping(model: Model, stepper: Any, stabilization: Any = None) -> 
     The compiled path needs model kernels, an explicit Runge-Kutta stepper, no
     constraint stabilization, ``nq == nv`` and no coordinate singularities.
     """
+    from .models.base import Model
+
     if (
         model.kernels is None
+        or model.advance_kernel is None
         or not isinstance(stepper, ExplicitRK)
         or stabilization is not None
         or model.nq != model.nv
@@ -85,7 +97,7 @@ def compiled_stepping(model: Model, stepper: Any, stabilization: Any = None) -> 
 _arrays_of = functools.cache(TableauArrays.of)
 
 
-@njit(cache=False)
+@njit
 def rk_columns(acc, theta, A_v, A_q, b_v, b_q, needed, q, v, tau, h, substeps, Q, V, K):  # pragma: no cover
     """Advance every column of ``q, v`` (n, B) ``substeps`` steps of size ``h``, in place.
 
@@ -128,22 +140,23 @@ def rk_columns(acc, theta, A_v, A_q, b_v, b_q, needed, q, v, tau, h, substeps, Q
                         v[k, b] = v[k, b] + c * K[i, k, b]
 
 
-@functools.cache
-def rk_batch(acc):
-    """:func:`rk_columns` with the acceleration kernel bound at compile time, allocating its work arrays.
+@njit
+def rk_run(acc, theta, stepper, q, v, tau):  # pragma: no cover - compiled
+    """:func:`rk_columns` allocating its work arrays; ``acc`` is bound by the caller's compilation.
 
-    The returned function ``(theta, A_v, A_q, b_v, b_q, needed, q, v, tau, h, substeps)``
-    advances the columns of ``q, v, tau`` (shape ``(n, B)``) in place; ``theta``
-    is ``(P, B)``. (A kernel passed as an argument would be type-checked on every call.)
+    Parameters
+    ----------
+    acc : compiled acceleration kernel
+    theta : ndarray, shape (P, B)
+    stepper : tuple
+        ``(A_v, A_q, b_v, b_q, needed, h, substeps)`` (:meth:`TableauArrays.packed`).
+    q, v, tau : ndarray, shape (n, B)
+        Columns; ``q, v`` advanced in place.
     """
-
-    @njit(cache=False)
-    def run(theta, A_v, A_q, b_v, b_q, needed, q, v, tau, h, substeps):  # pragma: no cover - compiled
-        shape = (A_v.shape[0], q.shape[0], q.shape[1])
-        Q, V, K = np.empty(shape), np.empty(shape), np.empty(shape)
-        rk_columns(acc, theta, A_v, A_q, b_v, b_q, needed, q, v, tau, h, substeps, Q, V, K)
-
-    return run
+    A_v, A_q, b_v, b_q, needed, h, substeps = stepper
+    shape = (A_v.shape[0], q.shape[0], q.shape[1])
+    Q, V, K = np.empty(shape), np.empty(shape), np.empty(shape)
+    rk_columns(acc, theta, A_v, A_q, b_v, b_q, needed, q, v, tau, h, substeps, Q, V, K)
 
 
 def batch_theta(model: Model, batch: int) -> np.ndarray:
@@ -187,5 +200,5 @@ def advance_compiled(
 
     q2, v2, tau = columns(q), columns(v), columns(model.generalized_input(u))
     theta = batch_theta(model, q2.shape[1])
-    rk_batch(model.kernels[0])(theta, tab.A_v, tab.A_q, tab.b_v, tab.b_q, tab.needed, q2, v2, tau, duration / substeps, substeps)
+    model.advance_kernel(theta, tab.packed(duration / substeps, substeps), q2, v2, tau)
     return q2.T.reshape(shape + (n,)), v2.T.reshape(shape + (n,))

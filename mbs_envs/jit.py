@@ -20,7 +20,9 @@ import numba
 def njit(f=None, *, cache: bool = True):
     """``numba.njit`` with the project's options; usable as ``@njit`` or ``@njit(cache=False)``.
 
-    ``cache=False`` for functions that close over other kernels (numba cannot cache those).
+    Kernels that call a model's kernels take them as arguments and are bound in a
+    module-level function (``advance_kernel``, a scene's ``step_kernel``): such functions
+    cache, while closures over kernels would compile again in every process.
     """
     decorate = numba.njit(cache=cache, error_model="numpy")
     return decorate if f is None else decorate(f)

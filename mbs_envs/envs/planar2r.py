@@ -9,7 +9,15 @@ import numpy as np
 
 from ..models.planar2r import Planar2R
 from .rendering import Polyline
-from .tracking import JointTrackingEnv
+from ..jit import njit
+from ..models import planar2r as _model
+from .tracking import JointTrackingEnv, tracking_step
+
+
+@njit
+def step_kernel(theta, stepper, task, state, out):  # pragma: no cover - compiled
+    """The compiled step of this scene: :func:`~mbs_envs.envs.tracking.tracking_step` with the model's kernels."""
+    tracking_step(_model.acceleration_kernel, _model.energy_kernel, theta, stepper, task, state, out)
 
 
 class Planar2REnv(JointTrackingEnv):
@@ -72,6 +80,8 @@ class Planar2REnv(JointTrackingEnv):
     ``info`` holds ``t``, ``energy``, ``diverged``, ``tracking_error``,
     ``q_ref``, the reward terms and the applied torque ``u``.
     """
+
+    step_kernel = staticmethod(step_kernel)
 
     center_low = np.array([-np.pi / 2 - 1.0, -1.2])
     center_high = np.array([-np.pi / 2 + 1.0, 1.2])

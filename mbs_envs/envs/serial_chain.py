@@ -10,7 +10,15 @@ import numpy as np
 from .. import validation as check
 from ..models.serial_chain import SerialChain, SerialChainParams, link_count
 from .rendering import Polyline
-from .tracking import JointTrackingEnv
+from ..jit import njit
+from ..models import serial_chain as _model
+from .tracking import JointTrackingEnv, tracking_step
+
+
+@njit
+def step_kernel(theta, stepper, task, state, out):  # pragma: no cover - compiled
+    """The compiled step of this scene: :func:`~mbs_envs.envs.tracking.tracking_step` with the model's kernels."""
+    tracking_step(_model.acceleration_kernel, _model.energy_kernel, theta, stepper, task, state, out)
 
 
 class SerialChainEnv(JointTrackingEnv):
@@ -81,6 +89,8 @@ class SerialChainEnv(JointTrackingEnv):
     posture (computed torque's bandwidth joint by joint; a uniform 100 N m/rad,
     or gains on ``M_ii``, are unstable on light links).
     """
+
+    step_kernel = staticmethod(step_kernel)
 
     omega_range = (0.5, 3.0)
     #: the longest chain of the task (its construction forms the N x N mass matrix once)

@@ -18,7 +18,6 @@ with each term reported in ``info``.
 from __future__ import annotations
 
 import dataclasses
-import functools
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -121,25 +120,40 @@ def _as_columns(*arrays: np.ndarray) -> tuple[tuple, list[np.ndarray]]:
     return lead, [np.ascontiguousarray(np.broadcast_to(x, lead + x.shape[-1:]).reshape(-1, x.shape[-1]).T) for x in arrays]
 
 
-@njit(cache=False)
-def _tracking_step_columns(  # pragma: no cover - compiled
-    acc, energy, theta, A_v, A_q, b_v, b_q, needed, substeps, limit,
-    q, v, t, dt, action, u_max, center, rate, amplitude, omega, phase, tracked, weights,
-    u, obs, terms, e, q_ref, bad,
-):  # fmt: skip
+@njit
+def tracking_step(acc, energy, theta, stepper, task, state, out):  # pragma: no cover - compiled
     """One control step of every member: :meth:`MBSEnv.step`'s sequence, compiled.
 
     Physics (:func:`mbs_envs.compiled.rk_columns` with ``u = action * u_max``
     held; ``B = I``), the divergence test (non-finite or ``|x| > limit``: the
     member keeps its state and ``bad`` is set), ``t += dt``, the reference at the
-    new time, reward terms, observation and energy.
+    new time, reward terms, observation and energy. A scene binds its model's
+    kernels ``acc, energy`` in a module-level function of its own (its
+    ``step_kernel``), which numba compiles once and caches on disk.
 
-    ``q, v`` (B, n) and ``t`` (B,) are the env's arrays, updated in place;
-    ``action`` (B, nu) and the outputs ``u (B, nu)``, ``obs (B, d)``,
-    ``terms (B, 5) = (r, r_e, r_de, r_u, energy)``, ``e (B, m)``, ``q_ref (B, m)``
-    and ``bad (B,)`` are rows too; the reference and ``theta`` come in columns
-    (:meth:`SumOfSines.columns`, :func:`mbs_envs.compiled.batch_theta`).
+    Parameters
+    ----------
+    acc, energy : compiled kernels of the model (:mod:`mbs_envs.compiled`)
+    theta : ndarray, shape (P, B)
+        The model's parameters in columns (:func:`mbs_envs.compiled.batch_theta`).
+    stepper : tuple
+        ``(A_v, A_q, b_v, b_q, needed, h, substeps, dt, limit)``: the tableau
+        (:meth:`TableauArrays.packed`), the control step ``dt`` [s] and the divergence limit.
+    task : tuple
+        ``(u_max, center, rate, amplitude, omega, phase, tracked, weights)``: the
+        actuator limits, the reference in columns (:meth:`SumOfSines.columns`),
+        the tracked coordinates and the reward weights.
+    state : tuple
+        ``(q, v, t, action)``: rows ``(B, n)``, ``(B, n)``, ``(B,)`` updated in
+        place, and the validated action ``(B, nu)``.
+    out : tuple
+        ``(u, obs, terms, e, q_ref, bad)``, rows written: ``u (B, nu)``, ``obs (B, d)``,
+        ``terms (B, 5) = (r, r_e, r_de, r_u, energy)``, ``e (B, m)``, ``q_ref (B, m)``, ``bad (B,)``.
     """
+    A_v, A_q, b_v, b_q, needed, h, substeps, dt, limit = stepper
+    u_max, center, rate, amplitude, omega, phase, tracked, weights = task
+    q, v, t, action = state
+    u, obs, terms, e, q_ref, bad = out
     B, n = q.shape
     m = tracked.shape[0]
     shape = (A_v.shape[0], n, B)
@@ -151,7 +165,7 @@ def _tracking_step_columns(  # pragma: no cover - compiled
         for b in range(B):
             uc[k, b] = ac[k, b] * u_max[k]
             u[b, k] = uc[k, b]
-    rk_columns(acc, theta, A_v, A_q, b_v, b_q, needed, qc, vc, uc, dt / substeps, substeps, Q, V, K)
+    rk_columns(acc, theta, A_v, A_q, b_v, b_q, needed, qc, vc, uc, h, substeps, Q, V, K)
     for b in range(B):
         ok = True
         for k in range(n):
@@ -177,25 +191,6 @@ def _tracking_step_columns(  # pragma: no cover - compiled
     energy(qc, vc, theta, E)
     for b in range(B):
         terms[b, 4] = E[b]
-
-
-@functools.cache
-def tracking_step_columns(acc, energy):
-    """:func:`_tracking_step_columns` with a model's kernels bound at compile time.
-
-    (Kernels passed as arguments would be type-checked by numba on every call,
-    about 8 us of a single env's step.) One compilation per model class and process.
-    """
-
-    @njit(cache=False)
-    def step(theta, A_v, A_q, b_v, b_q, needed, substeps, limit, q, v, t, dt, action, u_max,
-             center, rate, amplitude, omega, phase, tracked, weights, u, obs, terms, e, q_ref, bad):  # fmt: skip
-        _tracking_step_columns(
-            acc, energy, theta, A_v, A_q, b_v, b_q, needed, substeps, limit, q, v, t, dt, action, u_max,
-            center, rate, amplitude, omega, phase, tracked, weights, u, obs, terms, e, q_ref, bad,
-        )  # fmt: skip
-
-    return step
 
 
 @dataclasses.dataclass(frozen=True)
@@ -292,6 +287,20 @@ class JointTrackingEnv(MBSEnv):
     #: ``kp = J omega^2``, ``kd = 2 J zeta omega`` (controllers/tuned.py)
     joint_inertia: Any = 1.0
 
+    #: The scene's compiled step: a module-level function ``(theta, stepper, task, state, out)``
+    #: calling :func:`tracking_step` with its model's kernels (see ``envs/planar2r.py``), or
+    #: None (numpy path). A subclass that redefines a task function below (``observe``,
+    #: ``reward``, ...) steps on the numpy path unless it declares a kernel of its own.
+    step_kernel: ClassVar[Any] = None
+    _TASK_FUNCTIONS: ClassVar[tuple[str, ...]] = (
+        "task_now", "observe", "reward", "terminated", "task_info", "state_diverged", "_advance",
+    )
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if "step_kernel" not in cls.__dict__ and any(name in cls.__dict__ for name in cls._TASK_FUNCTIONS):
+            cls.step_kernel = None  # the kernel inherited would not run this class's task
+
     reward_weights = check.Checked(lambda x, name: check.vector(x, name, 3, 0.0, broadcast=False))
     start_noise = check.Checked(lambda x, name: check.nonnegative(x, name, 10.0))
 
@@ -337,12 +346,7 @@ class JointTrackingEnv(MBSEnv):
 
     def _compiled_tableau(self, compiled: bool) -> TableauArrays | None:
         model = self.model
-        cls = type(self)
-        overridden = any(  # the compiled step is this class's task, not a subclass's variant of it
-            getattr(cls, name) is not getattr(JointTrackingEnv, name)
-            for name in ("task_now", "observe", "reward", "terminated", "task_info", "state_diverged", "_advance")
-        )
-        if not compiled or overridden or model.nu != model.nv or not np.array_equal(model.actuation, np.eye(model.nv)):
+        if not compiled or self.step_kernel is None or model.nu != model.nv or not np.array_equal(model.actuation, np.eye(model.nv)):
             return None
         return compiled_stepping(model, self.integrator, self.stabilization)
 
@@ -379,11 +383,12 @@ class JointTrackingEnv(MBSEnv):
             "q_ref": np.empty((B, m)),
             "bad": np.empty(B, bool),
         }
-        tracking_step_columns(*model.kernels)(  # compiled code raises no floating-point warnings
-            batch_theta(model, B), tab.A_v, tab.A_q, tab.b_v, tab.b_q, tab.needed,
-            self.substeps, self.divergence_limit, q, v, t, self.dt, action, self.u_max, *task_columns,
-            self._tracked, self.reward_weights, out["u"], out["obs"], out["terms"], out["e"], out["q_ref"], out["bad"],
-        )  # fmt: skip
+        stepper = tab.packed(self.dt / self.substeps, self.substeps) + (float(self.dt), float(self.divergence_limit))
+        task = (self.u_max, *task_columns, self._tracked, self.reward_weights)
+        self.step_kernel(  # compiled code raises no floating-point warnings
+            batch_theta(model, B), stepper, task, (q, v, t, action),
+            (out["u"], out["obs"], out["terms"], out["e"], out["q_ref"], out["bad"]),
+        )
         return out
 
     def step(self, action: Any):

@@ -210,6 +210,9 @@ class Model(abc.ABC):
     #: Compiled ``(acceleration_kernel, energy_kernel)`` of one member, built on the
     #: same formulas as the numpy methods, or None (numpy only); see :mod:`mbs_envs.compiled`.
     kernels: ClassVar[tuple | None] = None
+    #: The model's binding of :func:`mbs_envs.compiled.rk_run` (a module-level, disk-cached
+    #: kernel ``(theta, stepper, q, v, tau)``), with ``kernels``; None otherwise.
+    advance_kernel: ClassVar[Any] = None
 
     def kernel_params(self) -> np.ndarray:
         """The parameters as the kernels take them, shape ``(P,)`` or ``(B, P)`` (models with ``kernels``)."""

@@ -8,10 +8,12 @@ along -y. Both joints are driven (``B = I``).
 from __future__ import annotations
 
 import dataclasses
+import sys
 
 from ..jit import njit
 import numpy as np
 
+from ..compiled import rk_run
 from ..trig import sincos_checked, sincos_columns
 from .base import Model, Params, as_vector, friction_law, param, smoothed_friction
 
@@ -172,6 +174,17 @@ def energy_kernel(q, v, theta, E):  # pragma: no cover - compiled
         E[b] = _energy(T[0, b], T[1, b], T[2, b], T[3, b], v[0, b], v[1, b], theta, b)
 
 
+#: this module: a kernel passed on as a module attribute is a compile-time constant (a bare
+#: global would be embedded as a Python object pointer, which numba cannot cache)
+_this = sys.modules[__name__]
+
+
+@njit
+def advance_kernel(theta, stepper, q, v, tau):  # pragma: no cover - compiled
+    """:func:`mbs_envs.compiled.rk_run` with this model's :func:`acceleration_kernel` (cached on disk)."""
+    rk_run(_this.acceleration_kernel, theta, stepper, q, v, tau)
+
+
 class Planar2R(Model):
     """Planar two-link manipulator; equations exactly as PHYSICS.md scene 1.
 
@@ -239,6 +252,7 @@ class Planar2R(Model):
     # -- compiled path (see :mod:`mbs_envs.compiled`) -----------------------------
 
     kernels = (acceleration_kernel, energy_kernel)
+    advance_kernel = staticmethod(advance_kernel)
 
     def kernel_params(self) -> np.ndarray:
         """Parameters in field order: shape ``(14,)``, or ``(B, 14)`` when batched

@@ -23,11 +23,13 @@ Algorithms (all in world coordinates; ``th_i = q_1 + ... + q_i`` absolute angles
 from __future__ import annotations
 
 import dataclasses
+import sys
 from typing import Any
 
-import numba
 import numpy as np
 
+from ..jit import njit
+from ..compiled import rk_run
 from ..trig import sincos_columns
 from .base import Model, Params, as_vector, param, smoothed_friction
 
@@ -100,93 +102,192 @@ class SerialChainParams(Params):
         return super().replace(**overrides)
 
 
-@numba.njit(cache=True)
-def _aba_kernel(q, w, l, r, m, Ic, arm, tau, g):  # pragma: no cover - compiled
-    """Articulated-body forward dynamics for a batch of planar chains (world frame).
+@njit
+def _aba_work(N):  # pragma: no cover - compiled
+    """Work arrays of :func:`_aba_member` for an N-link chain (allocated once per kernel call)."""
+    return (np.empty((N, 3, 3)), np.empty((N, 3)), np.empty((N, 3)), np.empty((N, 3)), np.empty((N, 3)),
+            np.empty(N), np.empty(N), np.empty((3, 3)), np.empty(N), np.empty(N), np.empty(N),
+            np.empty((N, 2)), np.empty((N, 2)))  # fmt: skip
+
+
+@njit
+def _aba_member(q, w, tau, l, r, m, Ic, arm, g, out, work):  # pragma: no cover - compiled
+    """Articulated-body forward dynamics of one planar chain (world frame); writes ``out`` (N,).
 
     Spatial motion vectors are ``(w, vOx, vOy)`` (angular rate and the velocity
     of the body point at the world origin); the joint axis at ``p_i`` has
     ``s_i = (1, p_iy, -p_ix)``; body inertia about the origin
     ``[[Ic + m |c|^2, -m c_y, m c_x], [-m c_y, m, 0], [m c_x, 0, m]]``; gravity
-    as a base acceleration ``(0, 0, g)``; the joint armature ``arm`` (N,) adds
-    to each joint's articulated inertia ``D_i = s_i^T I^A_i s_i + arm_i``. The
-    joint positions ``p_i`` and centres ``c_i`` of each member come from
-    :func:`_member_kinematics` (``l, r`` (N,)).
+    as a base acceleration ``(0, 0, g)``; the joint armature ``arm`` adds to
+    each joint's articulated inertia ``D_i = s_i^T I^A_i s_i + arm_i``. The
+    joint positions ``p_i`` and centres ``c_i`` come from :func:`_member_kinematics`.
 
-    Arrays ``q, w, m, Ic, tau`` are (B, N) with B the flattened batch; returns ddq (B, N).
+    Parameters
+    ----------
+    q, w, tau : ndarray, shape (N,)
+        Joint angles [rad], rates [rad/s] and torques [N m] (any strides).
+    l, r, m, Ic, arm : ndarray, shape (N,)
+        Link lengths and centre offsets [m], masses [kg], inertias about the
+        centres and joint armatures [kg m^2].
+    g : float
+        [m/s^2] along -y.
+    out : ndarray, shape (N,)
+        Written: joint accelerations [rad/s^2].
+    work : tuple
+        :func:`_aba_work` ``(N)``.
     """
+    IA, pA, v, c, U, D, u, Ia, th, sn, cs, P, C = work
+    N = q.shape[0]
+    _member_kinematics(q, l, r, th, sn, cs, P, C)
+    vp0 = 0.0
+    vp1 = 0.0
+    vp2 = 0.0
+    for i in range(N):  # pass 1: velocities, bias accelerations, body inertias and bias forces
+        s0, s1, s2 = 1.0, P[i, 1], -P[i, 0]
+        qd = w[i]
+        # c_i = v_parent x (s_i qd)  (the joint axis moves with the parent)
+        c[i, 0] = 0.0
+        c[i, 1] = (-vp0 * s2 + s0 * vp2) * qd
+        c[i, 2] = (vp0 * s1 - s0 * vp1) * qd
+        v0 = vp0 + s0 * qd
+        v1 = vp1 + s1 * qd
+        v2 = vp2 + s2 * qd
+        v[i, 0], v[i, 1], v[i, 2] = v0, v1, v2
+        mi, x, y = m[i], C[i, 0], C[i, 1]
+        I00 = Ic[i] + mi * (x * x + y * y)
+        IA[i, 0, 0], IA[i, 0, 1], IA[i, 0, 2] = I00, -mi * y, mi * x
+        IA[i, 1, 0], IA[i, 1, 1], IA[i, 1, 2] = -mi * y, mi, 0.0
+        IA[i, 2, 0], IA[i, 2, 1], IA[i, 2, 2] = mi * x, 0.0, mi
+        # momentum h = I v; its angular part does not enter the planar v x* h
+        h1 = -mi * y * v0 + mi * v1
+        h2 = mi * x * v0 + mi * v2
+        # p = v x* h = (vx hy - vy hx, -w hy, w hx)
+        pA[i, 0] = v1 * h2 - v2 * h1
+        pA[i, 1] = -v0 * h2
+        pA[i, 2] = v0 * h1
+        vp0, vp1, vp2 = v0, v1, v2
+    for i in range(N - 1, -1, -1):  # pass 2: articulated inertias
+        s0, s1, s2 = 1.0, P[i, 1], -P[i, 0]
+        for k in range(3):
+            U[i, k] = IA[i, k, 0] * s0 + IA[i, k, 1] * s1 + IA[i, k, 2] * s2
+        D[i] = s0 * U[i, 0] + s1 * U[i, 1] + s2 * U[i, 2] + arm[i]
+        u[i] = tau[i] - (s0 * pA[i, 0] + s1 * pA[i, 1] + s2 * pA[i, 2])
+        if i > 0:
+            for r_ in range(3):
+                for k in range(3):
+                    Ia[r_, k] = IA[i, r_, k] - U[i, r_] * U[i, k] / D[i]
+            for r_ in range(3):
+                pa = pA[i, r_] + U[i, r_] * u[i] / D[i]
+                for k in range(3):
+                    pa += Ia[r_, k] * c[i, k]
+                    IA[i - 1, r_, k] += Ia[r_, k]
+                pA[i - 1, r_] += pa
+    a0, a1, a2 = 0.0, 0.0, g  # pass 3: accelerations (gravity as base acceleration)
+    for i in range(N):
+        s0, s1, s2 = 1.0, P[i, 1], -P[i, 0]
+        a0 += c[i, 0]
+        a1 += c[i, 1]
+        a2 += c[i, 2]
+        qdd = (u[i] - (U[i, 0] * a0 + U[i, 1] * a1 + U[i, 2] * a2)) / D[i]
+        out[i] = qdd
+        a0 += s0 * qdd
+        a1 += s1 * qdd
+        a2 += s2 * qdd
+
+
+@njit
+def _aba_kernel(q, w, l, r, m, Ic, arm, tau, g):  # pragma: no cover - compiled
+    """:func:`_aba_member` for rows ``q, w, m, Ic, tau`` (B, N); ``l, r, arm`` (N,). Returns ddq (B, N)."""
     B, N = q.shape
     out = np.empty((B, N))
-    IA = np.empty((N, 3, 3))
-    pA = np.empty((N, 3))
-    v = np.empty((N, 3))
-    c = np.empty((N, 3))
-    U = np.empty((N, 3))
-    D = np.empty(N)
-    u = np.empty(N)
-    Ia = np.empty((3, 3))  # one work array, not one allocation per link and member
-    th, sn, cs = np.empty(N), np.empty(N), np.empty(N)
-    P, C = np.empty((N, 2)), np.empty((N, 2))
+    work = _aba_work(N)
     for b in range(B):
-        _member_kinematics(q[b], l, r, th, sn, cs, P, C)
-        vp0 = 0.0
-        vp1 = 0.0
-        vp2 = 0.0
-        for i in range(N):  # pass 1: velocities, bias accelerations, body inertias and bias forces
-            s0, s1, s2 = 1.0, P[i, 1], -P[i, 0]
-            qd = w[b, i]
-            # c_i = v_parent x (s_i qd)  (the joint axis moves with the parent)
-            c[i, 0] = 0.0
-            c[i, 1] = (-vp0 * s2 + s0 * vp2) * qd
-            c[i, 2] = (vp0 * s1 - s0 * vp1) * qd
-            v0 = vp0 + s0 * qd
-            v1 = vp1 + s1 * qd
-            v2 = vp2 + s2 * qd
-            v[i, 0], v[i, 1], v[i, 2] = v0, v1, v2
-            mi, x, y = m[b, i], C[i, 0], C[i, 1]
-            I00 = Ic[b, i] + mi * (x * x + y * y)
-            IA[i, 0, 0], IA[i, 0, 1], IA[i, 0, 2] = I00, -mi * y, mi * x
-            IA[i, 1, 0], IA[i, 1, 1], IA[i, 1, 2] = -mi * y, mi, 0.0
-            IA[i, 2, 0], IA[i, 2, 1], IA[i, 2, 2] = mi * x, 0.0, mi
-            # momentum h = I v; its angular part does not enter the planar v x* h
-            h1 = -mi * y * v0 + mi * v1
-            h2 = mi * x * v0 + mi * v2
-            # p = v x* h = (vx hy - vy hx, -w hy, w hx)
-            pA[i, 0] = v1 * h2 - v2 * h1
-            pA[i, 1] = -v0 * h2
-            pA[i, 2] = v0 * h1
-            vp0, vp1, vp2 = v0, v1, v2
-        for i in range(N - 1, -1, -1):  # pass 2: articulated inertias
-            s0, s1, s2 = 1.0, P[i, 1], -P[i, 0]
-            for k in range(3):
-                U[i, k] = IA[i, k, 0] * s0 + IA[i, k, 1] * s1 + IA[i, k, 2] * s2
-            D[i] = s0 * U[i, 0] + s1 * U[i, 1] + s2 * U[i, 2] + arm[i]
-            u[i] = tau[b, i] - (s0 * pA[i, 0] + s1 * pA[i, 1] + s2 * pA[i, 2])
-            if i > 0:
-                for r_ in range(3):
-                    for k in range(3):
-                        Ia[r_, k] = IA[i, r_, k] - U[i, r_] * U[i, k] / D[i]
-                for r_ in range(3):
-                    pa = pA[i, r_] + U[i, r_] * u[i] / D[i]
-                    for k in range(3):
-                        pa += Ia[r_, k] * c[i, k]
-                        IA[i - 1, r_, k] += Ia[r_, k]
-                    pA[i - 1, r_] += pa
-        a0, a1, a2 = 0.0, 0.0, g  # pass 3: accelerations (gravity as base acceleration)
-        for i in range(N):
-            s0, s1, s2 = 1.0, P[i, 1], -P[i, 0]
-            a0 += c[i, 0]
-            a1 += c[i, 1]
-            a2 += c[i, 2]
-            qdd = (u[i] - (U[i, 0] * a0 + U[i, 1] * a1 + U[i, 2] * a2)) / D[i]
-            out[b, i] = qdd
-            a0 += s0 * qdd
-            a1 += s1 * qdd
-            a2 += s2 * qdd
+        _aba_member(q[b], w[b], tau[b], l, r, m[b], Ic[b], arm, g, out[b], work)
     return out
 
 
-@numba.njit(cache=True)
+@njit
+def _energy_member(q, w, l, r, m, Ic, arm, g, work):  # pragma: no cover - compiled
+    """Kinetic and potential energy ``(T, V)`` [J] of one chain.
+
+    ``T = sum_i m_i |v_Ci|^2 / 2 + Ic_i om_i^2 / 2 + arm_i w_i^2 / 2`` with the link
+    rates ``om_i = w_1 + ... + w_i`` and centre velocities ``v_Ci = sum_{j<i} l_j om_j n_j
+    + r_i om_i n_i`` (``n_j = (-sin th_j, cos th_j)``), from the link velocities, O(N);
+    ``V = g sum_i m_i y_Ci``. Arrays as in :func:`_aba_member`.
+    """
+    IA, pA, v, c, U, D, u, Ia, th, sn, cs, P, C = work
+    _member_kinematics(q, l, r, th, sn, cs, P, C)
+    T = 0.0
+    V = 0.0
+    om = 0.0
+    jx, jy = 0.0, 0.0  # velocity of joint i
+    for i in range(q.shape[0]):
+        om += w[i]
+        nx, ny = -sn[i] * om, cs[i] * om
+        vx, vy = jx + r[i] * nx, jy + r[i] * ny
+        T += m[i] * (vx * vx + vy * vy) + Ic[i] * om * om + arm[i] * w[i] * w[i]
+        V += m[i] * C[i, 1]
+        jx += l[i] * nx
+        jy += l[i] * ny
+    return 0.5 * T, g * V
+
+
+@njit
+def _energy_rows(q, w, l, r, m, Ic, arm, g):  # pragma: no cover - compiled
+    """:func:`_energy_member` for rows ``q, w`` (B, N): returns ``T, V`` (B,)."""
+    B, N = q.shape
+    T, V = np.empty(B), np.empty(B)
+    work = _aba_work(N)
+    for b in range(B):
+        T[b], V[b] = _energy_member(q[b], w[b], l, r, m, Ic, arm, g, work)
+    return T, V
+
+
+# -- the compiled path's kernels (see mbs_envs.compiled): columns, parameters theta (7 N + 2, B)
+#    = (l, r, m, I, armature, b, f) per link, then g, v_s (SerialChain.kernel_params)
+
+
+@njit
+def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
+    """Forward dynamics of a batch in columns: ``a = ABA(q, v, tau - F(v))``, ``F`` the
+    smoothed friction of :func:`mbs_envs.models.base.smoothed_friction`.
+
+    Parameters
+    ----------
+    q, v, tau : ndarray, shape (N, B)
+    theta : ndarray, shape (7 N + 2, B)
+    a : ndarray, shape (N, B)
+        Written [rad/s^2].
+    """
+    N, B = q.shape
+    work = _aba_work(N)
+    net = np.empty(N)
+    for k in range(B):
+        th = theta[:, k]
+        b, f, v_s = th[5 * N : 6 * N], th[6 * N : 7 * N], th[7 * N + 1]
+        coulomb = False
+        for i in range(N):
+            coulomb |= f[i] != 0.0
+        for i in range(N):  # tau - F, as the numpy path: the tanh only when some f != 0
+            F = b[i] * v[i, k] + f[i] * np.tanh(v[i, k] / v_s) if coulomb else b[i] * v[i, k]
+            net[i] = tau[i, k] - F
+        _aba_member(q[:, k], v[:, k], net, th[0:N], th[N : 2 * N], th[2 * N : 3 * N], th[3 * N : 4 * N],
+                    th[4 * N : 5 * N], th[7 * N], a[:, k], work)  # fmt: skip
+
+
+@njit
+def energy_kernel(q, v, theta, E):  # pragma: no cover - compiled
+    """Mechanical energy ``T + V`` [J] of a batch in columns (:func:`_energy_member`); writes ``E`` (B,)."""
+    N, B = q.shape
+    work = _aba_work(N)
+    for k in range(B):
+        th = theta[:, k]
+        T, V = _energy_member(q[:, k], v[:, k], th[0:N], th[N : 2 * N], th[2 * N : 3 * N], th[3 * N : 4 * N],
+                              th[4 * N : 5 * N], th[7 * N], work)  # fmt: skip
+        E[k] = T + V
+
+
+@njit
 def _member_kinematics(q, l, r, th, sn, cs, p, c):  # pragma: no cover - compiled
     """Kinematics of one chain: ``q, l, r`` (N,) joint angles [rad], link lengths and
     centre-of-mass offsets [m]; writes the work arrays ``th, sn, cs`` (N,) and ``p, c`` (N, 2).
@@ -209,7 +310,7 @@ def _member_kinematics(q, l, r, th, sn, cs, p, c):  # pragma: no cover - compile
         y += l[i] * sn[i]
 
 
-@numba.njit(cache=True)
+@njit
 def _kinematics_kernel(q, l, r):  # pragma: no cover - compiled
     """:func:`_member_kinematics` for rows ``q`` (B, N): returns ``th`` (B, N), ``e, p, c`` (B, N, 2)."""
     B, N = q.shape
@@ -220,6 +321,17 @@ def _kinematics_kernel(q, l, r):  # pragma: no cover - compiled
         for i in range(N):
             e[b, i, 0], e[b, i, 1] = cs[i], sn[i]
     return th, e, p, c
+
+
+#: this module: a kernel passed on as a module attribute is a compile-time constant (a bare
+#: global would be embedded as a Python object pointer, which numba cannot cache)
+_this = sys.modules[__name__]
+
+
+@njit
+def advance_kernel(theta, stepper, q, v, tau):  # pragma: no cover - compiled
+    """:func:`mbs_envs.compiled.rk_run` with this model's :func:`acceleration_kernel` (cached on disk)."""
+    rk_run(_this.acceleration_kernel, theta, stepper, q, v, tau)
 
 
 def _suffix_sum(x: np.ndarray, axis: int = -1) -> np.ndarray:
@@ -349,10 +461,6 @@ class SerialChain(Model):
         v = as_vector(v, self.n_links, "v")
         return self.rnea(q, v, np.zeros_like(v)) + self.friction(v)
 
-    def potential_energy(self, q: np.ndarray) -> np.ndarray:
-        c = self.kinematics(q)["c"]
-        return self.params.g * np.sum(self.params.m * c[..., 1], axis=-1)
-
     def friction(self, v: np.ndarray) -> np.ndarray:
         p_ = self.params
         v = as_vector(v, self.n_links, "v")
@@ -389,15 +497,38 @@ class SerialChain(Model):
         """The cross-check path: ``M^-1 (u - h)`` with ``M`` by CRBA and a Cholesky solve, O(N^3)."""
         return Model.forward_dynamics(self, q, v, u)
 
-    def kinetic_energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """``sum_i m_i |v_Ci|^2 / 2 + I_i w_i^2 / 2 + armature_i v_i^2 / 2`` from the link velocities (O(N), not via M)."""
+    def _energies(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(T, V)`` [J], shape ``(...)``, by the compiled :func:`_energy_member` over the flattened batch."""
         p_ = self.params
-        v = as_vector(v, self.n_links, "v")
-        k = self.kinematics(q)
-        w = np.cumsum(v, axis=-1)
-        n_perp = np.stack([-k["e"][..., 1], k["e"][..., 0]], axis=-1)
-        link_vel = w[..., None] * n_perp
-        tip_vel = np.cumsum(p_.l[:, None] * link_vel, axis=-2)
-        joint_vel = np.concatenate([np.zeros(tip_vel.shape[:-2] + (1, 2)), tip_vel[..., :-1, :]], axis=-2)
-        v_c = joint_vel + p_.r[:, None] * link_vel
-        return 0.5 * np.sum(p_.m * np.sum(v_c**2, axis=-1) + p_.I * w**2 + p_.armature * v**2, axis=-1)
+        n = self.n_links
+        q = as_vector(q, n, "q")
+        v = as_vector(v, n, "v")
+        shape = np.broadcast_shapes(q.shape, v.shape)
+        flat = lambda x: np.ascontiguousarray(np.broadcast_to(x, shape).reshape(-1, n), dtype=float)  # noqa: E731
+        T, V = _energy_rows(flat(q), flat(v), p_.l, p_.r, p_.m, p_.I, p_.armature, float(p_.g))
+        return T.reshape(shape[:-1]), V.reshape(shape[:-1])
+
+    def kinetic_energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``sum_i m_i |v_Ci|^2 / 2 + I_i w_i^2 / 2 + armature_i v_i^2 / 2`` from the link velocities
+        (O(N), not via M; :func:`_energy_member`)."""
+        return self._energies(q, v)[0]
+
+    def potential_energy(self, q: np.ndarray) -> np.ndarray:
+        """``V = g sum_i m_i y_Ci`` [J] (:func:`_energy_member`)."""
+        q = as_vector(q, self.n_links, "q")
+        return self._energies(q, np.zeros(q.shape[-1:]))[1]
+
+    def energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``T + V`` [J], one pass."""
+        T, V = self._energies(q, v)
+        return T + V
+
+    # -- compiled path (see :mod:`mbs_envs.compiled`) -----------------------------
+
+    kernels = (acceleration_kernel, energy_kernel)
+    advance_kernel = staticmethod(advance_kernel)
+
+    def kernel_params(self) -> np.ndarray:
+        """``(l, r, m, I, armature, b, f)`` per link, then ``g, v_s``: shape ``(7 N + 2,)``."""
+        p_ = self.params
+        return np.concatenate([p_.l, p_.r, p_.m, p_.I, p_.armature, p_.b, p_.f, [p_.g, p_.v_s]])

@@ -1,0 +1,193 @@
+#!/usr/bin/env python
+"""Every scene's step against Gymnasium's peers, in one run; optionally an earlier version beside it.
+
+Per scene (``gym.make`` defaults; SerialChain at ``n_links`` 10 and 100):
+
+- ``single``: median wall time of one ``env.step`` [us] over repeats, and its
+  ratio to Acrobot-v1's step timed in the same process (interleaved);
+- ``batched``: per env-step [us] of the vector env (``vector_entry_point``,
+  ``full_info=False``) at ``--num-envs`` members, and the ratio to CartPole-v1's
+  vector env timed in the same process;
+- ``cold start``: a fresh process's ``import`` + ``gym.make`` + ``reset`` +
+  first ``step`` [s], with numba's on-disk cache empty (``NUMBA_CACHE_DIR`` a new
+  folder: every kernel compiled) and then warm (the same folder again);
+  Acrobot-v1 alike for scale.
+
+Only the public API is used, so ``--baseline DIR`` runs the very same
+measurement on another checkout (e.g. ``git worktree add /tmp/old <rev>``) in
+a subprocess and prints both tables: before and after, same run.
+
+    python scripts/bench_scenes.py --out results/scenes                     # ~3 min
+    python scripts/bench_scenes.py --out results/scenes --baseline /tmp/old
+
+Writes ``scenes.json`` (and ``baseline.json``) and ``scenes.md`` to ``--out``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import pathlib
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+SCENES = {
+    "Planar2R-v0": ("mbs_envs/Planar2R-v0", {}),
+    "FourBar-v0": ("mbs_envs/FourBar-v0", {}),
+    "RollingDisk-v0": ("mbs_envs/RollingDisk-v0", {}),
+    "SerialChain-v0 (n_links=10)": ("mbs_envs/SerialChain-v0", {"n_links": 10}),
+    "SerialChain-v0 (n_links=100)": ("mbs_envs/SerialChain-v0", {"n_links": 100}),
+}
+
+COLD = """
+import time, sys
+t0 = time.perf_counter()
+import gymnasium as gym
+import numpy as np
+if {mine!r}:
+    import mbs_envs
+env = gym.make({env_id!r}, **{kwargs!r})
+env.reset(seed=0)
+env.step(env.action_space.sample())
+print(time.perf_counter() - t0)
+"""
+
+
+def step_time(env, actions, reset_every=400) -> float:
+    """Mean seconds per ``env.step`` over ``actions`` (resets not timed)."""
+    single = not hasattr(env, "num_envs")
+    env.reset(seed=0)
+    total = 0.0
+    for k, a in enumerate(actions):
+        tic = time.perf_counter()
+        _, _, term, trunc, _ = env.step(a)
+        total += time.perf_counter() - tic
+        if single and (np.any(term) or np.any(trunc) or (k + 1) % reset_every == 0):
+            env.reset()
+    return total / len(actions)
+
+
+def cold_start(env_id: str, kwargs: dict, python_path: str) -> dict:
+    """Fresh-process seconds to the first step, numba cache empty then warm."""
+    mine = env_id.startswith("mbs_envs/")
+    env = {**os.environ, "PYTHONPATH": python_path}
+    out = {}
+    with tempfile.TemporaryDirectory() as cache:
+        env["NUMBA_CACHE_DIR"] = cache
+        for label in ("cold", "warm", "warm again"):
+            code = COLD.format(mine=mine, env_id=env_id, kwargs=kwargs)
+            res = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+            out[label] = float(res.stdout.strip().splitlines()[-1])
+    return {"cold_s": out["cold"], "warm_s": min(out["warm"], out["warm again"])}
+
+
+def measure(repeats: int, steps: int, num_envs: int, cold: bool) -> dict:
+    import gymnasium as gym
+
+    import mbs_envs
+
+    rng = np.random.default_rng(0)
+    singles = {"Acrobot-v1": (gym.make("Acrobot-v1"), [int(a) for a in rng.integers(0, 3, steps)])}
+    vectors = {
+        "CartPole-v1": (
+            gym.make_vec("CartPole-v1", num_envs=num_envs, vectorization_mode="vector_entry_point"),
+            [rng.integers(0, 2, num_envs) for _ in range(max(steps // 10, 20))],
+        )
+    }
+    for name, (env_id, kwargs) in SCENES.items():
+        e = gym.make(env_id, **kwargs)
+        nu = e.action_space.shape[0]
+        singles[name] = (e, list(rng.uniform(-1, 1, (steps, nu)).astype(np.float32)))
+        if "n_links=100" not in name:
+            v = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", full_info=False, **kwargs)
+            vectors[name] = (v, list(rng.uniform(-1, 1, (max(steps // 10, 20), num_envs, nu))))
+    single_t = {k: [] for k in singles}
+    vector_t = {k: [] for k in vectors}
+    try:
+        from tqdm import tqdm
+    except ImportError:  # pragma: no cover
+        tqdm = lambda x, **k: x  # noqa: E731
+    for _ in tqdm(range(repeats), desc="scenes", file=sys.stderr):
+        for name, (env, acts) in singles.items():  # interleaved: drift hits every scene alike
+            single_t[name].append(step_time(env, acts))
+        for name, (env, acts) in vectors.items():
+            vector_t[name].append(step_time(env, acts, reset_every=10**9))
+    single = {k: float(np.median(v)) * 1e6 for k, v in single_t.items()}
+    batched = {k: float(np.median(v)) / num_envs * 1e6 for k, v in vector_t.items()}
+    out = {
+        "python_path": str(pathlib.Path(mbs_envs.__file__).parent.parent),
+        "num_envs": num_envs,
+        "single_step_us": single,
+        "single_ratio_to_acrobot": {k: v / single["Acrobot-v1"] for k, v in single.items()},
+        "batched_per_env_step_us": batched,
+        "batched_ratio_to_cartpole": {k: v / batched["CartPole-v1"] for k, v in batched.items()},
+    }
+    if cold:
+        root = out["python_path"]
+        starts = {"Acrobot-v1": cold_start("Acrobot-v1", {}, root)}
+        for name, (env_id, kwargs) in tqdm(list(SCENES.items()), desc="cold starts", file=sys.stderr):
+            starts[name] = cold_start(env_id, kwargs, root)
+        out["first_step_s"] = starts
+    return out
+
+
+def table(r: dict, title: str) -> str:
+    lines = [
+        f"### {title}", "",
+        f"| scene | single step [us] | vs Acrobot-v1 ({r['single_step_us']['Acrobot-v1']:.0f} us) "
+        f"| batched per env-step at {r['num_envs']} [us] | vs CartPole-v1 vector ({r['batched_per_env_step_us']['CartPole-v1']:.3f} us) "
+        "| first step, fresh process: cold / warm cache [s] |",
+        "|---|---|---|---|---|---|",
+    ]  # fmt: skip
+    for name in SCENES:
+        b = r["batched_per_env_step_us"].get(name)
+        fs = r.get("first_step_s", {}).get(name)
+        lines.append(
+            f"| {name} | {r['single_step_us'][name]:,.1f} | {r['single_ratio_to_acrobot'][name]:.2f}x | "
+            + ("- | - |" if b is None else f"{b:.3f} | {r['batched_ratio_to_cartpole'][name]:.1f}x |")
+            + ("" if fs is None else f" {fs['cold_s']:.1f} / {fs['warm_s']:.2f} |")
+        )
+    if "first_step_s" in r:
+        a = r["first_step_s"]["Acrobot-v1"]
+        lines.append(f"\nAcrobot-v1's first step in a fresh process: {a['cold_s']:.2f} s (no compiled code).")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", required=True, type=pathlib.Path)
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--steps", type=int, default=400)
+    ap.add_argument("--num-envs", type=int, default=1024)
+    ap.add_argument("--no-cold", action="store_true", help="skip the fresh-process first-step timings")
+    ap.add_argument("--baseline", type=pathlib.Path, help="another checkout to measure the same way (before/after)")
+    ap.add_argument("--json-only", action="store_true", help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    args.out.mkdir(parents=True, exist_ok=True)
+    if args.json_only:  # the baseline's subprocess
+        print(json.dumps(measure(args.repeats, args.steps, args.num_envs, not args.no_cold)))
+        return
+    sections = []
+    if args.baseline is not None:
+        cmd = [sys.executable, __file__, "--out", str(args.out), "--repeats", str(args.repeats), "--steps", str(args.steps),
+               "--num-envs", str(args.num_envs), "--json-only"] + (["--no-cold"] if args.no_cold else [])  # fmt: skip
+        env = {**os.environ, "PYTHONPATH": str(args.baseline.resolve())}
+        res = subprocess.run(cmd, env=env, capture_output=True, text=True, check=True, cwd=args.baseline)
+        base = json.loads(res.stdout.strip().splitlines()[-1])
+        (args.out / "baseline.json").write_text(json.dumps(base, indent=2))
+        sections.append(table(base, f"Before: {args.baseline}"))
+    now = measure(args.repeats, args.steps, args.num_envs, not args.no_cold)
+    (args.out / "scenes.json").write_text(json.dumps(now, indent=2))
+    sections.append(table(now, f"After: {now['python_path']}" if args.baseline else "This checkout"))
+    text = "\n".join(sections)
+    (args.out / "scenes.md").write_text(text)
+    print(text)
+
+
+if __name__ == "__main__":
+    main()
