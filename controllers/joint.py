@@ -2,7 +2,7 @@
 
 With ``e = q_ref - q`` and ``de = v_ref - v`` on the tracked coordinates
 (every joint of a serial scene; the crank of the four-bar), following
-PHYSICS.md, "Control on top of the equations":
+docs/physics.md §7, "Control on top of the equations":
 
 - PD:               ``u = Kp e + Kd de``
 - PD + gravity:     ``u = Kp e + Kd de + u_g(q)``, ``u_g = inverse_dynamics(q, 0, 0)``

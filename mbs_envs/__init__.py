@@ -9,25 +9,21 @@ import functools
 from gymnasium.envs.registration import register, registry
 
 from . import integrators, models
+from .envs.registry import SCENES
 from .envs.vector import make_vector as _make_vector
 from .simulate import Trajectory, simulate
 
 __version__ = "0.1.0"
-__all__ = ["Trajectory", "integrators", "models", "simulate", "__version__"]
+__all__ = ["SCENES", "Trajectory", "integrators", "models", "simulate", "__version__"]
 
-#: id -> (entry point, max_episode_steps)
-ENV_IDS = {
-    "mbs_envs/Planar2R-v0": ("mbs_envs.envs.planar2r:Planar2REnv", 500),
-    "mbs_envs/FourBar-v0": ("mbs_envs.envs.fourbar:FourBarEnv", 500),
-    "mbs_envs/RollingDisk-v0": ("mbs_envs.envs.rolling_disk:RollingDiskEnv", 1000),
-    "mbs_envs/SerialChain-v0": ("mbs_envs.envs.serial_chain:SerialChainEnv", 500),
-}
+#: id -> (entry point, max_episode_steps), from the scene registry (:mod:`mbs_envs.envs.registry`)
+ENV_IDS = {s.id: (s.entry_point, s.max_episode_steps) for s in SCENES}
 
-for _id, (_entry, _steps) in ENV_IDS.items():
-    if _id not in registry:
+for _scene in SCENES:
+    if _scene.id not in registry:
         register(
-            id=_id,
-            entry_point=_entry,
-            vector_entry_point=functools.partial(_make_vector, _entry),
-            max_episode_steps=_steps,
+            id=_scene.id,
+            entry_point=_scene.entry_point,
+            vector_entry_point=functools.partial(_make_vector, _scene.entry_point),
+            max_episode_steps=_scene.max_episode_steps,
         )

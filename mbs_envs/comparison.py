@@ -29,15 +29,11 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from .envs.registry import SCENES as REGISTRY
 from .evaluation import episode_metrics, make_controller, rollout_batch
 
-#: scene -> (env id, env kwargs, model-based controllers by display name -> "module:class")
-SCENES: dict[str, tuple[str, dict, dict[str, str]]] = {
-    "Planar2R": ("mbs_envs/Planar2R-v0", {}, {"PD": "controllers:PD", "PD+gravity": "controllers:PDGravity", "computed torque": "controllers:ComputedTorque"}),
-    "FourBar": ("mbs_envs/FourBar-v0", {}, {"PD": "controllers:PD", "PD+gravity": "controllers:PDGravity", "computed torque": "controllers:ComputedTorque"}),
-    "SerialChain": ("mbs_envs/SerialChain-v0", {}, {"PD": "controllers:PD", "PD+gravity": "controllers:PDGravity", "computed torque": "controllers:ComputedTorque"}),
-    "RollingDisk": ("mbs_envs/RollingDisk-v0", {}, {"LQR": "controllers:LQR", "PD steering": "controllers:SteeringPD", "no control": "controllers:NoControl"}),
-}
+#: scene -> (env id, env kwargs, model-based controllers by display name -> "module:class"), from the registry
+SCENES: dict[str, tuple[str, dict, dict[str, str]]] = {s.name: (s.id, dict(s.kwargs), dict(s.controllers)) for s in REGISTRY}
 
 
 @dataclasses.dataclass(frozen=True)

@@ -1,6 +1,6 @@
 """Constraint machinery for constrained scenes only (serial scenes never import it).
 
-Equations (PHYSICS.md (1), (2)) with ``f = B u - h(q, v)``:
+Equations (docs/physics.md §1-§2) with ``f = B u - h(q, v)``:
 
     M a = f + Psi^T lam,        Psi a = gamma,
     gamma = -dPsi v                                   (exact constraint acceleration)
@@ -86,8 +86,7 @@ def constrained_accelerations(
     is provably well conditioned, ``trace(S) trace(S^-1) < 1 / rcond`` (which bounds
     ``max / min`` eigenvalue, so the pseudo-inverse drops nothing), is solved by the
     Cholesky factors of ``S`` instead: the same multipliers to rounding, while the
-    eigendecomposition is most of the solve's cost (1024 disk members: 0.5-0.7 ms
-    against 1.4 ms with it); its ``cond`` is NaN. The choice is made per
+    eigendecomposition is most of the solve's cost; its ``cond`` is NaN. The choice is made per
     member, so results do not depend on the batch.
 
     Parameters

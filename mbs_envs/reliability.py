@@ -228,8 +228,7 @@ def parameter_edges() -> list[dict]:
             except ValueError as e:
                 rows.append({**row, "outcome": "ValueError at assembly", "message": str(e)})
                 continue
-            stab = "projection" if model.constrained else None
-            tr = simulate(model, q0, v0, 1.0, dt=1e-3, integrator="rk4", stabilization=stab)
+            tr = simulate(model, q0, v0, 1.0, dt=1e-3, integrator="rk4")  # constrained models: projection
             E = model.energy(tr.q, tr.v)
             finite = bool(np.all(np.isfinite(tr.q)) and np.all(np.isfinite(tr.v)))
             scale = max(float(np.max(np.abs(E))), 1e-300)

@@ -71,13 +71,7 @@ def motion_from_reference(model: Model, reference: SumOfSines, t: np.ndarray, br
     (the four-bar) are completed: ``q`` by ``assemble`` on ``branch``, ``v`` and
     ``a`` through the constraints.
     """
-    q_ref, v_ref, a_ref = reference(t)
-    if not model.constrained:
-        return q_ref, v_ref, a_ref
-    q = np.stack([model.assemble(th[0], branch) for th in q_ref])
-    v = model.complete_velocity(q, v_ref)
-    a = model.complete_acceleration(q, v, a_ref)
-    return q, v, a
+    return model.motion_from_tracked(*reference(t), branch=branch)
 
 
 def actuator_sizing(model: Model, reference: SumOfSines, t_final: float, dt: float = 1e-3, branch: int = 1) -> Sizing:
@@ -101,7 +95,7 @@ def actuator_sizing(model: Model, reference: SumOfSines, t_final: float, dt: flo
     u = model.inverse_dynamics(q, v, a)
     power = u * np.einsum("ij,...i->...j", model.actuation, v)  # u_j times the rate it drives
     forces = peak_f = None
-    if model.constrained and hasattr(model, "joint_forces"):
+    if hasattr(model, "joint_forces"):
         forces = model.joint_forces(q, v, u)
         peak_f = np.max(np.linalg.norm(forces, axis=-1), axis=0)
     return Sizing(

@@ -34,7 +34,7 @@ def spectral_radius(case: Case) -> float:
     with real stability interval ``[-beta, 0]`` needs ``dt < beta / rho``
     (RK4: ``beta = 2.785``) when the fast eigenvalue is real and negative.
     """
-    stab = case.model.stabilization(case.stabilization) if case.model.constrained else None
+    stab = case.model.stabilization(case.stabilization)
     acc = acceleration(case.model, case.u, stab)
     A_q, A_v = integrators.acceleration_jacobian(acc, 0.0, np.asarray(case.q0, float), np.asarray(case.v0, float))
     n = A_q.shape[-1]

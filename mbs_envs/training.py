@@ -32,20 +32,17 @@ from stable_baselines3.common.noise import NormalActionNoise
 from tqdm import tqdm
 
 from . import seeds as seed_ranges
+from .envs import registry
 from .evaluation import default_gains_entry, episode_metrics, make_controller, rollout_batch
 from .residual import ResidualPolicy, check_bound, residual_vec_env
 from .sb3 import make_sb3_vec_env
 
 ALGOS = {"ppo": PPO, "sac": SAC, "td3": TD3}
 
-#: the base controller of a residual agent when none is named: the best model-based controller of the scene
-RESIDUAL_BASE = {"mbs_envs/RollingDisk-v0": "controllers:LQR"}
-DEFAULT_RESIDUAL_BASE = "controllers:ComputedTorque"
-
-
 def residual_base(env_id: str) -> str:
-    """The default base controller (``"module:Class"``) of a residual agent on ``env_id``."""
-    return RESIDUAL_BASE.get(env_id, DEFAULT_RESIDUAL_BASE)
+    """The default base controller (``"module:Class"``) of a residual agent on ``env_id``:
+    the scene's best model-based controller (:attr:`mbs_envs.envs.registry.Scene.residual_base`)."""
+    return registry.scene(env_id).residual_base
 
 
 @dataclasses.dataclass(frozen=True)

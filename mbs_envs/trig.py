@@ -2,8 +2,8 @@
 loops over a batch vectorize (SIMD) instead of calling libm once per element.
 
 numba's loops calling ``np.sin`` stay scalar (no SVML in pip's llvmlite); numpy's
-float64 ``sin`` is scalar too. Both took about 9 ns per element here, which was
-most of a batched env step. :func:`sincos` is the classic fdlibm (Sun, 1993)
+float64 ``sin`` is scalar too, and those calls were most of a batched env step
+(figures in docs/performance.md). :func:`sincos` is the classic fdlibm (Sun, 1993)
 algorithm without its branches:
 
 1. Cody-Waite reduction ``x = n pi/2 + (y0 + y1)``, ``|y0 + y1| <= pi/4``, with

@@ -43,6 +43,7 @@ import mbs_envs  # noqa: F401  (registers the ids)
 from controllers import tuned
 from mbs_envs import comparison as cmp
 from mbs_envs import seeds as seed_ranges
+from mbs_envs.envs import registry
 from mbs_envs.parallel import run_tasks
 from mbs_envs.plotting import pyplot, save
 from mbs_envs.sizing import actuator_sizing
@@ -92,7 +93,7 @@ def run(args: argparse.Namespace) -> dict:
         w.writeheader()
         w.writerows(rows)
     summary = summarize(rows)
-    sizing = {scene: sizing_tables(scene, seeds) for scene in tqdm(scenes, desc="sizing") if scene != "RollingDisk"}
+    sizing = {scene: sizing_tables(scene, seeds) for scene in tqdm(scenes, desc="sizing") if registry.scene(scene).sizing}
     curves = {scene: training_curves(agents[scene]) for scene in scenes}
     for scene in scenes:
         plot_scene(scene, summary[scene], args.out / f"comparison_{scene}.png")

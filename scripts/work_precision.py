@@ -95,7 +95,7 @@ def write_csv(rows: list[dict], path: pathlib.Path) -> None:
 
 def plot_scene(rows: list[dict], case: numerics.Case, path: pathlib.Path) -> None:
     plt = pyplot()
-    keys = ["state_error", "energy_error"] + (["constraint_error"] if case.model.constrained else [])
+    keys = ["state_error", "energy_error"] + (["constraint_error"] if case.model.nc else [])
     fig, axes = plt.subplots(1, len(keys), figsize=(5.2 * len(keys), 4.2), squeeze=False)
     colors = plt.get_cmap("tab20").colors
     for ax, key in zip(axes[0], keys):

@@ -284,7 +284,7 @@ class MBSEnv(gym.Env):
             v0 = v_s if v0 is None else v0
         elif v0 is None:
             v0 = np.zeros(self.model.nv)
-        q0, v0 = self._make_consistent(q0, v0)
+        q0, v0 = self.model.make_consistent(q0, v0, self.consistency_tol)  # constrained scenes project (or refuse)
         self._check_start(q0, v0, task, given=options.get("q") is not None or options.get("v") is not None)
         return task, q0, v0
 
@@ -332,19 +332,6 @@ class MBSEnv(gym.Env):
 
     #: largest constraint residual [m] a start state may keep after projection
     consistency_tol: ClassVar[float] = 1e-9
-
-    def _make_consistent(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Constrained scenes project a start state onto the constraints (or refuse it)."""
-        if not self.model.constrained:
-            return q, v
-        q_p, v_p = self.model.project(q, v)
-        residual = np.max(np.abs(self.model.constraint_residual(q_p)))
-        if not np.all(np.isfinite(q_p)) or residual > self.consistency_tol:
-            raise ValueError(
-                f"start state q = {q.tolist()} cannot be made consistent with the constraints "
-                f"(residual {residual:.3g} after projection)"
-            )
-        return q_p, v_p
 
     def step(self, action: Any):
         action = validate_action(action, self.model.nu)  # raises before any change

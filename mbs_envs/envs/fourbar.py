@@ -18,7 +18,7 @@ class FourBarEnv(JointTrackingEnv):
 
     ## Description
 
-    A closed-loop linkage (PHYSICS.md scene 2): crank, coupler and rocker on a
+    A closed-loop linkage (docs/physics.md §4): crank, coupler and rocker on a
     ground link, simulated as a DAE with Lagrange multipliers and constraint
     stabilization. Only the crank is driven. Each episode draws a crank
     reference ``th1_ref(t) = c + s t + sum_k A_k sin(w_k t + p_k)`` (mean spin

@@ -25,7 +25,7 @@ class Planar2REnv(JointTrackingEnv):
 
     ## Description
 
-    Two rigid links in a vertical plane (PHYSICS.md scene 1), both joints driven
+    Two rigid links in a vertical plane (docs/physics.md §3), both joints driven
     by torque-limited motors, gravity along -y. Each episode draws a reference
     ``q_ref(t) = c + sum_k A_k sin(w_k t + p_k)`` (three components per joint)
     whose velocity and acceleration are analytic; the task is to follow it.
@@ -71,8 +71,7 @@ class Planar2REnv(JointTrackingEnv):
     - ``params``: overrides of :class:`mbs_envs.models.planar2r.Planar2RParams`
       (``m1, m2, l1, l2, r1, r2, I1, I2, g, b1, b2, f1, f2, v_s``).
     - ``dt``: control step [s]; ``substeps`` physics steps per control step
-      (two RK4 steps of 5 ms: 16x more accurate than one; on the compiled
-      path the second step added 0.35 us per batched env-step; see docs/performance.md).
+      (two RK4 steps of 5 ms: 16x more accurate than one; its cost in docs/performance.md).
     - ``compiled``: the step runs as one numba kernel (:mod:`mbs_envs.compiled`)
       whenever the integrator is explicit; False forces the numpy path.
     - ``integrator``: any name of :func:`mbs_envs.integrators.available`.

@@ -47,7 +47,7 @@ class RollingDiskEnv(MBSEnv):
 
     ## Description
 
-    The disk of PHYSICS.md scene 3 (six coordinates, rolling constraints, no
+    The disk of docs/physics.md §5 (six coordinates, rolling constraints, no
     slip). Each episode commands a spin rate ``W_ref`` (forward speed
     ``r W_ref``), drawn uniformly between 0.3 and 2 times the critical spin
     of upright rolling (so about 40 % of episodes are not self-stable), and

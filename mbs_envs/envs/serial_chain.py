@@ -26,7 +26,7 @@ class SerialChainEnv(JointTrackingEnv):
 
     ## Description
 
-    PHYSICS.md scene 4: ``n_links`` links hanging from a fixed pivot under
+    docs/physics.md §6: ``n_links`` links hanging from a fixed pivot under
     gravity, joint ``i`` at angle ``q_i`` relative to link ``i-1``. Each
     episode draws a reference around the hanging posture (``q_1 = -pi/2``,
     the others 0), a sum of three sinusoids per joint, with analytic rates and
@@ -81,8 +81,8 @@ class SerialChainEnv(JointTrackingEnv):
     torque_limit=None, dt=0.01, integrator="rk4", substeps=1, ...)``;
     ``params`` overrides :class:`~mbs_envs.models.serial_chain.SerialChainParams`
     (per-link arrays or scalars: ``m, l, r, I, armature, g, b, f, v_s``).
-    Forward dynamics by the articulated-body algorithm: about 0.4 ms per step
-    at N = 100 and 0.7 ms at N = 500 (measured).
+    Forward dynamics by the articulated-body algorithm, O(N); the step runs
+    compiled (timings per N in docs/performance.md).
 
     ``pd_gains``: per-joint default PD gains ``(100, 20) J_i`` with
     ``J_i = 1 / (M^-1)_ii`` the apparent inertia of joint i at the hanging

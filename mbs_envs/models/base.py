@@ -1,6 +1,6 @@
 """The shared model interface: validated parameters and the equations of motion
 
-    M(q) a + C(q, v) v + G(q) + F(v) = B u                         (PHYSICS.md (1))
+    M(q) a + C(q, v) v + G(q) + F(v) = B u                         (docs/physics.md §1)
 
 for unconstrained mechanisms, with forward dynamics through a Cholesky
 factorization of ``M``. Constrained mechanisms extend this with their own
@@ -155,7 +155,7 @@ def friction_law(v, b, f, v_s):
 
 
 def smoothed_friction(v: np.ndarray, b: np.ndarray, f: np.ndarray, v_s: float) -> np.ndarray:
-    """Joint friction ``F_i(v) = b_i v_i + f_i tanh(v_i / v_s)`` (PHYSICS.md).
+    """Joint friction ``F_i(v) = b_i v_i + f_i tanh(v_i / v_s)`` (docs/physics.md §1).
 
     Parameters
     ----------
@@ -205,6 +205,8 @@ class Model(abc.ABC):
     nu: ClassVar[int]
     #: Whether the model carries constraints (serial models: never).
     constrained: ClassVar[bool] = False
+    #: Number of constraint rows ``Psi`` (serial models: none).
+    nc: ClassVar[int] = 0
     #: Whether the equations accept per-batch-member parameters (:meth:`Params.batched`).
     batched_params: ClassVar[bool] = False
     #: Compiled ``(acceleration_kernel, energy_kernel)`` of one member, built on the
@@ -286,6 +288,27 @@ class Model(abc.ABC):
         return np.zeros(np.shape(q)[:-1], dtype=bool)
 
     # -- derived, shared by every unconstrained model -------------------------
+
+    def make_consistent(self, q: np.ndarray, v: np.ndarray, tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
+        """A state the equations can start from: ``(q, v)`` unchanged (no constraints).
+
+        Constrained models project onto their constraints (or refuse the state).
+        """
+        return q, v
+
+    def constraint_violation(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``max(|phi(q)|, |Psi(q) v|)`` per sample, shape ``(...)``: zero without constraints."""
+        return np.zeros(np.broadcast_shapes(np.shape(q)[:-1], np.shape(v)[:-1]))
+
+    def motion_from_tracked(
+        self, q_t: np.ndarray, v_t: np.ndarray, a_t: np.ndarray, branch: int = 1
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The whole motion ``(q, v, a)`` from that of the coordinates a task tracks.
+
+        A serial model tracks all of them (returned as given); constrained models
+        complete the dependent ones (assembly ``branch`` where there are several).
+        """
+        return q_t, v_t, a_t
 
     def stabilization(self, kind: Any = None, **options: Any) -> None:
         """Constraint stabilization for a simulation: none for unconstrained models.

@@ -22,7 +22,7 @@ from .base import Model, as_vector
 
 
 class ConstrainedModel(Model):
-    """A model whose motion obeys ``Psi(q) v = 0``; see PHYSICS.md (1)-(2).
+    """A model whose motion obeys ``Psi(q) v = 0``; see docs/physics.md §2.
 
     Subclasses implement :meth:`constraint_residual` (the holonomic ``phi``,
     whose Jacobian is the rows ``position_rows`` of ``Psi``),
@@ -160,6 +160,29 @@ class ConstrainedModel(Model):
         )
         v = project_velocities(as_vector(v, self.nv, "v"), self.mass_matrix(q), self.constraint_jacobian(q))
         return q, v
+
+    def make_consistent(self, q: np.ndarray, v: np.ndarray, tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
+        """Project a state onto the constraints (:meth:`project`); refuse it if it cannot be.
+
+        Raises
+        ------
+        ValueError
+            If the projection is not finite or leaves a constraint residual above ``tol`` [m].
+        """
+        q_p, v_p = self.project(q, v)
+        residual = np.max(np.abs(self.constraint_residual(q_p)))
+        if not np.all(np.isfinite(q_p)) or residual > tol:
+            raise ValueError(
+                f"start state q = {np.asarray(q).tolist()} cannot be made consistent with the constraints "
+                f"(residual {residual:.3g} after projection)"
+            )
+        return q_p, v_p
+
+    def constraint_violation(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``max(|phi(q)|, |Psi(q) v|)`` per sample, shape ``(...)``."""
+        phi = self.constraint_residual(q)  # the holonomic rows
+        dphi = batched_matvec(self.constraint_jacobian(q), as_vector(v, self.nv, "v"))  # all rows
+        return np.maximum(np.max(np.abs(phi), axis=-1), np.max(np.abs(dphi), axis=-1))
 
     def stabilization(self, kind: Any = None, **options: Any) -> Stabilization:
         """The :class:`~mbs_envs.constraints.Stabilization` a simulation uses.

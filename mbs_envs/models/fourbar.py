@@ -1,4 +1,4 @@
-"""Scene 2: the planar four-bar linkage, a closed loop (PHYSICS.md).
+"""Scene 2: the planar four-bar linkage, a closed loop (docs/physics.md §4).
 
 Ground pivots ``O1 = (0, 0)``, ``O4 = (l0, 0)``. The loop is cut at the joint B
 between coupler (link 2) and rocker (link 3): a 2R chain (crank, coupler) plus
@@ -100,7 +100,7 @@ class FourBarParams(Params):
 
 
 class FourBar(ConstrainedModel):
-    """Four-bar linkage as a DAE with Lagrange multipliers (PHYSICS.md scene 2).
+    """Four-bar linkage as a DAE with Lagrange multipliers (docs/physics.md §4).
 
     ``phi(q) = (l1 c1 + l2 cos(th1 + ph2) - l0 - l3 cos ph1,
                 l1 s1 + l2 sin(th1 + ph2) - l3 sin ph1)``:
@@ -216,6 +216,13 @@ class FourBar(ConstrainedModel):
         )
 
     # -- consistent states ------------------------------------------------------
+
+    def motion_from_tracked(self, q_t, v_t, a_t, branch: int = 1):
+        """The whole motion from the crank's ``(th1, dth1, ddth1)``, each shape ``(T, 1)``:
+        ``q`` by :meth:`assemble` on ``branch``, ``v`` and ``a`` through the constraints."""
+        q = np.stack([self.assemble(th[0], branch) for th in q_t])
+        v = self.complete_velocity(q, v_t)
+        return q, v, self.complete_acceleration(q, v, a_t)
 
     def assemble(self, th1: np.ndarray, branch: int = 1) -> np.ndarray:
         """Coordinates ``q = (th1, ph2, ph1)`` closing the loop at crank angle ``th1``.

@@ -1,4 +1,4 @@
-"""Scene 3: a thin disk rolling without slipping on the ground (PHYSICS.md).
+"""Scene 3: a thin disk rolling without slipping on the ground (docs/physics.md §5).
 
 ``q = (x, y, z, th1, th2, th3)``: centre of the disk, heading ``th1`` about Z,
 lean ``th2`` about the moved x axis, spin ``th3`` about the moved y axis (the
@@ -102,7 +102,7 @@ def steady_turn_residual(lean, W, Omega, a, b, c):
 
 
 class RollingDisk(ConstrainedModel):
-    """Thin disk rolling without slipping (PHYSICS.md scene 3); see the module docstring."""
+    """Thin disk rolling without slipping (docs/physics.md §5); see the module docstring."""
 
     Params = RollingDiskParams
     nq = 6

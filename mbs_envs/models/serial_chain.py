@@ -1,4 +1,4 @@
-"""Scene 4: the planar N-link serial chain, with O(N) recursive algorithms (PHYSICS.md).
+"""Scene 4: the planar N-link serial chain, with O(N) recursive algorithms (docs/physics.md §6).
 
 ``q_i`` is the angle of link i relative to link i-1 (``q_1`` from +x); every
 joint is a driven revolute about z (``B = I``). Link i: mass ``m_i``, length

@@ -60,7 +60,7 @@ def test_matches_sympy_lagrange_derivation():
 
 
 def test_closed_form_at_special_configurations():
-    """Hand-evaluated PHYSICS.md formulas: arm stretched along +x, at rest."""
+    """Hand-evaluated docs/physics.md §3 formulas: arm stretched along +x, at rest."""
     p = Planar2RParams(**PARAMS)
     model = Planar2R(p)
     M = model.mass_matrix([0.0, 0.0])

@@ -1,0 +1,82 @@
+"""The scene registry: every scene declared once, read by the package and the scripts.
+
+A scene is a model file (``mbs_envs/models/<scene>.py``), a task file
+(``mbs_envs/envs/<scene>.py``) and one :class:`Scene` entry in :data:`SCENES`.
+From it, ``import mbs_envs`` registers the Gymnasium id (with the batched
+``vector_entry_point``), and the comparison, tuning, training and benchmark
+code find the scene's controllers, residual base and whether actuator sizing
+applies. Entries are plain data (entry points as ``"module:attr"`` strings), so
+reading the registry imports no scene: constrained scenes load the constraint
+machinery only when made.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from types import MappingProxyType
+
+#: the tracking task's model-based controllers (fully actuated scenes)
+JOINT_CONTROLLERS = MappingProxyType(
+    {"PD": "controllers:PD", "PD+gravity": "controllers:PDGravity", "computed torque": "controllers:ComputedTorque"}
+)
+
+
+@dataclasses.dataclass(frozen=True)
+class Scene:
+    """One scene.
+
+    Attributes
+    ----------
+    name : str
+        Short name (report tables, ``--scene`` options).
+    id : str
+        Gymnasium id.
+    entry_point : str
+        ``"module:Class"`` of the single env (its vector env is the batched engine over it).
+    max_episode_steps : int
+        Truncation of the registered id.
+    controllers : Mapping[str, str]
+        Model-based controllers by display name -> ``"module:Class"``.
+    residual_base : str
+        The base controller of a residual RL agent when none is named.
+    sizing : bool
+        Whether actuator sizing along the reference applies (a joint-space reference).
+    kwargs : Mapping
+        ``gym.make`` keywords of the configuration compared and benchmarked.
+    """
+
+    name: str
+    id: str
+    entry_point: str
+    max_episode_steps: int
+    controllers: Mapping[str, str] = dataclasses.field(default_factory=lambda: JOINT_CONTROLLERS)
+    residual_base: str = "controllers:ComputedTorque"
+    sizing: bool = True
+    kwargs: Mapping = dataclasses.field(default_factory=dict)
+
+
+SCENES: tuple[Scene, ...] = (
+    Scene("Planar2R", "mbs_envs/Planar2R-v0", "mbs_envs.envs.planar2r:Planar2REnv", 500),
+    Scene("FourBar", "mbs_envs/FourBar-v0", "mbs_envs.envs.fourbar:FourBarEnv", 500),
+    Scene("SerialChain", "mbs_envs/SerialChain-v0", "mbs_envs.envs.serial_chain:SerialChainEnv", 500),
+    Scene(
+        "RollingDisk", "mbs_envs/RollingDisk-v0", "mbs_envs.envs.rolling_disk:RollingDiskEnv", 1000,
+        controllers=MappingProxyType({"LQR": "controllers:LQR", "PD steering": "controllers:SteeringPD", "no control": "controllers:NoControl"}),
+        residual_base="controllers:LQR", sizing=False,
+    ),
+)  # fmt: skip
+
+
+def scene(key: str) -> Scene:
+    """The scene with this name or Gymnasium id.
+
+    Raises
+    ------
+    ValueError
+        Naming the known scenes.
+    """
+    for s in SCENES:
+        if key in (s.name, s.id):
+            return s
+    raise ValueError(f"unknown scene {key!r}; known: {[s.name for s in SCENES]} or {[s.id for s in SCENES]}")

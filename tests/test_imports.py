@@ -1,0 +1,55 @@
+"""Serial scenes do not load the constraint machinery (checked in a fresh interpreter)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+CODE = """
+import sys
+import gymnasium as gym
+import numpy as np
+import mbs_envs
+for env_id in ("mbs_envs/Planar2R-v0", "mbs_envs/SerialChain-v0"):
+    env = gym.make(env_id)
+    env.reset(seed=0)
+    for _ in range(3):
+        env.step(env.action_space.sample())
+    envs = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point")
+    envs.reset(seed=0)
+    envs.step(envs.action_space.sample())
+mbs_envs.simulate(mbs_envs.models.Planar2R(), [0.1, 0.2], [0.0, 0.0], 0.05)
+loaded = sorted(m for m in sys.modules if m in ("mbs_envs.constraints", "mbs_envs.models.constrained",
+                                              "mbs_envs.models.fourbar", "mbs_envs.models.rolling_disk"))
+print(",".join(loaded))
+from mbs_envs.models import FourBar  # the constrained scenes still load on first use
+print("mbs_envs.constraints" in sys.modules)
+"""
+
+
+def test_serial_scenes_do_not_import_the_constraint_machinery():
+    out = subprocess.run([sys.executable, "-c", CODE], capture_output=True, text=True, check=True).stdout.split("\n")
+    assert out[0] == "", f"loaded by serial scenes: {out[0]}"
+    assert out[1] == "True"
+
+
+def test_the_registry_is_the_one_list_of_scenes():
+    import gymnasium as gym
+    import pytest
+
+    import mbs_envs
+    from mbs_envs import comparison
+    from mbs_envs.envs import registry
+    from mbs_envs.training import residual_base
+
+    ids = [s.id for s in registry.SCENES]
+    assert len(set(ids)) == len(ids) and len({s.name for s in registry.SCENES}) == len(ids)
+    assert set(mbs_envs.ENV_IDS) == set(ids)
+    for s in registry.SCENES:
+        spec = gym.spec(s.id)
+        assert spec.entry_point == s.entry_point and spec.max_episode_steps == s.max_episode_steps
+        assert registry.scene(s.name) is registry.scene(s.id) is s
+        assert comparison.SCENES[s.name] == (s.id, dict(s.kwargs), dict(s.controllers))
+        assert residual_base(s.id) == s.residual_base
+    with pytest.raises(ValueError, match="unknown scene 'Pendulum'"):
+        registry.scene("Pendulum")
