@@ -4,8 +4,7 @@ Scenes on constrained models (four-bar, rolling disk) load on first use (see
 :mod:`mbs_envs.models`).
 """
 
-import importlib
-
+from ..lazy import lazy_exports
 from .base import MBSEnv
 from .planar2r import Planar2REnv
 from .serial_chain import SerialChainEnv
@@ -25,13 +24,4 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str):
-    if name in _LAZY:
-        value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals())

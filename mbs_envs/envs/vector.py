@@ -228,7 +228,7 @@ class MBSVectorEnv(VectorEnv):
             raise gym.error.ResetNeeded("call reset() before step()")
         env = self.env
         a = validate_action(actions, self.model.nu, self.num_envs)
-        if getattr(env, "compiled", None) is not None:
+        if getattr(env, "compiled", None) is not None and env.batch_compiled:
             obs, reward, bad, info = self._step_compiled(a)
         else:
             obs, reward, bad, info = self._step_numpy(a)

@@ -5,8 +5,7 @@ they need load on first use: ``from mbs_envs.models import FourBar`` works as
 usual, while a serial scene never imports :mod:`mbs_envs.constraints`.
 """
 
-import importlib
-
+from ..lazy import lazy_exports
 from .base import Model, Params
 from .planar2r import Planar2R, Planar2RParams
 from .serial_chain import SerialChain, SerialChainParams
@@ -24,13 +23,4 @@ _LAZY = {
 __all__ = ["Model", "Params", "Planar2R", "Planar2RParams", "SerialChain", "SerialChainParams", *_LAZY]
 
 
-def __getattr__(name: str):
-    if name in _LAZY:
-        value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals())
