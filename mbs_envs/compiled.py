@@ -97,7 +97,7 @@ def compiled_stepping(model: Model, stepper: Any, stabilization: Any = None) -> 
 _arrays_of = functools.cache(TableauArrays.of)
 
 
-@njit
+@njit(cache=False)  # takes kernels as arguments: cached inside the module-level bindings that call it
 def rk_columns(acc, theta, A_v, A_q, b_v, b_q, needed, q, v, tau, h, substeps, Q, V, K):  # pragma: no cover
     """Advance every column of ``q, v`` (n, B) ``substeps`` steps of size ``h``, in place.
 
@@ -140,7 +140,7 @@ def rk_columns(acc, theta, A_v, A_q, b_v, b_q, needed, q, v, tau, h, substeps, Q
                         v[k, b] = v[k, b] + c * K[i, k, b]
 
 
-@njit
+@njit(cache=False)  # takes kernels as arguments: cached inside the module-level bindings that call it
 def rk_run(acc, theta, stepper, q, v, tau):  # pragma: no cover - compiled
     """:func:`rk_columns` allocating its work arrays; ``acc`` is bound by the caller's compilation.
 

@@ -17,12 +17,15 @@ from __future__ import annotations
 import numba
 
 
-def njit(f=None, *, cache: bool = True):
+def njit(f=None, *, cache: bool = True, **options):
     """``numba.njit`` with the project's options; usable as ``@njit`` or ``@njit(cache=False)``.
 
-    Kernels that call a model's kernels take them as arguments and are bound in a
-    module-level function (``advance_kernel``, a scene's ``step_kernel``): such functions
-    cache, while closures over kernels would compile again in every process.
+    Generic kernels that take a model's kernels as arguments (``rk_run``,
+    ``tracking_step``) are ``cache=False``: their cache index would hold the
+    argument kernels' types, which do not survive the process. They are cached
+    inside the module-level bindings that call them (``advance_kernel``, a scene's
+    ``step_kernel``); closures over kernels would compile again in every process.
+    ``options`` go to ``numba.njit`` (e.g. ``inline="always"``).
     """
-    decorate = numba.njit(cache=cache, error_model="numpy")
+    decorate = numba.njit(cache=cache, error_model="numpy", **options)
     return decorate if f is None else decorate(f)

@@ -16,9 +16,9 @@ from .tracking import JointTrackingEnv, tracking_step
 
 
 @njit
-def step_kernel(theta, stepper, task, state, out):  # pragma: no cover - compiled
+def step_kernel(theta, stepper, control, task, state, out):  # pragma: no cover - compiled
     """The compiled step of this scene: :func:`~mbs_envs.envs.tracking.tracking_step` with the model's kernels."""
-    tracking_step(_model.acceleration_kernel, _model.energy_kernel, theta, stepper, task, state, out)
+    tracking_step(_model.acceleration_kernel, _model.energy_kernel, theta, stepper, control, task, state, out)
 
 
 class SerialChainEnv(JointTrackingEnv):

@@ -24,7 +24,7 @@ import gymnasium as gym
 from ..jit import njit
 import numpy as np
 
-from ..compiled import TableauArrays, batch_theta, compiled_stepping, rk_columns
+from ..compiled import TableauArrays, batch_theta, compiled_stepping, rk_run
 from ..references import SumOfSines, sample_sum_of_sines, sum_of_sines_columns
 from ..trig import sincos_columns
 from .. import validation as check
@@ -120,11 +120,11 @@ def _as_columns(*arrays: np.ndarray) -> tuple[tuple, list[np.ndarray]]:
     return lead, [np.ascontiguousarray(np.broadcast_to(x, lead + x.shape[-1:]).reshape(-1, x.shape[-1]).T) for x in arrays]
 
 
-@njit
-def tracking_step(acc, energy, theta, stepper, task, state, out):  # pragma: no cover - compiled
+@njit(cache=False)  # takes kernels as arguments: cached inside the module-level bindings that call it
+def tracking_step(acc, energy, theta, stepper, control, task, state, out):  # pragma: no cover - compiled
     """One control step of every member: :meth:`MBSEnv.step`'s sequence, compiled.
 
-    Physics (:func:`mbs_envs.compiled.rk_columns` with ``u = action * u_max``
+    Physics (:func:`mbs_envs.compiled.rk_run` with ``u = action * u_max``
     held; ``B = I``), the divergence test (non-finite or ``|x| > limit``: the
     member keeps its state and ``bad`` is set), ``t += dt``, the reference at the
     new time, reward terms, observation and energy. A scene binds its model's
@@ -137,8 +137,10 @@ def tracking_step(acc, energy, theta, stepper, task, state, out):  # pragma: no 
     theta : ndarray, shape (P, B)
         The model's parameters in columns (:func:`mbs_envs.compiled.batch_theta`).
     stepper : tuple
-        ``(A_v, A_q, b_v, b_q, needed, h, substeps, dt, limit)``: the tableau
-        (:meth:`TableauArrays.packed`), the control step ``dt`` [s] and the divergence limit.
+        The tableau, step and substeps (:meth:`TableauArrays.packed`) for
+        :func:`mbs_envs.compiled.rk_run`.
+    control : tuple
+        ``(dt, limit)``: the control step [s] and the divergence limit.
     task : tuple
         ``(u_max, center, rate, amplitude, omega, phase, tracked, weights)``: the
         actuator limits, the reference in columns (:meth:`SumOfSines.columns`),
@@ -150,14 +152,12 @@ def tracking_step(acc, energy, theta, stepper, task, state, out):  # pragma: no 
         ``(u, obs, terms, e, q_ref, bad)``, rows written: ``u (B, nu)``, ``obs (B, d)``,
         ``terms (B, 5) = (r, r_e, r_de, r_u, energy)``, ``e (B, m)``, ``q_ref (B, m)``, ``bad (B,)``.
     """
-    A_v, A_q, b_v, b_q, needed, h, substeps, dt, limit = stepper
+    dt, limit = control
     u_max, center, rate, amplitude, omega, phase, tracked, weights = task
     q, v, t, action = state
     u, obs, terms, e, q_ref, bad = out
     B, n = q.shape
     m = tracked.shape[0]
-    shape = (A_v.shape[0], n, B)
-    Q, V, K = np.empty(shape), np.empty(shape), np.empty(shape)
     qc, vc = np.ascontiguousarray(q.T), np.ascontiguousarray(v.T)
     ac = np.ascontiguousarray(action.T)
     uc = np.empty((u.shape[1], B))
@@ -165,7 +165,7 @@ def tracking_step(acc, energy, theta, stepper, task, state, out):  # pragma: no 
         for b in range(B):
             uc[k, b] = ac[k, b] * u_max[k]
             u[b, k] = uc[k, b]
-    rk_columns(acc, theta, A_v, A_q, b_v, b_q, needed, qc, vc, uc, h, substeps, Q, V, K)
+    rk_run(acc, theta, stepper, qc, vc, uc)
     for b in range(B):
         ok = True
         for k in range(n):
@@ -287,7 +287,7 @@ class JointTrackingEnv(MBSEnv):
     #: ``kp = J omega^2``, ``kd = 2 J zeta omega`` (controllers/tuned.py)
     joint_inertia: Any = 1.0
 
-    #: The scene's compiled step: a module-level function ``(theta, stepper, task, state, out)``
+    #: The scene's compiled step: a module-level function ``(theta, stepper, control, task, state, out)``
     #: calling :func:`tracking_step` with its model's kernels (see ``envs/planar2r.py``), or
     #: None (numpy path). A subclass that redefines a task function below (``observe``,
     #: ``reward``, ...) steps on the numpy path unless it declares a kernel of its own.
@@ -386,10 +386,11 @@ class JointTrackingEnv(MBSEnv):
             "q_ref": np.empty((B, m)),
             "bad": np.empty(B, bool),
         }
-        stepper = tab.packed(self.dt / self.substeps, self.substeps) + (float(self.dt), float(self.divergence_limit))
+        stepper = tab.packed(self.dt / self.substeps, self.substeps)
+        control = (float(self.dt), float(self.divergence_limit))
         task = (self.u_max, *task_columns, self._tracked, self.reward_weights)
         self.step_kernel(  # compiled code raises no floating-point warnings
-            batch_theta(model, B), stepper, task, (q, v, t, action),
+            batch_theta(model, B), stepper, control, task, (q, v, t, action),
             (out["u"], out["obs"], out["terms"], out["e"], out["q_ref"], out["bad"]),
         )
         return out

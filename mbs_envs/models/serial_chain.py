@@ -110,7 +110,7 @@ def _aba_work(N):  # pragma: no cover - compiled
             np.empty((N, 2)), np.empty((N, 2)))  # fmt: skip
 
 
-@njit
+@njit(inline="always")  # a call per member would pass 13 work arrays (refcounted) each time
 def _aba_member(q, w, tau, l, r, m, Ic, arm, g, out, work):  # pragma: no cover - compiled
     """Articulated-body forward dynamics of one planar chain (world frame); writes ``out`` (N,).
 
