@@ -58,9 +58,10 @@ class TableauArrays:
     b_q: np.ndarray
     needed: np.ndarray
 
-    def packed(self, h: float, substeps: int) -> tuple:
-        """``(A_v, A_q, b_v, b_q, needed, h, substeps)``: the stepper argument of :func:`rk_run`."""
-        return (self.A_v, self.A_q, self.b_v, self.b_q, self.needed, float(h), int(substeps))
+    def packed(self, h: float, substeps: int, tol: float = 0.0) -> tuple:
+        """``(A_v, A_q, b_v, b_q, needed, h, substeps, tol)``: the stepper argument of :func:`rk_run`
+        (``tol``: the projection tolerance of constrained models [m], unused by the others)."""
+        return (self.A_v, self.A_q, self.b_v, self.b_q, self.needed, float(h), int(substeps), float(tol))
 
     @classmethod
     def of(cls, tableau: Tableau) -> "TableauArrays":
@@ -76,21 +77,25 @@ class TableauArrays:
 def compiled_stepping(model: Model, stepper: Any, stabilization: Any = None) -> TableauArrays | None:
     """The tableau to run compiled, or None where the numpy path must be used.
 
-    The compiled path needs model kernels, an explicit Runge-Kutta stepper, no
-    constraint stabilization, ``nq == nv`` and no coordinate singularities.
+    The compiled path needs model kernels, an explicit Runge-Kutta stepper,
+    ``nq == nv``, and for a constrained model the projection after every step
+    (the environments' default; Baumgarte and unstabilized runs take the numpy path).
     """
-    from .models.base import Model
-
     if (
         model.kernels is None
         or model.advance_kernel is None
         or not isinstance(stepper, ExplicitRK)
-        or stabilization is not None
         or model.nq != model.nv
-        or type(model).singular is not Model.singular
+        or (stabilization is not None and stabilization.kind != "projection")
+        or (model.nc > 0 and stabilization is None)
     ):
         return None
     return _arrays_of(stepper.tableau)
+
+
+def projection_tol(stabilization: Any) -> float:
+    """The projection tolerance the compiled stepper applies after every step [m] (0: none)."""
+    return 0.0 if stabilization is None else float(stabilization.tol)
 
 
 #: One :class:`TableauArrays` per tableau (``advance`` asks for it on every call; the kernels only read it).
@@ -98,14 +103,16 @@ _arrays_of = functools.cache(TableauArrays.of)
 
 
 @njit(cache=False)  # takes kernels as arguments: cached inside the module-level bindings that call it
-def rk_columns(acc, theta, A_v, A_q, b_v, b_q, needed, q, v, tau, h, substeps, Q, V, K):  # pragma: no cover
+def rk_columns(acc, after, theta, A_v, A_q, b_v, b_q, needed, q, v, tau, h, substeps, tol, Q, V, K):  # pragma: no cover
     """Advance every column of ``q, v`` (n, B) ``substeps`` steps of size ``h``, in place.
 
     The stages are those of :meth:`mbs_envs.integrators.ExplicitRK.step`, term by
     term in the same order (zero coefficients skipped), with the input ``tau``
     (n, B) held. ``Q, V, K`` are work arrays of shape ``(s, n, B)``; the model's
-    kernel is called as ``acc(Q[i], V[i], tau, theta, K[i])``. Every innermost
-    loop runs over the batch, so it vectorizes.
+    kernel is called as ``acc(Q[i], V[i], tau, theta, K[i])``, and
+    ``after(q, v, theta, tol)`` after every step (a constrained model's
+    projection, :func:`mbs_envs.constraints.project_columns`; :func:`no_projection`
+    otherwise). Every innermost loop runs over the batch, so it vectorizes.
     """
     s = A_v.shape[0]
     n, B = q.shape
@@ -138,25 +145,46 @@ def rk_columns(acc, theta, A_v, A_q, b_v, b_q, needed, q, v, tau, h, substeps, Q
                     c = h * b_v[i]
                     for b in range(B):
                         v[k, b] = v[k, b] + c * K[i, k, b]
+        after(q, v, theta, tol)
 
 
 @njit(cache=False)  # takes kernels as arguments: cached inside the module-level bindings that call it
-def rk_run(acc, theta, stepper, q, v, tau):  # pragma: no cover - compiled
-    """:func:`rk_columns` allocating its work arrays; ``acc`` is bound by the caller's compilation.
+def rk_run(acc, after, theta, stepper, q, v, tau):  # pragma: no cover - compiled
+    """:func:`rk_columns` allocating its work arrays; ``acc, after`` are bound by the caller's compilation.
 
     Parameters
     ----------
     acc : compiled acceleration kernel
+    after : compiled kernel ``(q, v, theta, tol)`` applied after every step
     theta : ndarray, shape (P, B)
     stepper : tuple
-        ``(A_v, A_q, b_v, b_q, needed, h, substeps)`` (:meth:`TableauArrays.packed`).
+        ``(A_v, A_q, b_v, b_q, needed, h, substeps, tol)`` (:meth:`TableauArrays.packed`).
     q, v, tau : ndarray, shape (n, B)
         Columns; ``q, v`` advanced in place.
     """
-    A_v, A_q, b_v, b_q, needed, h, substeps = stepper
+    A_v, A_q, b_v, b_q, needed, h, substeps, tol = stepper
     shape = (A_v.shape[0], q.shape[0], q.shape[1])
     Q, V, K = np.empty(shape), np.empty(shape), np.empty(shape)
-    rk_columns(acc, theta, A_v, A_q, b_v, b_q, needed, q, v, tau, h, substeps, Q, V, K)
+    rk_columns(acc, after, theta, A_v, A_q, b_v, b_q, needed, q, v, tau, h, substeps, tol, Q, V, K)
+
+
+@njit
+def no_projection(q, v, theta, tol):  # pragma: no cover - compiled
+    """The ``after`` kernel of :func:`rk_run` for models without constraints: nothing."""
+    return
+
+
+@njit
+def never_singular(q, flags):  # pragma: no cover - compiled
+    """The singularity kernel of models whose coordinates have none: ``flags`` stay False."""
+    return
+
+
+@njit
+def no_constraint_info(q, v, tau, theta, residual, lam):  # pragma: no cover - compiled
+    """The constraint-info kernel of models without constraints: ``residual = 0`` (``lam`` has no rows)."""
+    for b in range(q.shape[1]):
+        residual[b] = 0.0
 
 
 def batch_theta(model: Model, batch: int) -> np.ndarray:
@@ -172,7 +200,8 @@ def batch_theta(model: Model, batch: int) -> np.ndarray:
 
 
 def advance_compiled(
-    model: Model, tab: TableauArrays, q: np.ndarray, v: np.ndarray, u: np.ndarray, duration: float, substeps: int = 1
+    model: Model, tab: TableauArrays, q: np.ndarray, v: np.ndarray, u: np.ndarray, duration: float, substeps: int = 1,
+    stabilization: Any = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The compiled :func:`mbs_envs.simulate.advance` for a held input (numpy in, numpy out).
 
@@ -186,6 +215,8 @@ def advance_compiled(
         Held over the interval; ``B u`` is applied.
     duration : float
         [s], in ``substeps`` equal steps.
+    stabilization : Stabilization, optional
+        A constrained model's (projection after every step).
 
     Returns
     -------
@@ -200,5 +231,5 @@ def advance_compiled(
 
     q2, v2, tau = columns(q), columns(v), columns(model.generalized_input(u))
     theta = batch_theta(model, q2.shape[1])
-    model.advance_kernel(theta, tab.packed(duration / substeps, substeps), q2, v2, tau)
+    model.advance_kernel(theta, tab.packed(duration / substeps, substeps, projection_tol(stabilization)), q2, v2, tau)
     return q2.T.reshape(shape + (n,)), v2.T.reshape(shape + (n,))

@@ -65,7 +65,7 @@ def _pinv_rows(S, r, rcond, x, cond):  # pragma: no cover - compiled
             for j in range(r.shape[1]):
                 ok &= np.isfinite(S[b, i, j])
         if ok:
-            _pinv_solve(S[b], r[b], rcond, x[b], cond[b : b + 1])
+            cond[b] = _pinv_solve(S[b], r[b], rcond, x[b])
         else:
             x[b, :] = np.nan
             cond[b] = np.nan
@@ -125,84 +125,131 @@ def constrained_accelerations(
 
 
 @njit
-def _schur_kernel(M, f, Psi, gamma, rcond, conditioning, a, lam, cond):  # pragma: no cover - compiled
-    """:func:`constrained_accelerations` for rows: ``M`` (B, n, n), ``f`` (B, n), ``Psi`` (B, k, n),
-    ``gamma`` (B, k); writes ``a`` (B, n), ``lam`` (B, k) and ``cond`` (B,)."""
-    B, n = f.shape
-    k = gamma.shape[1]
-    L = np.zeros((n, n))
-    X = np.empty((n, k + 1))  # columns: M^-1 f, then M^-1 Psi^T
-    S = np.empty((k, k))
-    r = np.empty(k)
-    R, Rinv, y = np.zeros((k, k)), np.zeros((k, k)), np.empty(k)
-    for b in range(B):
-        ok = True
-        for j in range(n):  # Cholesky, M = L L^T
-            d = M[b, j, j]
-            for p in range(j):
-                d -= L[j, p] * L[j, p]
-            if not d > 0.0:  # not positive definite, or NaN
-                ok = False
-                break
-            L[j, j] = np.sqrt(d)
-            for i in range(j + 1, n):
-                e = M[b, i, j]
-                for p in range(j):
-                    e -= L[i, p] * L[j, p]
-                L[i, j] = e / L[j, j]
-        for i in range(k):
-            for p in range(n):
-                ok &= np.isfinite(Psi[b, i, p])
-            ok &= np.isfinite(gamma[b, i])
-        for i in range(n):
-            ok &= np.isfinite(f[b, i])
-        if not ok:
-            a[b, :] = np.nan
-            lam[b, :] = np.nan
-            cond[b] = np.nan
-            continue
-        for i in range(n):
-            X[i, 0] = f[b, i]
-            for c in range(k):
-                X[i, 1 + c] = Psi[b, c, i]
-        for c in range(k + 1):  # L Y = X, then L^T X = Y
-            for i in range(n):
-                e = X[i, c]
-                for p in range(i):
-                    e -= L[i, p] * X[p, c]
-                X[i, c] = e / L[i, i]
-            for i in range(n - 1, -1, -1):
-                e = X[i, c]
-                for p in range(i + 1, n):
-                    e -= L[p, i] * X[p, c]
-                X[i, c] = e / L[i, i]
-        for i in range(k):  # S = Psi M^-1 Psi^T, r = gamma - Psi M^-1 f
-            e = gamma[b, i]
-            for p in range(n):
-                e -= Psi[b, i, p] * X[p, 0]
-            r[i] = e
-            for j in range(k):
-                e = 0.0
-                for p in range(n):
-                    e += Psi[b, i, p] * X[p, 1 + j]
-                S[i, j] = e
-        if not conditioning and _cholesky_solve_if_well_conditioned(S, r, rcond, R, Rinv, y):
-            for i in range(k):
-                lam[b, i] = y[i]
-            cond[b] = np.nan
-        else:
-            _pinv_solve(S, r, rcond, lam[b], cond[b:b + 1])
-        for i in range(n):
-            e = X[i, 0]
-            for j in range(k):
-                e += X[i, 1 + j] * lam[b, j]
-            a[b, i] = e
+def schur_work(n, k):  # pragma: no cover - compiled
+    """Work array of :func:`schur_member` for ``n`` coordinates and ``k`` constraint rows."""
+    return np.empty(n * n + n * (k + 1) + 3 * k * k + 2 * k)
 
 
 @njit
-def _pinv_solve(S, r, rcond, x, cond):  # pragma: no cover - compiled
+def schur_member(M, f, Psi, gamma, rcond, conditioning, work, a, lam):  # pragma: no cover - compiled
+    """:func:`constrained_accelerations` of one member, the formulas every compiled path shares.
+
+    ``M = L L^T`` (Cholesky), ``X = M^-1 [f, Psi^T]``, ``S = Psi M^-1 Psi^T``,
+    ``r = gamma - Psi M^-1 f``; ``lam = S^-1 r`` by Cholesky where ``S`` is provably well
+    conditioned and ``conditioning`` is False (:func:`_cholesky_solve_if_well_conditioned`),
+    else ``S^+ r`` (:func:`_pinv_solve`); ``a = M^-1 (f + Psi^T lam)``.
+
+    Parameters
+    ----------
+    M : ndarray, shape (n, n)
+    f : ndarray, shape (n,)
+    Psi : ndarray, shape (k, n)
+    gamma : ndarray, shape (k,)
+    rcond : float
+    conditioning : bool
+    work : ndarray
+        :func:`schur_work` ``(n, k)``.
+    a, lam : ndarray, shape (n,), (k,)
+        Written; NaN (and the return value NaN) if ``M`` is not positive definite
+        or an input is not finite.
+
+    Returns
+    -------
+    float
+        The condition number of ``S`` (NaN where not computed).
+    """
+    n = f.shape[0]
+    k = gamma.shape[0]
+    o = 0
+    L = work[o : o + n * n].reshape((n, n))
+    o += n * n
+    X = work[o : o + n * (k + 1)].reshape((n, k + 1))  # columns: M^-1 f, then M^-1 Psi^T
+    o += n * (k + 1)
+    S = work[o : o + k * k].reshape((k, k))
+    o += k * k
+    R = work[o : o + k * k].reshape((k, k))
+    o += k * k
+    Rinv = work[o : o + k * k].reshape((k, k))
+    o += k * k
+    r = work[o : o + k]
+    y = work[o + k : o + 2 * k]
+    ok = True
+    for j in range(n):  # Cholesky, M = L L^T
+        d = M[j, j]
+        for p in range(j):
+            d -= L[j, p] * L[j, p]
+        if not d > 0.0:  # not positive definite, or NaN
+            ok = False
+            break
+        L[j, j] = np.sqrt(d)
+        for i in range(j + 1, n):
+            e = M[i, j]
+            for p in range(j):
+                e -= L[i, p] * L[j, p]
+            L[i, j] = e / L[j, j]
+    for i in range(k):
+        for p in range(n):
+            ok &= np.isfinite(Psi[i, p])
+        ok &= np.isfinite(gamma[i])
+    for i in range(n):
+        ok &= np.isfinite(f[i])
+    if not ok:
+        a[:] = np.nan
+        lam[:] = np.nan
+        return np.nan
+    for i in range(n):
+        X[i, 0] = f[i]
+        for c in range(k):
+            X[i, 1 + c] = Psi[c, i]
+    for c in range(k + 1):  # L Y = X, then L^T X = Y
+        for i in range(n):
+            e = X[i, c]
+            for p in range(i):
+                e -= L[i, p] * X[p, c]
+            X[i, c] = e / L[i, i]
+        for i in range(n - 1, -1, -1):
+            e = X[i, c]
+            for p in range(i + 1, n):
+                e -= L[p, i] * X[p, c]
+            X[i, c] = e / L[i, i]
+    for i in range(k):  # S = Psi M^-1 Psi^T, r = gamma - Psi M^-1 f
+        e = gamma[i]
+        for p in range(n):
+            e -= Psi[i, p] * X[p, 0]
+        r[i] = e
+        for j in range(k):
+            e = 0.0
+            for p in range(n):
+                e += Psi[i, p] * X[p, 1 + j]
+            S[i, j] = e
+    if not conditioning and _cholesky_solve_if_well_conditioned(S, r, rcond, R, Rinv, y):
+        for i in range(k):
+            lam[i] = y[i]
+        cond = np.nan
+    else:
+        cond = _pinv_solve(S, r, rcond, lam)
+    for i in range(n):
+        e = X[i, 0]
+        for j in range(k):
+            e += X[i, 1 + j] * lam[j]
+        a[i] = e
+    return cond
+
+
+@njit
+def _schur_kernel(M, f, Psi, gamma, rcond, conditioning, a, lam, cond):  # pragma: no cover - compiled
+    """:func:`schur_member` for rows: ``M`` (B, n, n), ``f`` (B, n), ``Psi`` (B, k, n),
+    ``gamma`` (B, k); writes ``a`` (B, n), ``lam`` (B, k) and ``cond`` (B,)."""
+    B, n = f.shape
+    work = schur_work(n, gamma.shape[1])
+    for b in range(B):
+        cond[b] = schur_member(M[b], f[b], Psi[b], gamma[b], rcond, conditioning, work, a[b], lam[b])
+
+
+@njit
+def _pinv_solve(S, r, rcond, x):  # pragma: no cover - compiled
     """``x = S^+ r`` by the eigendecomposition of symmetric ``S`` (k, k), eigenvalues below
-    ``rcond * max |w|`` dropped; ``cond[0] = max |w| / min w`` (inf if not positive)."""
+    ``rcond * max |w|`` dropped; returns ``max |w| / min w`` (inf if not positive)."""
     k = r.shape[0]
     w, V = np.linalg.eigh(S)
     w_max = 0.0
@@ -218,7 +265,7 @@ def _pinv_solve(S, r, rcond, x, cond):  # pragma: no cover - compiled
             e /= w[j]
             for i in range(k):
                 x[i] += V[i, j] * e
-    cond[0] = w_max / w[0] if w[0] > 0.0 else np.inf
+    return w_max / w[0] if w[0] > 0.0 else np.inf
 
 
 @njit
@@ -266,6 +313,140 @@ def _cholesky_solve_if_well_conditioned(S, r, rcond, R, Rinv, y):  # pragma: no 
             e -= R[p, i] * y[p]
         y[i] = e / R[i, i]
     return True
+
+
+# ---------------------------------------------------------------------------
+# The compiled path of a constrained model (see mbs_envs.compiled). A model
+# supplies kernels of one member -- ``terms(q, v, tau, p, M, f, Psi, gamma)``
+# (``M``, ``f = tau - h``, ``Psi`` and ``gamma = -dPsi v``), ``residual(q, p, phi)``,
+# ``jacobian(q, p, Psi)``, ``mass(q, p, M)`` -- on contiguous ``q, v, tau`` (n,)
+# and its parameter column ``p``; the generic loops below run them over a batch in
+# columns and are bound in the model's module (cache=False here, as rk_run).
+# ---------------------------------------------------------------------------
+
+
+@njit(cache=False)
+def constrained_acceleration_columns(terms, k, q, v, tau, theta, a):  # pragma: no cover - compiled
+    """Accelerations of a batch in columns (the ``acc`` kernel of :func:`mbs_envs.compiled.rk_run`):
+    per member, ``terms`` then :func:`schur_member` (as :meth:`ConstrainedModel.forward_dynamics`).
+
+    Parameters
+    ----------
+    terms : compiled kernel of one member (see above)
+    k : int
+        Rows of ``Psi``.
+    q, v, tau : ndarray, shape (n, B)
+    theta : ndarray, shape (P, B)
+    a : ndarray, shape (n, B)
+        Written.
+    """
+    n, B = q.shape
+    M, f, Psi, gamma = np.empty((n, n)), np.empty(n), np.empty((k, n)), np.empty(k)
+    qb, vb, tb, ab, lam = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(k)
+    work = schur_work(n, k)
+    for b in range(B):
+        for i in range(n):
+            qb[i], vb[i], tb[i] = q[i, b], v[i, b], tau[i, b]
+        terms(qb, vb, tb, theta[:, b], M, f, Psi, gamma)
+        schur_member(M, f, Psi, gamma, RCOND, False, work, ab, lam)
+        for i in range(n):
+            a[i, b] = ab[i]
+
+
+@njit(cache=False)
+def project_columns(residual, jacobian, mass, rows, k, q, v, theta, tol):  # pragma: no cover - compiled
+    """:meth:`ConstrainedModel.project` of a batch in columns, in place (the ``after`` kernel of
+    :func:`mbs_envs.compiled.rk_run`).
+
+    Per member: Gauss-Newton on the holonomic rows ``rows`` of ``Psi`` until
+    ``max |phi| <= tol`` (at most 20 iterations, as :func:`gauss_newton_projection`),
+    the steps solved by Cholesky where ``Psi Psi^T`` is provably well conditioned and
+    by its pseudo-inverse otherwise; then ``v`` projected onto ``Psi v = 0`` in the
+    kinetic-energy metric (:func:`project_velocities`).
+
+    Parameters
+    ----------
+    residual, jacobian, mass : compiled kernels of one member (see above)
+    rows : ndarray of int, shape (p,)
+        The rows of ``Psi`` that are the Jacobian of ``phi``.
+    k : int
+        Rows of ``Psi``.
+    q, v : ndarray, shape (n, B)
+    theta : ndarray, shape (P, B)
+    tol : float
+        [m]
+    """
+    n, B = q.shape
+    m = rows.shape[0]
+    M, Psi, zero, gamma = np.empty((n, n)), np.empty((k, n)), np.zeros(n), np.empty(k)
+    qb, vb, dv, lam = np.empty(n), np.empty(n), np.empty(n), np.empty(k)
+    phi, G, y = np.empty(m), np.empty((m, m)), np.empty(m)
+    R, Rinv = np.zeros((m, m)), np.zeros((m, m))
+    work = schur_work(n, k)
+    for b in range(B):
+        p = theta[:, b]
+        for i in range(n):
+            qb[i], vb[i] = q[i, b], v[i, b]
+        residual(qb, p, phi)
+        for _ in range(20):
+            active = False
+            for i in range(m):
+                active |= abs(phi[i]) > tol
+            if not active:
+                break
+            jacobian(qb, p, Psi)
+            for i in range(m):  # G = P P^T with P the holonomic rows
+                for j in range(m):
+                    e = 0.0
+                    for c in range(n):
+                        e += Psi[rows[i], c] * Psi[rows[j], c]
+                    G[i, j] = e
+            if not _cholesky_solve_if_well_conditioned(G, phi, RCOND, R, Rinv, y):
+                _pinv_solve(G, phi, RCOND, y)
+            for c in range(n):
+                e = 0.0
+                for i in range(m):
+                    e += Psi[rows[i], c] * y[i]
+                qb[c] -= e
+            residual(qb, p, phi)
+        mass(qb, p, M)
+        jacobian(qb, p, Psi)
+        for i in range(k):
+            e = 0.0
+            for c in range(n):
+                e += Psi[i, c] * vb[c]
+            gamma[i] = -e
+        schur_member(M, zero, Psi, gamma, RCOND, False, work, dv, lam)
+        for i in range(n):
+            q[i, b] = qb[i]
+            v[i, b] = vb[i] + dv[i]
+
+
+@njit(cache=False)
+def constraint_info_columns(terms, residual, q, v, tau, theta, res, lam):  # pragma: no cover - compiled
+    """Per member of a batch in columns: ``res = max |phi|`` [m] and the multipliers ``lam``
+    (B, k) of the motion under ``tau`` (:meth:`ConstrainedModel.multipliers`)."""
+    n, B = q.shape
+    k = lam.shape[1]
+    M, f, Psi, gamma = np.empty((n, n)), np.empty(n), np.empty((k, n)), np.empty(k)
+    qb, vb, tb, ab, lb = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(k)
+    phi = np.zeros(k)  # the holonomic rows written, the others stay 0
+    work = schur_work(n, k)
+    for b in range(B):
+        p = theta[:, b]
+        for i in range(n):
+            qb[i], vb[i], tb[i] = q[i, b], v[i, b], tau[i, b]
+        residual(qb, p, phi)
+        worst = 0.0
+        for i in range(k):
+            x = abs(phi[i])
+            if x > worst or x != x:  # NaN stays
+                worst = x
+        res[b] = worst
+        terms(qb, vb, tb, p, M, f, Psi, gamma)
+        schur_member(M, f, Psi, gamma, RCOND, False, work, ab, lb)
+        for i in range(k):
+            lam[b, i] = lb[i]
 
 
 def gauss_newton_projection(

@@ -101,14 +101,15 @@ class SumOfSines:
     def columns(self, shape: tuple = ()) -> tuple[np.ndarray, ...]:
         """``(center, rate, amplitude, omega, phase)`` broadcast to times of ``shape``,
         flattened to ``L`` members and laid out in contiguous columns ``(n, L)``,
-        ``(n, K, L)`` as :func:`sum_of_sines_columns` reads them (a zero rate when there is none)."""
+        ``(n, K, L)`` as :func:`sum_of_sines_columns` reads them (a zero rate when there is none);
+        new, writable arrays."""
         lead = np.broadcast_shapes(shape, self.center.shape[:-1])
         n, K = self.amplitude.shape[-2:]
         rate = np.zeros(n) if self.rate is None else self.rate
 
         def columns(x, tail):
             rows = np.broadcast_to(x, lead + tail).reshape((-1,) + tail)
-            return np.ascontiguousarray(np.moveaxis(rows, 0, -1), float)
+            return np.array(np.moveaxis(rows, 0, -1), float, order="C")
 
         return (*(columns(x, (n,)) for x in (self.center, rate)),
                 *(columns(x, (n, K)) for x in (self.amplitude, self.omega, self.phase)))  # fmt: skip

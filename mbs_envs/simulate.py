@@ -139,7 +139,8 @@ def advance(
     if tab is not None:
         u_held = input_function(model, u)(t, q, v)
         with np.errstate(all="ignore"):
-            return advance_compiled(model, tab, q, v, np.zeros(model.nu) if u_held is None else u_held, duration, substeps)
+            u_held = np.zeros(model.nu) if u_held is None else u_held
+            return advance_compiled(model, tab, q, v, u_held, duration, substeps, stabilization)
     acc = acceleration(model, u, stabilization)
     steps = 1 if isinstance(stepper, ScipyIVP) else substeps
     h = duration / steps

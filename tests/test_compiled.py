@@ -18,7 +18,7 @@ import mbs_envs  # noqa: F401  (registers the ids)
 from mbs_envs import integrators
 from mbs_envs.compiled import advance_compiled, batch_theta, compiled_stepping
 from mbs_envs.envs.base import validate_action
-from mbs_envs.models import FourBar, Planar2R
+from mbs_envs.models import FourBar, Planar2R, RollingDisk
 from mbs_envs.simulate import advance
 
 ID = "mbs_envs/Planar2R-v0"
@@ -144,8 +144,76 @@ def test_the_compiled_path_applies_exactly_where_it_is_exact():
     assert gym.make(ID, integrator="midpoint").unwrapped.compiled is not None
     for kwargs in ({"compiled": False}, {"integrator": "sdirk2"}, {"integrator": "rk45"}):
         assert gym.make(ID, **kwargs).unwrapped.compiled is None, kwargs
-    assert gym.make("mbs_envs/FourBar-v0").unwrapped.compiled is None  # no kernels: constrained
+    # a constrained model: compiled with the projection after every step (its default), not otherwise
+    assert gym.make("mbs_envs/FourBar-v0").unwrapped.compiled is not None
+    for kind in ("baumgarte", "none"):
+        assert gym.make("mbs_envs/FourBar-v0", stabilization=kind).unwrapped.compiled is None, kind
     assert compiled_stepping(FourBar(), integrators.get("rk4")) is None
+    assert compiled_stepping(FourBar(), integrators.get("rk4"), FourBar().stabilization("projection")) is not None
+
+
+def fourbar_case(rng, B):
+    model = FourBar(b1=0.1, b3=0.05, f2=0.2)
+    q0, v0 = model.consistent_state(rng.uniform(-np.pi, np.pi, B), rng.uniform(-5, 5, B))
+    u = rng.uniform(-8, 8, (B, 1))
+    return model, q0, v0, u
+
+
+def disk_case(rng, B):
+    model = RollingDisk(b_roll=0.01, b_pivot=0.02)
+    states = [model.rolling_state(*rng.uniform(-3, 3, 1), *rng.uniform(-1.2, 1.2, 1), *rng.uniform(-3, 3, 1),
+                                  *rng.uniform(-2, 2, 2), *rng.uniform(-30, 30, 1)) for _ in range(B)]  # fmt: skip
+    q0, v0 = (np.array(x) for x in zip(*states))
+    return model, q0, v0, rng.uniform(-1, 1, (B, 2))
+
+
+@pytest.mark.parametrize("case", [fourbar_case, disk_case], ids=["fourbar", "disk"])
+def test_constrained_kernels_equal_the_numpy_model(case):
+    """Forward dynamics, energy, projection and multipliers, at random states (also off the constraints)."""
+    import importlib
+
+    rng = np.random.default_rng(7)
+    B = 100
+    model, q0, v0, u = case(rng, B)
+    module = importlib.import_module(type(model).__module__)
+    q, v = rng.uniform(-3, 3, q0.shape), rng.uniform(-5, 5, v0.shape)
+    if isinstance(model, RollingDisk):
+        q[:, 4] = rng.uniform(-1.4, 1.4, B)  # away from the flat singularity
+    tau = model.generalized_input(u)
+    theta = batch_theta(model, B)
+    acc, energy = model.kernels
+    a, E = np.empty(q.T.shape), np.empty(B)
+    acc(q.T.copy(), v.T.copy(), tau.T.copy(), theta, a)
+    energy(q.T.copy(), v.T.copy(), theta, E)
+    a_np = model.forward_dynamics(q, v, u)
+    assert np.max(np.abs(a.T - a_np) / np.max(np.abs(a_np), axis=-1, keepdims=True)) < 1e-12
+    np.testing.assert_allclose(E, model.energy(q, v), rtol=1e-12, atol=1e-12)
+    # near-consistent states (as after a step) projected by both paths
+    q0, v0 = q0 + rng.normal(0, 1e-3, q0.shape), v0 + rng.normal(0, 1e-2, v0.shape)
+    qc, vc = q0.T.copy(), v0.T.copy()
+    module.project_kernel(qc, vc, theta, 1e-12)
+    qn, vn = model.project(q0, v0, 1e-12)
+    np.testing.assert_allclose(qc.T, qn, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(vc.T, vn, rtol=0, atol=1e-12 * np.max(np.abs(vn)))
+    res, lam = np.empty(B), np.empty((B, model.nc))
+    module.constraint_info_kernel(qn.T.copy(), vn.T.copy(), tau.T.copy(), theta, res, lam)
+    lam_np = model.multipliers(qn, vn, u)
+    assert np.max(np.abs(lam - lam_np)) < 1e-12 * np.max(np.abs(lam_np))
+    np.testing.assert_allclose(res, np.max(np.abs(model.constraint_residual(qn)), axis=-1), rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize("case", [fourbar_case, disk_case], ids=["fourbar", "disk"])
+def test_constrained_compiled_advance_equals_the_numpy_advance_with_projection(case):
+    model, q, v, u = case(np.random.default_rng(8), 32)
+    stepper, stab = integrators.get("rk4"), model.stabilization("projection")
+    tab = compiled_stepping(model, stepper, stab)
+    qc, vc = advance_compiled(model, tab, q, v, u, 0.01, 2, stab)
+    qn, vn = advance(model, stepper, 0.0, q, v, 0.01, 2, u, stab, compiled=False)
+    np.testing.assert_allclose(qc, qn, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(vc, vn, rtol=0, atol=1e-12 * np.max(np.abs(vn)))
+    assert np.max(np.abs(model.constraint_residual(qc))) <= 1e-12
+    qa, va = advance(model, stepper, 0.0, q, v, 0.01, 2, u, stab)  # routed to the kernels
+    np.testing.assert_array_equal(qa, qc)
 
 
 def step_both(fast, slow, action):
@@ -155,9 +223,20 @@ def step_both(fast, slow, action):
     return fast.step(action), slow.step(action)
 
 
-@pytest.mark.parametrize("kwargs", [{}, {"params": {"b1": 0.5, "f2": 1.0}, "substeps": 3}, {"integrator": "euler"}])
-def test_compiled_env_steps_equal_the_numpy_path(kwargs):
-    fast, slow = gym.make(ID, **kwargs), gym.make(ID, compiled=False, **kwargs)
+@pytest.mark.parametrize(
+    "env_id, kwargs",
+    [
+        (ID, {}),
+        (ID, {"params": {"b1": 0.5, "f2": 1.0}, "substeps": 3}),
+        (ID, {"integrator": "euler"}),
+        ("mbs_envs/FourBar-v0", {}),
+        ("mbs_envs/FourBar-v0", {"params": {"b1": 0.2, "f3": 0.1}, "substeps": 2, "integrator": "midpoint"}),
+        ("mbs_envs/RollingDisk-v0", {}),
+        ("mbs_envs/RollingDisk-v0", {"params": {"b_roll": 0.01}, "substeps": 3, "lean_limit": 1.2}),
+    ],
+)
+def test_compiled_env_steps_equal_the_numpy_path(env_id, kwargs):
+    fast, slow = gym.make(env_id, **kwargs), gym.make(env_id, compiled=False, **kwargs)
     assert fast.unwrapped.compiled is not None and slow.unwrapped.compiled is None
     for seed in range(3):
         of, inf_f = fast.reset(seed=seed)
@@ -165,7 +244,7 @@ def test_compiled_env_steps_equal_the_numpy_path(kwargs):
         np.testing.assert_array_equal(of, os_)
         rng = np.random.default_rng(seed)
         for _ in range(100):
-            a = rng.uniform(-1.3, 1.3, 2)  # includes saturated actions
+            a = rng.uniform(-1.3, 1.3, fast.action_space.shape)  # includes saturated actions
             (of, rf, tf, trf, inf_f), (os_, rs, ts, trs, inf_s) = step_both(fast, slow, a)
             np.testing.assert_allclose(of, os_, rtol=0, atol=1e-12)
             assert rf == pytest.approx(rs, rel=1e-12, abs=1e-12)
@@ -187,6 +266,38 @@ def test_compiled_divergence_is_reported_like_the_numpy_path():
     assert np.all(np.isfinite(of)) and np.isfinite(rf)
     np.testing.assert_array_equal(of, os_)  # both keep the last finite state
     np.testing.assert_array_equal(fast.unwrapped.q, wild["q"])
+
+
+def test_fourbar_compiled_step_reports_an_opened_loop_like_the_numpy_path():
+    """A residual limit below what a step leaves: both paths flag divergence and keep the state."""
+    kwargs = {"residual_limit": 1e-8, "stabilization": "projection"}
+    fast = gym.make("mbs_envs/FourBar-v0", **kwargs)
+    slow = gym.make("mbs_envs/FourBar-v0", compiled=False, **kwargs)
+    fast.reset(seed=1)
+    slow.reset(seed=1)
+    fast.unwrapped.stabilization = slow.unwrapped.stabilization = fast.unwrapped.model.stabilization("projection", tol=1e-3)
+    q_before = slow.unwrapped.q
+    (of, rf, tf, _, inf_f), (os_, rs, ts, _, inf_s) = step_both(fast, slow, np.ones(1))
+    assert inf_f["diverged"] and inf_s["diverged"] and tf and ts
+    np.testing.assert_array_equal(fast.unwrapped.q, q_before)
+    np.testing.assert_allclose(of, os_, rtol=0, atol=1e-12)
+
+
+def test_disk_compiled_step_reports_the_flat_singularity_like_the_numpy_path():
+    """A disk pushed to fall flat: both paths end the episode as diverged at the same step, state kept."""
+    kwargs = {"lean_limit": RollingDisk.flat_lean - 1e-3}
+    fast, slow = gym.make("mbs_envs/RollingDisk-v0", **kwargs), gym.make("mbs_envs/RollingDisk-v0", compiled=False, **kwargs)
+    start = {"q": [0, 0, 0.3 * np.cos(1.4), 0, 1.4, 0], "v": [0, 0, 0, 0, 3.0, 0]}
+    fast.reset(seed=0, options=start)
+    slow.reset(seed=0, options=start)
+    for k in range(200):
+        (of, rf, tf, _, inf_f), (os_, rs, ts, _, inf_s) = step_both(fast, slow, np.zeros(2))
+        assert (tf, inf_f["diverged"]) == (ts, inf_s["diverged"])
+        np.testing.assert_allclose(of, os_, rtol=0, atol=1e-12)
+        if ts:
+            break
+    assert inf_f["diverged"] and 0 < k < 199
+    assert abs(fast.unwrapped.q[4]) <= RollingDisk.flat_lean
 
 
 def test_compiled_vector_env_with_per_member_parameters_equals_the_numpy_vector_env():

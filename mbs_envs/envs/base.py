@@ -18,14 +18,15 @@ import numpy as np
 
 from .. import integrators
 from .. import validation as check
+from ..compiled import TableauArrays, batch_theta, compiled_stepping, projection_tol
 from ..models.base import Model, as_vector
 from ..simulate import DIVERGENCE_LIMIT, advance, diverged
 from .rendering import PlanarRenderer, Polyline
 
 
 def _scalar(x: Any) -> Any:
-    """0-d arrays as Python scalars (a single env's ``info``); arrays unchanged."""
-    return x.item() if isinstance(x, np.ndarray) and x.ndim == 0 else x
+    """0-d arrays and numpy scalars as Python scalars (a single env's ``info``); arrays unchanged."""
+    return x.item() if (isinstance(x, np.ndarray) and x.ndim == 0) or isinstance(x, np.generic) else x
 
 
 @njit
@@ -108,6 +109,9 @@ class MBSEnv(gym.Env):
     stabilization : {None, "projection", "baumgarte", "none"}
         Constrained models only (default projection); see
         :class:`mbs_envs.constraints.Stabilization`.
+    compiled : bool
+        Step through the scene's compiled kernel where it applies (see
+        :attr:`compiled`); False forces the numpy path.
     render_mode : {None, "human", "rgb_array"}
     """
 
@@ -131,6 +135,7 @@ class MBSEnv(gym.Env):
         atol: float | None = None,
         divergence_limit: float = DIVERGENCE_LIMIT,
         stabilization: Any = None,
+        compiled: bool = True,
         render_mode: str | None = None,
     ):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
@@ -154,7 +159,143 @@ class MBSEnv(gym.Env):
         self._t = 0.0
         self._u = np.zeros(model.nu)  # the input applied in the last step
         self._task: Any = None
+        self._task_columns: tuple | None = None  # (task, its columns) for the compiled step
         self._renderer: PlanarRenderer | None = None
+        self._want_compiled = bool(compiled)
+
+    # -- the compiled step (see mbs_envs.envs.engine) ------------------------------
+
+    #: The scene's compiled step: a module-level binding ``(theta, stepper, control, task,
+    #: state, out)`` of :func:`mbs_envs.envs.engine.engine_step` to its model's and task's
+    #: kernels, or None (numpy path). It applies to the class that declares it: a subclass
+    #: steps compiled only if it declares one too (its task may differ).
+    step_kernel: ClassVar[Any] = None
+    #: Whether the vector env steps its batch with ``step_kernel`` too (else the numpy path, batched).
+    batch_compiled: ClassVar[bool] = True
+    #: the largest constraint residual [m] of a state that has not diverged (constrained scenes)
+    residual_limit: float = np.inf
+
+    @property
+    def compiled(self) -> TableauArrays | None:
+        """The tableau of the compiled step, or None when steps take the numpy path.
+
+        Compiled: a scene class that declares a ``step_kernel``, a model with
+        kernels whose ``B`` selects one coordinate per input, an explicit
+        Runge-Kutta integrator and, for constrained models, the projection
+        (:func:`mbs_envs.compiled.compiled_stepping`); unless constructed with
+        ``compiled=False``. Both paths give the same episodes (to rounding, 1e-12).
+        """
+        cached = self.__dict__.get("_compiled_for")  # decided again only when one of these is replaced
+        if cached is None or cached[0] is not self.integrator or cached[1] is not self.stabilization or cached[2] is not self.model:
+            cached = self._compiled_for = (self.integrator, self.stabilization, self.model, self._compiled_tableau())
+        return cached[3]
+
+    def _compiled_tableau(self) -> TableauArrays | None:
+        B = self.model.actuation
+        selects = bool(np.all((B == 0) | (B == 1)) and np.all(B.sum(axis=0) == 1) and np.all(B.sum(axis=1) <= 1))
+        if not self._want_compiled or "step_kernel" not in type(self).__dict__ or self.step_kernel is None or not selects:
+            return None
+        self._actuated = np.argmax(B, axis=0).astype(np.int64)
+        return compiled_stepping(self.model, self.integrator, self.stabilization)
+
+    def task_arguments(self) -> tuple:
+        """The task kernel's static arguments (scenes with a ``step_kernel``)."""
+        return ()
+
+    def task_columns(self, task: Any) -> tuple:
+        """An episode's (or a stacked batch's) task as the task kernel's per-member columns,
+        each with the member index last."""
+        return ()
+
+    def task_layout(self) -> tuple[tuple[str, int | None, bool], ...]:
+        """The task kernel's columns of the step's ``info`` array: ``(name, width, boolean)``,
+        ``width`` None for a scalar; the first is the reward."""
+        return (("reward", None, False),)
+
+    def info_layout(self) -> tuple[tuple[str, int | None, bool], ...]:
+        """The columns of the compiled step's ``info`` array (:mod:`mbs_envs.envs.engine`)."""
+        layout = self.task_layout() + (("energy", None, False),)
+        if self.model.nc:
+            layout += (("constraint_residual", None, False), ("multipliers", self.model.nc, False))
+        return layout
+
+    def _info_columns(self) -> tuple[int, tuple]:
+        """``(width, ((name, column, width, boolean), ...))`` of :meth:`info_layout`, the reward
+        (column 0) left out; computed once (the layout is fixed at construction)."""
+        cached = self.__dict__.get("_info_columns_cache")
+        if cached is None:
+            columns, c = [], 0
+            for name, w, boolean in self.info_layout():
+                columns.append((name, c, w, boolean))
+                c += 1 if w is None else w
+            cached = self._info_columns_cache = (c, tuple(columns[1:]))
+        return cached
+
+    def run_step_kernel(self, model: Model, q, v, t, task_columns: tuple, action) -> tuple:
+        """The compiled control step of a batch of rows (a single env: one row), in place.
+
+        Parameters
+        ----------
+        model : Model
+            The rows' model (per-member parameters allowed).
+        q, v : ndarray, shape (B, n)
+            Updated in place (a diverged row keeps its state).
+        t : ndarray, shape (B,)
+            Updated in place.
+        task_columns : tuple
+            :meth:`task_columns` of the rows' tasks.
+        action : ndarray, shape (B, nu)
+            Validated and clipped.
+
+        Returns
+        -------
+        obs : ndarray, float32, shape (B, obs_dim)
+        info : ndarray, shape (B, S)
+            The columns of :meth:`info_layout` (the reward first).
+        u : ndarray, shape (B, nu)
+        bad, terminated : ndarray of bool, shape (B,)
+            Diverged; ended (diverged or the task's termination).
+        """
+        B = q.shape[0]
+        u, info = np.empty((B, model.nu)), np.empty((B, self._info_columns()[0]))
+        obs = np.empty((B,) + self.observation_space.shape, np.float32)
+        bad, terminated = np.empty(B, bool), np.zeros(B, bool)
+        stepper = self.compiled.packed(self.dt / self.substeps, self.substeps, projection_tol(self.stabilization))
+        control = (float(self.dt), float(self.divergence_limit), float(self.residual_limit), self.u_max, self._actuated, model.nc)
+        self.step_kernel(  # compiled code raises no floating-point warnings
+            batch_theta(model, B), stepper, control, self.task_arguments() + task_columns,
+            (q, v, t, action), (u, obs, info, bad, terminated),
+        )
+        return obs, info, u, bad, terminated
+
+    def info_rows(self, info: np.ndarray) -> dict[str, np.ndarray]:
+        """The named ``info`` entries of :meth:`run_step_kernel`'s array, one row per member
+        (``(B,)`` or ``(B, width)``; the reward left out)."""
+        out = {}
+        for name, c, w, boolean in self._info_columns()[1]:
+            x = info[:, c] if w is None else info[:, c : c + w]
+            out[name] = x.astype(bool) if boolean else x
+        return out
+
+    def _step_compiled(self, action: Any):
+        a = validate_action(action, self.model.nu)  # raises before any change
+        if self._task_columns is None or self._task_columns[0] is not self._task:
+            self._task_columns = (self._task, self.task_columns(self._task))
+        t = np.array([self._t])
+        obs, info_row, u, bad, terminated = self.run_step_kernel(
+            self.model, self._q.reshape(1, -1), self._v.reshape(1, -1), t, self._task_columns[1], a.reshape(1, -1)
+        )
+        self._t = float(t[0])
+        self._u = u[0]
+        row = info_row[0]
+        values = row.tolist()
+        info: dict[str, Any] = {"t": self._t, "diverged": bool(bad[0])}
+        for name, c, w, boolean in self._info_columns()[1]:
+            info[name] = (bool(values[c]) if boolean else values[c]) if w is None else row[c : c + w]
+        info["u"] = self._u
+        if self.render_mode == "human":
+            self.render()
+        return obs[0], values[0], bool(terminated[0]), False, info
 
     @property
     def u_max(self) -> np.ndarray:
@@ -334,6 +475,8 @@ class MBSEnv(gym.Env):
     consistency_tol: ClassVar[float] = 1e-9
 
     def step(self, action: Any):
+        if self.compiled is not None:
+            return self._step_compiled(action)
         action = validate_action(action, self.model.nu)  # raises before any change
         u = action * self.u_max
         q, v = self._advance(u)

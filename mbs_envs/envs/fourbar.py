@@ -8,9 +8,24 @@ from typing import Any
 import numpy as np
 
 from .. import validation as check
+from .. import compiled as _compiled
+from ..jit import njit
+from ..models import fourbar as _model
 from ..models.fourbar import FourBar
 from .rendering import Polyline
+from . import tracking as _tracking
+from .engine import engine_step
 from .tracking import JointTrackingEnv
+
+
+@njit
+def step_kernel(theta, stepper, control, task, state, out):  # pragma: no cover - compiled
+    """The compiled step of this scene: :func:`~mbs_envs.envs.engine.engine_step` with the model's
+    kernels (the projection after every step, the loop residual and the multipliers)."""
+    engine_step(
+        _model.advance_kernel, _model.energy_kernel, _model.constraint_info_kernel, _compiled.never_singular, _tracking.tracking_task,
+        theta, stepper, control, task, state, out,
+    )
 
 
 class FourBarEnv(JointTrackingEnv):
@@ -56,7 +71,7 @@ class FourBarEnv(JointTrackingEnv):
 
     Truncation after ``max_episode_steps`` (default 500, 5 s). Termination if
     the simulation diverges: non-finite or huge state, or a loop-closure
-    residual beyond ``residual_limit`` (``info["diverged"]``).
+    residual beyond ``residual_limit`` [m] (``info["diverged"]``; between 1e-8 and 1).
 
     ## Arguments
 
@@ -73,6 +88,8 @@ class FourBarEnv(JointTrackingEnv):
     (max ``|phi|`` [m]), ``multipliers`` (force of the rocker on the coupler at
     B [N]), ``tracking_error``, ``q_ref``, the reward terms and ``u``.
     """
+
+    step_kernel = staticmethod(step_kernel)
 
     center_low = np.array([-np.pi])
     center_high = np.array([np.pi])
@@ -91,7 +108,8 @@ class FourBarEnv(JointTrackingEnv):
         **kwargs: Any,
     ):
         self.branch = check.one_of(branch, "branch", (1, -1))
-        self.residual_limit = check.positive(residual_limit, "residual_limit", 1.0)
+        # above the residual a start state may keep (consistency_tol): a lower limit would end every episode at once
+        self.residual_limit = check.real(residual_limit, "residual_limit", 10 * self.consistency_tol, 1.0)
         model = FourBar(params)
         if model.grashof not in self.turning_classes:
             p = model.params

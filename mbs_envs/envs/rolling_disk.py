@@ -3,18 +3,25 @@
 from __future__ import annotations
 
 import dataclasses
+import sys
 from collections.abc import Mapping
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
+from .. import compiled as _compiled
 from .. import validation as check
+from ..jit import njit
+from ..models import rolling_disk as _model
 from ..models.rolling_disk import RollingDisk
-from ..references import SumOfSines, sample_sum_of_sines
+from ..references import SumOfSines, sample_sum_of_sines, sum_of_sines_columns
 from .base import MBSEnv
+from .engine import engine_step
 from .rendering import Polyline
 from .tracking import wrap_angle
+
+_wrap = njit(wrap_angle)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -40,6 +47,51 @@ class DiskTask:
 
     heading: SumOfSines
     spin_ref: np.ndarray
+
+
+@njit
+def disk_task(q, v, t, action, task, obs, info, terminated):  # pragma: no cover - compiled
+    """The task kernel of RollingDisk-v0 (:mod:`mbs_envs.envs.engine`), the formulas of
+    :meth:`RollingDiskEnv.reward`, :meth:`~RollingDiskEnv.observe`, :meth:`~RollingDiskEnv.task_info`
+    and :meth:`~RollingDiskEnv.terminated` for a batch in columns.
+
+    ``task = (weights, W_c, lean_limit, center, rate, amplitude, omega, phase, spin_ref)``:
+    the reward weights, the critical spin, the fall limit, the heading references in
+    columns (:meth:`SumOfSines.columns`) and the commanded spins ``(B,)``. Info columns:
+    ``(r, r_heading, r_lean, r_speed, r_effort, lean, fell, heading error, spin error)``.
+    """
+    weights, Wc, lean_limit, center, rate, amplitude, omega, phase, spin_ref = task
+    B = q.shape[1]
+    refs = np.empty((3, 1, B))
+    sum_of_sines_columns(t, center, rate, amplitude, omega, phase, refs[0], refs[1], refs[2])
+    for b in range(B):
+        e_h = _wrap(refs[0, 0, b] - q[3, b])
+        e_s = (v[5, b] - spin_ref[b]) / Wc
+        effort = 0.0
+        for k in range(action.shape[0]):
+            effort += action[k, b] * action[k, b]
+        r_h, r_l, r_s, r_u = -weights[0] * e_h**2, -weights[1] * q[4, b] ** 2, -weights[2] * e_s**2, -weights[3] * effort
+        fell = abs(q[4, b]) > lean_limit
+        info[b, 0] = 1.0 + r_h + r_l + r_s + r_u
+        info[b, 1], info[b, 2], info[b, 3], info[b, 4] = r_h, r_l, r_s, r_u
+        info[b, 5], info[b, 6], info[b, 7], info[b, 8] = q[4, b], fell, e_h, v[5, b] - spin_ref[b]
+        terminated[b] = fell
+        fields = (q[4, b], v[4, b], v[3, b], v[5, b], e_h, refs[1, 0, b], refs[2, 0, b], spin_ref[b])
+        for i in range(8):
+            obs[b, i] = fields[i]
+
+
+@njit
+def step_kernel(theta, stepper, control, task, state, out):  # pragma: no cover - compiled
+    """The compiled step of this scene: :func:`~mbs_envs.envs.engine.engine_step` with the model's
+    kernels (projection, contact force, the flat-disk singularity) and :func:`disk_task`."""
+    engine_step(
+        _model.advance_kernel, _model.energy_kernel, _model.constraint_info_kernel, _model.singular_kernel,
+        _this.disk_task, theta, stepper, control, task, state, out,
+    )
+
+
+_this = sys.modules[__name__]
 
 
 class RollingDiskEnv(MBSEnv):
@@ -89,8 +141,17 @@ class RollingDiskEnv(MBSEnv):
 
     ``gym.make("mbs_envs/RollingDisk-v0", params=None, torque_limit=(0.3, 0.3),
     lean_limit=0.6, dt=0.01, integrator="rk4", substeps=1,
-    stabilization="projection", ...)``.
+    stabilization="projection", compiled=True, ...)``. With an explicit
+    integrator and the projection, a step is one compiled kernel
+    (:mod:`mbs_envs.envs.engine`); ``compiled=False`` forces the numpy path.
+
+    ``info`` holds ``t``, ``energy``, ``diverged``, ``constraint_residual``
+    (``|z - r cos lean|`` [m]), ``multipliers`` (the contact force of the ground
+    on the disk [N], world frame), ``lean``, ``fell``, ``tracking_error`` (the
+    heading error), ``spin_error``, the reward terms and ``u``.
     """
+
+    step_kernel = staticmethod(step_kernel)
 
     spin_range = (0.3, 2.0)  # W_ref / W_c
     task_options = ("spin_ref",)
@@ -192,11 +253,24 @@ class RollingDiskEnv(MBSEnv):
         e_h = wrap_angle(now[0] - q[..., 3])
         return {
             "constraint_residual": np.max(np.abs(self.model.constraint_residual(q)), axis=-1),
+            "multipliers": self.model.multipliers(q, v, u),
             "lean": q[..., 4],
             "fell": self.fell(q),
             "tracking_error": e_h[..., None],
             "spin_error": v[..., 5] - task.spin_ref,
         }
+
+    # -- the compiled step (see mbs_envs.envs.engine) ----------------------------
+
+    def task_arguments(self) -> tuple:
+        return (np.asarray(self.reward_weights, float), float(self.model.critical_spin), float(self.lean_limit))
+
+    def task_columns(self, task: DiskTask) -> tuple:
+        return task.heading.columns() + (np.array(np.reshape(task.spin_ref, -1), float),)
+
+    def task_layout(self) -> tuple[tuple[str, int | None, bool], ...]:
+        names = ("reward", "reward_heading", "reward_lean", "reward_speed", "reward_effort", "lean")
+        return tuple((k, None, False) for k in names) + (("fell", None, True), ("tracking_error", 1, False), ("spin_error", None, False))
 
     # -- drawing: a view from above (x, y), the disk as its ground-plane footprint
     def _render_extent(self) -> float:

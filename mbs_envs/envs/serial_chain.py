@@ -10,15 +10,21 @@ import numpy as np
 from .. import validation as check
 from ..models.serial_chain import SerialChain, SerialChainParams, link_count
 from .rendering import Polyline
+from .. import compiled as _compiled
 from ..jit import njit
 from ..models import serial_chain as _model
-from .tracking import JointTrackingEnv, tracking_step
+from . import tracking as _tracking
+from .engine import engine_step
+from .tracking import JointTrackingEnv
 
 
 @njit
 def step_kernel(theta, stepper, control, task, state, out):  # pragma: no cover - compiled
-    """The compiled step of this scene: :func:`~mbs_envs.envs.tracking.tracking_step` with the model's kernels."""
-    tracking_step(_model.acceleration_kernel, _model.energy_kernel, theta, stepper, control, task, state, out)
+    """The compiled step of this scene: :func:`~mbs_envs.envs.engine.engine_step` with the model's kernels."""
+    engine_step(
+        _model.advance_kernel, _model.energy_kernel, _compiled.no_constraint_info, _compiled.never_singular, _tracking.tracking_task,
+        theta, stepper, control, task, state, out,
+    )
 
 
 class SerialChainEnv(JointTrackingEnv):

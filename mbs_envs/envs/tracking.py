@@ -24,11 +24,10 @@ import gymnasium as gym
 from ..jit import njit
 import numpy as np
 
-from ..compiled import TableauArrays, batch_theta, compiled_stepping, rk_run
 from ..references import SumOfSines, sample_sum_of_sines, sum_of_sines_columns
 from ..trig import sincos_columns
 from .. import validation as check
-from .base import MBSEnv, validate_action
+from .base import MBSEnv
 
 
 def wrap_angle(x: np.ndarray) -> np.ndarray:
@@ -120,77 +119,28 @@ def _as_columns(*arrays: np.ndarray) -> tuple[tuple, list[np.ndarray]]:
     return lead, [np.ascontiguousarray(np.broadcast_to(x, lead + x.shape[-1:]).reshape(-1, x.shape[-1]).T) for x in arrays]
 
 
-@njit(cache=False)  # takes kernels as arguments: cached inside the module-level bindings that call it
-def tracking_step(acc, energy, theta, stepper, control, task, state, out):  # pragma: no cover - compiled
-    """One control step of every member: :meth:`MBSEnv.step`'s sequence, compiled.
+@njit
+def tracking_task(q, v, t, action, task, obs, info, terminated):  # pragma: no cover - compiled
+    """The task kernel of the tracking scenes (:mod:`mbs_envs.envs.engine`): at the new time
+    ``t``, the reference, the reward and its terms, the observation and the info columns
+    ``(r, r_e, r_de, r_u, e (m), q_ref (m))``; no termination.
 
-    Physics (:func:`mbs_envs.compiled.rk_run` with ``u = action * u_max``
-    held; ``B = I``), the divergence test (non-finite or ``|x| > limit``: the
-    member keeps its state and ``bad`` is set), ``t += dt``, the reference at the
-    new time, reward terms, observation and energy. A scene binds its model's
-    kernels ``acc, energy`` in a module-level function of its own (its
-    ``step_kernel``), which numba compiles once and caches on disk.
-
-    Parameters
-    ----------
-    acc, energy : compiled kernels of the model (:mod:`mbs_envs.compiled`)
-    theta : ndarray, shape (P, B)
-        The model's parameters in columns (:func:`mbs_envs.compiled.batch_theta`).
-    stepper : tuple
-        The tableau, step and substeps (:meth:`TableauArrays.packed`) for
-        :func:`mbs_envs.compiled.rk_run`.
-    control : tuple
-        ``(dt, limit)``: the control step [s] and the divergence limit.
-    task : tuple
-        ``(u_max, center, rate, amplitude, omega, phase, tracked, weights)``: the
-        actuator limits, the reference in columns (:meth:`SumOfSines.columns`),
-        the tracked coordinates and the reward weights.
-    state : tuple
-        ``(q, v, t, action)``: rows ``(B, n)``, ``(B, n)``, ``(B,)`` updated in
-        place, and the validated action ``(B, nu)``.
-    out : tuple
-        ``(u, obs, terms, e, q_ref, bad)``, rows written: ``u (B, nu)``, ``obs (B, d)``,
-        ``terms (B, 5) = (r, r_e, r_de, r_u, energy)``, ``e (B, m)``, ``q_ref (B, m)``, ``bad (B,)``.
+    ``task = (tracked, weights, center, rate, amplitude, omega, phase)``: the tracked
+    coordinates, the reward weights and the references in columns (:meth:`SumOfSines.columns`).
     """
-    dt, limit = control
-    u_max, center, rate, amplitude, omega, phase, tracked, weights = task
-    q, v, t, action = state
-    u, obs, terms, e, q_ref, bad = out
-    B, n = q.shape
+    tracked, weights, center, rate, amplitude, omega, phase = task
+    B = q.shape[1]
     m = tracked.shape[0]
-    qc, vc = np.ascontiguousarray(q.T), np.ascontiguousarray(v.T)
-    ac = np.ascontiguousarray(action.T)
-    uc = np.empty((u.shape[1], B))
-    for k in range(u.shape[1]):
-        for b in range(B):
-            uc[k, b] = ac[k, b] * u_max[k]
-            u[b, k] = uc[k, b]
-    rk_run(acc, theta, stepper, qc, vc, uc)
-    for b in range(B):
-        ok = True
-        for k in range(n):
-            ok &= abs(qc[k, b]) <= limit
-            ok &= abs(vc[k, b]) <= limit
-        bad[b] = not ok
-        for k in range(n):
-            if ok:
-                q[b, k] = qc[k, b]
-                v[b, k] = vc[k, b]
-            else:  # the member keeps its state
-                qc[k, b] = q[b, k]
-                vc[k, b] = v[b, k]
-        t[b] = t[b] + dt
     refs = np.empty((3, m, B))
     sum_of_sines_columns(t, center, rate, amplitude, omega, phase, refs[0], refs[1], refs[2])
-    for j in range(m):
-        for b in range(B):
-            q_ref[b, j] = refs[0, j, b]
-    reward_columns(qc, vc, refs[0], refs[1], ac, tracked, weights, terms, e)
-    encode_columns(qc, vc, refs[0], refs[1], refs[2], tracked, obs)
-    E = np.empty(B)
-    energy(qc, vc, theta, E)
+    e = np.empty((B, m))
+    reward_columns(q, v, refs[0], refs[1], action, tracked, weights, info, e)
+    encode_columns(q, v, refs[0], refs[1], refs[2], tracked, obs)
     for b in range(B):
-        terms[b, 4] = E[b]
+        for j in range(m):
+            info[b, 4 + j] = e[b, j]
+            info[b, 4 + m + j] = refs[0, j, b]
+        terminated[b] = False
 
 
 @dataclasses.dataclass(frozen=True)
@@ -287,35 +237,16 @@ class JointTrackingEnv(MBSEnv):
     #: ``kp = J omega^2``, ``kd = 2 J zeta omega`` (controllers/tuned.py)
     joint_inertia: Any = 1.0
 
-    #: The scene's compiled step: a module-level function ``(theta, stepper, control, task, state, out)``
-    #: calling :func:`tracking_step` with its model's kernels (see ``envs/planar2r.py``), or
-    #: None (numpy path). A subclass that redefines a task function below (``observe``,
-    #: ``reward``, ...) steps on the numpy path unless it declares a kernel of its own.
-    step_kernel: ClassVar[Any] = None
-    #: Whether the vector env steps its batch with ``step_kernel`` too (else the numpy
-    #: path, batched). SerialChain: False, its per-member recursion measured faster on rows.
-    batch_compiled: ClassVar[bool] = True
-    _TASK_FUNCTIONS: ClassVar[tuple[str, ...]] = (
-        "task_now", "observe", "reward", "terminated", "task_info", "state_diverged", "_advance",
-    )
-
-    def __init_subclass__(cls, **kwargs: Any) -> None:
-        super().__init_subclass__(**kwargs)
-        if "step_kernel" not in cls.__dict__ and any(name in cls.__dict__ for name in cls._TASK_FUNCTIONS):
-            cls.step_kernel = None  # the kernel inherited would not run this class's task
-
     reward_weights = check.Checked(lambda x, name: check.vector(x, name, 3, 0.0, broadcast=False))
     start_noise = check.Checked(lambda x, name: check.nonnegative(x, name, 10.0))
 
-    def __init__(self, model, u_max, *, reward_weights=(1.0, 0.1, 1e-3), start_noise=0.1, compiled=True, **kwargs):
+    def __init__(self, model, u_max, *, reward_weights=(1.0, 0.1, 1e-3), start_noise=0.1, **kwargs):
         super().__init__(model, u_max, **kwargs)
         self.tracked = tuple(getattr(model, "independent", range(model.nq)))
         if len(self.tracked) != model.nu:
             raise ValueError("JointTrackingEnv needs one input per tracked coordinate")
         self.reward_weights = reward_weights
         self._tracked = np.asarray(self.tracked, np.int64)
-        self._compiled = self._compiled_tableau(compiled)
-        self._task_columns: tuple | None = None
         self.start_noise = start_noise
         n, m = model.nq, len(self.tracked)
         # |v| <= divergence_limit is guaranteed (a diverged step keeps the last
@@ -335,90 +266,18 @@ class JointTrackingEnv(MBSEnv):
         span = np.maximum(np.abs(self.center_low), np.abs(self.center_high)) + self.max_amplitude
         self._check_start_bound(float(np.max(np.concatenate([span, s_max + self.max_amplitude * w_max]))) + self.start_noise)
 
-    # -- the compiled step (see mbs_envs.compiled) --------------------------------
+    # -- the compiled step (see mbs_envs.envs.engine) ----------------------------
 
-    @property
-    def compiled(self) -> TableauArrays | None:
-        """The tableau of the compiled step, or None when steps take the numpy path.
+    def task_arguments(self) -> tuple:
+        return (self._tracked, self.reward_weights)
 
-        Compiled: models with kernels and ``B = I``, explicit Runge-Kutta
-        integrators, no stabilization (see :func:`mbs_envs.compiled.compiled_stepping`),
-        unless constructed with ``compiled=False``.
-        """
-        return self._compiled
+    def task_columns(self, task: SumOfSines) -> tuple:
+        return task.columns()
 
-    def _compiled_tableau(self, compiled: bool) -> TableauArrays | None:
-        model = self.model
-        if not compiled or self.step_kernel is None or model.nu != model.nv or not np.array_equal(model.actuation, np.eye(model.nv)):
-            return None
-        return compiled_stepping(model, self.integrator, self.stabilization)
-
-    def step_rows(self, model, q, v, t, task_columns, action) -> dict[str, np.ndarray]:
-        """The compiled control step of a batch of rows (single env: one row), in place.
-
-        Parameters
-        ----------
-        model : Model
-            The rows' model (per-member parameters allowed).
-        q, v : ndarray, shape (B, n)
-            Updated in place (a diverged row keeps its state).
-        t : ndarray, shape (B,)
-            Updated in place.
-        task_columns : tuple
-            :meth:`SumOfSines.columns` of the rows' references.
-        action : ndarray, shape (B, nu)
-            Validated and clipped.
-
-        Returns
-        -------
-        dict
-            ``obs``, ``u``, ``terms`` ``(B, 5) = (r, r_e, r_de, r_u, energy)``,
-            ``e``, ``q_ref`` and ``bad``.
-        """
-        tab = self._compiled
-        B, n = q.shape
-        m = self._tracked.shape[0]
-        out = {
-            "u": np.empty((B, model.nu)),
-            "obs": np.empty((B, 3 * (n + m)), np.float32),
-            "terms": np.empty((B, 5)),
-            "e": np.empty((B, m)),
-            "q_ref": np.empty((B, m)),
-            "bad": np.empty(B, bool),
-        }
-        stepper = tab.packed(self.dt / self.substeps, self.substeps)
-        control = (float(self.dt), float(self.divergence_limit))
-        task = (self.u_max, *task_columns, self._tracked, self.reward_weights)
-        self.step_kernel(  # compiled code raises no floating-point warnings
-            batch_theta(model, B), stepper, control, task, (q, v, t, action),
-            (out["u"], out["obs"], out["terms"], out["e"], out["q_ref"], out["bad"]),
-        )
-        return out
-
-    def step(self, action: Any):
-        if self._compiled is None:
-            return super().step(action)
-        a = validate_action(action, self.model.nu)  # raises before any change
-        if self._task_columns is None or self._task_columns[0] is not self._task:
-            self._task_columns = (self._task, self._task.columns())
-        t = np.array([self._t])
-        r = self.step_rows(self.model, self._q.reshape(1, -1), self._v.reshape(1, -1), t, self._task_columns[1], a.reshape(1, -1))
-        self._t = float(t[0])
-        self._u = r["u"][0]
-        bad = bool(r["bad"][0])
-        info = {"t": self._t, "diverged": bad}
-        info.update({k: x[0] if x.ndim > 1 else float(x[0]) for k, x in self.rows_info(r).items()})
-        if self.render_mode == "human":
-            self.render()
-        return r["obs"][0], float(r["terms"][0, 0]), bad, False, info
-
-    def rows_info(self, r: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        """``info`` entries (besides ``t`` and ``diverged``) of :meth:`step_rows`'s output, one row per member."""
-        terms = r["terms"]
-        info = {"energy": terms[:, 4], "tracking_error": r["e"], "q_ref": r["q_ref"]}
-        info.update({k: terms[:, i + 1] for i, k in enumerate(self.reward_terms)})
-        info["u"] = r["u"]
-        return info
+    def task_layout(self) -> tuple[tuple[str, int | None, bool], ...]:
+        m = len(self.tracked)
+        terms = tuple((name, None, False) for name in self.reward_terms)
+        return (("reward", None, False),) + terms + (("tracking_error", m, False), ("q_ref", m, False))
 
     @property
     def reference(self) -> SumOfSines | None:

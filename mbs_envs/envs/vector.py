@@ -183,7 +183,7 @@ class MBSVectorEnv(VectorEnv):
                 self._task = tree_stack([task] * self.num_envs)
             tree_set(self._task, i, task)
             if self._task_columns is not None:
-                for whole, member in zip(self._task_columns, task.columns()):
+                for whole, member in zip(self._task_columns, self.env.task_columns(task)):
                     whole[..., i] = member[..., 0]
             self._q[i], self._v[i] = q0, v0
         self._t[idx] = 0.0
@@ -276,20 +276,18 @@ class MBSVectorEnv(VectorEnv):
         return env.observe(self._q, self._v, now, self._task), np.asarray(reward, float), bad, info
 
     def _step_compiled(self, a: np.ndarray) -> tuple:
-        """The same step as :meth:`_step_numpy`, compiled (:meth:`JointTrackingEnv.step_rows`)."""
+        """The same step as :meth:`_step_numpy`, compiled (:meth:`MBSEnv.run_step_kernel`)."""
         env = self.env
         if self._task_columns is None:
-            self._task_columns = self._task.columns()
-        r = env.step_rows(self.model, self._q, self._v, self._t, self._task_columns, a)
-        self._u = r["u"]
-        terms = r["terms"]
-        info: dict[str, Any] = {"t": self._t.copy(), "diverged": r["bad"]}
+            self._task_columns = env.task_columns(self._task)
+        obs, values, self._u, bad, terminated = env.run_step_kernel(self.model, self._q, self._v, self._t, self._task_columns, a)
+        info: dict[str, Any] = {"t": self._t.copy(), "diverged": bad}
         if self.full_info:
-            info.update(env.rows_info(r))
+            info.update(env.info_rows(values))
             info["u"] = self._u.copy()
         self._info_masks(info)
-        info["_terminated"] = r["bad"].copy()
-        return r["obs"], terms[:, 0].copy(), r["bad"], info
+        info["_terminated"] = terminated
+        return obs, values[:, 0].copy(), bad, info
 
     def _restart(self, idx: np.ndarray) -> np.ndarray:
         """Reset members ``idx`` (autoreset) and return their first observations."""

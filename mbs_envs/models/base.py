@@ -217,8 +217,9 @@ class Model(abc.ABC):
     advance_kernel: ClassVar[Any] = None
 
     def kernel_params(self) -> np.ndarray:
-        """The parameters as the kernels take them, shape ``(P,)`` or ``(B, P)`` (models with ``kernels``)."""
-        raise NotImplementedError(f"{type(self).__name__} has no compiled kernels")
+        """The parameters as the kernels take them: in field order, shape ``(P,)``, or ``(B, P)``
+        with per-member parameters (the kernels read them as columns, :func:`mbs_envs.compiled.batch_theta`)."""
+        return np.stack(np.broadcast_arrays(*(getattr(self.params, k) for k in self.Params.names())), axis=-1)
 
     def __init__(self, params: Params | Mapping[str, Any] | None = None, **overrides: Any):
         if params is None:

@@ -13,10 +13,16 @@ model composes one), the rocker adds a block ``m3 r3^2 + I3``.
 from __future__ import annotations
 
 import dataclasses
+import sys
 from typing import ClassVar
 
 import numpy as np
 
+from .. import constraints as _constraints
+from ..compiled import rk_run
+from ..jit import njit
+from ..trig import sincos_checked
+from . import planar2r as _p2r
 from .base import Params, as_vector, param, smoothed_friction
 from .constrained import ConstrainedModel
 from .planar2r import Planar2R
@@ -99,6 +105,147 @@ class FourBarParams(Params):
                 raise ValueError(f"parameters I{i}, r{i}: link {i} has no inertia about its joint")
 
 
+# ---------------------------------------------------------------------------
+# The loop closure, written once: floats or broadcasting arrays (the numpy
+# methods of :class:`FourBar`) and one member's floats (the kernels below),
+# from the cosines and sines of th1, th12 = th1 + ph2 and ph1.
+# ---------------------------------------------------------------------------
+
+
+def closure_residual(c1, s1, c12, s12, c3, s3, l0, l1, l2, l3):
+    """``phi = (l1 c1 + l2 c12 - l0 - l3 c3, l1 s1 + l2 s12 - l3 s3)`` [m]."""
+    return l1 * c1 + l2 * c12 - l0 - l3 * c3, l1 * s1 + l2 * s12 - l3 * s3
+
+
+def closure_jacobian(c1, s1, c12, s12, c3, s3, l1, l2, l3):
+    """The rows of ``Psi = d phi / d q``: ``((P00, P01, P02), (P10, P11, P12))`` [m]."""
+    return (-l1 * s1 - l2 * s12, -l2 * s12, l3 * s3), (l1 * c1 + l2 * c12, l2 * c12, -l3 * c3)
+
+
+def closure_bias(c1, s1, c12, s12, c3, s3, w1, w12, w3, l1, l2, l3):
+    """``dPsi v`` [m/s^2] from the squared rates ``w1 = dth1^2``, ``w12 = (dth1 + dph2)^2``, ``w3 = dph1^2``."""
+    return (
+        -l1 * c1 * w1 - l2 * c12 * w12 + l3 * c3 * w3,
+        -l1 * s1 * w1 - l2 * s12 * w12 + l3 * s3 * w3,
+    )
+
+
+_closure_residual = njit(closure_residual)
+_closure_jacobian = njit(closure_jacobian)
+_closure_bias = njit(closure_bias)
+
+# kernel parameter rows (FourBarParams field order, :meth:`Model.kernel_params`)
+_L0, _L1, _L2, _L3, _M1, _M2, _M3, _R1, _R2, _R3, _I1, _I2, _I3, _G = range(14)
+_B1, _F1, _VS = 14, 17, 20
+
+
+@njit
+def _angles(q):  # pragma: no cover - compiled
+    """``(c1, s1, c12, s12, c3, s3)`` of one member's ``q`` (3,)."""
+    s1, c1 = sincos_checked(q[0])
+    s12, c12 = sincos_checked(q[0] + q[1])
+    s3, c3 = sincos_checked(q[2])
+    return c1, s1, c12, s12, c3, s3
+
+
+@njit
+def mass_member(q, p, M):  # pragma: no cover - compiled
+    """``M = blockdiag(M_2R, I3 + m3 r3^2)`` of one member into ``M`` (3, 3)."""
+    _, c2 = sincos_checked(q[1])
+    m11, m12, m22 = _p2r._mass_entries(c2, p[_M1], p[_M2], p[_L1], p[_R1], p[_R2], p[_I1], p[_I2])
+    M[:, :] = 0.0
+    M[0, 0], M[0, 1], M[1, 0], M[1, 1] = m11, m12, m12, m22
+    M[2, 2] = p[_I3] + p[_M3] * p[_R3] ** 2
+
+
+@njit
+def residual_member(q, p, phi):  # pragma: no cover - compiled
+    """``phi(q)`` of one member into ``phi`` (2,)."""
+    c1, s1, c12, s12, c3, s3 = _angles(q)
+    phi[0], phi[1] = _closure_residual(c1, s1, c12, s12, c3, s3, p[_L0], p[_L1], p[_L2], p[_L3])
+
+
+@njit
+def jacobian_member(q, p, Psi):  # pragma: no cover - compiled
+    """``Psi(q)`` of one member into ``Psi`` (2, 3)."""
+    c1, s1, c12, s12, c3, s3 = _angles(q)
+    r0, r1 = _closure_jacobian(c1, s1, c12, s12, c3, s3, p[_L1], p[_L2], p[_L3])
+    Psi[0, 0], Psi[0, 1], Psi[0, 2] = r0
+    Psi[1, 0], Psi[1, 1], Psi[1, 2] = r1
+
+
+@njit
+def terms_member(q, v, tau, p, M, f, Psi, gamma):  # pragma: no cover - compiled
+    """One member's ``M``, ``f = tau - (C v + G + F)``, ``Psi`` and ``gamma = -dPsi v``
+    (the kernel interface of :func:`mbs_envs.constraints.constrained_acceleration_columns`)."""
+    mass_member(q, p, M)
+    jacobian_member(q, p, Psi)
+    c1, s1, c12, s12, c3, s3 = _angles(q)
+    s2, _ = sincos_checked(q[1])
+    h1, h2 = _p2r._coriolis_entries(s2, v[0], v[1], p[_M2], p[_L1], p[_R2])
+    g1, g2 = _p2r._gravity_entries(c1, c12, p[_M1], p[_M2], p[_L1], p[_R1], p[_R2], p[_G])
+    g3 = p[_M3] * p[_G] * p[_R3] * c3
+    f[0] = tau[0] - (h1 + g1 + _p2r._friction(v[0], p[_B1], p[_F1], p[_VS]))
+    f[1] = tau[1] - (h2 + g2 + _p2r._friction(v[1], p[_B1 + 1], p[_F1 + 1], p[_VS]))
+    f[2] = tau[2] - (0.0 + g3 + _p2r._friction(v[2], p[_B1 + 2], p[_F1 + 2], p[_VS]))
+    w12 = v[0] + v[1]
+    d0, d1 = _closure_bias(c1, s1, c12, s12, c3, s3, v[0] ** 2, w12**2, v[2] ** 2, p[_L1], p[_L2], p[_L3])
+    gamma[0], gamma[1] = -d0, -d1
+
+
+@njit
+def energy_kernel(q, v, theta, E):  # pragma: no cover - compiled
+    """Mechanical energy ``v^T M v / 2 + V`` [J] of a batch in columns: ``q, v`` (3, B); writes ``E`` (B,)."""
+    M = np.empty((3, 3))
+    qb = np.empty(3)
+    for b in range(q.shape[1]):
+        p = theta[:, b]
+        for i in range(3):
+            qb[i] = q[i, b]
+        mass_member(qb, p, M)
+        T = 0.0
+        for i in range(3):
+            e = 0.0
+            for j in range(3):
+                e += M[i, j] * v[j, b]
+            T += v[i, b] * e
+        s1, _ = sincos_checked(q[0, b])
+        s12, _ = sincos_checked(q[0, b] + q[1, b])
+        s3, _ = sincos_checked(q[2, b])
+        V = _p2r._potential_entry(s1, s12, p[_M1], p[_M2], p[_L1], p[_R1], p[_R2], p[_G])
+        E[b] = 0.5 * T + (V + p[_M3] * p[_G] * p[_R3] * s3)
+
+
+#: the rows of Psi that are the Jacobian of phi (both)
+_ROWS = np.array([0, 1])
+#: this module (its kernels passed on as module attributes are compile-time constants, see planar2r)
+_this = sys.modules[__name__]
+
+
+@njit
+def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
+    """Forward dynamics with the loop closed (Schur complement), a batch in columns (3, B)."""
+    _constraints.constrained_acceleration_columns(_this.terms_member, 2, q, v, tau, theta, a)
+
+
+@njit
+def project_kernel(q, v, theta, tol):  # pragma: no cover - compiled
+    """:meth:`FourBar.project` of a batch in columns, in place."""
+    _constraints.project_columns(_this.residual_member, _this.jacobian_member, _this.mass_member, _ROWS, 2, q, v, theta, tol)
+
+
+@njit
+def constraint_info_kernel(q, v, tau, theta, res, lam):  # pragma: no cover - compiled
+    """``max |phi|`` and the multipliers (B, 2) of a batch in columns."""
+    _constraints.constraint_info_columns(_this.terms_member, _this.residual_member, q, v, tau, theta, res, lam)
+
+
+@njit
+def advance_kernel(theta, stepper, q, v, tau):  # pragma: no cover - compiled
+    """:func:`mbs_envs.compiled.rk_run` with the projection after every step (cached on disk)."""
+    rk_run(_this.acceleration_kernel, _this.project_kernel, theta, stepper, q, v, tau)
+
+
 class FourBar(ConstrainedModel):
     """Four-bar linkage as a DAE with Lagrange multipliers (docs/physics.md §4).
 
@@ -115,6 +262,11 @@ class FourBar(ConstrainedModel):
     nu = 1
     nc = 2
     independent: ClassVar[tuple[int, ...]] = (0,)
+
+    # -- compiled path (see :mod:`mbs_envs.compiled`) -----------------------------
+    kernels = (acceleration_kernel, energy_kernel)
+    advance_kernel = staticmethod(advance_kernel)
+    constraint_info_kernel = staticmethod(constraint_info_kernel)
 
     def __init__(self, params=None, **overrides):
         super().__init__(params, **overrides)
@@ -183,37 +335,24 @@ class FourBar(ConstrainedModel):
     def constraint_residual(self, q: np.ndarray) -> np.ndarray:
         """``phi(q)`` [m], shape ``(..., 2)``."""
         p = self.params
-        c1, s1, c12, s12, c3, s3 = self._angles(q)
-        return np.stack(
-            [p.l1 * c1 + p.l2 * c12 - p.l0 - p.l3 * c3, p.l1 * s1 + p.l2 * s12 - p.l3 * s3], axis=-1
-        )
+        return np.stack(closure_residual(*self._angles(q), p.l0, p.l1, p.l2, p.l3), axis=-1)
 
     def constraint_jacobian(self, q: np.ndarray) -> np.ndarray:
         """``Psi = d phi / d q``, shape ``(..., 2, 3)``."""
         p = self.params
-        c1, s1, c12, s12, c3, s3 = self._angles(q)
-        Psi = np.empty(c1.shape + (2, 3))
-        Psi[..., 0, 0] = -p.l1 * s1 - p.l2 * s12
-        Psi[..., 0, 1] = -p.l2 * s12
-        Psi[..., 0, 2] = p.l3 * s3
-        Psi[..., 1, 0] = p.l1 * c1 + p.l2 * c12
-        Psi[..., 1, 1] = p.l2 * c12
-        Psi[..., 1, 2] = -p.l3 * c3
+        angles = self._angles(q)
+        Psi = np.empty(angles[0].shape + (2, 3))
+        for i, row in enumerate(closure_jacobian(*angles, p.l1, p.l2, p.l3)):
+            for j, entry in enumerate(row):
+                Psi[..., i, j] = entry
         return Psi
 
     def constraint_bias(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """``dPsi v`` (the velocity-squared part of ``d^2 phi / dt^2``), shape ``(..., 2)``."""
         p = self.params
         v = as_vector(v, 3, "v")
-        c1, s1, c12, s12, c3, s3 = self._angles(q)
         w1, w12, w3 = v[..., 0] ** 2, (v[..., 0] + v[..., 1]) ** 2, v[..., 2] ** 2
-        return np.stack(
-            [
-                -p.l1 * c1 * w1 - p.l2 * c12 * w12 + p.l3 * c3 * w3,
-                -p.l1 * s1 * w1 - p.l2 * s12 * w12 + p.l3 * s3 * w3,
-            ],
-            axis=-1,
-        )
+        return np.stack(np.broadcast_arrays(*closure_bias(*self._angles(q), w1, w12, w3, p.l1, p.l2, p.l3)), axis=-1)
 
     # -- consistent states ------------------------------------------------------
 

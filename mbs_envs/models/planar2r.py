@@ -13,6 +13,7 @@ import sys
 from ..jit import njit
 import numpy as np
 
+from .. import compiled as _compiled
 from ..compiled import rk_run
 from ..trig import sincos_checked, sincos_columns
 from .base import Model, Params, as_vector, friction_law, param, smoothed_friction
@@ -182,7 +183,7 @@ _this = sys.modules[__name__]
 @njit
 def advance_kernel(theta, stepper, q, v, tau):  # pragma: no cover - compiled
     """:func:`mbs_envs.compiled.rk_run` with this model's :func:`acceleration_kernel` (cached on disk)."""
-    rk_run(_this.acceleration_kernel, theta, stepper, q, v, tau)
+    rk_run(_this.acceleration_kernel, _compiled.no_projection, theta, stepper, q, v, tau)
 
 
 class Planar2R(Model):
@@ -253,11 +254,6 @@ class Planar2R(Model):
 
     kernels = (acceleration_kernel, energy_kernel)
     advance_kernel = staticmethod(advance_kernel)
-
-    def kernel_params(self) -> np.ndarray:
-        """Parameters in field order: shape ``(14,)``, or ``(B, 14)`` when batched
-        (the kernels read them as columns, :func:`mbs_envs.compiled.batch_theta`)."""
-        return np.stack(np.broadcast_arrays(*(getattr(self.params, k) for k in self.Params.names())), axis=-1)
 
     def joint_positions(self, q: np.ndarray) -> np.ndarray:
         """Positions of the base, the elbow and the tip in the plane [m].

@@ -30,11 +30,15 @@ angle ``th3`` and the heading ``th1``. Because ``dw/d(dth3) = n`` and
 from __future__ import annotations
 
 import dataclasses
+import sys
 from typing import ClassVar
 
 import numpy as np
 
-from ..linalg import cross
+from .. import constraints as _constraints
+from ..compiled import rk_run
+from ..jit import njit
+from ..trig import sincos_checked
 from .base import Params, as_vector, param
 from .constrained import ConstrainedModel
 
@@ -101,6 +105,202 @@ def steady_turn_residual(lean, W, Omega, a, b, c):
     return F, dF_dlean, dF_dOmega
 
 
+# ---------------------------------------------------------------------------
+# The equations, written once: floats or broadcasting arrays (the numpy methods
+# of :class:`RollingDisk`) and one member's floats (the kernels below), from
+# s1, c1 = sin, cos(heading), s2, c2 = sin, cos(lean) and the rates d1, d2, d3
+# of heading, lean and spin.
+# ---------------------------------------------------------------------------
+
+
+def disk_inertias(m, r):
+    """``(A, C) = (m r^2 / 4, m r^2 / 2)`` [kg m^2]: diametral and axial."""
+    return m * r**2 / 4, m * r**2 / 2
+
+
+def disk_mass_entries(s2, c2, A, C):
+    """The lean-dependent entries ``(M33, M35)`` of ``M`` (``M44 = A``, ``M55 = C``, ``m`` for the centre)."""
+    return A * c2**2 + C * s2**2, C * s2
+
+
+def disk_coriolis_entries(s2, c2, d1, d2, d3, A, C):
+    """``C v`` on heading, lean and spin, from the Christoffel symbols of ``M(th2)``."""
+    D = 2 * (C - A) * s2 * c2  # dM33/dth2 (heading-heading entry)
+    E = C * c2  # dM35/dth2
+    return D * d1 * d2 + E * d2 * d3, -0.5 * D * d1**2 - E * d1 * d3, E * d1 * d2
+
+
+def angular_velocity_entries(s1, c1, s2, c2, d1, d2, d3):
+    """``w = Jw (d1, d2, d3)`` in the ground frame [rad/s]."""
+    return c1 * d2 - s1 * c2 * d3, s1 * d2 + c1 * c2 * d3, d1 + s2 * d3
+
+
+def contact_offset_entries(s1, c1, s2, c2, r):
+    """``rC = -r (s1 s2, -c1 s2, c2)`` [m]: the contact point from the centre."""
+    return -r * (s1 * s2), -r * (-c1 * s2), -r * c2
+
+
+def rolling_jacobian_entries(s1, c1, s2, c2, x, y, z):
+    """The angular block ``-[rC]x Jw`` (3 x 3, rows) of ``Psi = [I3, -[rC]x Jw]``,
+    with ``rC = (x, y, z)`` (:func:`contact_offset_entries`)."""
+    # [rC]x Jw with [rC]x = [[0, -z, y], [z, 0, -x], [-y, x, 0]], Jw = [[0, c1, -s1 c2], [0, s1, c1 c2], [1, 0, s2]]
+    return (
+        (-y, z * s1, z * c1 * c2 - y * s2),
+        (x, -z * c1, z * s1 * c2 + x * s2),
+        (0.0 * x, y * c1 - x * s1, -(y * s1 * c2 + x * c1 * c2)),
+    )
+
+
+def rolling_bias_entries(s1, c1, s2, c2, d1, d2, d3, r, rC, w):
+    """``dPsi v = (dJw v_ang) x rC + w x drC`` (the velocity-squared terms) [m/s^2], with
+    ``rC`` and ``w`` from :func:`contact_offset_entries` and :func:`angular_velocity_entries`."""
+    a0 = -s1 * d1 * d2 - c1 * c2 * d1 * d3 + s1 * s2 * d2 * d3  # dJw v_ang
+    a1 = c1 * d1 * d2 - s1 * c2 * d1 * d3 - c1 * s2 * d2 * d3
+    a2 = c2 * d2 * d3
+    b0, b1, b2 = rC
+    w0, w1, w2 = w
+    e0 = -r * (c1 * s2 * d1 + s1 * c2 * d2)  # drC
+    e1 = -r * (s1 * s2 * d1 - c1 * c2 * d2)
+    e2 = -r * (-s2 * d2)
+    return (
+        (a1 * b2 - a2 * b1) + (w1 * e2 - w2 * e1),
+        (a2 * b0 - a0 * b2) + (w2 * e0 - w0 * e2),
+        (a0 * b1 - a1 * b0) + (w0 * e1 - w1 * e0),
+    )
+
+
+_disk_inertias = njit(disk_inertias)
+_disk_mass_entries = njit(disk_mass_entries)
+_disk_coriolis_entries = njit(disk_coriolis_entries)
+_rolling_jacobian_entries = njit(rolling_jacobian_entries)
+_contact_offset_entries = njit(contact_offset_entries)
+_angular_velocity_entries = njit(angular_velocity_entries)
+_rolling_bias_entries = njit(rolling_bias_entries)
+
+# kernel parameter rows (RollingDiskParams field order, :meth:`Model.kernel_params`)
+_M, _R, _G, _B_ROLL, _B_PIVOT = range(5)
+
+
+@njit
+def _trig(q):  # pragma: no cover - compiled
+    """``(s1, c1, s2, c2)`` of one member's heading and lean."""
+    s1, c1 = sincos_checked(q[3])
+    s2, c2 = sincos_checked(q[4])
+    return s1, c1, s2, c2
+
+
+@njit
+def mass_member(q, p, M):  # pragma: no cover - compiled
+    """``M`` (6, 6) of one member."""
+    A, C = _disk_inertias(p[_M], p[_R])
+    s2, c2 = sincos_checked(q[4])
+    M33, M35 = _disk_mass_entries(s2, c2, A, C)
+    M[:, :] = 0.0
+    M[0, 0] = M[1, 1] = M[2, 2] = p[_M]
+    M[3, 3], M[3, 5], M[5, 3], M[4, 4], M[5, 5] = M33, M35, M35, A, C
+
+
+@njit
+def residual_member(q, p, phi):  # pragma: no cover - compiled
+    """``phi = z - r cos th2`` of one member into ``phi[0]``."""
+    _, c2 = sincos_checked(q[4])
+    phi[0] = q[2] - p[_R] * c2
+
+
+@njit
+def jacobian_member(q, p, Psi):  # pragma: no cover - compiled
+    """``Psi = [I3, -[rC]x Jw]`` (3, 6) of one member."""
+    s1, c1, s2, c2 = _trig(q)
+    x, y, z = _contact_offset_entries(s1, c1, s2, c2, p[_R])
+    rows = _rolling_jacobian_entries(s1, c1, s2, c2, x, y, z)
+    Psi[:, :] = 0.0
+    for i in range(3):
+        Psi[i, i] = 1.0
+    for i, row in enumerate(rows):
+        Psi[i, 3], Psi[i, 4], Psi[i, 5] = row[0], row[1], row[2]
+
+
+@njit
+def terms_member(q, v, tau, p, M, f, Psi, gamma):  # pragma: no cover - compiled
+    """One member's ``M``, ``f = tau - (C v + G + F)``, ``Psi`` and ``gamma = -dPsi v``
+    (the kernel interface of :func:`mbs_envs.constraints.constrained_acceleration_columns`)."""
+    mass_member(q, p, M)
+    jacobian_member(q, p, Psi)
+    s1, c1, s2, c2 = _trig(q)
+    A, C = _disk_inertias(p[_M], p[_R])
+    h3, h4, h5 = _disk_coriolis_entries(s2, c2, v[3], v[4], v[5], A, C)
+    f[0] = tau[0] - 0.0
+    f[1] = tau[1] - 0.0
+    f[2] = tau[2] - p[_M] * p[_G]
+    f[3] = tau[3] - (h3 + p[_B_PIVOT] * v[3])
+    f[4] = tau[4] - h4
+    f[5] = tau[5] - (h5 + p[_B_ROLL] * v[5])
+    rC = _contact_offset_entries(s1, c1, s2, c2, p[_R])
+    w = _angular_velocity_entries(s1, c1, s2, c2, v[3], v[4], v[5])
+    g0, g1, g2 = _rolling_bias_entries(s1, c1, s2, c2, v[3], v[4], v[5], p[_R], rC, w)
+    gamma[0], gamma[1], gamma[2] = -g0, -g1, -g2
+
+
+@njit
+def energy_kernel(q, v, theta, E):  # pragma: no cover - compiled
+    """Mechanical energy ``v^T M v / 2 + m g z`` [J] of a batch in columns (6, B); writes ``E`` (B,)."""
+    M = np.empty((6, 6))
+    qb = np.empty(6)
+    for b in range(q.shape[1]):
+        p = theta[:, b]
+        for i in range(6):
+            qb[i] = q[i, b]
+        mass_member(qb, p, M)
+        T = 0.0
+        for i in range(6):
+            e = 0.0
+            for j in range(6):
+                e += M[i, j] * v[j, b]
+            T += v[i, b] * e
+        E[b] = 0.5 * T + p[_M] * p[_G] * q[2, b]
+
+
+#: |lean| beyond this is "flat" (:attr:`RollingDisk.flat_lean`)
+FLAT_LEAN = np.pi / 2 - 0.05
+
+
+@njit
+def singular_kernel(q, flags):  # pragma: no cover - compiled
+    """:meth:`RollingDisk.singular` of a batch in columns (6, B): sets ``flags[b]`` where ``|lean| > FLAT_LEAN``."""
+    for b in range(q.shape[1]):
+        flags[b] = flags[b] or abs(q[4, b]) > FLAT_LEAN
+
+
+#: the rows of Psi that are the Jacobian of phi (the height)
+_ROWS = np.array([2])
+#: this module (its kernels passed on as module attributes are compile-time constants, see planar2r)
+_this = sys.modules[__name__]
+
+
+@njit
+def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
+    """Forward dynamics with the rolling constraints (Schur complement), a batch in columns (6, B)."""
+    _constraints.constrained_acceleration_columns(_this.terms_member, 3, q, v, tau, theta, a)
+
+
+@njit
+def project_kernel(q, v, theta, tol):  # pragma: no cover - compiled
+    """:meth:`RollingDisk.project` of a batch in columns, in place."""
+    _constraints.project_columns(_this.residual_member, _this.jacobian_member, _this.mass_member, _ROWS, 3, q, v, theta, tol)
+
+
+@njit
+def constraint_info_kernel(q, v, tau, theta, res, lam):  # pragma: no cover - compiled
+    """``|phi|`` and the contact force (B, 3) of a batch in columns."""
+    _constraints.constraint_info_columns(_this.terms_member, _this.residual_member, q, v, tau, theta, res, lam)
+
+
+@njit
+def advance_kernel(theta, stepper, q, v, tau):  # pragma: no cover - compiled
+    """:func:`mbs_envs.compiled.rk_run` with the projection after every step (cached on disk)."""
+    rk_run(_this.acceleration_kernel, _this.project_kernel, theta, stepper, q, v, tau)
+
+
 class RollingDisk(ConstrainedModel):
     """Thin disk rolling without slipping (docs/physics.md §5); see the module docstring."""
 
@@ -113,13 +313,17 @@ class RollingDisk(ConstrainedModel):
     #: the heading, lean and spin rates parametrize the allowed motions
     independent: ClassVar[tuple[int, ...]] = (3, 4, 5)
     #: |lean| beyond this is "flat": the Euler angles are near their singularity
-    flat_lean: ClassVar[float] = np.pi / 2 - 0.05
+    flat_lean: ClassVar[float] = FLAT_LEAN
+
+    # -- compiled path (see :mod:`mbs_envs.compiled`) -----------------------------
+    kernels = (acceleration_kernel, energy_kernel)
+    advance_kernel = staticmethod(advance_kernel)
+    constraint_info_kernel = staticmethod(constraint_info_kernel)
 
     @property
     def inertias(self) -> tuple[float, float]:
         """``(A, C) = (m r^2 / 4, m r^2 / 2)`` [kg m^2]: diametral and axial."""
-        p = self.params
-        return p.m * p.r**2 / 4, p.m * p.r**2 / 2
+        return disk_inertias(self.params.m, self.params.r)
 
     @property
     def critical_spin(self) -> float:
@@ -141,8 +345,8 @@ class RollingDisk(ConstrainedModel):
         s2, c2 = np.sin(q[..., 4]), np.cos(q[..., 4])
         M = np.zeros(q.shape[:-1] + (6, 6))
         M[..., 0, 0] = M[..., 1, 1] = M[..., 2, 2] = self.params.m
-        M[..., 3, 3] = A * c2**2 + C * s2**2
-        M[..., 3, 5] = M[..., 5, 3] = C * s2
+        M[..., 3, 3], M[..., 3, 5] = disk_mass_entries(s2, c2, A, C)
+        M[..., 5, 3] = M[..., 3, 5]
         M[..., 4, 4] = A
         M[..., 5, 5] = C
         return M
@@ -153,13 +357,8 @@ class RollingDisk(ConstrainedModel):
         v = as_vector(v, 6, "v")
         A, C = self.inertias
         s2, c2 = np.sin(q[..., 4]), np.cos(q[..., 4])
-        d1, d2, d3 = v[..., 3], v[..., 4], v[..., 5]
-        D = 2 * (C - A) * s2 * c2  # dM33/dth2 (heading-heading entry)
-        E = C * c2  # dM35/dth2
         out = np.zeros(np.broadcast_shapes(q.shape, v.shape))
-        out[..., 3] = D * d1 * d2 + E * d2 * d3
-        out[..., 4] = -0.5 * D * d1**2 - E * d1 * d3
-        out[..., 5] = E * d1 * d2
+        out[..., 3], out[..., 4], out[..., 5] = disk_coriolis_entries(s2, c2, v[..., 3], v[..., 4], v[..., 5], A, C)
         return out
 
     def gravity(self, q: np.ndarray) -> np.ndarray:
@@ -189,15 +388,12 @@ class RollingDisk(ConstrainedModel):
         """``w`` in the ground frame [rad/s], shape ``(..., 3)``."""
         q = as_vector(q, 6, "q")
         v = as_vector(v, 6, "v")
-        s1, c1, s2, c2 = self._trig(q)
-        d1, d2, d3 = v[..., 3], v[..., 4], v[..., 5]
-        return np.stack([c1 * d2 - s1 * c2 * d3, s1 * d2 + c1 * c2 * d3, d1 + s2 * d3], axis=-1)
+        return np.stack(np.broadcast_arrays(*angular_velocity_entries(*self._trig(q), v[..., 3], v[..., 4], v[..., 5])), axis=-1)
 
     def contact_offset(self, q: np.ndarray) -> np.ndarray:
         """Contact point relative to the centre, ``rC = -r (s1 s2, -c1 s2, c2)`` [m]."""
         q = as_vector(q, 6, "q")
-        s1, c1, s2, c2 = self._trig(q)
-        return -self.params.r * np.stack([s1 * s2, -c1 * s2, c2], axis=-1)
+        return np.stack(contact_offset_entries(*self._trig(q), self.params.r), axis=-1)
 
     def spin_axis(self, q: np.ndarray) -> np.ndarray:
         """``n = R e_y = (-s1 c2, c1 c2, s2)``, shape ``(..., 3)``."""
@@ -215,41 +411,23 @@ class RollingDisk(ConstrainedModel):
     def constraint_jacobian(self, q: np.ndarray) -> np.ndarray:
         """``Psi = [I3, -[rC]x Jw]`` (3 x 6): the contact point's velocity map."""
         q = as_vector(q, 6, "q")
-        s1, c1, s2, c2 = self._trig(q)
-        rC = self.contact_offset(q)
-        Jw = np.zeros(q.shape[:-1] + (3, 3))
-        Jw[..., 0, 1], Jw[..., 0, 2] = c1, -s1 * c2
-        Jw[..., 1, 1], Jw[..., 1, 2] = s1, c1 * c2
-        Jw[..., 2, 0], Jw[..., 2, 2] = 1.0, s2
-        # w x rC = -rC x w = -[rC]x Jw v_ang
-        skew = np.zeros(q.shape[:-1] + (3, 3))
-        skew[..., 0, 1], skew[..., 0, 2] = -rC[..., 2], rC[..., 1]
-        skew[..., 1, 0], skew[..., 1, 2] = rC[..., 2], -rC[..., 0]
-        skew[..., 2, 0], skew[..., 2, 1] = -rC[..., 1], rC[..., 0]
         Psi = np.zeros(q.shape[:-1] + (3, 6))
         Psi[..., :, :3] = np.eye(3)
-        Psi[..., :, 3:] = -skew @ Jw
+        # w x rC = -rC x w = -[rC]x Jw v_ang
+        trig = self._trig(q)
+        for i, row in enumerate(rolling_jacobian_entries(*trig, *contact_offset_entries(*trig, self.params.r))):
+            for j, entry in enumerate(row):
+                Psi[..., i, 3 + j] = entry
         return Psi
 
     def constraint_bias(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """``dPsi v = (dJw v_ang) x rC + w x drC`` (velocity-squared terms), shape ``(..., 3)``."""
         q = as_vector(q, 6, "q")
         v = as_vector(v, 6, "v")
-        r = self.params.r
-        s1, c1, s2, c2 = self._trig(q)
-        d1, d2, d3 = v[..., 3], v[..., 4], v[..., 5]
-        dJw_v = np.stack(
-            [
-                -s1 * d1 * d2 - c1 * c2 * d1 * d3 + s1 * s2 * d2 * d3,
-                c1 * d1 * d2 - s1 * c2 * d1 * d3 - c1 * s2 * d2 * d3,
-                c2 * d2 * d3,
-            ],
-            axis=-1,
-        )
-        drC = -r * np.stack(
-            [c1 * s2 * d1 + s1 * c2 * d2, s1 * s2 * d1 - c1 * c2 * d2, -s2 * d2], axis=-1
-        )
-        return cross(dJw_v, self.contact_offset(q)) + cross(self.angular_velocity(q, v), drC)
+        trig, rates = self._trig(q), (v[..., 3], v[..., 4], v[..., 5])
+        rC = contact_offset_entries(*trig, self.params.r)
+        entries = rolling_bias_entries(*trig, *rates, self.params.r, rC, angular_velocity_entries(*trig, *rates))
+        return np.stack(np.broadcast_arrays(*entries), axis=-1)
 
     # -- states -------------------------------------------------------------------
 

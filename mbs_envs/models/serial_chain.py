@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from ..jit import njit
+from .. import compiled as _compiled
 from ..compiled import rk_run
 from ..trig import sincos_columns
 from .base import Model, Params, as_vector, param, smoothed_friction
@@ -331,7 +332,7 @@ _this = sys.modules[__name__]
 @njit
 def advance_kernel(theta, stepper, q, v, tau):  # pragma: no cover - compiled
     """:func:`mbs_envs.compiled.rk_run` with this model's :func:`acceleration_kernel` (cached on disk)."""
-    rk_run(_this.acceleration_kernel, theta, stepper, q, v, tau)
+    rk_run(_this.acceleration_kernel, _compiled.no_projection, theta, stepper, q, v, tau)
 
 
 def _suffix_sum(x: np.ndarray, axis: int = -1) -> np.ndarray:

@@ -1,0 +1,105 @@
+"""The compiled backend of the environments' step: one numba function for B members.
+
+:meth:`MBSEnv.step <mbs_envs.envs.base.MBSEnv.step>` (B = 1) and the vector env
+(B = ``num_envs``) call the same function, a scene's ``step_kernel``: a
+module-level binding of :func:`engine_step` to its model's kernels and its task's
+kernel (bound at compile time and cached on disk, see :mod:`mbs_envs.compiled`).
+The sequence is :meth:`MBSEnv.step`'s numpy one:
+
+1. ``u = action * u_max`` held, ``B u`` applied (``B`` selects one coordinate per input);
+2. physics: the model's ``advance_kernel`` (explicit Runge-Kutta, with a
+   constrained model's projection after every step);
+3. divergence: non-finite, ``|x| > limit``, a singular configuration, or a
+   constraint residual beyond ``residual_limit``; a diverged member keeps its state;
+4. ``t += dt``; the task's kernel writes the observation, the reward and its
+   terms, its ``info`` quantities and its termination;
+5. the model's energy, and for constrained models the constraint residual and
+   the multipliers, complete ``info``.
+
+Arguments are packed tuples (no long positional lists):
+
+- ``control = (dt, limit, residual_limit, u_max, actuated, nc)``;
+- ``task``: the task's own tuple (its static arguments, then its per-member
+  columns; see the task's ``task_arguments`` and ``task_columns``);
+- ``state = (q, v, t, action)``: rows ``(B, n)``, ``(B, n)``, ``(B,)`` updated
+  in place, and the validated action ``(B, nu)``;
+- ``out = (u, obs, info, bad, terminated)``: rows written; ``info`` is ``(B, S)``
+  float64 with the columns of the env's :meth:`~mbs_envs.envs.base.MBSEnv.info_layout`
+  (the task's, starting with the reward, then ``energy``, then for constrained
+  models ``constraint_residual`` and ``multipliers``).
+
+A task kernel has the signature ``task_step(q, v, t, action, task, obs, info, terminated)``
+with ``q, v`` in columns ``(n, B)``, ``action`` in columns ``(nu, B)``, and writes
+its columns of ``info`` (from 0), ``obs`` and ``terminated``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..jit import njit
+
+
+@njit(cache=False)  # takes kernels as arguments: cached inside the scenes' module-level bindings
+def engine_step(advance, energy, constraint_info, singular, task_step, theta, stepper, control, task, state, out):  # pragma: no cover
+    """One control step of every member (module docstring).
+
+    Parameters
+    ----------
+    advance, energy, constraint_info, singular : compiled kernels of the model
+        ``advance(theta, stepper, q, v, tau)``, ``energy(q, v, theta, E)``,
+        ``constraint_info(q, v, tau, theta, residual, lam)``, ``singular(q, flags)``.
+    task_step : compiled kernel of the task
+    theta : ndarray, shape (P, B)
+        The model's parameters in columns (:func:`mbs_envs.compiled.batch_theta`).
+    stepper : tuple
+        :meth:`mbs_envs.compiled.TableauArrays.packed`.
+    control, task, state, out : tuple
+        See the module docstring.
+    """
+    dt, limit, residual_limit, u_max, actuated, nc = control
+    q, v, t, action = state
+    u, obs, info, bad, terminated = out
+    B, n = q.shape
+    qc, vc = np.ascontiguousarray(q.T), np.ascontiguousarray(v.T)
+    ac = np.ascontiguousarray(action.T)
+    tau = np.zeros((n, B))
+    for k in range(u.shape[1]):
+        for b in range(B):
+            uk = ac[k, b] * u_max[k]
+            u[b, k] = uk
+            tau[actuated[k], b] = uk
+    advance(theta, stepper, qc, vc, tau)
+    residual, lam = np.empty(B), np.empty((B, nc))
+    constraint_info(qc, vc, tau, theta, residual, lam)
+    flags = np.zeros(B, np.bool_)
+    singular(qc, flags)
+    reverted = False
+    for b in range(B):
+        ok = residual[b] <= residual_limit and not flags[b]
+        for k in range(n):
+            ok &= abs(qc[k, b]) <= limit
+            ok &= abs(vc[k, b]) <= limit
+        bad[b] = not ok
+        reverted |= not ok
+        for k in range(n):
+            if ok:
+                q[b, k] = qc[k, b]
+                v[b, k] = vc[k, b]
+            else:  # the member keeps its state
+                qc[k, b] = q[b, k]
+                vc[k, b] = v[b, k]
+        t[b] = t[b] + dt
+    if reverted:  # the info of the states kept
+        constraint_info(qc, vc, tau, theta, residual, lam)
+    task_step(qc, vc, t, ac, task, obs, info, terminated)
+    E = np.empty(B)
+    energy(qc, vc, theta, E)
+    c = info.shape[1] - 1 - (1 + nc if nc > 0 else 0)
+    for b in range(B):
+        terminated[b] = terminated[b] or bad[b]
+        info[b, c] = E[b]
+        if nc > 0:
+            info[b, c + 1] = residual[b]
+            for i in range(nc):
+                info[b, c + 2 + i] = lam[b, i]
