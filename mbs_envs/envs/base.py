@@ -331,12 +331,12 @@ class MBSEnv(gym.Env):
     # ``task`` is what an episode draws at reset (e.g. a reference), stacked
     # member-wise in the vector env; ``now`` is what the task needs at time t.
 
-    def _reset_task(self, options: dict) -> Any:
-        """Draw the episode's task from ``self.np_random`` (default: none)."""
+    def _reset_task(self, options: dict, rng: np.random.Generator) -> Any:
+        """Draw the episode's task from ``rng`` (default: none)."""
         return None
 
-    def _initial_state(self, task: Any) -> tuple[np.ndarray, np.ndarray]:
-        """Draw ``(q0, v0)`` from ``self.np_random``."""
+    def _initial_state(self, task: Any, rng: np.random.Generator, model: Model) -> tuple[np.ndarray, np.ndarray]:
+        """Draw ``(q0, v0)`` from ``rng`` for ``model`` (a vector env's member may have its own parameters)."""
         raise NotImplementedError
 
     def task_now(self, t: np.ndarray, task: Any) -> Any:
@@ -365,15 +365,15 @@ class MBSEnv(gym.Env):
         """Task quantities for ``info``, each shaped ``(...)`` or ``(..., k)``."""
         return {}
 
-    def _polylines(self) -> list[Polyline]:
-        """What to draw, in world coordinates."""
+    def _polylines(self, q: np.ndarray, t: float, task: Any) -> list[Polyline]:
+        """What to draw of the state ``q`` at time ``t`` of an episode's ``task``, in world coordinates."""
         raise NotImplementedError
 
     def _render_extent(self) -> float:
         raise NotImplementedError
 
-    def _render_center(self) -> tuple[float, float]:
-        """World point at the centre of the picture [m]."""
+    def _render_center(self, q: np.ndarray) -> tuple[float, float]:
+        """World point at the centre of the picture of ``q`` [m]."""
         return (0.0, 0.0)
 
     def now(self) -> Any:
@@ -415,12 +415,17 @@ class MBSEnv(gym.Env):
             options[key] = self._checked_state(options, key, n)
         return options
 
-    def sample_start(self, options: dict) -> tuple[Any, np.ndarray, np.ndarray]:
-        """Draw ``(task, q0, v0)`` from ``self.np_random`` (checked ``options`` may fix the state)."""
-        task = self._reset_task(options)
+    def sample_start(
+        self, options: dict, rng: np.random.Generator | None = None, model: Model | None = None
+    ) -> tuple[Any, np.ndarray, np.ndarray]:
+        """Draw ``(task, q0, v0)`` from ``rng`` (default this env's ``np_random``) for ``model``
+        (default this env's); checked ``options`` may fix the state. Nothing of the env changes."""
+        rng = self.np_random if rng is None else rng
+        model = self.model if model is None else model
+        task = self._reset_task(options, rng)
         q0, v0 = options.get("q"), options.get("v")
         if q0 is None:
-            q_s, v_s = self._initial_state(task)
+            q_s, v_s = self._initial_state(task, rng, model)
             q0 = q_s
             v0 = v_s if v0 is None else v0
         elif v0 is None:
@@ -519,12 +524,16 @@ class MBSEnv(gym.Env):
                 'Set render_mode at initialization, e.g. gym.make(id, render_mode="rgb_array")'
             )
             return None
+        return self.render_state(self._q, self._t, self._task)
+
+    def render_state(self, q: np.ndarray, t: float, task: Any) -> Any:
+        """Draw the state ``q`` at time ``t`` of an episode's ``task`` (this env's renderer and mode)."""
         if self._renderer is None:
             self._renderer = PlanarRenderer(
-                self._render_extent(), self.render_mode, self.metadata["render_fps"],
-                center=self._render_center(),
+                self._render_extent(), self.render_mode, self.metadata["render_fps"], center=(0.0, 0.0)
             )
-        return self._renderer.draw(self._polylines())
+        self._renderer.center = np.asarray(self._render_center(q), float)  # the camera follows (the disk rolls away)
+        return self._renderer.draw(self._polylines(q, t, task))
 
     def close(self) -> None:
         if self._renderer is not None:

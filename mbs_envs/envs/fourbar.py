@@ -124,8 +124,8 @@ class FourBarEnv(JointTrackingEnv):
         self.joint_inertia = self.mean_crank_inertia
         self.pd_gains = (100.0 * self.mean_crank_inertia, 20.0 * self.mean_crank_inertia)
 
-    def _state_from_tracked(self, q_t: np.ndarray, v_t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return self.model.consistent_state(q_t[0], v_t[0], self.branch)
+    def _state_from_tracked(self, q_t: np.ndarray, v_t: np.ndarray, model: FourBar) -> tuple[np.ndarray, np.ndarray]:
+        return model.consistent_state(q_t[0], v_t[0], self.branch)
 
     def state_diverged(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Divergence, or the loop opened beyond ``residual_limit``."""
@@ -143,13 +143,13 @@ class FourBarEnv(JointTrackingEnv):
         p = self.model.params
         return 0.6 * (p.l0 + p.l1 + p.l3) + 0.5 * p.l2
 
-    def _render_center(self) -> tuple[float, float]:
+    def _render_center(self, q: np.ndarray) -> tuple[float, float]:
         return (0.5 * self.model.params.l0, 0.0)
 
-    def _polylines(self) -> list[Polyline]:
+    def _polylines(self, q: np.ndarray, t: float, task: Any) -> list[Polyline]:
         p = self.model.params
         lines: list[Polyline] = [(np.array([[0.0, 0.0], [p.l0, 0.0]]), (160, 160, 160))]
-        q_ref = self.model.assemble(self.reference_now()[0][0], self.branch)
+        q_ref = self.model.assemble(self.task_now(np.asarray(t), task)[0][0], self.branch)
         lines.append((self.model.joint_positions(q_ref), (180, 200, 240)))
-        lines.append((self.model.joint_positions(self._q), (0, 90, 200)))
+        lines.append((self.model.joint_positions(q), (0, 90, 200)))
         return lines

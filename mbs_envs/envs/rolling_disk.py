@@ -183,8 +183,7 @@ class RollingDiskEnv(MBSEnv):
         W_top = self.spin_range[1] * Wc
         self._check_start_bound(max(np.pi + self.heading_amplitude + 0.1, model.params.r, W_top * max(1.0, model.params.r) + 1.0))
 
-    def _reset_task(self, options: dict) -> DiskTask:
-        rng = self.np_random
+    def _reset_task(self, options: dict, rng: np.random.Generator) -> DiskTask:
         spin_ref = float(rng.uniform(*self.spin_range) * self.model.critical_spin)
         if options.get("spin_ref") is not None:
             W_max = self.spin_range[1] * self.model.critical_spin
@@ -192,10 +191,9 @@ class RollingDiskEnv(MBSEnv):
         heading = sample_sum_of_sines(rng, [-np.pi], [np.pi], [self.heading_amplitude], self.heading_omega, n_components=2)
         return DiskTask(heading=heading, spin_ref=np.asarray(spin_ref))
 
-    def _initial_state(self, task: DiskTask) -> tuple[np.ndarray, np.ndarray]:
-        rng = self.np_random
+    def _initial_state(self, task: DiskTask, rng: np.random.Generator, model: RollingDisk) -> tuple[np.ndarray, np.ndarray]:
         heading0 = float(task.heading(0.0)[0][0] + rng.uniform(-0.1, 0.1))
-        return self.model.rolling_state(
+        return model.rolling_state(
             heading=heading0,
             lean=float(rng.uniform(-0.05, 0.05)),
             dlean=float(rng.uniform(-0.1, 0.1)),
@@ -276,16 +274,15 @@ class RollingDiskEnv(MBSEnv):
     def _render_extent(self) -> float:
         return 2.0
 
-    def _render_center(self) -> tuple[float, float]:
-        return (float(self._q[0]), float(self._q[1]))
+    def _render_center(self, q: np.ndarray) -> tuple[float, float]:
+        return (float(q[0]), float(q[1]))
 
-    def _polylines(self) -> list[Polyline]:
-        q = self._q
+    def _polylines(self, q: np.ndarray, t: float, task: DiskTask) -> list[Polyline]:
         r = self.model.params.r
         heading = np.array([np.cos(q[3]), np.sin(q[3])])
         centre = q[:2]
         contact = centre + self.model.contact_offset(q)[:2]
-        h_ref = float(self.now()[0])
+        h_ref = float(self.task_now(np.asarray(t), task)[0])
         ref = np.array([np.cos(h_ref), np.sin(h_ref)])
         return [
             (np.stack([centre - r * heading, centre + r * heading]), (0, 90, 200)),

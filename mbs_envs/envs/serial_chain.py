@@ -152,9 +152,9 @@ class SerialChainEnv(JointTrackingEnv):
     def _render_extent(self) -> float:
         return 1.1 * float(np.sum(self.model.params.l))
 
-    def _polylines(self) -> list[Polyline]:
-        q_ref = self.reference_now()[0]
+    def _polylines(self, q: np.ndarray, t: float, task: Any) -> list[Polyline]:
+        q_ref = self.task_now(np.asarray(t), task)[0]
         return [
             (self.model.joint_positions(q_ref), (180, 200, 240)),
-            (self.model.joint_positions(self._q), (0, 90, 200)),
+            (self.model.joint_positions(q), (0, 90, 200)),
         ]

@@ -290,9 +290,9 @@ class JointTrackingEnv(MBSEnv):
 
     # -- the task, batched (see MBSEnv) ------------------------------------------
 
-    def _reset_task(self, options: dict) -> SumOfSines:
+    def _reset_task(self, options: dict, rng: np.random.Generator) -> SumOfSines:
         return sample_sum_of_sines(
-            self.np_random,
+            rng,
             self.center_low,
             self.center_high,
             self.max_amplitude,
@@ -301,14 +301,14 @@ class JointTrackingEnv(MBSEnv):
             self.rate_range,
         )
 
-    def _initial_state(self, task: SumOfSines) -> tuple[np.ndarray, np.ndarray]:
+    def _initial_state(self, task: SumOfSines, rng: np.random.Generator, model) -> tuple[np.ndarray, np.ndarray]:
         q_ref, v_ref, _ = task(0.0)
         s, m = self.start_noise, len(self.tracked)
-        q_t = q_ref + self.np_random.uniform(-s, s, m)
-        v_t = v_ref + self.np_random.uniform(-s, s, m)
-        return self._state_from_tracked(q_t, v_t)
+        q_t = q_ref + rng.uniform(-s, s, m)
+        v_t = v_ref + rng.uniform(-s, s, m)
+        return self._state_from_tracked(q_t, v_t, model)
 
-    def _state_from_tracked(self, q_t: np.ndarray, v_t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _state_from_tracked(self, q_t: np.ndarray, v_t: np.ndarray, model) -> tuple[np.ndarray, np.ndarray]:
         """Whole state from the tracked coordinates (identity when all are tracked)."""
         return q_t, v_t
 

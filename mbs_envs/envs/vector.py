@@ -163,18 +163,18 @@ class MBSVectorEnv(VectorEnv):
                 self._rngs[i] = seeding.np_random(int(s))[0]
 
     def _reset_members(self, idx: np.ndarray, options: dict) -> None:
-        """Draw task and start state of members ``idx`` with the single env's code."""
+        """Draw task and start state of members ``idx`` with the task's code, each from its own generator."""
         env = self.env
         scales = {k: s.copy() for k, s in self._scales.items()}
         drawn = []
         try:  # draw every member's start first: a refused one leaves the batch as it was
             for i in idx:
-                env._np_random = self._rngs[i]
+                model = self.nominal_model
                 if self.randomize:  # the member's parameters first: start states may depend on them
                     for k, s in self.randomize.items():
                         self._scales[k][i] = self._rngs[i].uniform(1 - s, 1 + s)
-                    self._set_single_params(i)
-                drawn.append(env.sample_start(options))
+                    model = self._member_model(i)
+                drawn.append(env.sample_start(options, self._rngs[i], model))
         except ValueError:
             self._scales = scales
             raise
@@ -191,10 +191,10 @@ class MBSVectorEnv(VectorEnv):
         self._elapsed[idx] = 0
         self._apply_scales()
 
-    def _set_single_params(self, i: int) -> None:
-        """Member ``i``'s current parameters on the task env (for start states that use the model)."""
+    def _member_model(self, i: int):
+        """The model with member ``i``'s current parameters (for start states that use the model)."""
         values = {k: getattr(self.nominal_params, k) * self._scales[k][i] for k in self.randomize}
-        self.env.model = self.nominal_model.with_params(self.nominal_params.replace(**values))
+        return self.nominal_model.with_params(self.nominal_params.replace(**values))
 
     def reset(self, *, seed: int | list | None = None, options: dict | None = None):
         """Reset all members (or those in ``options["reset_mask"]``).
@@ -339,14 +339,7 @@ class MBSVectorEnv(VectorEnv):
             return None
         env = self.env
         env.render_mode = "rgb_array"
-        frames = []
-        saved = (env._q, env._v, env._t, env._task)
-        for i in range(self.num_envs):
-            env._q, env._v, env._t = self._q[i], self._v[i], float(self._t[i])
-            env._task = self._pick(self._task, i)
-            frames.append(env.render())
-        env._q, env._v, env._t, env._task = saved
-        return tuple(frames)
+        return tuple(env.render_state(self._q[i], float(self._t[i]), self._pick(self._task, i)) for i in range(self.num_envs))
 
     def close_extras(self, **kwargs: Any) -> None:
         self.env.close()
