@@ -20,9 +20,11 @@ only by rounding: of the models' linear solves (Cramer's rule against Cholesky)
 and of sines and cosines (:func:`mbs_envs.trig.sincos` against libm, 1 ulp);
 tested to 1e-12.
 
-The numpy path stays the general one (constrained models, implicit and
-adaptive integrators, stabilization); :func:`compiled_stepping` says when the
-compiled one applies.
+Constrained models (:mod:`mbs_envs.constraints`) bind the same stepper with their
+Schur-complement accelerations and the projection after every step (the ``after``
+kernel of :func:`rk_run`). The numpy path stays the general one (implicit and
+adaptive integrators, Baumgarte stabilization, callable inputs);
+:func:`compiled_stepping` says when the compiled one applies.
 """
 
 from __future__ import annotations

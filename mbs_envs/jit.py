@@ -21,7 +21,7 @@ def njit(f=None, *, cache: bool = True, **options):
     """``numba.njit`` with the project's options; usable as ``@njit`` or ``@njit(cache=False)``.
 
     Generic kernels that take a model's kernels as arguments (``rk_run``,
-    ``tracking_step``) are ``cache=False``: their cache index would hold the
+    ``engine_step``, the constrained column loops) are ``cache=False``: their cache index would hold the
     argument kernels' types, which do not survive the process. They are cached
     inside the module-level bindings that call them (``advance_kernel``, a scene's
     ``step_kernel``); closures over kernels would compile again in every process.

@@ -276,9 +276,11 @@ def mujoco_step_error(env, n_states: int = 50, refine: int = 200) -> dict:
             "steps_with_active_constraints": int(limit_active)}  # fmt: skip
 
 
-def sb3_throughput(n_envs_list: list[int], samples: int, iterations: int, threads: list[int], repeats: int) -> dict:
-    """PPO env-steps per second, adapter against ``make_vec_env`` of single envs, for each
-    torch thread count and ``n_envs``: medians over ``repeats`` interleaved timings.
+def sb3_throughput(
+    n_envs_list: list[int], samples: int, iterations: int, threads: list[int], repeats: int, env_id: str = "mbs_envs/Planar2R-v0"
+) -> dict:
+    """PPO env-steps per second on ``env_id``, adapter against ``make_vec_env`` of single envs, for
+    each torch thread count and ``n_envs``: medians over ``repeats`` interleaved timings.
 
     Both sides train the same PPO (MlpPolicy, one epoch over ``samples`` env-steps
     per iteration in minibatches of ``samples / 4``, ``n_steps = samples / n_envs``):
@@ -311,8 +313,8 @@ def sb3_throughput(n_envs_list: list[int], samples: int, iterations: int, thread
         torch.set_num_threads(n_threads)
         n_steps = samples // n_envs
         venvs = {
-            "SB3 make_vec_env (DummyVecEnv of single envs)": make_vec_env("mbs_envs/Planar2R-v0", n_envs=n_envs, seed=0),
-            "mbs_envs SB3 adapter (batched)": make_sb3_vec_env("mbs_envs/Planar2R-v0", n_envs=n_envs, seed=0),
+            "SB3 make_vec_env (DummyVecEnv of single envs)": make_vec_env(env_id, n_envs=n_envs, seed=0),
+            "mbs_envs SB3 adapter (batched)": make_sb3_vec_env(env_id, n_envs=n_envs, seed=0),
         }
         models = {k: PPO("MlpPolicy", v, n_steps=n_steps, batch_size=samples // 4, n_epochs=1, seed=0, device="cpu") for k, v in venvs.items()}
         for model in models.values():
@@ -330,8 +332,21 @@ def sb3_throughput(n_envs_list: list[int], samples: int, iterations: int, thread
                        "ratio_learn": b["learn_env_steps_per_s"] / a["learn_env_steps_per_s"],
                        "ratio_rollout": b["rollout_env_steps_per_s"] / a["rollout_env_steps_per_s"]}  # fmt: skip
     torch.set_num_threads(default_threads)
-    return {"samples_per_iteration": samples, "iterations": iterations, "repeats": repeats,
+    return {"env_id": env_id, "samples_per_iteration": samples, "iterations": iterations, "repeats": repeats,
             "torch_default_threads": default_threads, "runs": out}  # fmt: skip
+
+
+def sb3_scenes(env_ids: list[str], out: pathlib.Path) -> dict:
+    """:func:`sb3_throughput` per scene at 1024 envs with torch's default threads (``--sb3-only``)."""
+    out.mkdir(parents=True, exist_ok=True)
+    result = {env_id: sb3_throughput([1024], 16384, 2, [_torch_threads()], 5, env_id) for env_id in env_ids}
+    (out / "sb3_scenes.json").write_text(json.dumps(result, indent=2, default=float))
+    for env_id, r in result.items():
+        for name, run in r["runs"].items():
+            print(f"{env_id}, {name}: PPO learn {run['ratio_learn']:.1f}x make_vec_env, rollouts {run['ratio_rollout']:.1f}x "
+                  f"({run['results']})")
+    print(f"written to {out}/sb3_scenes.json")
+    return result
 
 
 def add_zero_cost_env_bound(result: dict) -> None:
@@ -453,8 +468,12 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", required=True, type=pathlib.Path)
     p.add_argument("--quick", action="store_true")
+    p.add_argument("--sb3-only", nargs="+", metavar="ID", help="only PPO's throughput on these ids (1024 envs)")
     a = p.parse_args(argv)
-    run(a.out, a.quick)
+    if a.sb3_only:
+        sb3_scenes(a.sb3_only, a.out)
+    else:
+        run(a.out, a.quick)
     return 0
 
 

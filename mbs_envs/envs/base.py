@@ -231,7 +231,7 @@ class MBSEnv(gym.Env):
             cached = self._info_columns_cache = (c, tuple(columns[1:]))
         return cached
 
-    def run_step_kernel(self, model: Model, q, v, t, task_columns: tuple, action) -> tuple:
+    def run_step_kernel(self, model: Model, q, v, t, task_columns: tuple, action, tab: TableauArrays | None = None) -> tuple:
         """The compiled control step of a batch of rows (a single env: one row), in place.
 
         Parameters
@@ -246,6 +246,8 @@ class MBSEnv(gym.Env):
             :meth:`task_columns` of the rows' tasks.
         action : ndarray, shape (B, nu)
             Validated and clipped.
+        tab : TableauArrays, optional
+            :attr:`compiled` (looked up when not given).
 
         Returns
         -------
@@ -257,10 +259,11 @@ class MBSEnv(gym.Env):
             Diverged; ended (diverged or the task's termination).
         """
         B = q.shape[0]
+        tab = self.compiled if tab is None else tab
         u, info = np.empty((B, model.nu)), np.empty((B, self._info_columns()[0]))
         obs = np.empty((B,) + self.observation_space.shape, np.float32)
         bad, terminated = np.empty(B, bool), np.zeros(B, bool)
-        stepper = self.compiled.packed(self.dt / self.substeps, self.substeps, projection_tol(self.stabilization))
+        stepper = tab.packed(self.dt / self.substeps, self.substeps, projection_tol(self.stabilization))
         control = (float(self.dt), float(self.divergence_limit), float(self.residual_limit), self.u_max, self._actuated, model.nc)
         self.step_kernel(  # compiled code raises no floating-point warnings
             batch_theta(model, B), stepper, control, self.task_arguments() + task_columns,
@@ -277,13 +280,13 @@ class MBSEnv(gym.Env):
             out[name] = x.astype(bool) if boolean else x
         return out
 
-    def _step_compiled(self, action: Any):
+    def _step_compiled(self, action: Any, tab: TableauArrays):
         a = validate_action(action, self.model.nu)  # raises before any change
         if self._task_columns is None or self._task_columns[0] is not self._task:
             self._task_columns = (self._task, self.task_columns(self._task))
         t = np.array([self._t])
         obs, info_row, u, bad, terminated = self.run_step_kernel(
-            self.model, self._q.reshape(1, -1), self._v.reshape(1, -1), t, self._task_columns[1], a.reshape(1, -1)
+            self.model, self._q.reshape(1, -1), self._v.reshape(1, -1), t, self._task_columns[1], a.reshape(1, -1), tab
         )
         self._t = float(t[0])
         self._u = u[0]
@@ -480,35 +483,63 @@ class MBSEnv(gym.Env):
     consistency_tol: ClassVar[float] = 1e-9
 
     def step(self, action: Any):
-        if self.compiled is not None:
-            return self._step_compiled(action)
+        tab = self.compiled
+        if tab is not None:
+            return self._step_compiled(action, tab)
         action = validate_action(action, self.model.nu)  # raises before any change
-        u = action * self.u_max
-        q, v = self._advance(u)
-        bad = bool(self.state_diverged(q, v))
-        if not bad:
-            self._q, self._v = q, v
-        self._t += self.dt
-        self._u = u
-        now = self.now()
-        reward, terms = self.reward(self._q, self._v, now, self._task, u, action)
-        terminated = bad or bool(self.terminated(self._q, self._v, now, self._task))
-        info = self._info(diverged=bad, now=now)
-        info.update({k: _scalar(x) for k, x in terms.items()})
-        info["u"] = u
+        q, v, t, u, obs, reward, terminated, bad, info_rows = self.step_rows(
+            self.model, self._q[None], self._v[None], np.array([self._t]), self._task, action[None]
+        )
+        self._q, self._v, self._t, self._u = q[0], v[0], float(t[0]), u[0]
+        info: dict[str, Any] = {"t": self._t, "diverged": bool(bad[0])}
+        info.update({k: _scalar(x[0]) for k, x in info_rows.items()})
+        info["u"] = self._u
         if self.render_mode == "human":
             self.render()
-        return self.observe(self._q, self._v, now, self._task), float(reward), terminated, False, info
+        return obs[0], float(reward[0]), bool(terminated[0]), False, info
+
+    def step_rows(self, model: Model, q, v, t, task: Any, action, full_info: bool = True) -> tuple:
+        """The numpy control step of a batch of rows (a single env: one row): the same sequence
+        as the compiled one (:mod:`mbs_envs.envs.engine`), through the task's batched functions.
+
+        Parameters
+        ----------
+        model : Model
+            The rows' model (per-member parameters allowed).
+        q, v : ndarray, shape (B, n)
+        t : ndarray, shape (B,)
+        task : Any
+            The rows' task (one episode's, or stacked per member).
+        action : ndarray, shape (B, nu)
+            Validated and clipped.
+        full_info : bool
+            Whether ``info`` is computed (else empty).
+
+        Returns
+        -------
+        q, v, t, u : ndarray
+            The new state (a diverged row keeps its own) and the applied input.
+        obs : ndarray, float32, shape (B, obs_dim)
+        reward : ndarray, shape (B,)
+        terminated, bad : ndarray of bool, shape (B,)
+        info : dict
+            ``energy``, the reward terms and the task's quantities, one row per member.
+        """
+        u = action * self.u_max
+        q1, v1 = advance(model, self.integrator, 0.0, q, v, self.dt, self.substeps, u, self.stabilization, compiled=False)
+        bad = np.asarray(self.state_diverged(q1, v1), bool)
+        q, v = np.where(bad[:, None], q, q1), np.where(bad[:, None], v, v1)  # a diverged row keeps its state
+        t = t + self.dt
+        now = self.task_now(t, task)
+        reward, terms = self.reward(q, v, now, task, u, action)
+        terminated = bad | self.terminated(q, v, now, task)
+        info: dict[str, Any] = {}
+        if full_info:
+            info = {"energy": model.energy(q, v), **terms, **self.task_info(q, v, now, task, u)}
+        return q, v, t, u, self.observe(q, v, now, task), np.asarray(reward, float), terminated, bad, info
 
     def _observation(self) -> np.ndarray:
         return self.observe(self._q, self._v, self.now(), self._task)
-
-    def _advance(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """One control step of physics with ``u`` held; non-finite on blow-up."""
-        return advance(
-            self.model, self.integrator, self._t, self._q, self._v, self.dt, self.substeps, u,
-            self.stabilization, compiled=False,  # the numpy path; the compiled one is the task's fused step
-        )
 
     def _info(self, diverged: bool, now: Any = None) -> dict[str, Any]:
         now = self.now() if now is None else now

@@ -261,7 +261,12 @@ class RollingDiskEnv(MBSEnv):
     # -- the compiled step (see mbs_envs.envs.engine) ----------------------------
 
     def task_arguments(self) -> tuple:
-        return (np.asarray(self.reward_weights, float), float(self.model.critical_spin), float(self.lean_limit))
+        key = (self.model, self.lean_limit, self.reward_weights)
+        cached = self.__dict__.get("_task_arguments")
+        if cached is None or cached[0] != key:  # built again only when one of them changes
+            args = (np.asarray(self.reward_weights, float), float(self.model.critical_spin), float(self.lean_limit))
+            cached = self._task_arguments = (key, args)
+        return cached[1]
 
     def task_columns(self, task: DiskTask) -> tuple:
         return task.heading.columns() + (np.array(np.reshape(task.spin_ref, -1), float),)

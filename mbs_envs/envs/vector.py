@@ -40,7 +40,6 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from .. import validation as check
-from ..simulate import advance
 from .base import MBSEnv, validate_action
 
 
@@ -259,21 +258,17 @@ class MBSVectorEnv(VectorEnv):
         return obs, np.asarray(reward, float), terminated, truncated, info
 
     def _step_numpy(self, a: np.ndarray) -> tuple:
-        """Physics and task of one step through the single env's numpy functions."""
-        env = self.env
-        u = a * env.u_max
-        q, v = advance(self.model, env.integrator, 0.0, self._q, self._v, env.dt, env.substeps, u, env.stabilization, compiled=False)
-        bad = env.state_diverged(q, v)
-        keep = bad[:, None]
-        self._q = np.where(keep, self._q, q)
-        self._v = np.where(keep, self._v, v)
-        self._t = self._t + env.dt
-        self._u = u
-        now = env.task_now(self._t, self._task)
-        reward, terms = env.reward(self._q, self._v, now, self._task, u, a)
-        info = self._info(now, bad, terms)
-        info["_terminated"] = bad | env.terminated(self._q, self._v, now, self._task)
-        return env.observe(self._q, self._v, now, self._task), np.asarray(reward, float), bad, info
+        """The same step on the numpy path (:meth:`MBSEnv.step_rows`)."""
+        self._q, self._v, self._t, self._u, obs, reward, terminated, bad, values = self.env.step_rows(
+            self.model, self._q, self._v, self._t, self._task, a, self.full_info
+        )
+        info: dict[str, Any] = {"t": self._t.copy(), "diverged": bad.copy()}
+        if self.full_info:
+            info.update(values)
+            info["u"] = self._u.copy()
+        self._info_masks(info)
+        info["_terminated"] = terminated
+        return obs, reward, bad, info
 
     def _step_compiled(self, a: np.ndarray) -> tuple:
         """The same step as :meth:`_step_numpy`, compiled (:meth:`MBSEnv.run_step_kernel`)."""
