@@ -11,7 +11,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from .models import FourBar, Planar2R, RollingDisk, SerialChain
+from .envs.registry import SCENES, load
 from .simulate import simulate
 
 
@@ -204,16 +204,14 @@ def determinism(env_id: str, steps: int = 100, num_envs: int = 4, seed: int = 12
             "max_difference": {k: float(np.max(np.abs(v[:upto] - ref))) for k, v in runs.items()}}  # fmt: skip
 
 
-#: (model class, parameter, value): the edges tried
+#: the values each scene's edge parameters (registry) are driven to
 EDGE_VALUES = (0.0, -1.0, math.nan, math.inf, 1e-6, 1e6)
 
 
 def parameter_edges() -> list[dict]:
     """Every model x mass/length parameter x :data:`EDGE_VALUES`: ``ValueError`` (with its
     message) or, when accepted, a 1 s simulation's outcome (finite, divergence reported, energy drift)."""
-    cases = [(Planar2R, "m2", {}), (Planar2R, "l1", {}), (Planar2R, "I1", {"r1": 0.0}),
-             (FourBar, "m2", {}), (FourBar, "l2", {}), (RollingDisk, "m", {}), (RollingDisk, "r", {}),
-             (SerialChain, "m", {"n_links": 5}), (SerialChain, "l", {"n_links": 5})]  # fmt: skip
+    cases = [(load(s.model), name, extra) for s in SCENES for name, extra in s.edge_parameters]
     rows = []
     for cls, name, extra in cases:
         for value in EDGE_VALUES:
@@ -224,7 +222,7 @@ def parameter_edges() -> list[dict]:
                 rows.append({**row, "outcome": "ValueError", "message": str(e)})
                 continue
             try:
-                q0, v0 = start_state(model)
+                q0, v0 = model.moving_state()
             except ValueError as e:
                 rows.append({**row, "outcome": "ValueError at assembly", "message": str(e)})
                 continue
@@ -236,12 +234,3 @@ def parameter_edges() -> list[dict]:
                          "all_finite": finite, "relative_energy_drift": float(np.max(np.abs(E - E[0]))) / scale})  # fmt: skip
     return rows
 
-
-def start_state(model) -> tuple[np.ndarray, np.ndarray]:
-    """A moving start state for the edge runs (assembled/rolling for constrained models)."""
-    if isinstance(model, FourBar):
-        return model.consistent_state(0.3, 2.0)
-    if isinstance(model, RollingDisk):
-        return model.rolling_state(lean=0.1, dspin=2 * model.critical_spin)
-    n = model.nq
-    return np.full(n, 0.3), np.full(n, 0.5)

@@ -53,3 +53,20 @@ def test_the_registry_is_the_one_list_of_scenes():
         assert residual_base(s.id) == s.residual_base
     with pytest.raises(ValueError, match="unknown scene 'Pendulum'"):
         registry.scene("Pendulum")
+
+
+def test_every_scene_names_its_model_edge_parameters_and_a_consistent_moving_state():
+    """What the reliability suite reads from the registry (no per-scene table elsewhere)."""
+    import gymnasium as gym
+    import numpy as np
+
+    from mbs_envs.envs import registry
+
+    for s in registry.SCENES:
+        cls = registry.load(s.model)
+        assert type(gym.make(s.id).unwrapped.model) is cls
+        assert s.edge_parameters and all(name in cls.Params.names() for name, _ in s.edge_parameters)
+        model = cls(**dict(s.edge_parameters[0][1]))
+        q, v = model.moving_state()
+        assert q.shape == (model.nq,) and v.shape == (model.nv,) and np.any(v != 0)
+        assert np.max(model.constraint_violation(q, v)) < 1e-9 if model.nc else True

@@ -44,6 +44,11 @@ class Scene:
         Whether actuator sizing along the reference applies (a joint-space reference).
     kwargs : Mapping
         ``gym.make`` keywords of the configuration compared and benchmarked.
+    model : str
+        ``"module:Class"`` of the model (the reliability suite builds it with edge parameters).
+    edge_parameters : tuple of (str, Mapping)
+        Parameters the reliability suite drives to their edges (0, negative, NaN, inf,
+        tiny, huge), each with the other parameters it needs (e.g. ``r1 = 0`` for ``I1``).
     """
 
     name: str
@@ -54,18 +59,32 @@ class Scene:
     residual_base: str = "controllers:ComputedTorque"
     sizing: bool = True
     kwargs: Mapping = dataclasses.field(default_factory=dict)
+    model: str = ""
+    edge_parameters: tuple = ()
 
 
 SCENES: tuple[Scene, ...] = (
-    Scene("Planar2R", "mbs_envs/Planar2R-v0", "mbs_envs.envs.planar2r:Planar2REnv", 500),
-    Scene("FourBar", "mbs_envs/FourBar-v0", "mbs_envs.envs.fourbar:FourBarEnv", 500),
-    Scene("SerialChain", "mbs_envs/SerialChain-v0", "mbs_envs.envs.serial_chain:SerialChainEnv", 500),
+    Scene("Planar2R", "mbs_envs/Planar2R-v0", "mbs_envs.envs.planar2r:Planar2REnv", 500,
+          model="mbs_envs.models.planar2r:Planar2R", edge_parameters=(("m2", {}), ("l1", {}), ("I1", {"r1": 0.0}))),
+    Scene("FourBar", "mbs_envs/FourBar-v0", "mbs_envs.envs.fourbar:FourBarEnv", 500,
+          model="mbs_envs.models.fourbar:FourBar", edge_parameters=(("m2", {}), ("l2", {}))),
+    Scene("SerialChain", "mbs_envs/SerialChain-v0", "mbs_envs.envs.serial_chain:SerialChainEnv", 500,
+          model="mbs_envs.models.serial_chain:SerialChain", edge_parameters=(("m", {"n_links": 5}), ("l", {"n_links": 5}))),
     Scene(
         "RollingDisk", "mbs_envs/RollingDisk-v0", "mbs_envs.envs.rolling_disk:RollingDiskEnv", 1000,
         controllers=MappingProxyType({"LQR": "controllers:LQR", "PD steering": "controllers:SteeringPD", "no control": "controllers:NoControl"}),
         residual_base="controllers:LQR", sizing=False,
+        model="mbs_envs.models.rolling_disk:RollingDisk", edge_parameters=(("m", {}), ("r", {})),
     ),
 )  # fmt: skip
+
+
+def load(target: str):
+    """The object named by a ``"module:attr"`` entry (imports the module)."""
+    import importlib
+
+    module, _, attr = target.partition(":")
+    return getattr(importlib.import_module(module), attr)
 
 
 def scene(key: str) -> Scene:

@@ -290,6 +290,11 @@ class Model(abc.ABC):
 
     # -- derived, shared by every unconstrained model -------------------------
 
+    def moving_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """A moving state the equations can start from (examples, edge runs): ``q = 0.3``,
+        ``v = 0.5`` in every coordinate; constrained models give one on their constraints."""
+        return np.full(self.nq, 0.3), np.full(self.nv, 0.5)
+
     def make_consistent(self, q: np.ndarray, v: np.ndarray, tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
         """A state the equations can start from: ``(q, v)`` unchanged (no constraints).
 

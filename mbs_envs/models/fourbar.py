@@ -407,6 +407,10 @@ class FourBar(ConstrainedModel):
         ph2 = (th12 - th1 + np.pi) % (2 * np.pi) - np.pi
         return np.stack([th1, ph2, ph1], axis=-1)
 
+    def moving_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """The crank at 0.3 rad turning at 2 rad/s, the loop closed (:meth:`consistent_state`)."""
+        return self.consistent_state(0.3, 2.0)
+
     def consistent_state(self, th1: float, dth1: float = 0.0, branch: int = 1) -> tuple[np.ndarray, np.ndarray]:
         """A state on the constraints from a crank angle and rate (see :meth:`assemble`).
 

@@ -431,6 +431,10 @@ class RollingDisk(ConstrainedModel):
 
     # -- states -------------------------------------------------------------------
 
+    def moving_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """Rolling at twice the critical spin, leaning 0.1 rad (:meth:`rolling_state`)."""
+        return self.rolling_state(lean=0.1, dspin=2 * self.critical_spin)
+
     def rolling_state(
         self,
         heading: float = 0.0,
