@@ -325,6 +325,16 @@ def _cholesky_solve_if_well_conditioned(S, r, rcond, R, Rinv, y):  # pragma: no 
 # ---------------------------------------------------------------------------
 
 
+@njit
+def column(x, b):  # pragma: no cover - compiled
+    """Column ``b`` of ``x`` (rows, B) as a contiguous (rows, 1) array: one member for the
+    general path, where a model's closed-form batch kernel leaves a member to it."""
+    out = np.empty((x.shape[0], 1))
+    for i in range(x.shape[0]):
+        out[i, 0] = x[i, b]
+    return out
+
+
 @njit(cache=False)
 def constrained_acceleration_columns(terms, k, q, v, tau, theta, a):  # pragma: no cover - compiled
     """Accelerations of a batch in columns (the ``acc`` kernel of :func:`mbs_envs.compiled.rk_run`):

@@ -103,9 +103,11 @@ class SumOfSines:
         flattened to ``L`` members and laid out in contiguous columns ``(n, L)``,
         ``(n, K, L)`` as :func:`sum_of_sines_columns` reads them (a zero rate when there is none);
         new, writable arrays."""
-        lead = np.broadcast_shapes(shape, self.center.shape[:-1])
         n, K = self.amplitude.shape[-2:]
         rate = np.zeros(n) if self.rate is None else self.rate
+        if not shape and self.center.ndim == 1:  # one reference at one time (resets, single envs): no broadcasting
+            return tuple(np.array(x, float)[..., None] for x in (self.center, rate, self.amplitude, self.omega, self.phase))
+        lead = np.broadcast_shapes(shape, self.center.shape[:-1])
 
         def columns(x, tail):
             rows = np.broadcast_to(x, lead + tail).reshape((-1,) + tail)

@@ -202,6 +202,40 @@ def test_constrained_kernels_equal_the_numpy_model(case):
     np.testing.assert_allclose(res, np.max(np.abs(model.constraint_residual(qn)), axis=-1), rtol=0, atol=1e-15)
 
 
+def test_constrained_kernels_hand_singular_and_broken_members_to_the_general_path():
+    """Members the closed-form batch solve must not take (a change point of the parallelogram, a flat
+    disk, NaN) get the numpy path's answers (pseudo-inverse, NaN); the members beside them are unaffected."""
+    from mbs_envs.models import fourbar, rolling_disk
+
+    rng = np.random.default_rng(11)
+    cases = []
+    para = FourBar(l0=1.0, l1=0.4, l2=1.0, l3=0.4)  # parallelogram: Psi loses rank at th1 = 0
+    q = np.stack([para.assemble(x) for x in (0.0, 0.7, -1.2, 0.0)])
+    q[3, 0] = np.nan
+    cases.append((para, fourbar, q, rng.uniform(-2, 2, (4, 3)), rng.uniform(-3, 3, (4, 1))))
+    disk = RollingDisk()
+    q = np.array([disk.rolling_state(lean=x)[0] for x in (0.2, 0.0, -0.4, 0.1)])
+    q[1, 4] = np.pi / 2  # flat: N is singular
+    q[3, 5] = np.nan
+    cases.append((disk, rolling_disk, q, rng.uniform(-2, 2, (4, 6)), rng.uniform(-1, 1, (4, 2))))
+    for model, module, q, v, u in cases:
+        theta, tau = batch_theta(model, 4), model.generalized_input(u)
+        a = np.empty(q.T.shape)
+        model.kernels[0](q.T.copy(), v.T.copy(), tau.T.copy(), theta, a)
+        with np.errstate(all="ignore"):
+            a_np = model.forward_dynamics(q, v, u)
+        np.testing.assert_array_equal(np.isnan(a.T), np.isnan(a_np))
+        ok = np.isfinite(a_np)
+        np.testing.assert_allclose(a.T[ok], a_np[ok], rtol=1e-9, atol=1e-9 * np.max(np.abs(a_np[ok])))
+        res, lam = np.empty(4), np.empty((4, model.nc))
+        module.constraint_info_kernel(q.T.copy(), v.T.copy(), tau.T.copy(), theta, res, lam)
+        with np.errstate(all="ignore"):
+            lam_np = model.multipliers(q, v, u)
+        np.testing.assert_array_equal(np.isnan(lam), np.isnan(lam_np))
+        ok = np.isfinite(lam_np)
+        np.testing.assert_allclose(lam[ok], lam_np[ok], rtol=1e-9, atol=1e-9 * np.max(np.abs(lam_np[ok])))
+
+
 @pytest.mark.parametrize("case", [fourbar_case, disk_case], ids=["fourbar", "disk"])
 def test_constrained_compiled_advance_equals_the_numpy_advance_with_projection(case):
     model, q, v, u = case(np.random.default_rng(8), 32)

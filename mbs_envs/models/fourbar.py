@@ -21,7 +21,7 @@ import numpy as np
 from .. import constraints as _constraints
 from ..compiled import rk_run
 from ..jit import njit
-from ..trig import sincos_checked
+from ..trig import sincos_checked, sincos_columns
 from . import planar2r as _p2r
 from .base import Params, as_vector, param, smoothed_friction
 from .constrained import ConstrainedModel
@@ -193,27 +193,110 @@ def terms_member(q, v, tau, p, M, f, Psi, gamma):  # pragma: no cover - compiled
     gamma[0], gamma[1] = -d0, -d1
 
 
+# -- the batch in columns, closed form ------------------------------------------------
+# The Schur solve of a 2 x 2 complement of a block-diagonal 3 x 3 M, written out by
+# Cramer's rule, with the batch innermost so that LLVM vectorizes the loops (as
+# Planar2R's kernels). A member whose M is not positive definite, whose inputs are not
+# finite, or whose complement is not provably well conditioned (the criterion of
+# :func:`mbs_envs.constraints._cholesky_solve_if_well_conditioned`) is recomputed by the
+# general member path (pseudo-inverse, NaN), so both give the numpy path's results.
+
+
+@njit
+def _trig_columns(q):  # pragma: no cover - compiled
+    """Rows ``(c1, s1, c12, s12, c3, s3, c2, s2)`` of ``q`` (3, B) as an (8, B) array."""
+    B = q.shape[1]
+    T = np.empty((8, B))
+    w = np.empty(B)
+    for b in range(B):
+        w[b] = q[0, b] + q[1, b]
+    sincos_columns(q[0], T[1], T[0])
+    sincos_columns(w, T[3], T[2])
+    sincos_columns(q[2], T[5], T[4])
+    sincos_columns(q[1], T[7], T[6])
+    return T
+
+
+@njit
+def _friction_columns(v, theta):  # pragma: no cover - compiled
+    """Joint friction (3, B) in a pass of its own (its tanh keeps a loop scalar)."""
+    F = np.empty(v.shape)
+    for b in range(v.shape[1]):
+        for i in range(3):
+            F[i, b] = _p2r._friction(v[i, b], theta[_B1 + i, b], theta[_F1 + i, b], theta[_VS, b])
+    return F
+
+
+@njit(inline="always")
+def _mass_closed(T, theta, b):  # pragma: no cover - compiled
+    """``(M11, M12, M22, M33)`` of member ``b``."""
+    m11, m12, m22 = _p2r._mass_entries(
+        T[6, b], theta[_M1, b], theta[_M2, b], theta[_L1, b], theta[_R1, b], theta[_R2, b], theta[_I1, b], theta[_I2, b]
+    )
+    return m11, m12, m22, theta[_I3, b] + theta[_M3, b] * theta[_R3, b] ** 2
+
+
+@njit(inline="always")
+def _jacobian_closed(T, theta, b):  # pragma: no cover - compiled
+    """The rows of ``Psi`` of member ``b``."""
+    return _closure_jacobian(T[0, b], T[1, b], T[2, b], T[3, b], T[4, b], T[5, b], theta[_L1, b], theta[_L2, b], theta[_L3, b])
+
+
+@njit(inline="always")
+def _force_closed(T, v, tau, F, theta, b):  # pragma: no cover - compiled
+    """``f = tau - (C v + G + F)`` of member ``b`` (as :func:`terms_member`)."""
+    h1, h2 = _p2r._coriolis_entries(T[7, b], v[0, b], v[1, b], theta[_M2, b], theta[_L1, b], theta[_R2, b])
+    g1, g2 = _p2r._gravity_entries(
+        T[0, b], T[2, b], theta[_M1, b], theta[_M2, b], theta[_L1, b], theta[_R1, b], theta[_R2, b], theta[_G, b]
+    )
+    g3 = theta[_M3, b] * theta[_G, b] * theta[_R3, b] * T[4, b]
+    return tau[0, b] - (h1 + g1 + F[0, b]), tau[1, b] - (h2 + g2 + F[1, b]), tau[2, b] - (0.0 + g3 + F[2, b])
+
+
+@njit(inline="always")
+def _bias_closed(T, v, theta, b):  # pragma: no cover - compiled
+    """``gamma = -dPsi v`` of member ``b``."""
+    w12 = v[0, b] + v[1, b]
+    d0, d1 = _closure_bias(
+        T[0, b], T[1, b], T[2, b], T[3, b], T[4, b], T[5, b], v[0, b] ** 2, w12**2, v[2, b] ** 2,
+        theta[_L1, b], theta[_L2, b], theta[_L3, b],
+    )
+    return -d0, -d1
+
+
+@njit(inline="always")
+def _schur_closed(m11, m12, m22, m33, f1, f2, f3, P0, P1, g0, g1):  # pragma: no cover - compiled
+    """``M a = f + Psi^T lam``, ``Psi a = gamma`` for ``M = blockdiag([[m11, m12], [m12, m22]], m33)``
+    and ``Psi`` rows ``P0, P1``; returns ``(a1, a2, a3, lam0, lam1, ok)``, ``ok`` False where the
+    general path must decide (see above)."""
+    det = m11 * m22 - m12 * m12
+    x1, x2, x3 = (m22 * f1 - m12 * f2) / det, (m11 * f2 - m12 * f1) / det, f3 / m33
+    y1, y2, y3 = (m22 * P0[0] - m12 * P0[1]) / det, (m11 * P0[1] - m12 * P0[0]) / det, P0[2] / m33
+    z1, z2, z3 = (m22 * P1[0] - m12 * P1[1]) / det, (m11 * P1[1] - m12 * P1[0]) / det, P1[2] / m33
+    S00 = P0[0] * y1 + P0[1] * y2 + P0[2] * y3
+    S01 = P0[0] * z1 + P0[1] * z2 + P0[2] * z3
+    S11 = P1[0] * z1 + P1[1] * z2 + P1[2] * z3
+    r0 = g0 - (P0[0] * x1 + P0[1] * x2 + P0[2] * x3)
+    r1 = g1 - (P1[0] * x1 + P1[1] * x2 + P1[2] * x3)
+    dS = S00 * S11 - S01 * S01
+    lam0 = (S11 * r0 - S01 * r1) / dS
+    lam1 = (S00 * r1 - S01 * r0) / dS
+    tr = S00 + S11
+    ok = (m11 > 0.0) & (det > 0.0) & (m33 > 0.0) & (dS > 0.0) & (tr * tr * _constraints.RCOND < dS)
+    ok = ok & np.isfinite(lam0) & np.isfinite(lam1) & np.isfinite(x1 + x2 + x3)
+    return x1 + y1 * lam0 + z1 * lam1, x2 + y2 * lam0 + z2 * lam1, x3 + y3 * lam0 + z3 * lam1, lam0, lam1, ok
+
+
 @njit
 def energy_kernel(q, v, theta, E):  # pragma: no cover - compiled
     """Mechanical energy ``v^T M v / 2 + V`` [J] of a batch in columns: ``q, v`` (3, B); writes ``E`` (B,)."""
-    M = np.empty((3, 3))
-    qb = np.empty(3)
+    T = _trig_columns(q)
     for b in range(q.shape[1]):
-        p = theta[:, b]
-        for i in range(3):
-            qb[i] = q[i, b]
-        mass_member(qb, p, M)
-        T = 0.0
-        for i in range(3):
-            e = 0.0
-            for j in range(3):
-                e += M[i, j] * v[j, b]
-            T += v[i, b] * e
-        s1, _ = sincos_checked(q[0, b])
-        s12, _ = sincos_checked(q[0, b] + q[1, b])
-        s3, _ = sincos_checked(q[2, b])
-        V = _p2r._potential_entry(s1, s12, p[_M1], p[_M2], p[_L1], p[_R1], p[_R2], p[_G])
-        E[b] = 0.5 * T + (V + p[_M3] * p[_G] * p[_R3] * s3)
+        m11, m12, m22, m33 = _mass_closed(T, theta, b)
+        d1, d2, d3 = v[0, b], v[1, b], v[2, b]
+        K = d1 * (m11 * d1 + m12 * d2) + d2 * (m12 * d1 + m22 * d2) + d3 * (m33 * d3)
+        V = _p2r._potential_entry(T[1, b], T[3, b], theta[_M1, b], theta[_M2, b], theta[_L1, b], theta[_R1, b], theta[_R2, b], theta[_G, b])
+        E[b] = 0.5 * K + (V + theta[_M3, b] * theta[_G, b] * theta[_R3, b] * T[5, b])
 
 
 #: the rows of Psi that are the Jacobian of phi (both)
@@ -225,19 +308,97 @@ _this = sys.modules[__name__]
 @njit
 def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
     """Forward dynamics with the loop closed (Schur complement), a batch in columns (3, B)."""
-    _constraints.constrained_acceleration_columns(_this.terms_member, 2, q, v, tau, theta, a)
+    B = q.shape[1]
+    T, F = _trig_columns(q), _friction_columns(v, theta)
+    ok = np.empty(B, np.bool_)
+    for b in range(B):
+        m11, m12, m22, m33 = _mass_closed(T, theta, b)
+        f1, f2, f3 = _force_closed(T, v, tau, F, theta, b)
+        P0, P1 = _jacobian_closed(T, theta, b)
+        g0, g1 = _bias_closed(T, v, theta, b)
+        a[0, b], a[1, b], a[2, b], _, _, ok[b] = _schur_closed(m11, m12, m22, m33, f1, f2, f3, P0, P1, g0, g1)
+    for b in range(B):
+        if not ok[b]:  # the general member path
+            ab = np.empty((3, 1))
+            _constraints.constrained_acceleration_columns(
+                _this.terms_member, 2, _constraints.column(q, b), _constraints.column(v, b), _constraints.column(tau, b), _constraints.column(theta, b), ab
+            )
+            for i in range(3):
+                a[i, b] = ab[i, 0]
 
 
 @njit
 def project_kernel(q, v, theta, tol):  # pragma: no cover - compiled
-    """:meth:`FourBar.project` of a batch in columns, in place."""
-    _constraints.project_columns(_this.residual_member, _this.jacobian_member, _this.mass_member, _ROWS, 2, q, v, theta, tol)
+    """:meth:`FourBar.project` of a batch in columns, in place: Gauss-Newton on ``phi`` (at most
+    20 iterations, a member stops when ``max |phi| <= tol``), then ``v`` onto ``Psi v = 0`` in
+    the kinetic-energy metric (:func:`mbs_envs.constraints.project_columns`, closed form)."""
+    B = q.shape[1]
+    q_in, v_in = q.copy(), v.copy()
+    general = np.zeros(B, np.bool_)
+    active = np.empty(B, np.bool_)
+    for it in range(21):
+        T = _trig_columns(q)
+        n_active = 0
+        for b in range(B):
+            phi0, phi1 = _closure_residual(T[0, b], T[1, b], T[2, b], T[3, b], T[4, b], T[5, b],
+                                           theta[_L0, b], theta[_L1, b], theta[_L2, b], theta[_L3, b])  # fmt: skip
+            active[b] = ((abs(phi0) > tol) | (abs(phi1) > tol)) & (not general[b]) & (it < 20)
+            n_active += active[b]
+            if active[b]:  # q -= P^T (P P^T)^-1 phi
+                P0, P1 = _jacobian_closed(T, theta, b)
+                G00 = P0[0] * P0[0] + P0[1] * P0[1] + P0[2] * P0[2]
+                G01 = P0[0] * P1[0] + P0[1] * P1[1] + P0[2] * P1[2]
+                G11 = P1[0] * P1[0] + P1[1] * P1[1] + P1[2] * P1[2]
+                dG = G00 * G11 - G01 * G01
+                trG = G00 + G11
+                if dG > 0.0 and trG * trG * _constraints.RCOND < dG:
+                    y0 = (G11 * phi0 - G01 * phi1) / dG
+                    y1 = (G00 * phi1 - G01 * phi0) / dG
+                    for i in range(3):
+                        q[i, b] -= P0[i] * y0 + P1[i] * y1
+                else:
+                    general[b] = True
+        if n_active == 0:
+            break
+    T = _trig_columns(q)
+    for b in range(B):
+        m11, m12, m22, m33 = _mass_closed(T, theta, b)
+        P0, P1 = _jacobian_closed(T, theta, b)
+        g0 = -(P0[0] * v[0, b] + P0[1] * v[1, b] + P0[2] * v[2, b])
+        g1 = -(P1[0] * v[0, b] + P1[1] * v[1, b] + P1[2] * v[2, b])
+        d1, d2, d3, _, _, ok = _schur_closed(m11, m12, m22, m33, 0.0, 0.0, 0.0, P0, P1, g0, g1)
+        if ok and not general[b]:
+            v[0, b] += d1
+            v[1, b] += d2
+            v[2, b] += d3
+        else:  # the general member path, from the member's state as it came in
+            qb, vb = _constraints.column(q_in, b), _constraints.column(v_in, b)
+            _constraints.project_columns(_this.residual_member, _this.jacobian_member, _this.mass_member, _ROWS, 2, qb, vb, _constraints.column(theta, b), tol)
+            for i in range(3):
+                q[i, b], v[i, b] = qb[i, 0], vb[i, 0]
 
 
 @njit
 def constraint_info_kernel(q, v, tau, theta, res, lam):  # pragma: no cover - compiled
     """``max |phi|`` and the multipliers (B, 2) of a batch in columns."""
-    _constraints.constraint_info_columns(_this.terms_member, _this.residual_member, q, v, tau, theta, res, lam)
+    B = q.shape[1]
+    T, F = _trig_columns(q), _friction_columns(v, theta)
+    for b in range(B):
+        phi0, phi1 = _closure_residual(T[0, b], T[1, b], T[2, b], T[3, b], T[4, b], T[5, b],
+                                       theta[_L0, b], theta[_L1, b], theta[_L2, b], theta[_L3, b])  # fmt: skip
+        x0, x1 = abs(phi0), abs(phi1)
+        res[b] = x0 if (x0 > x1 or x0 != x0) else x1
+        m11, m12, m22, m33 = _mass_closed(T, theta, b)
+        f1, f2, f3 = _force_closed(T, v, tau, F, theta, b)
+        P0, P1 = _jacobian_closed(T, theta, b)
+        g0, g1 = _bias_closed(T, v, theta, b)
+        _, _, _, lam[b, 0], lam[b, 1], ok = _schur_closed(m11, m12, m22, m33, f1, f2, f3, P0, P1, g0, g1)
+        if not ok:
+            rb, lb = np.empty(1), np.empty((1, 2))
+            _constraints.constraint_info_columns(
+                _this.terms_member, _this.residual_member, _constraints.column(q, b), _constraints.column(v, b), _constraints.column(tau, b), _constraints.column(theta, b), rb, lb
+            )
+            res[b], lam[b, 0], lam[b, 1] = rb[0], lb[0, 0], lb[0, 1]
 
 
 @njit

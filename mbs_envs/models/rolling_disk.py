@@ -38,7 +38,7 @@ import numpy as np
 from .. import constraints as _constraints
 from ..compiled import rk_run
 from ..jit import njit
-from ..trig import sincos_checked
+from ..trig import sincos_checked, sincos_columns
 from .base import Params, as_vector, param
 from .constrained import ConstrainedModel
 
@@ -241,23 +241,112 @@ def terms_member(q, v, tau, p, M, f, Psi, gamma):  # pragma: no cover - compiled
     gamma[0], gamma[1], gamma[2] = -g0, -g1, -g2
 
 
+# -- the batch in columns, closed form ------------------------------------------------
+# ``M = blockdiag(m I3, N)`` with ``N`` = [[M33, 0, M35], [0, A, 0], [M35, 0, C]] and
+# ``Psi = [I3, J]``: ``S = Psi M^-1 Psi^T = I3 / m + J N^-1 J^T`` (3 x 3) is solved by its
+# adjugate, the batch innermost (as FourBar's kernels); a member whose ``N`` is not positive
+# definite, whose inputs are not finite or whose ``S`` is not provably well conditioned is
+# recomputed by the general member path (:mod:`mbs_envs.constraints`).
+
+
+@njit
+def _trig_columns(q):  # pragma: no cover - compiled
+    """Rows ``(s1, c1, s2, c2)`` of heading and lean, ``q`` (6, B), as a (4, B) array."""
+    T = np.empty((4, q.shape[1]))
+    sincos_columns(q[3], T[0], T[1])
+    sincos_columns(q[4], T[2], T[3])
+    return T
+
+
+@njit(inline="always")
+def _mass_closed(T, theta, b):  # pragma: no cover - compiled
+    """``(m, A, C, M33, M35)`` of member ``b``."""
+    A, C = _disk_inertias(theta[_M, b], theta[_R, b])
+    M33, M35 = _disk_mass_entries(T[2, b], T[3, b], A, C)
+    return theta[_M, b], A, C, M33, M35
+
+
+@njit(inline="always")
+def _jacobian_closed(T, theta, b):  # pragma: no cover - compiled
+    """The angular block ``J`` of ``Psi = [I3, J]`` (rows) of member ``b``."""
+    s1, c1, s2, c2 = T[0, b], T[1, b], T[2, b], T[3, b]
+    x, y, z = _contact_offset_entries(s1, c1, s2, c2, theta[_R, b])
+    return _rolling_jacobian_entries(s1, c1, s2, c2, x, y, z)
+
+
+@njit(inline="always")
+def _force_closed(T, v, tau, theta, b, A, C):  # pragma: no cover - compiled
+    """``f = tau - (C v + G + F)`` of member ``b`` (as :func:`terms_member`)."""
+    h3, h4, h5 = _disk_coriolis_entries(T[2, b], T[3, b], v[3, b], v[4, b], v[5, b], A, C)
+    return (
+        tau[0, b] - 0.0, tau[1, b] - 0.0, tau[2, b] - theta[_M, b] * theta[_G, b],
+        tau[3, b] - (h3 + theta[_B_PIVOT, b] * v[3, b]), tau[4, b] - h4, tau[5, b] - (h5 + theta[_B_ROLL, b] * v[5, b]),
+    )  # fmt: skip
+
+
+@njit(inline="always")
+def _bias_closed(T, v, theta, b):  # pragma: no cover - compiled
+    """``gamma = -dPsi v`` of member ``b``."""
+    s1, c1, s2, c2 = T[0, b], T[1, b], T[2, b], T[3, b]
+    rC = _contact_offset_entries(s1, c1, s2, c2, theta[_R, b])
+    w = _angular_velocity_entries(s1, c1, s2, c2, v[3, b], v[4, b], v[5, b])
+    g0, g1, g2 = _rolling_bias_entries(s1, c1, s2, c2, v[3, b], v[4, b], v[5, b], theta[_R, b], rC, w)
+    return -g0, -g1, -g2
+
+
+@njit(inline="always")
+def _n_inv(M33, M35, A, C, y0, y1, y2):  # pragma: no cover - compiled
+    """``N^-1 y`` (heading, lean, spin)."""
+    d = M33 * C - M35 * M35
+    return (C * y0 - M35 * y2) / d, y1 / A, (M33 * y2 - M35 * y0) / d
+
+
+@njit(inline="always")
+def _schur_closed(m, A, C, M33, M35, f, J, g):  # pragma: no cover - compiled
+    """``M a = f + Psi^T lam``, ``Psi a = gamma``; returns ``(a (6-tuple), lam (3-tuple), ok)``."""
+    xa = _n_inv(M33, M35, A, C, f[3], f[4], f[5])
+    Y0 = _n_inv(M33, M35, A, C, J[0][0], J[0][1], J[0][2])  # N^-1 J^T, by columns
+    Y1 = _n_inv(M33, M35, A, C, J[1][0], J[1][1], J[1][2])
+    Y2 = _n_inv(M33, M35, A, C, J[2][0], J[2][1], J[2][2])
+    im = 1.0 / m
+    S00 = im + (J[0][0] * Y0[0] + J[0][1] * Y0[1] + J[0][2] * Y0[2])
+    S01 = J[0][0] * Y1[0] + J[0][1] * Y1[1] + J[0][2] * Y1[2]
+    S02 = J[0][0] * Y2[0] + J[0][1] * Y2[1] + J[0][2] * Y2[2]
+    S11 = im + (J[1][0] * Y1[0] + J[1][1] * Y1[1] + J[1][2] * Y1[2])
+    S12 = J[1][0] * Y2[0] + J[1][1] * Y2[1] + J[1][2] * Y2[2]
+    S22 = im + (J[2][0] * Y2[0] + J[2][1] * Y2[1] + J[2][2] * Y2[2])
+    r0 = g[0] - (f[0] * im + (J[0][0] * xa[0] + J[0][1] * xa[1] + J[0][2] * xa[2]))
+    r1 = g[1] - (f[1] * im + (J[1][0] * xa[0] + J[1][1] * xa[1] + J[1][2] * xa[2]))
+    r2 = g[2] - (f[2] * im + (J[2][0] * xa[0] + J[2][1] * xa[1] + J[2][2] * xa[2]))
+    C00, C01, C02 = S11 * S22 - S12 * S12, S02 * S12 - S01 * S22, S01 * S12 - S02 * S11  # adjugate
+    C11, C12, C22 = S00 * S22 - S02 * S02, S01 * S02 - S00 * S12, S00 * S11 - S01 * S01
+    det = S00 * C00 + S01 * C01 + S02 * C02
+    l0 = (C00 * r0 + C01 * r1 + C02 * r2) / det
+    l1 = (C01 * r0 + C11 * r1 + C12 * r2) / det
+    l2 = (C02 * r0 + C12 * r1 + C22 * r2) / det
+    tr, tr_inv = S00 + S11 + S22, (C00 + C11 + C22) / det
+    dN = M33 * C - M35 * M35
+    ok = (m > 0.0) & (A > 0.0) & (M33 > 0.0) & (dN > 0.0) & (det > 0.0) & (tr * tr_inv * _constraints.RCOND < 1.0)
+    ok = ok & np.isfinite(l0 + l1 + l2) & np.isfinite(xa[0] + xa[1] + xa[2]) & np.isfinite(f[0] + f[1] + f[2])
+    a = (
+        f[0] * im + l0 * im, f[1] * im + l1 * im, f[2] * im + l2 * im,
+        xa[0] + Y0[0] * l0 + Y1[0] * l1 + Y2[0] * l2,
+        xa[1] + Y0[1] * l0 + Y1[1] * l1 + Y2[1] * l2,
+        xa[2] + Y0[2] * l0 + Y1[2] * l1 + Y2[2] * l2,
+    )  # fmt: skip
+    return a, (l0, l1, l2), ok
+
+
 @njit
 def energy_kernel(q, v, theta, E):  # pragma: no cover - compiled
     """Mechanical energy ``v^T M v / 2 + m g z`` [J] of a batch in columns (6, B); writes ``E`` (B,)."""
-    M = np.empty((6, 6))
-    qb = np.empty(6)
+    T = _trig_columns(q)
     for b in range(q.shape[1]):
-        p = theta[:, b]
-        for i in range(6):
-            qb[i] = q[i, b]
-        mass_member(qb, p, M)
-        T = 0.0
-        for i in range(6):
-            e = 0.0
-            for j in range(6):
-                e += M[i, j] * v[j, b]
-            T += v[i, b] * e
-        E[b] = 0.5 * T + p[_M] * p[_G] * q[2, b]
+        m, A, C, M33, M35 = _mass_closed(T, theta, b)
+        d3, d4, d5 = v[3, b], v[4, b], v[5, b]
+        K = m * (v[0, b] * v[0, b] + v[1, b] * v[1, b] + v[2, b] * v[2, b])
+        K += d3 * (M33 * d3 + M35 * d5) + d4 * (A * d4) + d5 * (M35 * d3 + C * d5)
+        E[b] = 0.5 * K + m * theta[_G, b] * q[2, b]
 
 
 #: |lean| beyond this is "flat" (:attr:`RollingDisk.flat_lean`)
@@ -280,19 +369,87 @@ _this = sys.modules[__name__]
 @njit
 def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
     """Forward dynamics with the rolling constraints (Schur complement), a batch in columns (6, B)."""
-    _constraints.constrained_acceleration_columns(_this.terms_member, 3, q, v, tau, theta, a)
+    B = q.shape[1]
+    T = _trig_columns(q)
+    ok = np.empty(B, np.bool_)
+    for b in range(B):
+        m, A, C, M33, M35 = _mass_closed(T, theta, b)
+        f = _force_closed(T, v, tau, theta, b, A, C)
+        acc, _, ok[b] = _schur_closed(m, A, C, M33, M35, f, _jacobian_closed(T, theta, b), _bias_closed(T, v, theta, b))
+        for i in range(6):
+            a[i, b] = acc[i]
+    for b in range(B):
+        if not ok[b]:  # the general member path
+            ab = np.empty((6, 1))
+            _constraints.constrained_acceleration_columns(
+                _this.terms_member, 3, _constraints.column(q, b), _constraints.column(v, b), _constraints.column(tau, b),
+                _constraints.column(theta, b), ab,
+            )
+            for i in range(6):
+                a[i, b] = ab[i, 0]
 
 
 @njit
 def project_kernel(q, v, theta, tol):  # pragma: no cover - compiled
-    """:meth:`RollingDisk.project` of a batch in columns, in place."""
-    _constraints.project_columns(_this.residual_member, _this.jacobian_member, _this.mass_member, _ROWS, 3, q, v, theta, tol)
+    """:meth:`RollingDisk.project` of a batch in columns, in place: Gauss-Newton on the height
+    ``phi = z - r cos th2`` (its row of ``Psi`` has norm >= 1: always well conditioned; at most
+    20 iterations), then ``v`` onto ``Psi v = 0`` in the kinetic-energy metric, closed form."""
+    B = q.shape[1]
+    q_in, v_in = q.copy(), v.copy()
+    for it in range(21):
+        T = _trig_columns(q)
+        n_active = 0
+        for b in range(B):
+            phi = q[2, b] - theta[_R, b] * T[3, b]
+            if abs(phi) > tol and it < 20:
+                n_active += 1
+                J2 = _jacobian_closed(T, theta, b)[2]  # the height row: (0, 0, 1, J2)
+                y = phi / (1.0 + (J2[0] * J2[0] + J2[1] * J2[1] + J2[2] * J2[2]))
+                q[2, b] -= y
+                for i in range(3):
+                    q[3 + i, b] -= J2[i] * y
+        if n_active == 0:
+            break
+    T = _trig_columns(q)
+    for b in range(B):
+        m, A, C, M33, M35 = _mass_closed(T, theta, b)
+        J = _jacobian_closed(T, theta, b)
+        g = (
+            -(v[0, b] + (J[0][0] * v[3, b] + J[0][1] * v[4, b] + J[0][2] * v[5, b])),
+            -(v[1, b] + (J[1][0] * v[3, b] + J[1][1] * v[4, b] + J[1][2] * v[5, b])),
+            -(v[2, b] + (J[2][0] * v[3, b] + J[2][1] * v[4, b] + J[2][2] * v[5, b])),
+        )
+        dv, _, ok = _schur_closed(m, A, C, M33, M35, (0.0, 0.0, 0.0, 0.0, 0.0, 0.0), J, g)
+        if ok:
+            for i in range(6):
+                v[i, b] += dv[i]
+        else:  # the general member path, from the member's state as it came in
+            qb, vb = _constraints.column(q_in, b), _constraints.column(v_in, b)
+            _constraints.project_columns(
+                _this.residual_member, _this.jacobian_member, _this.mass_member, _ROWS, 3, qb, vb, _constraints.column(theta, b), tol
+            )
+            for i in range(6):
+                q[i, b], v[i, b] = qb[i, 0], vb[i, 0]
 
 
 @njit
 def constraint_info_kernel(q, v, tau, theta, res, lam):  # pragma: no cover - compiled
     """``|phi|`` and the contact force (B, 3) of a batch in columns."""
-    _constraints.constraint_info_columns(_this.terms_member, _this.residual_member, q, v, tau, theta, res, lam)
+    B = q.shape[1]
+    T = _trig_columns(q)
+    for b in range(B):
+        res[b] = abs(q[2, b] - theta[_R, b] * T[3, b])
+        m, A, C, M33, M35 = _mass_closed(T, theta, b)
+        f = _force_closed(T, v, tau, theta, b, A, C)
+        _, lb, ok = _schur_closed(m, A, C, M33, M35, f, _jacobian_closed(T, theta, b), _bias_closed(T, v, theta, b))
+        lam[b, 0], lam[b, 1], lam[b, 2] = lb
+        if not ok:
+            rb, lb2 = np.empty(1), np.empty((1, 3))
+            _constraints.constraint_info_columns(
+                _this.terms_member, _this.residual_member, _constraints.column(q, b), _constraints.column(v, b),
+                _constraints.column(tau, b), _constraints.column(theta, b), rb, lb2,
+            )
+            res[b], lam[b, 0], lam[b, 1], lam[b, 2] = rb[0], lb2[0, 0], lb2[0, 1], lb2[0, 2]
 
 
 @njit
@@ -430,6 +587,15 @@ class RollingDisk(ConstrainedModel):
         return np.stack(np.broadcast_arrays(*entries), axis=-1)
 
     # -- states -------------------------------------------------------------------
+
+    def complete(self, q: np.ndarray, x_ind: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+        """Full vector with the angular rates ``x_ind`` and ``Psi x = rhs``: as ``Psi = [I3, J]``,
+        the centre's part is ``rhs - J x_ind`` (what the general pseudo-inverse gives, without it)."""
+        q = as_vector(q, 6, "q")
+        x_ind = as_vector(x_ind, 3, "independent values")
+        J = self.constraint_jacobian(q)[..., :, 3:]
+        x_dep = rhs - np.einsum("...ij,...j->...i", J, x_ind)
+        return np.concatenate(np.broadcast_arrays(x_dep, x_ind), axis=-1)
 
     def moving_state(self) -> tuple[np.ndarray, np.ndarray]:
         """Rolling at twice the critical spin, leaning 0.1 rad (:meth:`rolling_state`)."""
