@@ -6,15 +6,71 @@ skips Python's zero-division checks.
 
 Caching (``cache=True``) keeps compiled kernels in ``__pycache__`` between
 processes. numba invalidates a cached function only when *its own* file changes,
-not when a kernel it calls from another module does (numba issue #1833): after
-editing, say, :mod:`mbs_envs.trig`, delete the ``*.nbi``/``*.nbc`` files
-(``find mbs_envs -name '*.nb[ic]' -delete``) or stale code runs. A fresh install
-has no cache.
+not when a kernel it calls from another module does (numba issue #1833): a scene's
+``step_kernel`` embeds its model's kernels, so an edit of the model file alone would
+leave the stale step running. Here every kernel of the package is stamped with a hash
+of *all* the package's sources instead (:func:`package_stamp`, installed as numba
+cache locators for this package's files only): any edit anywhere recompiles
+everything once. Other packages' caches are untouched. Should numba's (private)
+locator interface change, caching falls back to numba's own rule, and deleting
+the ``*.nbi``/``*.nbc`` files (``find mbs_envs -name '*.nb[ic]' -delete``) after an edit is
+the remedy.
 """
 
 from __future__ import annotations
 
+import functools
+import hashlib
+import os
+import pathlib
+
 import numba
+
+#: the package's root directory
+PACKAGE = pathlib.Path(__file__).resolve().parent
+
+
+@functools.cache
+def package_stamp() -> str:
+    """SHA-1 of the package's Python sources (paths and contents), computed once per process."""
+    h = hashlib.sha1()
+    for f in sorted(PACKAGE.rglob("*.py")):
+        h.update(f.relative_to(PACKAGE).as_posix().encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()
+
+
+def _install_package_locators() -> bool:
+    """Put locators stamping this package's kernels with :func:`package_stamp` first in numba's
+    list (in-tree ``__pycache__``, else numba's user-wide cache directory); False if numba's
+    private interface is not as expected (its default rule then applies)."""
+    try:
+        from numba.core import caching
+
+        bases = (caching.InTreeCacheLocator, caching.UserWideCacheLocator)
+        locators = caching.CacheImpl._locator_classes
+    except AttributeError:  # pragma: no cover - another numba
+        return False
+
+    def stamped(base):
+        class Locator(base):
+            @classmethod
+            def from_function(cls, py_func, py_file):
+                inside = os.path.abspath(py_file).startswith(str(PACKAGE) + os.sep)
+                return super().from_function(py_func, py_file) if inside else None
+
+            def get_source_stamp(self):
+                return package_stamp()
+
+        Locator.__name__ = f"MbsEnvs{base.__name__}"
+        return Locator
+
+    if not any(k.__name__.startswith("MbsEnvs") for k in locators):
+        locators[:0] = [stamped(b) for b in bases]
+    return True
+
+
+_install_package_locators()
 
 
 def njit(f=None, *, cache: bool = True, **options):

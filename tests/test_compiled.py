@@ -363,3 +363,21 @@ def test_action_validation_fast_path_keeps_its_guarantees():
             validate_action(bad, 2)
     with pytest.raises(ValueError, match=r"members \[1\]"):
         validate_action(np.array([[0.0, 0.0], [np.inf, 0.0]]), 2, num_envs=2)
+
+
+def test_kernels_are_stamped_with_the_whole_package_so_no_stale_binding_survives_an_edit():
+    """numba alone re-checks only a function's own file; a scene's step kernel embeds its model's
+    kernels, so the package's kernels are stamped with a hash of all its sources (mbs_envs.jit)."""
+    from mbs_envs.envs import planar2r
+    from mbs_envs.jit import package_stamp
+
+    locator = planar2r.step_kernel._cache._impl.locator
+    assert type(locator).__name__.startswith("MbsEnvs")
+    assert locator.get_source_stamp() == package_stamp() and len(package_stamp()) == 40
+    import numba
+
+    @numba.njit(cache=True)
+    def outside(x):  # pragma: no cover - compiled; a function outside the package keeps numba's locators
+        return x
+
+    assert not type(outside._cache._impl.locator).__name__.startswith("MbsEnvs")
