@@ -173,20 +173,7 @@ def schur_member(M, f, Psi, gamma, rcond, conditioning, work, a, lam):  # pragma
     o += k * k
     r = work[o : o + k]
     y = work[o + k : o + 2 * k]
-    ok = True
-    for j in range(n):  # Cholesky, M = L L^T
-        d = M[j, j]
-        for p in range(j):
-            d -= L[j, p] * L[j, p]
-        if not d > 0.0:  # not positive definite, or NaN
-            ok = False
-            break
-        L[j, j] = np.sqrt(d)
-        for i in range(j + 1, n):
-            e = M[i, j]
-            for p in range(j):
-                e -= L[i, p] * L[j, p]
-            L[i, j] = e / L[j, j]
+    ok = _cholesky(M, L)  # M = L L^T
     for i in range(k):
         for p in range(n):
             ok &= np.isfinite(Psi[i, p])
@@ -237,6 +224,26 @@ def schur_member(M, f, Psi, gamma, rcond, conditioning, work, a, lam):  # pragma
 
 
 @njit
+def _cholesky(A, L):  # pragma: no cover - compiled
+    """``A = L L^T`` from the lower triangle of symmetric ``A`` (n, n) into ``L``; False (``L``
+    partly written) if ``A`` is not positive definite or not finite."""
+    n = A.shape[0]
+    for j in range(n):
+        d = A[j, j]
+        for p in range(j):
+            d -= L[j, p] * L[j, p]
+        if not d > 0.0:  # not positive definite, or NaN
+            return False
+        L[j, j] = np.sqrt(d)
+        for i in range(j + 1, n):
+            e = A[i, j]
+            for p in range(j):
+                e -= L[i, p] * L[j, p]
+            L[i, j] = e / L[j, j]
+    return True
+
+
+@njit
 def _schur_kernel(M, f, Psi, gamma, rcond, conditioning, a, lam, cond):  # pragma: no cover - compiled
     """:func:`schur_member` for rows: ``M`` (B, n, n), ``f`` (B, n), ``Psi`` (B, k, n),
     ``gamma`` (B, k); writes ``a`` (B, n), ``lam`` (B, k) and ``cond`` (B,)."""
@@ -278,20 +285,11 @@ def _cholesky_solve_if_well_conditioned(S, r, rcond, R, Rinv, y):  # pragma: no 
     ``R, Rinv`` (k, k) and ``y`` (k,) are work arrays.
     """
     k = r.shape[0]
+    if not _cholesky(S, R):
+        return False
     tr = 0.0
     for j in range(k):
-        d = S[j, j]
-        tr += d
-        for p in range(j):
-            d -= R[j, p] * R[j, p]
-        if not d > 0.0:
-            return False
-        R[j, j] = np.sqrt(d)
-        for i in range(j + 1, k):
-            e = S[i, j]
-            for p in range(j):
-                e -= R[i, p] * R[j, p]
-            R[i, j] = e / R[j, j]
+        tr += S[j, j]
     tr_inv = 0.0
     for c in range(k):  # R^-1 column by column (lower triangular)
         for i in range(k):

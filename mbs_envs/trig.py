@@ -97,6 +97,16 @@ def sincos_libm(x):  # pragma: no cover - compiled
 
 
 @njit
+def sincos_rows(q, first, count):  # pragma: no cover - compiled
+    """``(sin, cos)`` of rows ``first .. first + count - 1`` of ``q`` (n, B), interleaved in a
+    (2 count, B) array: row ``2 k`` the sine, ``2 k + 1`` the cosine of ``q[first + k]``."""
+    T = np.empty((2 * count, q.shape[1]))
+    for k in range(count):
+        sincos_columns(q[first + k], T[2 * k], T[2 * k + 1])
+    return T
+
+
+@njit
 def sincos_columns(x, s, c):  # pragma: no cover - compiled
     """``s, c = sin x, cos x`` elementwise for 1-d arrays: a SIMD pass, then libm where out of range."""
     ok = True

@@ -15,7 +15,7 @@ import numpy as np
 
 from .. import compiled as _compiled
 from ..compiled import rk_run
-from ..trig import sincos_checked, sincos_columns
+from ..trig import sincos_checked, sincos_rows
 from .base import Model, Params, as_vector, friction_law, param, smoothed_friction
 
 
@@ -117,11 +117,8 @@ def _acceleration(s1, c1, s2, c2, d1, d2, F1, F2, tau1, tau2, theta, b):  # prag
 
 @njit
 def _trig(q):  # pragma: no cover - compiled
-    """``(s1, c1, s2, c2)`` of the joint angles ``q`` (2, B) as a (4, B) array (:func:`mbs_envs.trig.sincos_columns`)."""
-    T = np.empty((4, q.shape[1]))
-    sincos_columns(q[0], T[0], T[1])
-    sincos_columns(q[1], T[2], T[3])
-    return T
+    """``(s1, c1, s2, c2)`` of the joint angles ``q`` (2, B) as a (4, B) array."""
+    return sincos_rows(q, 0, 2)
 
 
 @njit

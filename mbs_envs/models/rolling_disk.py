@@ -38,7 +38,7 @@ import numpy as np
 from .. import constraints as _constraints
 from ..compiled import rk_run
 from ..jit import njit
-from ..trig import sincos_checked, sincos_columns
+from ..trig import sincos_checked, sincos_rows
 from .base import Params, as_vector, param
 from .constrained import ConstrainedModel
 
@@ -252,10 +252,7 @@ def terms_member(q, v, tau, p, M, f, Psi, gamma):  # pragma: no cover - compiled
 @njit
 def _trig_columns(q):  # pragma: no cover - compiled
     """Rows ``(s1, c1, s2, c2)`` of heading and lean, ``q`` (6, B), as a (4, B) array."""
-    T = np.empty((4, q.shape[1]))
-    sincos_columns(q[3], T[0], T[1])
-    sincos_columns(q[4], T[2], T[3])
-    return T
+    return sincos_rows(q, 3, 2)
 
 
 @njit(inline="always")
