@@ -42,12 +42,14 @@ def package_stamp() -> str:
 
 def _install_package_locators() -> bool:
     """Put locators stamping this package's kernels with :func:`package_stamp` first in numba's
-    list (in-tree ``__pycache__``, else numba's user-wide cache directory); False if numba's
-    private interface is not as expected (its default rule then applies)."""
+    list (where numba would put them: ``NUMBA_CACHE_DIR`` if set, else the in-tree ``__pycache__``,
+    else its user-wide cache directory); False if numba's private interface is not as expected
+    (its default rule then applies)."""
     try:
         from numba.core import caching
 
-        bases = (caching.InTreeCacheLocator, caching.UserWideCacheLocator)
+        # NUMBA_CACHE_DIR when set, else the in-tree __pycache__, else numba's user-wide directory
+        bases = (caching.UserProvidedCacheLocator, caching.InTreeCacheLocator, caching.UserWideCacheLocator)
         locators = caching.CacheImpl._locator_classes
     except AttributeError:  # pragma: no cover - another numba
         return False
