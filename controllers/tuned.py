@@ -1,7 +1,7 @@
 """The default gains of the model-based controllers: the tuned ones.
 
 ``controllers/tuned.json`` is written by ``scripts/tune.py`` (the procedure is
-:mod:`mbs_envs.tuning`: a grid over each controller's closed-loop bandwidth or
+:mod:`mbs_envs.studies.tuning`: a grid over each controller's closed-loop bandwidth or
 weights, scored on tuning seeds only, at the nominal plant and +-20 % mass
 and length mismatch). Each entry is keyed by env id and controller name:
 

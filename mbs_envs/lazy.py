@@ -1,4 +1,5 @@
-"""Names a package serves on first access (PEP 562), so importing it loads only what is used."""
+"""Names a package serves on first access (PEP 562), so importing it loads only what is used;
+and the module paths of earlier versions, served from where the modules live now."""
 
 from __future__ import annotations
 
@@ -25,3 +26,25 @@ def lazy_exports(package: str, names: Mapping[str, str], namespace: dict[str, An
         return sorted(set(namespace) | set(names))
 
     return __getattr__, __dir__
+
+
+class ModuleAliases:
+    """A meta path finder serving old module paths (``mbs_envs.sb3``) from the new ones
+    (``mbs_envs.envs.sb3``): ``import``, ``from ... import`` and unpickling keep working, and
+    the old name is the very same module object (imported only when asked for)."""
+
+    def __init__(self, aliases: Mapping[str, str]):
+        self.aliases = dict(aliases)
+
+    def find_spec(self, fullname: str, path: Any = None, target: Any = None):
+        if fullname not in self.aliases:
+            return None
+        import importlib.util
+
+        return importlib.util.spec_from_loader(fullname, self)
+
+    def create_module(self, spec):
+        return importlib.import_module(self.aliases[spec.name])
+
+    def exec_module(self, module) -> None:  # the target module is already executed
+        return None

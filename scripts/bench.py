@@ -44,9 +44,9 @@ from scipy.integrate import solve_ivp
 from tqdm import tqdm
 
 import mbs_envs
-from mbs_envs.benchmarking import median_time, pinocchio_chain, time_steps
+from mbs_envs.studies.benchmarking import median_time, pinocchio_chain, time_steps
 from mbs_envs.models import SerialChain
-from mbs_envs.plotting import pyplot, save
+from mbs_envs.studies.plotting import pyplot, save
 
 
 #: Planar2R-v0 at Acrobot-v1's control step (0.2 s) with its default physics step (5 ms): 40 RK4 substeps.
@@ -158,7 +158,7 @@ def batched_step(num_envs: int, repeats: int, steps: int) -> dict:
 
 
 def trig_floor(num_envs: int, repeats: int) -> dict:
-    """Per member, the time of a default step's sines and cosines alone, by libm and by :func:`mbs_envs.trig.sincos`.
+    """Per member, the time of a default step's sines and cosines alone, by libm and by :func:`mbs_envs.dynamics.trig.sincos`.
 
     The step needs, per member, the sine and cosine of both joint angles in each
     of 4 RK4 stages of 2 substeps (16 angles), of the 6 reference phases, and of
@@ -168,7 +168,7 @@ def trig_floor(num_envs: int, repeats: int) -> dict:
     """
     import numba
 
-    from mbs_envs.trig import sincos
+    from mbs_envs.dynamics.trig import sincos
 
     @numba.njit
     def libm(x, k, out):
@@ -292,7 +292,7 @@ def sb3_throughput(
     from stable_baselines3 import PPO
     from stable_baselines3.common.env_util import make_vec_env
 
-    from mbs_envs.sb3 import make_sb3_vec_env
+    from mbs_envs.envs.sb3 import make_sb3_vec_env
 
     def rollout(model, venv, n_steps):
         obs = venv.reset()

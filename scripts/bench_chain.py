@@ -21,8 +21,8 @@ import numpy as np
 from tqdm import tqdm
 
 from mbs_envs.models import SerialChain
-from mbs_envs.benchmarking import median_time, pinocchio_chain
-from mbs_envs.plotting import pyplot, save
+from mbs_envs.studies.benchmarking import median_time, pinocchio_chain
+from mbs_envs.studies.plotting import pyplot, save
 
 SIZES = [2, 5, 10, 20, 50, 100, 200, 500]
 BATCH = 256

@@ -60,7 +60,7 @@ print(time.perf_counter() - t0)
 
 def step_time(env, actions, reset_every=400) -> float:
     """Mean seconds per ``env.step`` over ``actions`` (resets not timed)."""
-    from mbs_envs.benchmarking import time_steps  # the checkout's own (an earlier version has it too)
+    from mbs_envs.studies.benchmarking import time_steps  # the checkout's own (an earlier version has it too)
 
     return time_steps(env, actions, reset_every)
 

@@ -44,9 +44,9 @@ from controllers import tuned
 from mbs_envs import comparison as cmp
 from mbs_envs import seeds as seed_ranges
 from mbs_envs.envs import registry
-from mbs_envs.parallel import run_tasks
-from mbs_envs.plotting import pyplot, save
-from mbs_envs.sizing import actuator_sizing
+from mbs_envs.studies.parallel import run_tasks
+from mbs_envs.studies.plotting import pyplot, save
+from mbs_envs.studies.sizing import actuator_sizing
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 KINDS = ("model-based", "RL", "model-based + RL")
@@ -108,7 +108,7 @@ def run(args: argparse.Namespace) -> dict:
 
 
 def summarize(rows: list[dict]) -> dict:
-    """``summary[scene][condition][policy]`` = :func:`mbs_envs.comparison.summarize_policy` of its rows."""
+    """``summary[scene][condition][policy]`` = :func:`mbs_envs.studies.comparison.summarize_policy` of its rows."""
     grouped: dict = {}
     for r in rows:
         grouped.setdefault(r["scene"], {}).setdefault(r["condition"], {}).setdefault(r["policy"], []).append(r)
@@ -294,7 +294,7 @@ def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: 
     L.append(f"**Protocol.** {len(seeds)} test episodes per policy and condition, seeds {seeds[0]}-{seeds[-1]} (the same starts and "
              "references for every policy). Test seeds are disjoint from every other seed used: training members start from "
              f"{seed_ranges.TRAINING_BASE} + 1000 k + i (run k, member i), learning curves use validation seeds "
-             f"{seed_ranges.VALIDATION[0]}-, gain tuning uses seeds {seed_ranges.TUNING[0]}- (`mbs_envs/seeds.py`). "
+             f"{seed_ranges.VALIDATION[0]}-, gain tuning uses seeds {seed_ranges.TUNING[0]}- (`mbs_envs/studies/seeds.py`). "
              "An episode fails when it ends early (fall or divergence); errors (Euclidean norm over tracked joints, the disk: its "
              "heading error, RMS after the first second) average the *successful* episodes only and stand beside the success "
              "rate, and a policy is \"best\" on its side only with >= 95 % success at the nominal plant. Brackets: 95 % confidence "

@@ -24,7 +24,7 @@ import numpy as np
 from tqdm import tqdm
 
 from mbs_envs import simulate
-from mbs_envs.plotting import pyplot, save
+from mbs_envs.studies.plotting import pyplot, save
 from mbs_envs.models import FourBar
 
 KINDS = ("none", "baumgarte", "projection")

@@ -31,9 +31,9 @@ from tqdm import tqdm
 import mbs_envs  # noqa: F401  (registers the ids)
 from controllers import LQR, NoControl, SteeringPD
 from mbs_envs import simulate
-from mbs_envs.evaluation import episode_metrics, rollout
+from mbs_envs.studies.evaluation import episode_metrics, rollout
 from mbs_envs.models import RollingDisk
-from mbs_envs.plotting import pyplot, save
+from mbs_envs.studies.plotting import pyplot, save
 
 ENV_ID = "mbs_envs/RollingDisk-v0"
 CONTROLLERS = {"no control": NoControl, "PD steering": SteeringPD, "LQR": LQR}

@@ -10,7 +10,7 @@
 3. Long runs, 1e5 fixed steps of free motion: energy and constraint drift.
 4. Parameters at the edges (0, -1, NaN, inf, 1e-6, 1e6 for masses and lengths
    of every model): ``ValueError`` naming the parameter, or a 1 s run's outcome.
-5. Every integrator name on every id (:func:`mbs_envs.reliability.integrator_soak`):
+5. Every integrator name on every id (:func:`mbs_envs.studies.reliability.integrator_soak`):
    random-action episodes, then runaway episodes (1e200 N m torque limit):
    non-finite outputs, exceptions, hangs (a single step over 60 s), divergences
    flagged, and the worst wall time of a diverging step.
@@ -35,7 +35,7 @@ import mbs_envs
 from mbs_envs import integrators
 from mbs_envs import reliability as rl
 from mbs_envs import stiff_cases as sc
-from mbs_envs.plotting import pyplot, save
+from mbs_envs.studies.plotting import pyplot, save
 
 
 def run(out: pathlib.Path, episodes: int, quick: bool = False, ids: list[str] | None = None, processes: bool = True) -> dict:

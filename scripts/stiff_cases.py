@@ -2,7 +2,7 @@
 """Stiff and extreme cases: which integrators stay stable at which step, drift, cost,
 and whether failures are reported.
 
-Cases (see :mod:`mbs_envs.stiff_cases`): large viscous friction; smoothed
+Cases (see :mod:`mbs_envs.studies.stiff_cases`): large viscous friction; smoothed
 Coulomb friction with a small smoothing speed; a high-gain PD and a
 high-bandwidth computed-torque closed loop; extreme mass and inertia ratios;
 the four-bar through toggles and through a change point; chains of 200 and
@@ -34,7 +34,7 @@ from tqdm import tqdm
 
 from mbs_envs import numerics
 from mbs_envs import stiff_cases as sc
-from mbs_envs.plotting import pyplot, save
+from mbs_envs.studies.plotting import pyplot, save
 
 RK4_BETA = 2.785  # RK4's real stability interval [-2.785, 0]
 QUICK_CASES = ("viscous b=400", "PD kp=1e5, kd=2e3", "mass ratio 1e-3", "four-bar change point (parallelogram)")

@@ -14,7 +14,7 @@ tensorboard logs. With several ``--seed`` values the runs go to
 
 ``--residual [CONTROLLER]`` trains a correction on top of a model-based
 controller (default: computed torque; LQR on the disk), bounded by
-``--residual-bound`` (a fraction of the actuator limit; see ``mbs_envs.residual``).
+``--residual-bound`` (a fraction of the actuator limit; see ``mbs_envs.studies.residual``).
 """
 
 from __future__ import annotations
@@ -25,8 +25,8 @@ import pathlib
 import sys
 
 import mbs_envs  # noqa: F401
-from mbs_envs.parallel import run_tasks
-from mbs_envs.training import ALGOS, TrainConfig, residual_base, train
+from mbs_envs.studies.parallel import run_tasks
+from mbs_envs.studies.training import ALGOS, TrainConfig, residual_base, train
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:

@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Tune the gains of every model-based controller (the procedure of ``mbs_envs.tuning``).
+"""Tune the gains of every model-based controller (the procedure of ``mbs_envs.studies.tuning``).
 
 Rolls out each controller's grid of gains on the tuning seeds (disjoint from
 the comparison's test seeds), nominal and at +-20 % mass/length mismatch, and
@@ -29,8 +29,8 @@ from tqdm import tqdm
 import mbs_envs  # noqa: F401
 from controllers import tuned
 from mbs_envs import tuning
-from mbs_envs.comparison import SCENES
-from mbs_envs.plotting import pyplot, save
+from mbs_envs.studies.comparison import SCENES
+from mbs_envs.studies.plotting import pyplot, save
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 

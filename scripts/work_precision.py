@@ -6,7 +6,7 @@ stabilization; rolling disk; chains) and each integrator (fixed-step ones over
 a range of ``dt``, adaptive ones over a range of ``rtol``) the final-state
 error against an independent high-accuracy reference (DOP853 at rtol 1e-12 on
 the unstabilized equations), the energy error and the constraint error over
-the run, and the CPU time. See :mod:`mbs_envs.numerics` for the definitions.
+the run, and the CPU time. See :mod:`mbs_envs.studies.numerics` for the definitions.
 
 Writes to ``--out``: ``work_precision.csv`` (one row per scene x integrator x
 setting), ``work_precision_<scene>.png`` (log-log error against CPU time) and
@@ -28,7 +28,7 @@ import numpy as np
 from tqdm import tqdm
 
 from mbs_envs import numerics
-from mbs_envs.plotting import pyplot, save
+from mbs_envs.studies.plotting import pyplot, save
 
 TARGETS = (1e-2, 1e-5, 1e-8)
 

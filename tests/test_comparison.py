@@ -13,7 +13,7 @@ import mbs_envs  # noqa: F401
 from controllers import ComputedTorque, tuned
 from mbs_envs import comparison as cmp
 from mbs_envs import seeds, tuning
-from mbs_envs.residual import ResidualPolicy, check_bound, combine
+from mbs_envs.studies.residual import ResidualPolicy, check_bound, combine
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
@@ -123,8 +123,8 @@ def test_residual_bound_is_validated(bound):
 def test_residual_training_env_with_zero_correction_replays_the_base_controller():
     """The training wrapper applies base + correction: zero corrections give the base controller's episodes."""
     pytest.importorskip("stable_baselines3")
-    from mbs_envs.residual import residual_vec_env
-    from mbs_envs.sb3 import make_sb3_vec_env
+    from mbs_envs.studies.residual import residual_vec_env
+    from mbs_envs.envs.sb3 import make_sb3_vec_env
 
     env_id = "mbs_envs/FourBar-v0"
     base = ComputedTorque(gym.make(env_id))

@@ -1,10 +1,10 @@
-"""The compiled path (mbs_envs.compiled) against the numpy path it must reproduce.
+"""The compiled path (mbs_envs.dynamics.compiled) against the numpy path it must reproduce.
 
 The two share the formulas (written once) but not the code that runs them:
 the numpy path solves ``M a = rhs`` by Cholesky over whole arrays and steps
-through :class:`~mbs_envs.integrators.ExplicitRK` and the env's task methods;
+through :class:`~mbs_envs.dynamics.integrators.ExplicitRK` and the env's task methods;
 the compiled one uses Cramer's rule per member and its own vectorizable sincos
-(mbs_envs.trig, 1 ulp) inside one fused kernel. They may differ by rounding
+(mbs_envs.dynamics.trig, 1 ulp) inside one fused kernel. They may differ by rounding
 only: per step, 1e-12.
 """
 
@@ -16,10 +16,10 @@ import pytest
 
 import mbs_envs  # noqa: F401  (registers the ids)
 from mbs_envs import integrators
-from mbs_envs.compiled import advance_compiled, batch_theta, compiled_stepping
+from mbs_envs.dynamics.compiled import advance_compiled, batch_theta, compiled_stepping
 from mbs_envs.envs.base import validate_action
 from mbs_envs.models import FourBar, Planar2R, RollingDisk
-from mbs_envs.simulate import advance
+from mbs_envs.dynamics.simulate import advance
 
 ID = "mbs_envs/Planar2R-v0"
 
@@ -367,9 +367,9 @@ def test_action_validation_fast_path_keeps_its_guarantees():
 
 def test_kernels_are_stamped_with_the_whole_package_so_no_stale_binding_survives_an_edit():
     """numba alone re-checks only a function's own file; a scene's step kernel embeds its model's
-    kernels, so the package's kernels are stamped with a hash of all its sources (mbs_envs.jit)."""
+    kernels, so the package's kernels are stamped with a hash of all its sources (mbs_envs.dynamics.jit)."""
     from mbs_envs.envs import planar2r
-    from mbs_envs.jit import package_stamp
+    from mbs_envs.dynamics.jit import package_stamp
 
     locator = planar2r.step_kernel._cache._impl.locator
     assert type(locator).__name__.startswith("MbsEnvs")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mbs_envs.constraints import constrained_accelerations
+from mbs_envs.dynamics.constraints import constrained_accelerations
 
 
 def random_problem(rng, B, n=6, k=3):

@@ -19,11 +19,11 @@ for env_id in ("mbs_envs/Planar2R-v0", "mbs_envs/SerialChain-v0"):
     envs.reset(seed=0)
     envs.step(envs.action_space.sample())
 mbs_envs.simulate(mbs_envs.models.Planar2R(), [0.1, 0.2], [0.0, 0.0], 0.05)
-loaded = sorted(m for m in sys.modules if m in ("mbs_envs.constraints", "mbs_envs.models.constrained",
+loaded = sorted(m for m in sys.modules if m in ("mbs_envs.dynamics.constraints", "mbs_envs.models.constrained",
                                               "mbs_envs.models.fourbar", "mbs_envs.models.rolling_disk"))
 print(",".join(loaded))
 from mbs_envs.models import FourBar  # the constrained scenes still load on first use
-print("mbs_envs.constraints" in sys.modules)
+print("mbs_envs.dynamics.constraints" in sys.modules)
 """
 
 
@@ -40,7 +40,7 @@ def test_the_registry_is_the_one_list_of_scenes():
     import mbs_envs
     from mbs_envs import comparison
     from mbs_envs.envs import registry
-    from mbs_envs.training import residual_base
+    from mbs_envs.studies.training import residual_base
 
     ids = [s.id for s in registry.SCENES]
     assert len(set(ids)) == len(ids) and len({s.name for s in registry.SCENES}) == len(ids)
@@ -70,3 +70,22 @@ def test_every_scene_names_its_model_edge_parameters_and_a_consistent_moving_sta
         q, v = model.moving_state()
         assert q.shape == (model.nq,) and v.shape == (model.nv,) and np.any(v != 0)
         assert np.max(model.constraint_violation(q, v)) < 1e-9 if model.nc else True
+
+
+def test_the_module_paths_of_earlier_versions_still_import_the_same_modules():
+    """The flat top level was grouped (dynamics / envs / studies); old paths are served from the new ones."""
+    import importlib
+    import pickle
+
+    import mbs_envs
+
+    for old, new in mbs_envs.MOVED.items():
+        assert importlib.import_module(old) is importlib.import_module(new), old
+    from mbs_envs.residual import ResidualPolicy  # shipped agents' pickles may name old paths
+    from mbs_envs.sb3 import make_sb3_vec_env  # noqa: F401  (the README's adapter import)
+    from mbs_envs.simulate import advance  # noqa: F401
+
+    assert pickle.loads(pickle.dumps(ResidualPolicy)) is ResidualPolicy
+    assert callable(mbs_envs.simulate)  # the name stays the function after its module was imported
+    top = sorted(p.stem for p in mbs_envs.dynamics.jit.PACKAGE.glob("*.py"))
+    assert top == ["__init__", "lazy", "simulate", "validation"], top

@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mbs_envs.linalg import cross
+from mbs_envs.dynamics.linalg import cross
 
 
 @settings(max_examples=50, deadline=None)

@@ -51,8 +51,8 @@ def test_train_residual_writes_a_residual_agent(tmp_path):
     script = load_script("train.py")
     script["run"](script["parse_args"](["--env", "mbs_envs/FourBar-v0", "--algo", "ppo", "--steps", "1024", "--n-envs", "8",
                                         "--residual", "--out", str(tmp_path)]))  # fmt: skip
-    from mbs_envs.residual import ResidualPolicy
-    from mbs_envs.training import load_agent
+    from mbs_envs.studies.residual import ResidualPolicy
+    from mbs_envs.studies.training import load_agent
 
     policy, cfg = load_agent(tmp_path)
     from controllers.tuned import tuned_gains
@@ -70,7 +70,7 @@ def test_train_writes_an_agent_that_loads_and_predicts(tmp_path):
     records = script["run"](script["parse_args"](["--env", "mbs_envs/Planar2R-v0", "--algo", "ppo", "--steps", "2048",
                                                   "--n-envs", "8", "--out", str(tmp_path)]))  # fmt: skip
     assert records[0]["steps"] == 2048 and records[0]["train_wall_s"] > 0
-    from mbs_envs.training import load_agent
+    from mbs_envs.studies.training import load_agent
 
     model, cfg = load_agent(tmp_path)
     assert cfg["env_id"] == "mbs_envs/Planar2R-v0"
@@ -79,7 +79,7 @@ def test_train_writes_an_agent_that_loads_and_predicts(tmp_path):
 
 
 def test_shipped_agents_load_predict_and_document_their_training():
-    from mbs_envs.training import load_agent
+    from mbs_envs.studies.training import load_agent
 
     folders = sorted((ROOT / "agents").glob("*/*/seed*/agent.zip"))
     for scene in ("Planar2R-v0", "FourBar-v0", "SerialChain-v0", "RollingDisk-v0"):
@@ -197,7 +197,7 @@ def test_soak_tiny_configuration(tmp_path):
 
 @pytest.mark.slow
 def test_determinism_across_vectorizations_and_start_methods():
-    from mbs_envs.reliability import determinism
+    from mbs_envs.studies.reliability import determinism
 
     for env_id in ("mbs_envs/Planar2R-v0", "mbs_envs/RollingDisk-v0"):
         d = determinism(env_id, steps=20)

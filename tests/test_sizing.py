@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from mbs_envs.models import FourBar, SerialChain
-from mbs_envs.references import SumOfSines
-from mbs_envs.sizing import actuator_sizing
+from mbs_envs.envs.references import SumOfSines
+from mbs_envs.studies.sizing import actuator_sizing
 
 
 def test_single_rotor_by_hand():
@@ -34,7 +34,7 @@ def test_fourbar_drive_power_balances_the_energy_change():
     fb = FourBar()
     ref = SumOfSines(np.array([0.3]), np.array([[0.4]]), np.array([[2.0]]), np.array([[0.5]]), rate=np.array([2.0]))
     s = actuator_sizing(fb, ref, t_final=2.0, dt=2e-4)
-    from mbs_envs.sizing import motion_from_reference
+    from mbs_envs.studies.sizing import motion_from_reference
 
     q, v, _ = motion_from_reference(fb, ref, s.t)
     E = fb.energy(q, v)

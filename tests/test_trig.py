@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mbs_envs.trig import SINCOS_RANGE, sincos, sincos_columns
+from mbs_envs.dynamics.trig import SINCOS_RANGE, sincos, sincos_columns
 
 
 def ulps(x: np.ndarray, ref: np.ndarray) -> np.ndarray:

@@ -13,14 +13,14 @@ from __future__ import annotations
 from typing import Any, ClassVar
 
 import gymnasium as gym
-from ..jit import njit
+from ..dynamics.jit import njit
 import numpy as np
 
-from .. import integrators
+from ..dynamics import integrators
 from .. import validation as check
-from ..compiled import TableauArrays, batch_theta, compiled_stepping, projection_tol
+from ..dynamics.compiled import TableauArrays, batch_theta, compiled_stepping, projection_tol
 from ..models.base import Model, as_vector
-from ..simulate import DIVERGENCE_LIMIT, advance, diverged
+from ..dynamics.simulate import DIVERGENCE_LIMIT, advance, diverged
 from .rendering import PlanarRenderer, Polyline
 
 
@@ -98,7 +98,7 @@ class MBSEnv(gym.Env):
     dt : float
         Control step [s]: the action is held constant over it.
     integrator : str
-        Name from :func:`mbs_envs.integrators.available`.
+        Name from :func:`mbs_envs.dynamics.integrators.available`.
     substeps : int
         Fixed-step integrator steps per control step (physics step ``dt / substeps``).
     rtol, atol : float, optional
@@ -108,7 +108,7 @@ class MBSEnv(gym.Env):
         ``info["diverged"] = True``; the observation keeps the last finite state.
     stabilization : {None, "projection", "baumgarte", "none"}
         Constrained models only (default projection); see
-        :class:`mbs_envs.constraints.Stabilization`.
+        :class:`mbs_envs.dynamics.constraints.Stabilization`.
     compiled : bool
         Step through the scene's compiled kernel where it applies (see
         :attr:`compiled`); False forces the numpy path.
@@ -182,7 +182,7 @@ class MBSEnv(gym.Env):
         Compiled: a scene class that declares a ``step_kernel``, a model with
         kernels whose ``B`` selects one coordinate per input, an explicit
         Runge-Kutta integrator and, for constrained models, the projection
-        (:func:`mbs_envs.compiled.compiled_stepping`); unless constructed with
+        (:func:`mbs_envs.dynamics.compiled.compiled_stepping`); unless constructed with
         ``compiled=False``. Both paths give the same episodes (to rounding, 1e-12).
         """
         cached = self.__dict__.get("_compiled_for")  # decided again only when one of these is replaced

@@ -3,7 +3,7 @@
 :meth:`MBSEnv.step <mbs_envs.envs.base.MBSEnv.step>` (B = 1) and the vector env
 (B = ``num_envs``) call the same function, a scene's ``step_kernel``: a
 module-level binding of :func:`engine_step` to its model's kernels and its task's
-kernel (bound at compile time and cached on disk, see :mod:`mbs_envs.compiled`).
+kernel (bound at compile time and cached on disk, see :mod:`mbs_envs.dynamics.compiled`).
 The sequence is :meth:`MBSEnv.step`'s numpy one:
 
 1. ``u = action * u_max`` held, ``B u`` applied (``B`` selects one coordinate per input);
@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..jit import njit
+from ..dynamics.jit import njit
 
 
 @njit(cache=False)  # takes kernels as arguments: cached inside the scenes' module-level bindings
@@ -51,9 +51,9 @@ def engine_step(advance, energy, constraint_info, singular, task_step, theta, st
         ``constraint_info(q, v, tau, theta, residual, lam)``, ``singular(q, flags)``.
     task_step : compiled kernel of the task
     theta : ndarray, shape (P, B)
-        The model's parameters in columns (:func:`mbs_envs.compiled.batch_theta`).
+        The model's parameters in columns (:func:`mbs_envs.dynamics.compiled.batch_theta`).
     stepper : tuple
-        :meth:`mbs_envs.compiled.TableauArrays.packed`.
+        :meth:`mbs_envs.dynamics.compiled.TableauArrays.packed`.
     control, task, state, out : tuple
         See the module docstring.
     """

@@ -8,8 +8,8 @@ from typing import Any
 import numpy as np
 
 from .. import validation as check
-from .. import compiled as _compiled
-from ..jit import njit
+from ..dynamics import compiled as _compiled
+from ..dynamics.jit import njit
 from ..models import fourbar as _model
 from ..models.fourbar import FourBar
 from .rendering import Polyline

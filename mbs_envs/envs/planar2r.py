@@ -9,8 +9,8 @@ import numpy as np
 
 from ..models.planar2r import Planar2R
 from .rendering import Polyline
-from .. import compiled as _compiled
-from ..jit import njit
+from ..dynamics import compiled as _compiled
+from ..dynamics.jit import njit
 from ..models import planar2r as _model
 from . import tracking as _tracking
 from .engine import engine_step
@@ -78,9 +78,9 @@ class Planar2REnv(JointTrackingEnv):
       (``m1, m2, l1, l2, r1, r2, I1, I2, g, b1, b2, f1, f2, v_s``).
     - ``dt``: control step [s]; ``substeps`` physics steps per control step
       (two RK4 steps of 5 ms: 16x more accurate than one; its cost in docs/performance.md).
-    - ``compiled``: the step runs as one numba kernel (:mod:`mbs_envs.compiled`)
+    - ``compiled``: the step runs as one numba kernel (:mod:`mbs_envs.dynamics.compiled`)
       whenever the integrator is explicit; False forces the numpy path.
-    - ``integrator``: any name of :func:`mbs_envs.integrators.available`.
+    - ``integrator``: any name of :func:`mbs_envs.dynamics.integrators.available`.
 
     ``info`` holds ``t``, ``energy``, ``diverged``, ``tracking_error``,
     ``q_ref``, the reward terms and the applied torque ``u``.

@@ -10,12 +10,12 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from .. import compiled as _compiled
+from ..dynamics import compiled as _compiled
 from .. import validation as check
-from ..jit import njit
+from ..dynamics.jit import njit
 from ..models import rolling_disk as _model
 from ..models.rolling_disk import RollingDisk
-from ..references import SumOfSines, sample_sum_of_sines, sum_of_sines_columns
+from .references import SumOfSines, sample_sum_of_sines, sum_of_sines_columns
 from .base import MBSEnv
 from .engine import engine_step
 from .rendering import Polyline

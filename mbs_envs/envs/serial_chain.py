@@ -10,8 +10,8 @@ import numpy as np
 from .. import validation as check
 from ..models.serial_chain import SerialChain, SerialChainParams, link_count
 from .rendering import Polyline
-from .. import compiled as _compiled
-from ..jit import njit
+from ..dynamics import compiled as _compiled
+from ..dynamics.jit import njit
 from ..models import serial_chain as _model
 from . import tracking as _tracking
 from .engine import engine_step

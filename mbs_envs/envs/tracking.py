@@ -21,11 +21,11 @@ import dataclasses
 from typing import Any, ClassVar
 
 import gymnasium as gym
-from ..jit import njit
+from ..dynamics.jit import njit
 import numpy as np
 
-from ..references import SumOfSines, sample_sum_of_sines, sum_of_sines_columns
-from ..trig import sincos_columns
+from .references import SumOfSines, sample_sum_of_sines, sum_of_sines_columns
+from ..dynamics.trig import sincos_columns
 from .. import validation as check
 from .base import MBSEnv
 
@@ -50,7 +50,7 @@ def encode_columns(q, v, q_ref, v_ref, a_ref, tracked, obs):  # pragma: no cover
     Parameters
     ----------
     q, v : ndarray, shape (n, B)
-        Columns (:mod:`mbs_envs.compiled`).
+        Columns (:mod:`mbs_envs.dynamics.compiled`).
     q_ref, v_ref, a_ref : ndarray, shape (m, B)
     tracked : ndarray of int, shape (m,)
     obs : ndarray, shape (B, 3 n + 3 m)

@@ -1,7 +1,7 @@
 """Numpy-batched vector environments: one model, one integrator call for all members.
 
 :class:`MBSVectorEnv` runs ``num_envs`` copies of any :class:`~mbs_envs.envs.base.MBSEnv`
-task as one batch: the physics step is a single batched :func:`mbs_envs.simulate.advance`
+task as one batch: the physics step is a single batched :func:`mbs_envs.dynamics.simulate.advance`
 call, and observation, reward, termination and info come from the same task
 functions the single environment uses (``task_now``, ``observe``, ``reward``,
 ``terminated``, ``state_diverged``, ``task_info``), called with ``(N, ...)``

@@ -2,7 +2,7 @@
 
 The constrained mechanisms (four-bar, rolling disk) and the constraint machinery
 they need load on first use: ``from mbs_envs.models import FourBar`` works as
-usual, while a serial scene never imports :mod:`mbs_envs.constraints`.
+usual, while a serial scene never imports :mod:`mbs_envs.dynamics.constraints`.
 """
 
 from ..lazy import lazy_exports

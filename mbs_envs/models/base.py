@@ -4,7 +4,7 @@
 
 for unconstrained mechanisms, with forward dynamics through a Cholesky
 factorization of ``M``. Constrained mechanisms extend this with their own
-``forward_dynamics`` (see :mod:`mbs_envs.constraints`); serial ones pay nothing
+``forward_dynamics`` (see :mod:`mbs_envs.dynamics.constraints`); serial ones pay nothing
 for constraints.
 
 Conventions: every function is pure and batched. ``q`` has shape ``(..., nq)``,
@@ -23,7 +23,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from .. import validation as check
-from ..linalg import batched_matvec, cholesky_solve
+from ..dynamics.linalg import batched_matvec, cholesky_solve
 
 # ---------------------------------------------------------------------------
 # Parameters
@@ -210,15 +210,15 @@ class Model(abc.ABC):
     #: Whether the equations accept per-batch-member parameters (:meth:`Params.batched`).
     batched_params: ClassVar[bool] = False
     #: Compiled ``(acceleration_kernel, energy_kernel)`` of one member, built on the
-    #: same formulas as the numpy methods, or None (numpy only); see :mod:`mbs_envs.compiled`.
+    #: same formulas as the numpy methods, or None (numpy only); see :mod:`mbs_envs.dynamics.compiled`.
     kernels: ClassVar[tuple | None] = None
-    #: The model's binding of :func:`mbs_envs.compiled.rk_run` (a module-level, disk-cached
+    #: The model's binding of :func:`mbs_envs.dynamics.compiled.rk_run` (a module-level, disk-cached
     #: kernel ``(theta, stepper, q, v, tau)``), with ``kernels``; None otherwise.
     advance_kernel: ClassVar[Any] = None
 
     def kernel_params(self) -> np.ndarray:
         """The parameters as the kernels take them: in field order, shape ``(P,)``, or ``(B, P)``
-        with per-member parameters (the kernels read them as columns, :func:`mbs_envs.compiled.batch_theta`)."""
+        with per-member parameters (the kernels read them as columns, :func:`mbs_envs.dynamics.compiled.batch_theta`)."""
         return np.stack(np.broadcast_arrays(*(getattr(self.params, k) for k in self.Params.names())), axis=-1)
 
     def __init__(self, params: Params | Mapping[str, Any] | None = None, **overrides: Any):

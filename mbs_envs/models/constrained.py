@@ -1,7 +1,7 @@
 """Base of models with constraints ``Psi(q) v = 0`` (holonomic rows from ``phi(q) = 0``).
 
 Only constrained mechanisms (four-bar, rolling disk) derive from this; it is the
-only model module that imports :mod:`mbs_envs.constraints`.
+only model module that imports :mod:`mbs_envs.dynamics.constraints`.
 """
 
 from __future__ import annotations
@@ -11,13 +11,13 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from ..constraints import (
+from ..dynamics.constraints import (
     Stabilization,
     constrained_accelerations,
     gauss_newton_projection,
     project_velocities,
 )
-from ..linalg import batched_matvec
+from ..dynamics.linalg import batched_matvec
 from .base import Model, as_vector
 
 
@@ -185,7 +185,7 @@ class ConstrainedModel(Model):
         return np.maximum(np.max(np.abs(phi), axis=-1), np.max(np.abs(dphi), axis=-1))
 
     def stabilization(self, kind: Any = None, **options: Any) -> Stabilization:
-        """The :class:`~mbs_envs.constraints.Stabilization` a simulation uses.
+        """The :class:`~mbs_envs.dynamics.constraints.Stabilization` a simulation uses.
 
         ``kind`` is ``"projection"`` (default, also for ``None``), ``"baumgarte"``,
         ``"none"`` or a ready :class:`Stabilization`; ``options`` are its fields

@@ -18,10 +18,10 @@ from typing import ClassVar
 
 import numpy as np
 
-from .. import constraints as _constraints
-from ..compiled import rk_run
-from ..jit import njit
-from ..trig import sincos_checked, sincos_columns
+from ..dynamics import constraints as _constraints
+from ..dynamics.compiled import rk_run
+from ..dynamics.jit import njit
+from ..dynamics.trig import sincos_checked, sincos_columns
 from . import planar2r as _p2r
 from .base import Params, as_vector, param, smoothed_friction
 from .constrained import ConstrainedModel
@@ -177,7 +177,7 @@ def jacobian_member(q, p, Psi):  # pragma: no cover - compiled
 @njit
 def terms_member(q, v, tau, p, M, f, Psi, gamma):  # pragma: no cover - compiled
     """One member's ``M``, ``f = tau - (C v + G + F)``, ``Psi`` and ``gamma = -dPsi v``
-    (the kernel interface of :func:`mbs_envs.constraints.constrained_acceleration_columns`)."""
+    (the kernel interface of :func:`mbs_envs.dynamics.constraints.constrained_acceleration_columns`)."""
     mass_member(q, p, M)
     jacobian_member(q, p, Psi)
     c1, s1, c12, s12, c3, s3 = _angles(q)
@@ -198,7 +198,7 @@ def terms_member(q, v, tau, p, M, f, Psi, gamma):  # pragma: no cover - compiled
 # Cramer's rule, with the batch innermost so that LLVM vectorizes the loops (as
 # Planar2R's kernels). A member whose M is not positive definite, whose inputs are not
 # finite, or whose complement is not provably well conditioned (the criterion of
-# :func:`mbs_envs.constraints._cholesky_solve_if_well_conditioned`) is recomputed by the
+# :func:`mbs_envs.dynamics.constraints._cholesky_solve_if_well_conditioned`) is recomputed by the
 # general member path (pseudo-inverse, NaN), so both give the numpy path's results.
 
 
@@ -331,7 +331,7 @@ def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
 def project_kernel(q, v, theta, tol):  # pragma: no cover - compiled
     """:meth:`FourBar.project` of a batch in columns, in place: Gauss-Newton on ``phi`` (at most
     20 iterations, a member stops when ``max |phi| <= tol``), then ``v`` onto ``Psi v = 0`` in
-    the kinetic-energy metric (:func:`mbs_envs.constraints.project_columns`, closed form)."""
+    the kinetic-energy metric (:func:`mbs_envs.dynamics.constraints.project_columns`, closed form)."""
     B = q.shape[1]
     q_in, v_in = q.copy(), v.copy()
     general = np.zeros(B, np.bool_)
@@ -403,7 +403,7 @@ def constraint_info_kernel(q, v, tau, theta, res, lam):  # pragma: no cover - co
 
 @njit
 def advance_kernel(theta, stepper, q, v, tau):  # pragma: no cover - compiled
-    """:func:`mbs_envs.compiled.rk_run` with the projection after every step (cached on disk)."""
+    """:func:`mbs_envs.dynamics.compiled.rk_run` with the projection after every step (cached on disk)."""
     rk_run(_this.acceleration_kernel, _this.project_kernel, theta, stepper, q, v, tau)
 
 
@@ -424,7 +424,7 @@ class FourBar(ConstrainedModel):
     nc = 2
     independent: ClassVar[tuple[int, ...]] = (0,)
 
-    # -- compiled path (see :mod:`mbs_envs.compiled`) -----------------------------
+    # -- compiled path (see :mod:`mbs_envs.dynamics.compiled`) -----------------------------
     kernels = (acceleration_kernel, energy_kernel)
     advance_kernel = staticmethod(advance_kernel)
     constraint_info_kernel = staticmethod(constraint_info_kernel)

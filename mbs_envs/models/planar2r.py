@@ -10,12 +10,12 @@ from __future__ import annotations
 import dataclasses
 import sys
 
-from ..jit import njit
+from ..dynamics.jit import njit
 import numpy as np
 
-from .. import compiled as _compiled
-from ..compiled import rk_run
-from ..trig import sincos_checked, sincos_rows
+from ..dynamics import compiled as _compiled
+from ..dynamics.compiled import rk_run
+from ..dynamics.trig import sincos_checked, sincos_rows
 from .base import Model, Params, as_vector, friction_law, param, smoothed_friction
 
 
@@ -123,7 +123,7 @@ def _trig(q):  # pragma: no cover - compiled
 
 @njit
 def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
-    """Forward dynamics of a batch in columns (the kernel convention of :mod:`mbs_envs.compiled`).
+    """Forward dynamics of a batch in columns (the kernel convention of :mod:`mbs_envs.dynamics.compiled`).
 
     Parameters
     ----------
@@ -179,7 +179,7 @@ _this = sys.modules[__name__]
 
 @njit
 def advance_kernel(theta, stepper, q, v, tau):  # pragma: no cover - compiled
-    """:func:`mbs_envs.compiled.rk_run` with this model's :func:`acceleration_kernel` (cached on disk)."""
+    """:func:`mbs_envs.dynamics.compiled.rk_run` with this model's :func:`acceleration_kernel` (cached on disk)."""
     rk_run(_this.acceleration_kernel, _compiled.no_projection, theta, stepper, q, v, tau)
 
 
@@ -247,7 +247,7 @@ class Planar2R(Model):
             f = np.stack(np.broadcast_arrays(p.f1, p.f2), axis=-1)
         return smoothed_friction(v, b, f, np.asarray(p.v_s)[..., None])
 
-    # -- compiled path (see :mod:`mbs_envs.compiled`) -----------------------------
+    # -- compiled path (see :mod:`mbs_envs.dynamics.compiled`) -----------------------------
 
     kernels = (acceleration_kernel, energy_kernel)
     advance_kernel = staticmethod(advance_kernel)

@@ -35,10 +35,10 @@ from typing import ClassVar
 
 import numpy as np
 
-from .. import constraints as _constraints
-from ..compiled import rk_run
-from ..jit import njit
-from ..trig import sincos_checked, sincos_rows
+from ..dynamics import constraints as _constraints
+from ..dynamics.compiled import rk_run
+from ..dynamics.jit import njit
+from ..dynamics.trig import sincos_checked, sincos_rows
 from .base import Params, as_vector, param
 from .constrained import ConstrainedModel
 
@@ -223,7 +223,7 @@ def jacobian_member(q, p, Psi):  # pragma: no cover - compiled
 @njit
 def terms_member(q, v, tau, p, M, f, Psi, gamma):  # pragma: no cover - compiled
     """One member's ``M``, ``f = tau - (C v + G + F)``, ``Psi`` and ``gamma = -dPsi v``
-    (the kernel interface of :func:`mbs_envs.constraints.constrained_acceleration_columns`)."""
+    (the kernel interface of :func:`mbs_envs.dynamics.constraints.constrained_acceleration_columns`)."""
     mass_member(q, p, M)
     jacobian_member(q, p, Psi)
     s1, c1, s2, c2 = _trig(q)
@@ -246,7 +246,7 @@ def terms_member(q, v, tau, p, M, f, Psi, gamma):  # pragma: no cover - compiled
 # ``Psi = [I3, J]``: ``S = Psi M^-1 Psi^T = I3 / m + J N^-1 J^T`` (3 x 3) is solved by its
 # adjugate, the batch innermost (as FourBar's kernels); a member whose ``N`` is not positive
 # definite, whose inputs are not finite or whose ``S`` is not provably well conditioned is
-# recomputed by the general member path (:mod:`mbs_envs.constraints`).
+# recomputed by the general member path (:mod:`mbs_envs.dynamics.constraints`).
 
 
 @njit
@@ -451,7 +451,7 @@ def constraint_info_kernel(q, v, tau, theta, res, lam):  # pragma: no cover - co
 
 @njit
 def advance_kernel(theta, stepper, q, v, tau):  # pragma: no cover - compiled
-    """:func:`mbs_envs.compiled.rk_run` with the projection after every step (cached on disk)."""
+    """:func:`mbs_envs.dynamics.compiled.rk_run` with the projection after every step (cached on disk)."""
     rk_run(_this.acceleration_kernel, _this.project_kernel, theta, stepper, q, v, tau)
 
 
@@ -469,7 +469,7 @@ class RollingDisk(ConstrainedModel):
     #: |lean| beyond this is "flat": the Euler angles are near their singularity
     flat_lean: ClassVar[float] = FLAT_LEAN
 
-    # -- compiled path (see :mod:`mbs_envs.compiled`) -----------------------------
+    # -- compiled path (see :mod:`mbs_envs.dynamics.compiled`) -----------------------------
     kernels = (acceleration_kernel, energy_kernel)
     advance_kernel = staticmethod(advance_kernel)
     constraint_info_kernel = staticmethod(constraint_info_kernel)

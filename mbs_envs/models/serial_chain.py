@@ -28,10 +28,10 @@ from typing import Any
 
 import numpy as np
 
-from ..jit import njit
-from .. import compiled as _compiled
-from ..compiled import rk_run
-from ..trig import sincos_columns
+from ..dynamics.jit import njit
+from ..dynamics import compiled as _compiled
+from ..dynamics.compiled import rk_run
+from ..dynamics.trig import sincos_columns
 from .base import Model, Params, as_vector, param, smoothed_friction
 
 
@@ -244,7 +244,7 @@ def _energy_rows(q, w, l, r, m, Ic, arm, g):  # pragma: no cover - compiled
     return T, V
 
 
-# -- the compiled path's kernels (see mbs_envs.compiled): columns, parameters theta (7 N + 2, B)
+# -- the compiled path's kernels (see mbs_envs.dynamics.compiled): columns, parameters theta (7 N + 2, B)
 #    = (l, r, m, I, armature, b, f) per link, then g, v_s (SerialChain.kernel_params)
 
 
@@ -294,7 +294,7 @@ def _member_kinematics(q, l, r, th, sn, cs, p, c):  # pragma: no cover - compile
     centre-of-mass offsets [m]; writes the work arrays ``th, sn, cs`` (N,) and ``p, c`` (N, 2).
 
     ``th_i = q_1 + ... + q_i`` (a running sum, in ``np.cumsum``'s order);
-    ``(sn_i, cs_i) = (sin th_i, cos th_i)`` (:func:`mbs_envs.trig.sincos_columns`, a SIMD pass);
+    ``(sn_i, cs_i) = (sin th_i, cos th_i)`` (:func:`mbs_envs.dynamics.trig.sincos_columns`, a SIMD pass);
     joint positions ``p_1 = 0``, ``p_{i+1} = p_i + l_i e_i`` with ``e_i = (cs_i, sn_i)``;
     centres ``c_i = p_i + r_i e_i``.
     """
@@ -331,7 +331,7 @@ _this = sys.modules[__name__]
 
 @njit
 def advance_kernel(theta, stepper, q, v, tau):  # pragma: no cover - compiled
-    """:func:`mbs_envs.compiled.rk_run` with this model's :func:`acceleration_kernel` (cached on disk)."""
+    """:func:`mbs_envs.dynamics.compiled.rk_run` with this model's :func:`acceleration_kernel` (cached on disk)."""
     rk_run(_this.acceleration_kernel, _compiled.no_projection, theta, stepper, q, v, tau)
 
 
@@ -524,7 +524,7 @@ class SerialChain(Model):
         T, V = self._energies(q, v)
         return T + V
 
-    # -- compiled path (see :mod:`mbs_envs.compiled`) -----------------------------
+    # -- compiled path (see :mod:`mbs_envs.dynamics.compiled`) -----------------------------
 
     kernels = (acceleration_kernel, energy_kernel)
     advance_kernel = staticmethod(advance_kernel)

@@ -9,7 +9,7 @@ import pytest
 import mbs_envs  # noqa: F401
 from controllers import LQR, SteeringPD
 from controllers.disk import steady_lean
-from mbs_envs.evaluation import episode_metrics, rollout_batch
+from mbs_envs.studies.evaluation import episode_metrics, rollout_batch
 
 ENV_ID = "mbs_envs/RollingDisk-v0"
 

@@ -10,7 +10,7 @@ import mbs_envs  # noqa: F401
 from controllers import PD, ComputedTorque, PDGravity
 from mbs_envs import simulate
 from mbs_envs.envs import TrackingObservation
-from mbs_envs.references import SumOfSines
+from mbs_envs.envs.references import SumOfSines
 
 ENV_ID = "mbs_envs/Planar2R-v0"
 

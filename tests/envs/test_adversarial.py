@@ -30,7 +30,7 @@ from mbs_envs.models.fourbar import FourBar
 from mbs_envs.models.planar2r import Planar2R
 from mbs_envs.models.rolling_disk import RollingDisk
 from mbs_envs.models.serial_chain import SerialChain
-from mbs_envs.simulate import simulate
+from mbs_envs.dynamics.simulate import simulate
 
 CASES: collections.Counter = collections.Counter()
 
@@ -91,7 +91,7 @@ SETTABLE = {"dt": WILD, "substeps": WILD, "start_noise": WILD, "reward_weights":
 @settings(max_examples=60, deadline=None, suppress_health_check=list(HealthCheck))
 @given(key=st.sampled_from(sorted(SETTABLE)), value=WILD)
 def test_set_attr_on_the_sb3_adapter_validates_like_the_constructor(key, value):
-    from mbs_envs.sb3 import make_sb3_vec_env
+    from mbs_envs.envs.sb3 import make_sb3_vec_env
 
     CASES["set_attr"] += 1
     venv = make_sb3_vec_env("mbs_envs/Planar2R-v0", n_envs=2, seed=0)

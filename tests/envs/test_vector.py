@@ -137,7 +137,7 @@ def test_sb3_adapter_trains_ppo_for_a_few_updates():
     from stable_baselines3 import PPO
     from stable_baselines3.common.env_checker import check_env  # noqa: F401  (single-env checker; VecEnv below)
 
-    from mbs_envs.sb3 import make_sb3_vec_env
+    from mbs_envs.envs.sb3 import make_sb3_vec_env
 
     venv = make_sb3_vec_env("mbs_envs/Planar2R-v0", n_envs=8, seed=0, max_episode_steps=50)
     model = PPO("MlpPolicy", venv, n_steps=64, batch_size=128, n_epochs=2, seed=0, device="cpu")
@@ -153,7 +153,7 @@ def test_sb3_adapter_trains_ppo_for_a_few_updates():
 
 def test_sb3_adapter_reports_terminal_observations():
     pytest.importorskip("stable_baselines3")
-    from mbs_envs.sb3 import make_sb3_vec_env
+    from mbs_envs.envs.sb3 import make_sb3_vec_env
 
     venv = make_sb3_vec_env("mbs_envs/Planar2R-v0", n_envs=2, seed=0, monitor=False, max_episode_steps=5)
     venv.reset()
@@ -168,7 +168,7 @@ def test_sb3_adapter_reports_terminal_observations():
 def test_batched_rollout_scores_like_single_rollouts(env_id):
     """rollout_batch on the vector env gives the episodes rollout gives on single envs."""
     from controllers import LQR, ComputedTorque
-    from mbs_envs.evaluation import episode_metrics, rollout, rollout_batch
+    from mbs_envs.studies.evaluation import episode_metrics, rollout, rollout_batch
 
     env = gym.make(env_id, max_episode_steps=60)
     policy = (LQR if "Disk" in env_id else ComputedTorque)(env)

@@ -121,7 +121,7 @@ def test_reproduces_gymnasium_acrobot_rk4_step():
     """One Acrobot step (its own RK4 over dt = 0.2 s) against ours with the same method."""
     from gymnasium.envs.classic_control.acrobot import rk4
 
-    from mbs_envs.simulate import advance
+    from mbs_envs.dynamics.simulate import advance
     from mbs_envs import integrators
 
     _, env = acrobot_env()

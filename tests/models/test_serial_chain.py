@@ -161,7 +161,7 @@ def test_defaults_make_a_one_metre_one_kilogram_rope():
 def test_aba_agrees_with_pinocchio(n):
     """A third-party implementation (optional benchmark dependency ``pin``): skipped when absent."""
     pytest.importorskip("pinocchio")
-    from mbs_envs.benchmarking import pinocchio_chain
+    from mbs_envs.studies.benchmarking import pinocchio_chain
 
     chain = random_chain(n)
     pin, model, data = pinocchio_chain(chain)

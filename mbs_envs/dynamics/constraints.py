@@ -314,7 +314,7 @@ def _cholesky_solve_if_well_conditioned(S, r, rcond, R, Rinv, y):  # pragma: no 
 
 
 # ---------------------------------------------------------------------------
-# The compiled path of a constrained model (see mbs_envs.compiled). A model
+# The compiled path of a constrained model (see mbs_envs.dynamics.compiled). A model
 # supplies kernels of one member -- ``terms(q, v, tau, p, M, f, Psi, gamma)``
 # (``M``, ``f = tau - h``, ``Psi`` and ``gamma = -dPsi v``), ``residual(q, p, phi)``,
 # ``jacobian(q, p, Psi)``, ``mass(q, p, M)`` -- on contiguous ``q, v, tau`` (n,)
@@ -335,7 +335,7 @@ def column(x, b):  # pragma: no cover - compiled
 
 @njit(cache=False)
 def constrained_acceleration_columns(terms, k, q, v, tau, theta, a):  # pragma: no cover - compiled
-    """Accelerations of a batch in columns (the ``acc`` kernel of :func:`mbs_envs.compiled.rk_run`):
+    """Accelerations of a batch in columns (the ``acc`` kernel of :func:`mbs_envs.dynamics.compiled.rk_run`):
     per member, ``terms`` then :func:`schur_member` (as :meth:`ConstrainedModel.forward_dynamics`).
 
     Parameters
@@ -364,7 +364,7 @@ def constrained_acceleration_columns(terms, k, q, v, tau, theta, a):  # pragma: 
 @njit(cache=False)
 def project_columns(residual, jacobian, mass, rows, k, q, v, theta, tol):  # pragma: no cover - compiled
     """:meth:`ConstrainedModel.project` of a batch in columns, in place (the ``after`` kernel of
-    :func:`mbs_envs.compiled.rk_run`).
+    :func:`mbs_envs.dynamics.compiled.rk_run`).
 
     Per member: Gauss-Newton on the holonomic rows ``rows`` of ``Psi`` until
     ``max |phi| <= tol`` (at most 20 iterations, as :func:`gauss_newton_projection`),

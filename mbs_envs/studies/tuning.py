@@ -1,7 +1,7 @@
 """One documented procedure that picks the gains of every model-based controller.
 
 For each scene and controller a small grid of candidates is rolled out on
-the **tuning seeds** (:func:`mbs_envs.seeds.tuning_seeds`, disjoint from the
+the **tuning seeds** (:func:`mbs_envs.studies.seeds.tuning_seeds`, disjoint from the
 test seeds of the comparison) under three plant conditions: nominal, and the
 plant's masses and lengths x 0.8 and x 1.2 (the controller keeps the nominal
 model). A candidate's score is

@@ -11,8 +11,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from .envs.registry import SCENES, load
-from .simulate import simulate
+from ..envs.registry import SCENES, load
+from ..dynamics.simulate import simulate
 
 
 def random_episodes(env_id: str, episodes: int, num_envs: int = 256, seed: int = 0, wild_fraction: float = 0.1,

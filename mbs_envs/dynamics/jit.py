@@ -27,7 +27,7 @@ import pathlib
 import numba
 
 #: the package's root directory
-PACKAGE = pathlib.Path(__file__).resolve().parent
+PACKAGE = pathlib.Path(__file__).resolve().parent.parent
 
 
 @functools.cache

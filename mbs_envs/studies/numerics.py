@@ -25,10 +25,10 @@ from typing import Any
 
 import numpy as np
 
-from . import integrators
-from .models import FourBar, Planar2R, RollingDisk, SerialChain
-from .models.base import Model
-from .simulate import Input, simulate
+from ..dynamics import integrators
+from ..models import FourBar, Planar2R, RollingDisk, SerialChain
+from ..models.base import Model
+from ..dynamics.simulate import Input, simulate
 
 FIXED = ("euler", "semi_implicit_euler", "midpoint", "rk4", "implicit_euler", "sdirk2", "sdirk3")
 ADAPTIVE = ("rk45", "dop853", "radau", "bdf", "lsoda")

@@ -17,8 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from .models.base import Model
-from .references import SumOfSines
+from ..models.base import Model
+from ..envs.references import SumOfSines
 
 
 @dataclasses.dataclass(frozen=True)

@@ -1,4 +1,4 @@
-"""The compiled path: the explicit Runge-Kutta stepper of :mod:`mbs_envs.integrators`
+"""The compiled path: the explicit Runge-Kutta stepper of :mod:`mbs_envs.dynamics.integrators`
 as one numba loop over a batch, for models with compiled kernels.
 
 Nothing here knows a mechanism. A model opts in with ``kernels =
@@ -12,15 +12,15 @@ parameters as an array, ``(P,)`` or ``(B, P)`` with per-member parameters).
 
 Layout: kernels take the batch in *columns*, the member index last (``q`` is
 ``(n, B)``, the parameters ``(P, B)``), and every innermost loop runs over the
-members. With the branch-free :func:`mbs_envs.trig.sincos` those loops compile to
+members. With the branch-free :func:`mbs_envs.dynamics.trig.sincos` those loops compile to
 SIMD code (a loop that calls libm's ``sin`` stays scalar). The stepper runs any
-explicit :class:`~mbs_envs.integrators.Tableau`: the same stages, in the same
-order, as :class:`~mbs_envs.integrators.ExplicitRK`, so the two paths differ
+explicit :class:`~mbs_envs.dynamics.integrators.Tableau`: the same stages, in the same
+order, as :class:`~mbs_envs.dynamics.integrators.ExplicitRK`, so the two paths differ
 only by rounding: of the models' linear solves (Cramer's rule against Cholesky)
-and of sines and cosines (:func:`mbs_envs.trig.sincos` against libm, 1 ulp);
+and of sines and cosines (:func:`mbs_envs.dynamics.trig.sincos` against libm, 1 ulp);
 tested to 1e-12.
 
-Constrained models (:mod:`mbs_envs.constraints`) bind the same stepper with their
+Constrained models (:mod:`mbs_envs.dynamics.constraints`) bind the same stepper with their
 Schur-complement accelerations and the projection after every step (the ``after``
 kernel of :func:`rk_run`). The numpy path stays the general one (implicit and
 adaptive integrators, Baumgarte stabilization, callable inputs);
@@ -39,7 +39,7 @@ from .integrators import ExplicitRK, Tableau
 from .jit import njit
 
 if TYPE_CHECKING:  # models import this module for their kernels
-    from .models.base import Model
+    from ..models.base import Model
 
 
 @dataclasses.dataclass(frozen=True)
@@ -108,12 +108,12 @@ _arrays_of = functools.cache(TableauArrays.of)
 def rk_columns(acc, after, theta, A_v, A_q, b_v, b_q, needed, q, v, tau, h, substeps, tol, Q, V, K):  # pragma: no cover
     """Advance every column of ``q, v`` (n, B) ``substeps`` steps of size ``h``, in place.
 
-    The stages are those of :meth:`mbs_envs.integrators.ExplicitRK.step`, term by
+    The stages are those of :meth:`mbs_envs.dynamics.integrators.ExplicitRK.step`, term by
     term in the same order (zero coefficients skipped), with the input ``tau``
     (n, B) held. ``Q, V, K`` are work arrays of shape ``(s, n, B)``; the model's
     kernel is called as ``acc(Q[i], V[i], tau, theta, K[i])``, and
     ``after(q, v, theta, tol)`` after every step (a constrained model's
-    projection, :func:`mbs_envs.constraints.project_columns`; :func:`no_projection`
+    projection, :func:`mbs_envs.dynamics.constraints.project_columns`; :func:`no_projection`
     otherwise). Every innermost loop runs over the batch, so it vectorizes.
     """
     s = A_v.shape[0]
@@ -205,7 +205,7 @@ def advance_compiled(
     model: Model, tab: TableauArrays, q: np.ndarray, v: np.ndarray, u: np.ndarray, duration: float, substeps: int = 1,
     stabilization: Any = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The compiled :func:`mbs_envs.simulate.advance` for a held input (numpy in, numpy out).
+    """The compiled :func:`mbs_envs.dynamics.simulate.advance` for a held input (numpy in, numpy out).
 
     Parameters
     ----------

@@ -1,7 +1,7 @@
 """Stiff and extreme cases: which integrators stay stable at which step, and
 whether a failure is reported (the logic of ``scripts/stiff_cases.py``).
 
-Every case is a :class:`mbs_envs.numerics.Case`. :func:`scan` runs one
+Every case is a :class:`mbs_envs.studies.numerics.Case`. :func:`scan` runs one
 fixed-step integrator from the coarsest step down, halving, until a run is
 *stable*: not flagged as diverged and within ``accept`` of the reference at
 the final time (a bounded but wrong answer is not stable). Runs that are
@@ -17,11 +17,12 @@ from typing import Any
 
 import numpy as np
 
-from . import integrators, numerics
-from .models import FourBar, Planar2R, RollingDisk, SerialChain
-from .models.base import Model
-from .references import SumOfSines
-from .simulate import acceleration, simulate
+from ..dynamics import integrators
+from . import numerics
+from ..models import FourBar, Planar2R, RollingDisk, SerialChain
+from ..models.base import Model
+from ..envs.references import SumOfSines
+from ..dynamics.simulate import acceleration, simulate
 
 Case = numerics.Case
 
@@ -30,7 +31,7 @@ def spectral_radius(case: Case) -> float:
     """Largest ``|eigenvalue|`` of the linearized first-order system at the start [1/s].
 
     ``J = [[0, I], [da/dq, da/dv]]`` with finite-difference ``da/dq``, ``da/dv``
-    (:func:`mbs_envs.integrators.acceleration_jacobian`). An explicit method
+    (:func:`mbs_envs.dynamics.integrators.acceleration_jacobian`). An explicit method
     with real stability interval ``[-beta, 0]`` needs ``dt < beta / rho``
     (RK4: ``beta = 2.785``) when the fast eigenvalue is real and negative.
     """
@@ -109,7 +110,7 @@ def singular_cases() -> list[Case]:
 def scan(case: Case, ref: numerics.Reference, method: str, dts: list[float], accept: float = 1e-2) -> list[dict[str, Any]]:
     """Run ``method`` at ``dts`` (coarsest first) until a run is stable; return every row.
 
-    Each row is :func:`mbs_envs.numerics.score`'s with ``stable`` and
+    Each row is :func:`mbs_envs.studies.numerics.score`'s with ``stable`` and
     ``silent_failure`` added. Where the reference itself is not determined to
     ``accept`` (its error estimate is larger: motion through a change point,
     where the branch taken is decided by rounding), stability is judged on the

@@ -2,7 +2,7 @@
 
 For each scene, each policy (the model-based controllers that apply, and the
 shipped SB3 agents, every training seed of each) is rolled out on the same
-test seeds (:mod:`mbs_envs.seeds`: disjoint from every training, validation
+test seeds (:mod:`mbs_envs.studies.seeds`: disjoint from every training, validation
 and tuning seed), in one batched rollout per (scene, condition, policy).
 Conditions: the nominal plant; model mismatch, where the plant's masses and
 lengths are scaled by ``1 +- p`` (inertias by ``(1 +- p)^3``, i.e. the same
@@ -29,7 +29,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from .envs.registry import SCENES as REGISTRY
+from ..envs.registry import SCENES as REGISTRY
 from .evaluation import episode_metrics, make_controller, rollout_batch
 
 #: scene -> (env id, env kwargs, model-based controllers by display name -> "module:class"), from the registry

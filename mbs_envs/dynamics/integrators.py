@@ -29,7 +29,7 @@ implicit ones at most ``max_evaluations`` accelerations per step (then the
 failing members get NaN); the scipy ones at most ``max_evaluations`` per
 output interval, and stop at the first non-finite or runaway evaluation
 (:data:`RUNAWAY`). A NaN state is how a step reports a blow-up: callers flag
-it as divergence (:func:`mbs_envs.simulate.diverged`), never raise.
+it as divergence (:func:`mbs_envs.dynamics.simulate.diverged`), never raise.
 
 All steppers are batched: ``q`` and ``v`` may carry leading batch dimensions.
 """
@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 from scipy.integrate import BDF, DOP853, LSODA, RK45, Radau
 
-from . import validation as check
+from .. import validation as check
 from .linalg import per_member
 
 #: ``a(t, q, v) -> accelerations``, batched like ``q`` and ``v``.

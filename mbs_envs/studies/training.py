@@ -1,7 +1,7 @@
 """Training stable-baselines3 agents on the scenes (the logic of ``scripts/train.py``).
 
 Agents train on the batched vector env through the SB3 adapter
-(:func:`mbs_envs.sb3.make_sb3_vec_env`): one numpy step for all members. While
+(:func:`mbs_envs.envs.sb3.make_sb3_vec_env`): one numpy step for all members. While
 training, :class:`TrainingLog` evaluates the deterministic policy every
 ``eval_every`` env-steps on fixed seeds (a batched rollout, the same metrics
 as ``scripts/compare.py``) and records it against the *training* wall time
@@ -32,10 +32,10 @@ from stable_baselines3.common.noise import NormalActionNoise
 from tqdm import tqdm
 
 from . import seeds as seed_ranges
-from .envs import registry
+from ..envs import registry
 from .evaluation import default_gains_entry, episode_metrics, make_controller, rollout_batch
 from .residual import ResidualPolicy, check_bound, residual_vec_env
-from .sb3 import make_sb3_vec_env
+from ..envs.sb3 import make_sb3_vec_env
 
 ALGOS = {"ppo": PPO, "sac": SAC, "td3": TD3}
 
@@ -59,7 +59,7 @@ class TrainConfig:
     n_envs : int, optional
         Parallel members (default 64 for PPO, 8 for SAC/TD3). Member ``i`` of
         run ``seed`` starts from ``reset(seed=100_000 + 1_000 seed + i)``
-        (:func:`mbs_envs.seeds.training_members`), apart from test seeds.
+        (:func:`mbs_envs.studies.seeds.training_members`), apart from test seeds.
     env_kwargs : dict
         Arguments of the environment (``params``, ``n_links``, ...).
     net_arch : tuple of int, optional
@@ -68,10 +68,10 @@ class TrainConfig:
     eval_every : int, optional
         Env-steps between evaluations (default ``steps / 10``).
     eval_seeds : int
-        Episodes per evaluation (validation seeds 10_000 ..., :mod:`mbs_envs.seeds`).
+        Episodes per evaluation (validation seeds 10_000 ..., :mod:`mbs_envs.studies.seeds`).
     residual : str, optional
         Train a residual agent on top of this controller (``"module:Class"``,
-        built on the nominal env with its default gains); see :mod:`mbs_envs.residual`.
+        built on the nominal env with its default gains); see :mod:`mbs_envs.studies.residual`.
     residual_bound : float
         Largest correction, as a fraction of the actuator limit.
     """
@@ -281,7 +281,7 @@ def train(config: TrainConfig, out: pathlib.Path, tensorboard: bool = False, che
 def load_agent(folder: pathlib.Path) -> tuple[Any, dict[str, Any]]:
     """An agent saved by :func:`train` and its ``config.json``.
 
-    A residual agent comes back as a :class:`~mbs_envs.residual.ResidualPolicy`
+    A residual agent comes back as a :class:`~mbs_envs.studies.residual.ResidualPolicy`
     around its base controller, built on the nominal env of its record with
     the gains it was trained with.
     """

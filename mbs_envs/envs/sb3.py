@@ -8,7 +8,7 @@ per ``step_wait``, SB3's conventions for episode ends
 SB3 logs episode returns::
 
     from stable_baselines3 import PPO
-    from mbs_envs.sb3 import make_sb3_vec_env
+    from mbs_envs.envs.sb3 import make_sb3_vec_env
 
     venv = make_sb3_vec_env("mbs_envs/Planar2R-v0", n_envs=64, seed=0)
     PPO("MlpPolicy", venv).learn(100_000)
@@ -26,7 +26,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.vec_env import VecEnv, VecMonitor
 
-from .envs.vector import MBSVectorEnv
+from .vector import MBSVectorEnv
 
 
 class SB3VecEnv(VecEnv):

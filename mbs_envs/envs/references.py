@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import dataclasses
 
-from .jit import njit
-from .trig import sincos_columns
+from ..dynamics.jit import njit
+from ..dynamics.trig import sincos_columns
 import numpy as np
 
 

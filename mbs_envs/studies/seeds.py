@@ -7,9 +7,9 @@ from one of these ranges:
 - **test** ``[0, 10_000)``: the comparison report (``scripts/compare.py`` takes
   the first ``n``);
 - **validation** ``[10_000, 20_000)``: the learning curves recorded while an
-  agent trains (:class:`mbs_envs.training.TrainingLog`);
+  agent trains (:class:`mbs_envs.studies.training.TrainingLog`);
 - **tuning** ``[20_000, 30_000)``: the gain search of the model-based
-  controllers (:mod:`mbs_envs.tuning`);
+  controllers (:mod:`mbs_envs.studies.tuning`);
 - **training** ``[100_000, ...)``: the members of a training run's vector env;
   run ``k`` seeds member ``i`` with ``100_000 + 1_000 k + i`` at its first reset
   (later episodes come from each member's generator, not from integer seeds).

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from .models import SerialChain
+from ..models import SerialChain
 
 
 def median_time(f: Callable[[], Any], repeats: int = 7, min_time: float = 0.02) -> float:
