@@ -44,7 +44,11 @@ class ModuleAliases:
         return importlib.util.spec_from_loader(fullname, self)
 
     def create_module(self, spec):
-        return importlib.import_module(self.aliases[spec.name])
+        module = importlib.import_module(self.aliases[spec.name])
+        self._specs = {**getattr(self, "_specs", {}), spec.name: module.__spec__}
+        return module
 
-    def exec_module(self, module) -> None:  # the target module is already executed
-        return None
+    def exec_module(self, module) -> None:
+        """Nothing to run (the target module is executed); give it back its own ``__spec__``,
+        which the import system replaced by the alias's."""
+        module.__spec__ = self._specs[module.__spec__.name]

@@ -80,7 +80,8 @@ def test_the_module_paths_of_earlier_versions_still_import_the_same_modules():
     import mbs_envs
 
     for old, new in mbs_envs.MOVED.items():
-        assert importlib.import_module(old) is importlib.import_module(new), old
+        module = importlib.import_module(old)
+        assert module is importlib.import_module(new) and module.__spec__.name == new, old
     from mbs_envs.residual import ResidualPolicy  # shipped agents' pickles may name old paths
     from mbs_envs.sb3 import make_sb3_vec_env  # noqa: F401  (the README's adapter import)
     from mbs_envs.simulate import advance  # noqa: F401
