@@ -317,9 +317,10 @@ def _cholesky_solve_if_well_conditioned(S, r, rcond, R, Rinv, y):  # pragma: no 
 # The compiled path of a constrained model (see mbs_envs.dynamics.compiled). A model
 # supplies kernels of one member -- ``terms(q, v, tau, p, M, f, Psi, gamma)``
 # (``M``, ``f = tau - h``, ``Psi`` and ``gamma = -dPsi v``), ``residual(q, p, phi)``,
-# ``jacobian(q, p, Psi)``, ``mass(q, p, M)`` -- on contiguous ``q, v, tau`` (n,)
-# and its parameter column ``p``; the generic loops below run them over a batch in
-# columns and are bound in the model's module (cache=False here, as rk_run).
+# ``jacobian(q, p, Psi)``, ``mass(q, p, M)`` -- on the member as a batch of one
+# column, ``q, v, tau`` (n, 1) and ``p`` (P, 1) (:func:`column`), so that they are the
+# model's batch formulas; the generic loops below run them member by member and are
+# bound in the model's module (cache=False here, as rk_run).
 # ---------------------------------------------------------------------------
 
 
@@ -350,12 +351,10 @@ def constrained_acceleration_columns(terms, k, q, v, tau, theta, a):  # pragma: 
     """
     n, B = q.shape
     M, f, Psi, gamma = np.empty((n, n)), np.empty(n), np.empty((k, n)), np.empty(k)
-    qb, vb, tb, ab, lam = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(k)
+    ab, lam = np.empty(n), np.empty(k)
     work = schur_work(n, k)
     for b in range(B):
-        for i in range(n):
-            qb[i], vb[i], tb[i] = q[i, b], v[i, b], tau[i, b]
-        terms(qb, vb, tb, theta[:, b], M, f, Psi, gamma)
+        terms(column(q, b), column(v, b), column(tau, b), column(theta, b), M, f, Psi, gamma)
         schur_member(M, f, Psi, gamma, RCOND, False, work, ab, lam)
         for i in range(n):
             a[i, b] = ab[i]
@@ -387,14 +386,12 @@ def project_columns(residual, jacobian, mass, rows, k, q, v, theta, tol):  # pra
     n, B = q.shape
     m = rows.shape[0]
     M, Psi, zero, gamma = np.empty((n, n)), np.empty((k, n)), np.zeros(n), np.empty(k)
-    qb, vb, dv, lam = np.empty(n), np.empty(n), np.empty(n), np.empty(k)
+    dv, lam = np.empty(n), np.empty(k)
     phi, G, y = np.empty(m), np.empty((m, m)), np.empty(m)
     R, Rinv = np.zeros((m, m)), np.zeros((m, m))
     work = schur_work(n, k)
     for b in range(B):
-        p = theta[:, b]
-        for i in range(n):
-            qb[i], vb[i] = q[i, b], v[i, b]
+        p, qb = column(theta, b), column(q, b)
         residual(qb, p, phi)
         for _ in range(20):
             active = False
@@ -415,19 +412,19 @@ def project_columns(residual, jacobian, mass, rows, k, q, v, theta, tol):  # pra
                 e = 0.0
                 for i in range(m):
                     e += Psi[rows[i], c] * y[i]
-                qb[c] -= e
+                qb[c, 0] -= e
             residual(qb, p, phi)
         mass(qb, p, M)
         jacobian(qb, p, Psi)
         for i in range(k):
             e = 0.0
             for c in range(n):
-                e += Psi[i, c] * vb[c]
+                e += Psi[i, c] * v[c, b]
             gamma[i] = -e
         schur_member(M, zero, Psi, gamma, RCOND, False, work, dv, lam)
         for i in range(n):
-            q[i, b] = qb[i]
-            v[i, b] = vb[i] + dv[i]
+            q[i, b] = qb[i, 0]
+            v[i, b] = v[i, b] + dv[i]
 
 
 @njit(cache=False)
@@ -437,13 +434,11 @@ def constraint_info_columns(terms, residual, q, v, tau, theta, res, lam):  # pra
     n, B = q.shape
     k = lam.shape[1]
     M, f, Psi, gamma = np.empty((n, n)), np.empty(n), np.empty((k, n)), np.empty(k)
-    qb, vb, tb, ab, lb = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(k)
+    ab, lb = np.empty(n), np.empty(k)
     phi = np.zeros(k)  # the holonomic rows written, the others stay 0
     work = schur_work(n, k)
     for b in range(B):
-        p = theta[:, b]
-        for i in range(n):
-            qb[i], vb[i], tb[i] = q[i, b], v[i, b], tau[i, b]
+        p, qb = column(theta, b), column(q, b)
         residual(qb, p, phi)
         worst = 0.0
         for i in range(k):
@@ -451,7 +446,7 @@ def constraint_info_columns(terms, residual, q, v, tau, theta, res, lam):  # pra
             if x > worst or x != x:  # NaN stays
                 worst = x
         res[b] = worst
-        terms(qb, vb, tb, p, M, f, Psi, gamma)
+        terms(qb, column(v, b), column(tau, b), p, M, f, Psi, gamma)
         schur_member(M, f, Psi, gamma, RCOND, False, work, ab, lb)
         for i in range(k):
             lam[b, i] = lb[i]

@@ -21,7 +21,7 @@ import numpy as np
 from ..dynamics import constraints as _constraints
 from ..dynamics.compiled import rk_run
 from ..dynamics.jit import njit
-from ..dynamics.trig import sincos_checked, sincos_columns
+from ..dynamics.trig import sincos_columns
 from . import planar2r as _p2r
 from .base import Params, as_vector, param, smoothed_friction
 from .constrained import ConstrainedModel
@@ -139,60 +139,6 @@ _L0, _L1, _L2, _L3, _M1, _M2, _M3, _R1, _R2, _R3, _I1, _I2, _I3, _G = range(14)
 _B1, _F1, _VS = 14, 17, 20
 
 
-@njit
-def _angles(q):  # pragma: no cover - compiled
-    """``(c1, s1, c12, s12, c3, s3)`` of one member's ``q`` (3,)."""
-    s1, c1 = sincos_checked(q[0])
-    s12, c12 = sincos_checked(q[0] + q[1])
-    s3, c3 = sincos_checked(q[2])
-    return c1, s1, c12, s12, c3, s3
-
-
-@njit
-def mass_member(q, p, M):  # pragma: no cover - compiled
-    """``M = blockdiag(M_2R, I3 + m3 r3^2)`` of one member into ``M`` (3, 3)."""
-    _, c2 = sincos_checked(q[1])
-    m11, m12, m22 = _p2r._mass_entries(c2, p[_M1], p[_M2], p[_L1], p[_R1], p[_R2], p[_I1], p[_I2])
-    M[:, :] = 0.0
-    M[0, 0], M[0, 1], M[1, 0], M[1, 1] = m11, m12, m12, m22
-    M[2, 2] = p[_I3] + p[_M3] * p[_R3] ** 2
-
-
-@njit
-def residual_member(q, p, phi):  # pragma: no cover - compiled
-    """``phi(q)`` of one member into ``phi`` (2,)."""
-    c1, s1, c12, s12, c3, s3 = _angles(q)
-    phi[0], phi[1] = _closure_residual(c1, s1, c12, s12, c3, s3, p[_L0], p[_L1], p[_L2], p[_L3])
-
-
-@njit
-def jacobian_member(q, p, Psi):  # pragma: no cover - compiled
-    """``Psi(q)`` of one member into ``Psi`` (2, 3)."""
-    c1, s1, c12, s12, c3, s3 = _angles(q)
-    r0, r1 = _closure_jacobian(c1, s1, c12, s12, c3, s3, p[_L1], p[_L2], p[_L3])
-    Psi[0, 0], Psi[0, 1], Psi[0, 2] = r0
-    Psi[1, 0], Psi[1, 1], Psi[1, 2] = r1
-
-
-@njit
-def terms_member(q, v, tau, p, M, f, Psi, gamma):  # pragma: no cover - compiled
-    """One member's ``M``, ``f = tau - (C v + G + F)``, ``Psi`` and ``gamma = -dPsi v``
-    (the kernel interface of :func:`mbs_envs.dynamics.constraints.constrained_acceleration_columns`)."""
-    mass_member(q, p, M)
-    jacobian_member(q, p, Psi)
-    c1, s1, c12, s12, c3, s3 = _angles(q)
-    s2, _ = sincos_checked(q[1])
-    h1, h2 = _p2r._coriolis_entries(s2, v[0], v[1], p[_M2], p[_L1], p[_R2])
-    g1, g2 = _p2r._gravity_entries(c1, c12, p[_M1], p[_M2], p[_L1], p[_R1], p[_R2], p[_G])
-    g3 = p[_M3] * p[_G] * p[_R3] * c3
-    f[0] = tau[0] - (h1 + g1 + _p2r._friction(v[0], p[_B1], p[_F1], p[_VS]))
-    f[1] = tau[1] - (h2 + g2 + _p2r._friction(v[1], p[_B1 + 1], p[_F1 + 1], p[_VS]))
-    f[2] = tau[2] - (0.0 + g3 + _p2r._friction(v[2], p[_B1 + 2], p[_F1 + 2], p[_VS]))
-    w12 = v[0] + v[1]
-    d0, d1 = _closure_bias(c1, s1, c12, s12, c3, s3, v[0] ** 2, w12**2, v[2] ** 2, p[_L1], p[_L2], p[_L3])
-    gamma[0], gamma[1] = -d0, -d1
-
-
 # -- the batch in columns, closed form ------------------------------------------------
 # The Schur solve of a 2 x 2 complement of a block-diagonal 3 x 3 M, written out by
 # Cramer's rule, with the batch innermost so that LLVM vectorizes the loops (as
@@ -262,6 +208,51 @@ def _bias_closed(T, v, theta, b):  # pragma: no cover - compiled
         theta[_L1, b], theta[_L2, b], theta[_L3, b],
     )
     return -d0, -d1
+
+
+@njit(inline="always")
+def _residual_closed(T, theta, b):  # pragma: no cover - compiled
+    """``phi`` of member ``b``."""
+    return _closure_residual(
+        T[0, b], T[1, b], T[2, b], T[3, b], T[4, b], T[5, b], theta[_L0, b], theta[_L1, b], theta[_L2, b], theta[_L3, b]
+    )
+
+
+# The member kernels of the general path (:mod:`mbs_envs.dynamics.constraints`): one member as a
+# batch of one column, ``q, v, tau`` (3, 1) and ``p`` (P, 1), on the same formulas as the batch.
+
+
+@njit
+def mass_member(q, p, M):  # pragma: no cover - compiled
+    """``M = blockdiag(M_2R, I3 + m3 r3^2)`` of one member into ``M`` (3, 3)."""
+    m11, m12, m22, m33 = _mass_closed(_trig_columns(q), p, 0)
+    M[:, :] = 0.0
+    M[0, 0], M[0, 1], M[1, 0], M[1, 1], M[2, 2] = m11, m12, m12, m22, m33
+
+
+@njit
+def residual_member(q, p, phi):  # pragma: no cover - compiled
+    """``phi(q)`` of one member into ``phi`` (2,)."""
+    phi[0], phi[1] = _residual_closed(_trig_columns(q), p, 0)
+
+
+@njit
+def jacobian_member(q, p, Psi):  # pragma: no cover - compiled
+    """``Psi(q)`` of one member into ``Psi`` (2, 3)."""
+    r0, r1 = _jacobian_closed(_trig_columns(q), p, 0)
+    Psi[0, 0], Psi[0, 1], Psi[0, 2] = r0
+    Psi[1, 0], Psi[1, 1], Psi[1, 2] = r1
+
+
+@njit
+def terms_member(q, v, tau, p, M, f, Psi, gamma):  # pragma: no cover - compiled
+    """One member's ``M``, ``f = tau - (C v + G + F)``, ``Psi`` and ``gamma = -dPsi v``
+    (the kernel interface of :func:`mbs_envs.dynamics.constraints.constrained_acceleration_columns`)."""
+    T = _trig_columns(q)
+    mass_member(q, p, M)
+    jacobian_member(q, p, Psi)
+    f[0], f[1], f[2] = _force_closed(T, v, tau, _friction_columns(v, p), p, 0)
+    gamma[0], gamma[1] = _bias_closed(T, v, p, 0)
 
 
 @njit(inline="always")
@@ -340,8 +331,7 @@ def project_kernel(q, v, theta, tol):  # pragma: no cover - compiled
         T = _trig_columns(q)
         n_active = 0
         for b in range(B):
-            phi0, phi1 = _closure_residual(T[0, b], T[1, b], T[2, b], T[3, b], T[4, b], T[5, b],
-                                           theta[_L0, b], theta[_L1, b], theta[_L2, b], theta[_L3, b])  # fmt: skip
+            phi0, phi1 = _residual_closed(T, theta, b)
             active[b] = ((abs(phi0) > tol) | (abs(phi1) > tol)) & (not general[b]) & (it < 20)
             n_active += active[b]
             if active[b]:  # q -= P^T (P P^T)^-1 phi
@@ -384,8 +374,7 @@ def constraint_info_kernel(q, v, tau, theta, res, lam):  # pragma: no cover - co
     B = q.shape[1]
     T, F = _trig_columns(q), _friction_columns(v, theta)
     for b in range(B):
-        phi0, phi1 = _closure_residual(T[0, b], T[1, b], T[2, b], T[3, b], T[4, b], T[5, b],
-                                       theta[_L0, b], theta[_L1, b], theta[_L2, b], theta[_L3, b])  # fmt: skip
+        phi0, phi1 = _residual_closed(T, theta, b)
         x0, x1 = abs(phi0), abs(phi1)
         res[b] = x0 if (x0 > x1 or x0 != x0) else x1
         m11, m12, m22, m33 = _mass_closed(T, theta, b)

@@ -38,7 +38,7 @@ import numpy as np
 from ..dynamics import constraints as _constraints
 from ..dynamics.compiled import rk_run
 from ..dynamics.jit import njit
-from ..dynamics.trig import sincos_checked, sincos_rows
+from ..dynamics.trig import sincos_rows
 from .base import Params, as_vector, param
 from .constrained import ConstrainedModel
 
@@ -181,66 +181,6 @@ _rolling_bias_entries = njit(rolling_bias_entries)
 _M, _R, _G, _B_ROLL, _B_PIVOT = range(5)
 
 
-@njit
-def _trig(q):  # pragma: no cover - compiled
-    """``(s1, c1, s2, c2)`` of one member's heading and lean."""
-    s1, c1 = sincos_checked(q[3])
-    s2, c2 = sincos_checked(q[4])
-    return s1, c1, s2, c2
-
-
-@njit
-def mass_member(q, p, M):  # pragma: no cover - compiled
-    """``M`` (6, 6) of one member."""
-    A, C = _disk_inertias(p[_M], p[_R])
-    s2, c2 = sincos_checked(q[4])
-    M33, M35 = _disk_mass_entries(s2, c2, A, C)
-    M[:, :] = 0.0
-    M[0, 0] = M[1, 1] = M[2, 2] = p[_M]
-    M[3, 3], M[3, 5], M[5, 3], M[4, 4], M[5, 5] = M33, M35, M35, A, C
-
-
-@njit
-def residual_member(q, p, phi):  # pragma: no cover - compiled
-    """``phi = z - r cos th2`` of one member into ``phi[0]``."""
-    _, c2 = sincos_checked(q[4])
-    phi[0] = q[2] - p[_R] * c2
-
-
-@njit
-def jacobian_member(q, p, Psi):  # pragma: no cover - compiled
-    """``Psi = [I3, -[rC]x Jw]`` (3, 6) of one member."""
-    s1, c1, s2, c2 = _trig(q)
-    x, y, z = _contact_offset_entries(s1, c1, s2, c2, p[_R])
-    rows = _rolling_jacobian_entries(s1, c1, s2, c2, x, y, z)
-    Psi[:, :] = 0.0
-    for i in range(3):
-        Psi[i, i] = 1.0
-    for i, row in enumerate(rows):
-        Psi[i, 3], Psi[i, 4], Psi[i, 5] = row[0], row[1], row[2]
-
-
-@njit
-def terms_member(q, v, tau, p, M, f, Psi, gamma):  # pragma: no cover - compiled
-    """One member's ``M``, ``f = tau - (C v + G + F)``, ``Psi`` and ``gamma = -dPsi v``
-    (the kernel interface of :func:`mbs_envs.dynamics.constraints.constrained_acceleration_columns`)."""
-    mass_member(q, p, M)
-    jacobian_member(q, p, Psi)
-    s1, c1, s2, c2 = _trig(q)
-    A, C = _disk_inertias(p[_M], p[_R])
-    h3, h4, h5 = _disk_coriolis_entries(s2, c2, v[3], v[4], v[5], A, C)
-    f[0] = tau[0] - 0.0
-    f[1] = tau[1] - 0.0
-    f[2] = tau[2] - p[_M] * p[_G]
-    f[3] = tau[3] - (h3 + p[_B_PIVOT] * v[3])
-    f[4] = tau[4] - h4
-    f[5] = tau[5] - (h5 + p[_B_ROLL] * v[5])
-    rC = _contact_offset_entries(s1, c1, s2, c2, p[_R])
-    w = _angular_velocity_entries(s1, c1, s2, c2, v[3], v[4], v[5])
-    g0, g1, g2 = _rolling_bias_entries(s1, c1, s2, c2, v[3], v[4], v[5], p[_R], rC, w)
-    gamma[0], gamma[1], gamma[2] = -g0, -g1, -g2
-
-
 # -- the batch in columns, closed form ------------------------------------------------
 # ``M = blockdiag(m I3, N)`` with ``N`` = [[M33, 0, M35], [0, A, 0], [M35, 0, C]] and
 # ``Psi = [I3, J]``: ``S = Psi M^-1 Psi^T = I3 / m + J N^-1 J^T`` (3 x 3) is solved by its
@@ -289,6 +229,53 @@ def _bias_closed(T, v, theta, b):  # pragma: no cover - compiled
     w = _angular_velocity_entries(s1, c1, s2, c2, v[3, b], v[4, b], v[5, b])
     g0, g1, g2 = _rolling_bias_entries(s1, c1, s2, c2, v[3, b], v[4, b], v[5, b], theta[_R, b], rC, w)
     return -g0, -g1, -g2
+
+
+@njit(inline="always")
+def _residual_closed(T, q, theta, b):  # pragma: no cover - compiled
+    """``phi = z - r cos th2`` of member ``b``."""
+    return q[2, b] - theta[_R, b] * T[3, b]
+
+
+# The member kernels of the general path (:mod:`mbs_envs.dynamics.constraints`): one member as a
+# batch of one column, ``q, v, tau`` (6, 1) and ``p`` (P, 1), on the same formulas as the batch.
+
+
+@njit
+def mass_member(q, p, M):  # pragma: no cover - compiled
+    """``M`` (6, 6) of one member."""
+    m, A, C, M33, M35 = _mass_closed(_trig_columns(q), p, 0)
+    M[:, :] = 0.0
+    M[0, 0] = M[1, 1] = M[2, 2] = m
+    M[3, 3], M[3, 5], M[5, 3], M[4, 4], M[5, 5] = M33, M35, M35, A, C
+
+
+@njit
+def residual_member(q, p, phi):  # pragma: no cover - compiled
+    """``phi = z - r cos th2`` of one member into ``phi[0]``."""
+    phi[0] = _residual_closed(_trig_columns(q), q, p, 0)
+
+
+@njit
+def jacobian_member(q, p, Psi):  # pragma: no cover - compiled
+    """``Psi = [I3, -[rC]x Jw]`` (3, 6) of one member."""
+    J = _jacobian_closed(_trig_columns(q), p, 0)
+    Psi[:, :] = 0.0
+    for i in range(3):
+        Psi[i, i] = 1.0
+        Psi[i, 3], Psi[i, 4], Psi[i, 5] = J[i][0], J[i][1], J[i][2]
+
+
+@njit
+def terms_member(q, v, tau, p, M, f, Psi, gamma):  # pragma: no cover - compiled
+    """One member's ``M``, ``f = tau - (C v + G + F)``, ``Psi`` and ``gamma = -dPsi v``
+    (the kernel interface of :func:`mbs_envs.dynamics.constraints.constrained_acceleration_columns`)."""
+    T = _trig_columns(q)
+    mass_member(q, p, M)
+    jacobian_member(q, p, Psi)
+    _, A, C, _, _ = _mass_closed(T, p, 0)
+    f[0], f[1], f[2], f[3], f[4], f[5] = _force_closed(T, v, tau, p, 0, A, C)
+    gamma[0], gamma[1], gamma[2] = _bias_closed(T, v, p, 0)
 
 
 @njit(inline="always")
@@ -397,7 +384,7 @@ def project_kernel(q, v, theta, tol):  # pragma: no cover - compiled
         T = _trig_columns(q)
         n_active = 0
         for b in range(B):
-            phi = q[2, b] - theta[_R, b] * T[3, b]
+            phi = _residual_closed(T, q, theta, b)
             if abs(phi) > tol and it < 20:
                 n_active += 1
                 J2 = _jacobian_closed(T, theta, b)[2]  # the height row: (0, 0, 1, J2)
@@ -435,7 +422,7 @@ def constraint_info_kernel(q, v, tau, theta, res, lam):  # pragma: no cover - co
     B = q.shape[1]
     T = _trig_columns(q)
     for b in range(B):
-        res[b] = abs(q[2, b] - theta[_R, b] * T[3, b])
+        res[b] = abs(_residual_closed(T, q, theta, b))
         m, A, C, M33, M35 = _mass_closed(T, theta, b)
         f = _force_closed(T, v, tau, theta, b, A, C)
         _, lb, ok = _schur_closed(m, A, C, M33, M35, f, _jacobian_closed(T, theta, b), _bias_closed(T, v, theta, b))
