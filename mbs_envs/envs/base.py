@@ -291,14 +291,19 @@ class MBSEnv(gym.Env):
         self._t = float(t[0])
         self._u = u[0]
         row = info_row[0]
-        values = row.tolist()
+        values = row.tolist()  # one conversion, not one per entry (:meth:`info_rows` costs ~6 us here)
+        named = {name: (bool(values[c]) if boolean else values[c]) if w is None else row[c : c + w]
+                 for name, c, w, boolean in self._info_columns()[1]}  # fmt: skip
+        return self._single_step_result(obs, values, terminated, bad, named)
+
+    def _single_step_result(self, obs, reward, terminated, bad, named: dict) -> tuple:
+        """A single env's ``step`` result from its batch of one (either path); ``named`` its ``info`` entries."""
         info: dict[str, Any] = {"t": self._t, "diverged": bool(bad[0])}
-        for name, c, w, boolean in self._info_columns()[1]:
-            info[name] = (bool(values[c]) if boolean else values[c]) if w is None else row[c : c + w]
+        info.update(named)
         info["u"] = self._u
         if self.render_mode == "human":
             self.render()
-        return obs[0], values[0], bool(terminated[0]), False, info
+        return obs[0], float(reward[0]), bool(terminated[0]), False, info
 
     @property
     def u_max(self) -> np.ndarray:
@@ -432,8 +437,8 @@ class MBSEnv(gym.Env):
             q0 = q_s
             v0 = v_s if v0 is None else v0
         elif v0 is None:
-            v0 = np.zeros(self.model.nv)
-        q0, v0 = self.model.make_consistent(q0, v0, self.consistency_tol)  # constrained scenes project (or refuse)
+            v0 = np.zeros(model.nv)
+        q0, v0 = model.make_consistent(q0, v0, self.consistency_tol)  # constrained scenes project (or refuse)
         self._check_start(q0, v0, task, given=options.get("q") is not None or options.get("v") is not None)
         return task, q0, v0
 
@@ -491,12 +496,7 @@ class MBSEnv(gym.Env):
             self.model, self._q[None], self._v[None], np.array([self._t]), self._task, action[None]
         )
         self._q, self._v, self._t, self._u = q[0], v[0], float(t[0]), u[0]
-        info: dict[str, Any] = {"t": self._t, "diverged": bool(bad[0])}
-        info.update({k: _scalar(x[0]) for k, x in info_rows.items()})
-        info["u"] = self._u
-        if self.render_mode == "human":
-            self.render()
-        return obs[0], float(reward[0]), bool(terminated[0]), False, info
+        return self._single_step_result(obs, reward, terminated, bad, {k: _scalar(x[0]) for k, x in info_rows.items()})
 
     def step_rows(self, model: Model, q, v, t, task: Any, action, full_info: bool = True) -> tuple:
         """The numpy control step of a batch of rows (a single env: one row): the same sequence

@@ -228,10 +228,14 @@ class MBSVectorEnv(VectorEnv):
         env = self.env
         a = validate_action(actions, self.model.nu, self.num_envs)
         if getattr(env, "compiled", None) is not None and env.batch_compiled:
-            obs, reward, bad, info = self._step_compiled(a)
+            obs, reward, bad, terminated, values = self._step_compiled(a)
         else:
-            obs, reward, bad, info = self._step_numpy(a)
-        terminated = info.pop("_terminated")
+            obs, reward, bad, terminated, values = self._step_numpy(a)
+        info: dict[str, Any] = {"t": self._t.copy(), "diverged": bad}
+        if self.full_info:
+            info.update(values)
+            info["u"] = self._u.copy()
+        self._info_masks(info)
         self._elapsed += 1
         if self.max_episode_steps is None:
             truncated = np.zeros(self.num_envs, bool)
@@ -262,13 +266,7 @@ class MBSVectorEnv(VectorEnv):
         self._q, self._v, self._t, self._u, obs, reward, terminated, bad, values = self.env.step_rows(
             self.model, self._q, self._v, self._t, self._task, a, self.full_info
         )
-        info: dict[str, Any] = {"t": self._t.copy(), "diverged": bad.copy()}
-        if self.full_info:
-            info.update(values)
-            info["u"] = self._u.copy()
-        self._info_masks(info)
-        info["_terminated"] = terminated
-        return obs, reward, bad, info
+        return obs, reward, bad, terminated, values
 
     def _step_compiled(self, a: np.ndarray) -> tuple:
         """The same step as :meth:`_step_numpy`, compiled (:meth:`MBSEnv.run_step_kernel`)."""
@@ -276,13 +274,7 @@ class MBSVectorEnv(VectorEnv):
         if self._task_columns is None:
             self._task_columns = env.task_columns(self._task)
         obs, values, self._u, bad, terminated = env.run_step_kernel(self.model, self._q, self._v, self._t, self._task_columns, a)
-        info: dict[str, Any] = {"t": self._t.copy(), "diverged": bad}
-        if self.full_info:
-            info.update(env.info_rows(values))
-            info["u"] = self._u.copy()
-        self._info_masks(info)
-        info["_terminated"] = terminated
-        return obs, values[:, 0].copy(), bad, info
+        return obs, values[:, 0].copy(), bad, terminated, env.info_rows(values) if self.full_info else {}
 
     def _restart(self, idx: np.ndarray) -> np.ndarray:
         """Reset members ``idx`` (autoreset) and return their first observations."""
