@@ -113,8 +113,7 @@ def rk_columns(acc, after, theta, A_v, A_q, b_v, b_q, needed, q, v, tau, h, subs
     (n, B) held. ``Q, V, K`` are work arrays of shape ``(s, n, B)``; the model's
     kernel is called as ``acc(Q[i], V[i], tau, theta, K[i])``, and
     ``after(q, v, theta, tol)`` after every step (a constrained model's
-    projection, :func:`mbs_envs.dynamics.constraints.project_columns`; :func:`no_projection`
-    otherwise). Every innermost loop runs over the batch, so it vectorizes.
+    projection, its ``project_kernel``; :func:`no_projection` otherwise). Every innermost loop runs over the batch, so it vectorizes.
     """
     s = A_v.shape[0]
     n, B = q.shape

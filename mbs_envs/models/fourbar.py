@@ -322,7 +322,7 @@ def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
 def project_kernel(q, v, theta, tol):  # pragma: no cover - compiled
     """:meth:`FourBar.project` of a batch in columns, in place: Gauss-Newton on ``phi`` (at most
     20 iterations, a member stops when ``max |phi| <= tol``), then ``v`` onto ``Psi v = 0`` in
-    the kinetic-energy metric (:func:`mbs_envs.dynamics.constraints.project_columns`, closed form)."""
+    the kinetic-energy metric: :func:`mbs_envs.dynamics.constraints.project_columns` in closed form."""
     B = q.shape[1]
     q_in, v_in = q.copy(), v.copy()
     general = np.zeros(B, np.bool_)
@@ -416,7 +416,6 @@ class FourBar(ConstrainedModel):
     # -- compiled path (see :mod:`mbs_envs.dynamics.compiled`) -----------------------------
     kernels = (acceleration_kernel, energy_kernel)
     advance_kernel = staticmethod(advance_kernel)
-    constraint_info_kernel = staticmethod(constraint_info_kernel)
 
     def __init__(self, params=None, **overrides):
         super().__init__(params, **overrides)

@@ -459,7 +459,6 @@ class RollingDisk(ConstrainedModel):
     # -- compiled path (see :mod:`mbs_envs.dynamics.compiled`) -----------------------------
     kernels = (acceleration_kernel, energy_kernel)
     advance_kernel = staticmethod(advance_kernel)
-    constraint_info_kernel = staticmethod(constraint_info_kernel)
 
     @property
     def inertias(self) -> tuple[float, float]:
