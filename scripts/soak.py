@@ -33,6 +33,7 @@ from tqdm import tqdm
 
 import mbs_envs
 from mbs_envs import integrators
+from mbs_envs.envs import registry
 from mbs_envs import reliability as rl
 from mbs_envs import stiff_cases as sc
 from mbs_envs.studies.plotting import pyplot, save
@@ -45,7 +46,8 @@ def run(out: pathlib.Path, episodes: int, quick: bool = False, ids: list[str] | 
     det = [rl.determinism(i, steps=20 if quick else 100) for i in tqdm(ids, desc="determinism")] if processes else []
     long = [sc.long_run_row(r, "rk4") for r in tqdm(sc.long_runs(quick), desc="long runs")]
     edges = rl.parameter_edges()
-    pairs = [(i, name) for name in integrators.available() for i in ids]
+    models = {i: registry.load(registry.scene(i).model)() for i in ids}
+    pairs = [(i, name) for name in integrators.available() for i in ids if integrators.applies(name, models[i])]
     per_integrator = [rl.integrator_soak(i, name, episodes=8 if quick else 32) for i, name in tqdm(pairs, desc="integrators")]
     result = {"episodes_per_id": episodes, "soak": soak, "determinism": det, "long_runs": long, "edges": edges,
               "integrators": per_integrator}  # fmt: skip

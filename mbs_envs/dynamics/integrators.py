@@ -19,6 +19,9 @@ L-stable (:data:`DIRK_TABLEAUX`, run by :class:`ImplicitRK`): implicit Euler
 solved by a simplified Newton iteration on the stage velocity with a
 finite-difference Jacobian of ``a(t, q, v)``; where Newton fails the step is
 halved (member by member), so a stiff start does not end an episode.
+They cost O(n^3) per step (a dense Jacobian and solve); for long chains,
+:class:`JointImplicitEuler` takes only the joint damping and a joint PD's
+stiffness implicitly, which keeps the solve O(N) (MuJoCo's implicit damping).
 
 Adaptive and stiff methods are scipy's solvers (:class:`ScipyIVP`), taking
 ``rtol`` and ``atol``.
@@ -531,12 +534,103 @@ class ImplicitRK:
         return V, done
 
 
-Stepper = ExplicitRK | ImplicitRK | ScipyIVP
+@dataclasses.dataclass(frozen=True)
+class JointImplicitEuler:
+    """Semi-implicit Euler with the joint-space linear forces taken implicitly: O(N) on chains.
+
+    MuJoCo's Euler integrator with implicit joint damping, extended by the
+    stiffness of a joint PD input (:class:`mbs_envs.dynamics.inputs.JointPD`).
+    With the friction linearized at the step's start, ``F(v+) ~ F(v) + D (v+ - v)``
+    (``D = diag(dF/dv)``, :meth:`~mbs_envs.models.base.Model.friction_slope`), and
+    the PD input ``u = u_ff + K_p (q_ref - q+) - K_d v+`` at the *new* state, the
+    step ``v+ = v + h a``, ``q+ = q + h v+`` solves
+
+        (M + h (D + K_d) + h^2 K_p) a = B u_ff + K_p (q_ref - q - h v) - K_d v - F(v) - C(q, v) v - G(q)
+
+    with ``K_p, K_d`` mapped to the joints through the actuation matrix. The
+    added matrix is diagonal, so :meth:`~mbs_envs.models.base.Model.shifted_forward_dynamics`
+    solves it: one articulated-body pass, O(N), for
+    :class:`~mbs_envs.models.serial_chain.SerialChain` (one force evaluation per
+    step against RK4's four), Cholesky for the others. Any other input
+    (array, callable) enters explicitly, at ``(t, q, v)``.
+
+    First order. The linear damped oscillator ``m a = -d v - k q`` is stable
+    for every ``h > 0`` (the step's amplification matrix has spectral radius
+    below 1 for ``d >= 0, k > 0``), where RK4 needs ``h rho < 2.785``.
+    Unconstrained models with joint coordinates (``nq = nv``) only.
+    """
+
+    name: str = "joint_implicit_euler"
+    adaptive = False
+    order = 1
+
+    def step(self, acc: Acceleration, t: float, q: np.ndarray, v: np.ndarray, h: float):
+        raise ValueError(
+            f"integrator {self.name!r} steps a model, not an acceleration function: use it through "
+            "simulate(), advance() or an environment (it needs the model's mass matrix structure)"
+        )
+
+    @staticmethod
+    def check_model(model: Any) -> None:
+        """``ValueError`` unless ``model`` is unconstrained with joint coordinates."""
+        if getattr(model, "nc", 0) or model.nq != model.nv:
+            raise ValueError(
+                f"integrator 'joint_implicit_euler' takes unconstrained models with nq = nv; "
+                f"{type(model).__name__} has nc = {getattr(model, 'nc', 0)}, nq = {model.nq}, nv = {model.nv}"
+            )
+
+    def step_model(self, model: Any, u: Any, t: float, q: np.ndarray, v: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+        """Advance ``(q, v)`` of ``model`` from ``t`` to ``t + h`` under the input ``u``.
+
+        Parameters
+        ----------
+        model : Model
+        u : None, ndarray (..., nu), callable ``u(t, q, v)`` or :class:`~mbs_envs.dynamics.inputs.JointPD`
+        q, v : ndarray, shape (..., n)
+        h : float
+            [s]
+
+        Returns
+        -------
+        q, v : ndarray
+        """
+        from .inputs import JointPD
+
+        self.check_model(model)
+        B = model.actuation
+        d = h * model.friction_slope(v)
+        if isinstance(u, JointPD):
+            kp, kd = u.diagonals(B)
+            u_now = u(t, q, v, B)
+            # the PD input at the new state: u(q+, v+) ~ u(q, v) - kp B^T (h v + h^2 a) - kd B^T h a
+            tau = model.generalized_input(u_now) - kp * (h * v) - model.friction(v)
+            d = d + h * kd + h * h * kp
+        else:
+            u_now = None if u is None else (u(t, q, v) if callable(u) else u)
+            tau = model.generalized_input(u_now) - model.friction(v)
+        a = model.shifted_forward_dynamics(q, v, tau, d)
+        v_new = v + h * a
+        return q + h * v_new, v_new
+
+
+Stepper = ExplicitRK | ImplicitRK | ScipyIVP | JointImplicitEuler
+
+
+def applies(stepper: Stepper | str, model: Any) -> bool:
+    """Whether ``stepper`` (or the integrator of that name) can step ``model``:
+    every one can, except :class:`JointImplicitEuler` on constrained models or ``nq != nv``."""
+    stepper = get(stepper) if isinstance(stepper, str) else stepper
+    if isinstance(stepper, JointImplicitEuler):
+        try:
+            stepper.check_model(model)
+        except ValueError:
+            return False
+    return True
 
 
 def available() -> tuple[str, ...]:
     """Names accepted by :func:`get`, ``simulate`` and the environments."""
-    return tuple(TABLEAUX) + tuple(DIRK_TABLEAUX) + tuple(SCIPY_METHODS)
+    return tuple(TABLEAUX) + tuple(DIRK_TABLEAUX) + (JointImplicitEuler.name,) + tuple(SCIPY_METHODS)
 
 
 def get(name: str, **options: Any) -> Stepper:
@@ -569,6 +663,10 @@ def get(name: str, **options: Any) -> Stepper:
                 f"integrator {name!r} is fixed-step and takes no options, got {sorted(options)}"
             )
         return ImplicitRK(key, DIRK_TABLEAUX[key])
+    if key == JointImplicitEuler.name:
+        if options:
+            raise ValueError(f"integrator {name!r} is fixed-step and takes no options, got {sorted(options)}")
+        return JointImplicitEuler()
     if key in SCIPY_METHODS:
         unknown = sorted(set(options) - {"rtol", "atol"})
         if unknown:

@@ -15,10 +15,12 @@ import numpy as np
 from . import integrators
 from .. import validation as check
 from .compiled import advance_compiled, compiled_stepping
-from .integrators import Acceleration, ScipyIVP, Stepper
+from .inputs import JointPD
+from .integrators import Acceleration, JointImplicitEuler, ScipyIVP, Stepper
 from ..models.base import Model, as_vector
 
-#: Input: None (zero), an array ``(..., nu)`` held constant, or ``u(t, q, v)``.
+#: Input: None (zero), an array ``(..., nu)`` held constant, ``u(t, q, v)``, or a
+#: :class:`~mbs_envs.dynamics.inputs.JointPD` (a callable whose gains the implicit joint step uses).
 Input = None | np.ndarray | Callable[[float, np.ndarray, np.ndarray], np.ndarray]
 
 #: Default bound on ``|q|`` and ``|v|`` beyond which a state counts as diverged.
@@ -58,6 +60,9 @@ def input_function(model: Model, u: Input) -> Callable[[float, np.ndarray, np.nd
     ValueError
         If an array input has the wrong trailing shape or is not finite.
     """
+    if isinstance(u, JointPD):
+        B = model.actuation
+        return lambda t, q, v: u(t, q, v, B)
     if u is None or callable(u):
         return (lambda t, q, v: None) if u is None else u
     u_arr = as_vector(u, model.nu, "u")
@@ -144,10 +149,16 @@ def advance(
     acc = acceleration(model, u, stabilization)
     steps = 1 if isinstance(stepper, ScipyIVP) else substeps
     h = duration / steps
+    if isinstance(stepper, JointImplicitEuler):
+        stepper.check_model(model)
+        u_model = u if u is None or isinstance(u, JointPD) or callable(u) else as_vector(u, model.nu, "u")
+        step = lambda acc, t, q, v, h: stepper.step_model(model, u_model, t, q, v, h)  # noqa: E731
+    else:
+        step = stepper.step
     try:
         with np.errstate(all="ignore"):
             for k in range(steps):
-                q, v = stepper.step(acc, t + k * h, q, v, h)
+                q, v = step(acc, t + k * h, q, v, h)
                 if stabilization is not None:
                     q, v = model.after_step(q, v, stabilization)
     except np.linalg.LinAlgError:  # M(q) stopped being positive definite: a blow-up

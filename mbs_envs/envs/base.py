@@ -146,6 +146,8 @@ class MBSEnv(gym.Env):
         options = {k: v for k, v in (("rtol", rtol), ("atol", atol)) if v is not None}
         self.model = model
         self.integrator = integrators.get(integrator, **options)
+        if isinstance(self.integrator, integrators.JointImplicitEuler):
+            self.integrator.check_model(model)  # a clear ValueError at make, not at the first step
         self.stabilization = model.stabilization(stabilization)
         self.dt = dt
         self.substeps = substeps

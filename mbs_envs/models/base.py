@@ -363,6 +363,42 @@ class Model(abc.ABC):
         rhs = self.generalized_input(u) - self.bias(q, v)
         return cholesky_solve(self.mass_matrix(q), rhs)
 
+    def shifted_forward_dynamics(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, d: np.ndarray) -> np.ndarray:
+        """Accelerations ``a = (M(q) + diag(d))^-1 (tau - C(q, v) v - G(q))``, friction not included.
+
+        The solve of :class:`mbs_envs.dynamics.integrators.JointImplicitEuler`, where
+        ``d = h D + h^2 K`` folds joint damping and stiffness into the mass matrix.
+        Here by Cholesky, O(n^3); :class:`~mbs_envs.models.serial_chain.SerialChain`
+        does it in O(N) by its articulated-body recursion (``d`` added to the armature).
+
+        Parameters
+        ----------
+        q : ndarray, shape (..., nq)
+        v, tau : ndarray, shape (..., nv)
+            Rates [rad/s] and generalized forces [N m].
+        d : ndarray, shape (..., nv)
+            Added to the diagonal of ``M`` [kg m^2], >= 0.
+
+        Returns
+        -------
+        a : ndarray, shape (..., nv)
+        """
+        q = as_vector(q, self.nq, "q")
+        v = as_vector(v, self.nv, "v")
+        M = self.mass_matrix(q) + np.asarray(d)[..., None] * np.eye(self.nv)
+        return cholesky_solve(M, as_vector(tau, self.nv, "tau") - self.coriolis(q, v) - self.gravity(q))
+
+    def friction_slope(self, v: np.ndarray) -> np.ndarray:
+        """``dF_i / dv_i`` [N m s/rad], shape ``(..., nv)``: the diagonal of the friction's Jacobian.
+
+        Every model's friction is joint-wise (``F_i`` depends on ``v_i`` alone), so one
+        central difference with all rates perturbed at once gives the diagonal
+        (step ``1e-6 max(1, |v_i|)``; the slope only linearizes the implicit step).
+        """
+        v = as_vector(v, self.nv, "v")
+        eps = 1e-6 * np.maximum(1.0, np.abs(v))
+        return (self.friction(v + eps) - self.friction(v - eps)) / (2.0 * eps)
+
     def inverse_dynamics(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
         """Inputs ``u`` with ``B u = M(q) a + h(q, v)`` (fully actuated models).
 

@@ -198,12 +198,12 @@ def _aba_member(q, w, tau, l, r, m, Ic, arm, g, out, work):  # pragma: no cover 
 
 @njit
 def _aba_kernel(q, w, l, r, m, Ic, arm, tau, g):  # pragma: no cover - compiled
-    """:func:`_aba_member` for rows ``q, w, m, Ic, tau`` (B, N); ``l, r, arm`` (N,). Returns ddq (B, N)."""
+    """:func:`_aba_member` for rows ``q, w, m, Ic, arm, tau`` (B, N); ``l, r`` (N,). Returns ddq (B, N)."""
     B, N = q.shape
     out = np.empty((B, N))
     work = _aba_work(N)
     for b in range(B):
-        _aba_member(q[b], w[b], tau[b], l, r, m[b], Ic[b], arm, g, out[b], work)
+        _aba_member(q[b], w[b], tau[b], l, r, m[b], Ic[b], arm[b], g, out[b], work)
     return out
 
 
@@ -476,16 +476,23 @@ class SerialChain(Model):
         """Accelerations for joint torques ``tau`` (friction not included), O(N).
 
         The articulated-body recursion runs in the compiled :func:`_aba_kernel`,
-        over the flattened batch.
+        over the flattened batch (:meth:`shifted_forward_dynamics` with ``d = 0``).
         """
+        return self.shifted_forward_dynamics(q, v, tau, np.zeros(self.n_links))
+
+    def shifted_forward_dynamics(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, d: np.ndarray) -> np.ndarray:
+        """``(M + diag(d))^-1 (tau - C v - G)`` in O(N): the articulated-body recursion with
+        ``d`` added to the joint armature (which enters ``M`` the same way). See
+        :meth:`mbs_envs.models.base.Model.shifted_forward_dynamics`."""
         p_ = self.params
-        q = as_vector(q, self.n_links, "q")
-        v = as_vector(v, self.n_links, "v")
-        tau = as_vector(tau, self.n_links, "tau")
-        shape = np.broadcast_shapes(q.shape, v.shape, tau.shape)
         n = self.n_links
+        q = as_vector(q, n, "q")
+        v = as_vector(v, n, "v")
+        tau = as_vector(tau, n, "tau")
+        d = as_vector(d, n, "d")
+        shape = np.broadcast_shapes(q.shape, v.shape, tau.shape, d.shape)
         flat = lambda x: np.ascontiguousarray(np.broadcast_to(x, shape).reshape(-1, n), dtype=float)  # noqa: E731
-        out = _aba_kernel(flat(q), flat(v), p_.l, p_.r, flat(p_.m), flat(p_.I), p_.armature, flat(tau), float(p_.g))
+        out = _aba_kernel(flat(q), flat(v), p_.l, p_.r, flat(p_.m), flat(p_.I), flat(p_.armature + d), flat(tau), float(p_.g))
         return out.reshape(shape)
 
     def forward_dynamics(self, q: np.ndarray, v: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
