@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import pathlib
 import runpy
 
@@ -153,17 +154,26 @@ def test_bench_mujoco_error_reference_is_converged():
 
 def test_work_precision_tiny_configuration(tmp_path):
     script = load_script("work_precision.py")
-    rows = script["run"](tmp_path, quick=True, scenes=["planar2r", "fourbar-projection"], methods=["rk4", "sdirk2", "dop853"], n_fixed=2, n_adaptive=2)
-    assert len(rows) == 2 * 3 * 2
-    for name in ("work_precision.csv", "work_precision.md", "work_precision.json", "work_precision_planar2r.png", "work_precision_fourbar-projection.png"):
+    rows = script["run"](tmp_path, quick=True, problems=["planar2r-free", "fourbar-forced"], methods=["rk4", "sdirk2", "dop853"],
+                         repeats=1, n_fixed=2, n_adaptive=2)  # fmt: skip
+    # rk4 on both paths (numpy, compiled), sdirk2 and dop853 on numpy: 4 rows per setting, 2 settings, 2 problems
+    assert len(rows) == 2 * 2 * 4
+    for name in ("work_precision.csv", "work_precision.md", "work_precision.json", "work_precision_planar2r-free.png",
+                 "work_precision_fourbar-forced.png"):  # fmt: skip
         assert (tmp_path / name).stat().st_size > 0
     header = (tmp_path / "work_precision.csv").read_text().splitlines()[0].split(",")
-    for column in ("scene", "integrator", "setting", "state_error", "energy_error", "constraint_error", "cpu_s"):
+    for column in ("problem", "integrator", "kind", "setting", "path", "rhs_evaluations", "final_error", "trajectory_error",
+                   "energy_drift", "constraint_residual", "time_median_s", "time_min_s", "reference_floor"):  # fmt: skip
         assert column in header
-    rk4 = {r["setting"]: r["state_error"] for r in rows if r["scene"] == "planar2r" and r["integrator"] == "rk4"}
-    assert rk4[0.01] < rk4[0.02] / 8  # fourth order: ~16x per halving
-    fb = [r for r in rows if r["scene"] == "fourbar-projection"]
-    assert all(r["constraint_error"] < 1e-10 for r in fb)  # projection keeps the loop closed
+    rk4 = {(r["setting"], r["path"]): r for r in rows if r["problem"] == "planar2r-free" and r["integrator"] == "rk4"}
+    assert rk4[0.02, "numpy"]["trajectory_error"] < rk4[0.04, "numpy"]["trajectory_error"] / 8  # fourth order: ~16x per halving
+    assert rk4[0.02, "numpy"]["rhs_evaluations"] == 4 * 20  # four stages, 20 steps of 0.4 s
+    assert rk4[0.02, "compiled"]["compiled_minus_numpy"] <= 1e-12
+    fb = [r for r in rows if r["problem"] == "fourbar-forced"]
+    assert all(r["constraint_residual"] < 1e-10 for r in fb)  # projection keeps the loop closed
+    assert {r["kind"] for r in fb if r["integrator"] == "dop853"} == {"adaptive, restarted"}
+    meta = json.loads((tmp_path / "work_precision.json").read_text())
+    assert 0 < meta["problems"]["planar2r-free"]["reference_floor"] < 1e-10
 
 
 def test_stiff_cases_tiny_configuration(tmp_path):
