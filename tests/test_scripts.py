@@ -176,6 +176,17 @@ def test_work_precision_tiny_configuration(tmp_path):
     assert 0 < meta["problems"]["planar2r-free"]["reference_floor"] < 1e-10
 
 
+def test_implicit_chain_tiny_configuration(tmp_path):
+    """The joint-implicit step holds the stiff PD chain at 0.02 s where RK4 needs an 8x smaller step or less
+    (flagged as diverged above it); the script writes its tables and plot."""
+    result = load_script("implicit_chain.py")["run"](tmp_path, ns=[8], repeats=1)
+    stable = {r["integrator"]: r for r in result["stability"]}
+    assert stable["joint_implicit_euler"]["largest_stable_dt"] == 0.02
+    assert stable["rk4"]["largest_stable_dt"] <= 0.02 / 8 and stable["rk4"]["flagged_above"] >= 3
+    for name in ("implicit_chain.csv", "implicit_chain_stability.csv", "implicit_chain.json", "implicit_chain.md", "implicit_chain.png"):
+        assert (tmp_path / name).stat().st_size > 0
+
+
 def test_stiff_cases_tiny_configuration(tmp_path):
     """Viscous b = 400: RK4 fails (reported) above its limit; SDIRK2 is usable 10x beyond it."""
     script = load_script("stiff_cases.py")

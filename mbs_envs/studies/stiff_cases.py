@@ -222,3 +222,57 @@ def long_run_row(run: LongRun, method: str) -> dict[str, Any]:
         "constraint_error": numerics.constraint_error(run.model, tr.q, tr.v),
         "cpu_s": cpu,
     }
+
+
+# -- the O(N) implicit joint step on long chains (scripts/implicit_chain.py) ------------------
+
+
+def stiff_pd_chain(n: int, bandwidth: float = 1000.0):
+    """SerialChain-v0's ``n``-link chain (drives with armature) under a joint PD of ``bandwidth``
+    [rad/s] per joint: ``K_p = w^2 J_i``, ``K_d = 2 w J_i`` on the apparent inertia
+    ``J_i = 1 / (M^-1)_ii`` at the hanging posture, target hanging with the first joint
+    0.3 rad off. Returns ``(model, q0, v0, law, target)``; the start hangs at rest."""
+    from ..dynamics.inputs import JointPD
+
+    model = chain(n, True)
+    hanging = np.r_[-np.pi / 2, np.zeros(n - 1)]
+    J = 1.0 / np.diag(np.linalg.inv(model.mass_matrix(hanging)))
+    target = hanging + np.r_[0.3, np.zeros(n - 1)]
+    return model, hanging, np.zeros(n), JointPD(bandwidth**2 * J, 2 * bandwidth * J, target), target
+
+
+def step_time(model: Model, method: str, compiled: bool, steps: int = 20, repeats: int = 5, h: float = 0.01) -> float:
+    """Median wall time [s] of one step of ``h`` under a held zero torque, the way an environment steps
+    (:func:`mbs_envs.dynamics.simulate.advance`): a warm-up, then ``repeats`` loops of ``steps`` steps."""
+    import time
+
+    from ..dynamics.simulate import advance
+
+    stepper = integrators.get(method)
+    q0, v0 = np.r_[-np.pi / 2 + 0.3, np.full(model.nq - 1, 0.3 / model.nq)], np.zeros(model.nv)
+    u = np.zeros(model.nu)
+    advance(model, stepper, 0.0, q0, v0, h, 1, u, None, compiled)
+    times = []
+    for _ in range(repeats):
+        q, v = q0, v0
+        t0 = time.perf_counter()
+        for k in range(steps):
+            q, v = advance(model, stepper, k * h, q, v, h, 1, u, None, compiled)
+        times.append((time.perf_counter() - t0) / steps)
+    return float(np.median(times))
+
+
+def largest_settling_step(n: int, method: str, dts: list[float], t_final: float = 1.0, tol: float = 1e-3) -> dict[str, Any]:
+    """Largest ``dt`` (scanned from the coarsest) at which :func:`stiff_pd_chain` runs without
+    divergence and ends within ``tol`` of its target (it settles in ~10 ms; 1 s is plenty)."""
+    model, q0, v0, law, target = stiff_pd_chain(n)
+    flagged = 0
+    for dt in sorted(dts, reverse=True):
+        tr = simulate(model, q0, v0, t_final, dt=dt, integrator=method, u=law)
+        if bool(np.any(tr.diverged)):
+            flagged += 1
+            continue
+        error = float(np.max(np.abs(tr.q[-1] - target)))
+        if error <= tol:
+            return {"n_links": n, "integrator": method, "largest_stable_dt": dt, "final_error": error, "flagged_above": flagged}
+    return {"n_links": n, "integrator": method, "largest_stable_dt": None, "final_error": None, "flagged_above": flagged}
