@@ -104,34 +104,62 @@ def write_csv(rows: list[dict], path: pathlib.Path) -> None:
         w.writerows(rows)
 
 
-def plot_problem(rows: list[dict], p: wp.Problem, ref: wp.Reference, path: pathlib.Path) -> None:
+def plot_problem(rows: list[dict], p: wp.Problem | None, ref: wp.Reference | float, path: pathlib.Path, title: str | None = None) -> None:
+    """Three panels: trajectory error against median time and against evaluations (the floor drawn),
+    and energy drift (free), constraint residual (constrained) or final error against time.
+    One colour per integrator; solid numpy path, dotted compiled path, dashed adaptive."""
     plt = pyplot()
-    third = "energy_drift" if p.conservative else ("constraint_residual" if p.model.nc else "final_error")
+    floor = ref if isinstance(ref, float) else ref.floor
+    kinds = {r["kind_of_problem"] for r in rows}
+    has_residual = any(np.isfinite(r["constraint_residual"]) for r in rows)
+    third = "energy_drift" if kinds == {"free"} and not has_residual else ("constraint_residual" if has_residual else "final_error")
     panels = [("time_median_s", "trajectory_error"), ("rhs_evaluations", "trajectory_error"), ("time_median_s", third)]
-    fig, axes = plt.subplots(1, 3, figsize=(16, 4.6))
+    fig, axes = plt.subplots(1, 3, figsize=(17, 4.8))
     colors = plt.get_cmap("tab20").colors
+    order = list(wp.FIXED + wp.ADAPTIVE)
     lines = list(dict.fromkeys((r["integrator"], r["path"]) for r in rows))
     for ax, (xk, yk) in zip(axes, panels):
-        for k, (method, path_) in enumerate(lines):
+        for method, path_ in lines:
             pts = sorted((r[xk], r[yk]) for r in rows if r["integrator"] == method and r["path"] == path_
                          and r["finished"] and r[yk] > 0 and np.isfinite(r[yk]))  # fmt: skip
             if not pts:
                 continue
             x, y = zip(*pts)
             style = "--" if method in wp.ADAPTIVE else (":" if path_ == "compiled" else "-")
-            label = f"{method} ({path_})" if path_ == "compiled" else method
-            ax.loglog(x, y, style, marker="o", ms=3, label=label, color=colors[(2 * k) % 20])
+            label = f"{method} (compiled)" if path_ == "compiled" else method
+            ax.loglog(x, y, style, marker="o", ms=3, label=label, color=colors[order.index(method) % 20])
         if yk == "trajectory_error":
-            ax.axhline(ref.floor, color="k", lw=1, alpha=0.6)
-            ax.text(ax.get_xlim()[0], ref.floor, " reference floor", va="bottom", fontsize=7)
+            ax.axhline(floor, color="k", lw=1.2, alpha=0.7, label="reference floor")
         ax.set_xlabel({"time_median_s": "median run time [s]", "rhs_evaluations": "right-hand-side evaluations"}[xk])
         ax.set_ylabel(yk.replace("_", " "))
         ax.tick_params(axis="x", which="minor", labelbottom=False)
         ax.grid(True, which="both", alpha=0.3)
-    axes[0].legend(fontsize=6, ncol=2)
-    what = "free motion" if p.u is None else f"torque held per {p.interval:g} s control step, default friction"
-    fig.suptitle(f"{p.name}: {p.t_final:g} s, {what} (dotted: compiled path; dashed: adaptive)")
+    handles, labels = axes[1].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="center right", fontsize=7)
+    fig.subplots_adjust(right=0.83, wspace=0.25)
+    if title is None:
+        what = "free motion" if p.u is None else f"torque held per {p.interval:g} s control step, default friction"
+        title = f"{p.name}: {p.t_final:g} s, {what}"
+    fig.suptitle(f"{title} (dotted: compiled path; dashed: adaptive)")
     save(fig, path)
+
+
+def replot(out: pathlib.Path) -> None:
+    """The plots again from ``work_precision.csv`` and ``.json`` in ``out`` (no runs)."""
+    meta = json.loads((out / "work_precision.json").read_text())
+    with open(out / "work_precision.csv") as f:
+        rows = list(csv.DictReader(f))
+    numeric = ("setting", "rhs_evaluations", "final_error", "trajectory_error", "energy_drift", "constraint_residual",
+               "time_median_s", "time_min_s", "time_max_s", "reference_floor")  # fmt: skip
+    for r in rows:
+        for k in numeric:
+            r[k] = float(r[k]) if r.get(k) not in (None, "") else float("nan")
+        r["finished"] = r["finished"] == "True"
+    for name, info in meta["problems"].items():
+        sub = [r for r in rows if r["problem"] == name]
+        what = f"torque held per {info['interval_s']:g} s control step, default friction" if info["forced"] else "free motion"
+        plot_problem(sub, None, float(info["reference_floor"]), out / f"work_precision_{name}.png",
+                     f"{name}: {info['interval_s'] * info['steps']:g} s, {what}")
 
 
 def summarize(rows: list[dict], chosen: list[wp.Problem], refs: dict) -> str:
@@ -161,7 +189,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--repeats", type=int, help="timed runs per setting after the warm-up (default 5, quick 3)")
     p.add_argument("--n-fixed", type=int, help="number of dt values (halving from the interval)")
     p.add_argument("--n-adaptive", type=int, help="number of rtol values")
+    p.add_argument("--replot", action="store_true", help="redraw the plots from the CSV and JSON in --out, no runs")
     a = p.parse_args(argv)
+    if a.replot:
+        replot(a.out)
+        return 0
     run(a.out, a.quick, a.problems, a.methods, a.repeats, a.n_fixed, a.n_adaptive)
     return 0
 
