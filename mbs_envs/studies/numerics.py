@@ -1,5 +1,5 @@
-"""Accuracy against cost: the measurements behind ``scripts/work_precision.py``
-and ``scripts/stiff_cases.py``.
+"""The stiff-case scans' runs and scores (``scripts/stiff_cases.py``); the work-precision
+protocol is :mod:`mbs_envs.studies.work_precision`.
 
 A :class:`Case` is a model, a start state, an input and a horizon. One run of
 one integrator at one setting (a step ``dt`` for fixed-step methods, a
@@ -20,13 +20,11 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable, Iterable
 from typing import Any
 
 import numpy as np
 
 from ..dynamics import integrators
-from ..models import FourBar, Planar2R, RollingDisk, SerialChain
 from ..models.base import Model
 from ..dynamics.simulate import Input, simulate
 
@@ -163,66 +161,3 @@ def score(case: Case, ref: Reference, integrator: str, setting: float) -> dict[s
 def fixed_steps(coarsest: float, n: int) -> list[float]:
     """``coarsest * 2^-k`` for ``k = 0 .. n-1`` [s]."""
     return [coarsest * 2.0**-k for k in range(n)]
-
-
-def work_precision_cases(quick: bool = False) -> list[Case]:
-    """The scenes of the work-precision report: free motion (energy conserved) of each.
-
-    2R and chains swing from a bent posture; the four-bar (with each
-    stabilization) turns its crank; the disk rolls upright above its critical
-    spin with a small lean. ``quick`` shortens horizons and drops the large chain.
-    """
-    T = 1.0 if quick else 2.0
-    cases = [Case("planar2r", Planar2R(), np.array([-1.0, 0.8]), np.array([0.5, -1.0]), T)]
-    fb = FourBar()
-    q0, v0 = fb.consistent_state(0.2, 4.0)
-    for kind in ("projection", "baumgarte", "none"):
-        cases.append(Case(f"fourbar-{kind}", fb, q0, v0, T, stabilization=kind))
-    disk = RollingDisk()
-    qd, vd = disk.rolling_state(lean=0.1, dspin=2.0 * disk.critical_spin, dlean=0.2)
-    cases.append(Case("rollingdisk", disk, qd, vd, T, stabilization="projection"))
-    for n in (5,) if quick else (5, 50):
-        chain = SerialChain(n_links=n, armature=np.abs(SerialChain(n_links=n).gravity(np.zeros(n))) / 30.0)
-        q0c = np.r_[-0.3, np.full(n - 1, 1.5 / n)]
-        cases.append(Case(f"chain-{n}", chain, q0c, np.zeros(n), T / 2))
-    return cases
-
-
-def run_grid(
-    cases: Iterable[Case],
-    settings: Callable[[Case, str], list[float]],
-    methods: Iterable[str],
-    progress: Callable[[str], None] | None = None,
-) -> tuple[list[dict[str, Any]], dict[str, Reference]]:
-    """Score every case with every method at every setting.
-
-    Parameters
-    ----------
-    settings : callable ``(case, method) -> list of settings``
-    progress : callable, optional
-        Called once per run with a short label (e.g. a progress bar's update).
-
-    Returns
-    -------
-    rows : list of dict
-        One per case x method x setting (see :func:`score`), with the
-        reference's error estimate added.
-    refs : dict scene -> Reference
-    """
-    rows, refs = [], {}
-    for case in cases:
-        ref = refs[case.scene] = reference(case)
-        for method in methods:
-            for setting in settings(case, method):
-                row = score(case, ref, method, setting)
-                row["reference_error_estimate"] = ref.error_estimate
-                rows.append(row)
-                if progress is not None:
-                    progress(f"{case.scene} {method} {setting:g}")
-    return rows, refs
-
-
-def cheapest(rows: list[dict[str, Any]], target: float, key: str = "state_error") -> dict[str, Any] | None:
-    """The run with the least CPU time whose ``key`` error is at most ``target``."""
-    ok = [r for r in rows if not r["diverged"] and r[key] <= target]
-    return min(ok, key=lambda r: r["cpu_s"]) if ok else None

@@ -45,8 +45,9 @@ import numpy as np
 
 from ..dynamics import integrators
 from ..dynamics.simulate import acceleration, advance, diverged
-from ..models import FourBar, Planar2R, RollingDisk, SerialChain
+from ..models import FourBar, Planar2R, RollingDisk
 from ..models.base import Model
+from .stiff_cases import chain
 
 #: fixed-step methods of the set (the joint-implicit one on unconstrained models)
 FIXED = ("euler", "semi_implicit_euler", "midpoint", "rk4", "implicit_euler", "sdirk2", "sdirk3", "joint_implicit_euler")
@@ -111,11 +112,6 @@ def smooth_torque(u_max: np.ndarray, times: np.ndarray, seed: int = 0) -> np.nda
     return 0.3 * u_max * 0.5 * (np.sin(w[0] * t + p[0]) + np.sin(w[1] * t + p[1]))
 
 
-def chain_with_drives(n: int) -> SerialChain:
-    """SerialChain-v0's chain without friction: drives with rotor inertia (30 rad/s^2 at full torque)."""
-    return SerialChain(n_links=n, armature=np.abs(SerialChain(n_links=n).gravity(np.zeros(n))) / 30.0)
-
-
 def free_problems(t_final: float = 1.0) -> list[Problem]:
     """Free, frictionless motion of each model: the 2R and chains from a bent posture, the four-bar
     turning its crank, the disk rolling above its critical spin with a small lean."""
@@ -127,11 +123,11 @@ def free_problems(t_final: float = 1.0) -> list[Problem]:
     qd, vd = disk.rolling_state(lean=0.1, dspin=2.0 * disk.critical_spin, dlean=0.2)
     out.append(Problem("rollingdisk", "free", disk, qd, vd, 0.04, steps, stabilization="projection"))
     for n in (10, 50):
-        out.append(Problem(f"chain{n}", "free", chain_with_drives(n), np.r_[-0.3, np.full(n - 1, 1.5 / n)], np.zeros(n), 0.04, steps))
+        out.append(Problem(f"chain{n}", "free", chain(n, armature=True), np.r_[-0.3, np.full(n - 1, 1.5 / n)], np.zeros(n), 0.04, steps))
     return out
 
 
-def forced_problems(t_final: float = 1.0, scenes: Any = None) -> list[Problem]:
+def forced_problems(t_final: float = 1.0) -> list[Problem]:
     """Each registered scene as its environment runs it (module docstring), from the registry."""
     import gymnasium as gym
 
