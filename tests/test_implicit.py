@@ -79,6 +79,7 @@ def test_slow_newton_refreshes_the_jacobian_and_halves_the_step():
     q0, v0 = np.zeros(1), np.array([10.0])
     q, v = stepper.step(cubic_damping, 0.0, q0, v0, 1.0)
     assert np.all(np.isfinite(v))
+    assert stepper.counters["halvings"] >= 1  # counted for the reports
     # one full step does not converge, even with Jacobian refreshes ...
     no_halving = dataclasses.replace(stepper, max_halvings=0)
     assert np.all(np.isnan(no_halving.step(cubic_damping, 0.0, q0, v0, 1.0)[1]))
@@ -155,3 +156,11 @@ def test_names_are_listed_and_take_no_options():
         assert name in integrators.available()
         with pytest.raises(ValueError, match="no options"):
             integrators.get(name, rtol=1e-3)
+
+
+def test_adaptive_solves_count_their_steps_and_evaluations():
+    stepper = integrators.get("radau", rtol=1e-8, atol=1e-8)
+    tr = simulate(Planar2R(b1=400.0, b2=400.0), [-1.0, 0.5], [1.0, -2.0], 0.2, dt=0.2, integrator=stepper, u=np.array([30.0, 5.0]))
+    assert not tr.diverged
+    c = stepper.counters
+    assert 0 < c["steps"] < c["evaluations"] and c["jacobians"] >= 1

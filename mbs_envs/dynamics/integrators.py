@@ -225,6 +225,8 @@ class ScipyIVP:
     rtol: float = 1e-8
     atol: float = 1e-10
     max_evaluations: int = 20_000
+    #: running totals, for reports: ``steps`` (accepted), ``evaluations`` (right-hand sides), ``jacobians``; not compared
+    counters: dict = dataclasses.field(default_factory=dict, compare=False, repr=False)
     adaptive = True
     order = None
 
@@ -276,8 +278,10 @@ class ScipyIVP:
         ys: list[np.ndarray] = []
         with np.errstate(all="ignore"):
             solver = _SCIPY_SOLVERS[self.method](rhs, t0, y0, float(t_eval[-1]), rtol=self.rtol, atol=self.atol)
+            steps = 0
             while len(ts) < len(t_eval) and not guard["tripped"]:
                 solver.step()
+                steps += solver.status != "failed"
                 if guard["tripped"] or solver.status == "failed":
                     break
                 if t_eval[len(ts)] <= solver.t:
@@ -291,6 +295,8 @@ class ScipyIVP:
                         ys.append(y)
                 if solver.status == "finished":
                     break
+        for key, value in (("steps", steps), ("evaluations", guard["count"]), ("jacobians", getattr(solver, "njev", 0))):
+            self.counters[key] = self.counters.get(key, 0) + value
         K = len(ts)
         Y = np.array(ys).reshape(K, y0.size)
         qs = Y[:, :nq].reshape((K,) + q.shape)
@@ -439,6 +445,8 @@ class ImplicitRK:
     max_refresh: int = 3
     max_halvings: int = 6
     max_evaluations: int = 300
+    #: running totals, for reports: ``halvings`` (steps split because Newton failed); not compared
+    counters: dict = dataclasses.field(default_factory=dict, compare=False, repr=False)
     adaptive = False
 
     @property
@@ -469,6 +477,7 @@ class ImplicitRK:
         if halvings == 0 or calls[0] >= self.max_evaluations:
             bad = ~ok[..., None]
             return np.where(bad, np.nan, q1), np.where(bad, np.nan, v1)
+        self.counters["halvings"] = self.counters.get("halvings", 0) + 1
         qm, vm = self._step(acc, t, q, v, h / 2, halvings - 1, calls)
         q2, v2 = self._step(acc, t + h / 2, qm, vm, h / 2, halvings - 1, calls)
         keep = ok[..., None]
@@ -648,8 +657,10 @@ def get(name: str, **options: Any) -> Stepper:
     ValueError
         For an unknown name or an option the method does not take.
     """
+    if isinstance(name, (ExplicitRK, ImplicitRK, ScipyIVP, JointImplicitEuler)) and not options:
+        return name  # a ready stepper (e.g. one whose counters a report reads)
     if not isinstance(name, str):
-        raise ValueError(f"integrator must be a name (str), got {name!r}")
+        raise ValueError(f"integrator must be a name (str) or a stepper, got {name!r}")
     key = name.lower()
     if key in TABLEAUX:
         if options:

@@ -8,6 +8,9 @@ reference solution computed once per case by a different, high-accuracy
 method (:func:`reference`):
 
 - ``state_error``: ``max(|q(T) - q_ref(T)|, |v(T) - v_ref(T)|)`` (max norm) [rad, rad/s, m];
+- ``trajectory_error``: the same, maximum over the grid ``0, 0.05, 0.1, ...`` s (:data:`GRID`);
+- ``halvings`` (implicit fixed-step methods: steps split because Newton failed), ``steps`` and
+  ``evaluations`` (adaptive: accepted steps and right-hand sides);
 - ``energy_error``: ``max_t |E(t) - E(0)|`` [J], for cases without input or
   friction (where energy is a conserved quantity), else NaN;
 - ``constraint_error``: ``max_t max(|phi(q)|, |Psi(q) v|)`` for constrained
@@ -64,7 +67,7 @@ class Case:
     v0: np.ndarray
     t_final: float
     u: Input = None
-    stabilization: str | None = None
+    stabilization: Any = None
     dt_out: float = 0.01
     conservative: bool = True
     reference_method: str = "dop853"
@@ -84,6 +87,8 @@ class Reference:
     error_estimate: float
     method: str
     rtol: float
+    Q: np.ndarray | None = None
+    V: np.ndarray | None = None
 
 
 def reference(case: Case, rtol: float = 1e-12) -> Reference:
@@ -97,10 +102,22 @@ def reference(case: Case, rtol: float = 1e-12) -> Reference:
         )  # fmt: skip
         if bool(np.any(tr.diverged)):
             raise RuntimeError(f"reference solution of {case.scene} failed")
-        runs.append((tr.q[-1], tr.v[-1]))
-    (q, v), (q2, v2) = runs
-    est = float(max(np.max(np.abs(q - q2)), np.max(np.abs(v - v2))))
-    return Reference(q, v, est, case.reference_method, rtol)
+        runs.append(on_grid(tr))
+    (Q, V), (Q2, V2) = runs
+    est = float(max(np.max(np.abs(Q - Q2)), np.max(np.abs(V - V2))))
+    return Reference(Q[-1], V[-1], est, case.reference_method, rtol, Q, V)
+
+
+#: [s] the grid on which trajectory errors are taken: every run's output lands on it (fixed steps
+#: ``0.05 * 2^-k``, adaptive runs every ``dt_out = 0.01``)
+GRID = 0.05
+
+
+def on_grid(tr: Any) -> tuple[np.ndarray, np.ndarray]:
+    """The states of a trajectory at the multiples of :data:`GRID` (and its final time)."""
+    k = np.round(tr.t / GRID)
+    keep = np.isclose(tr.t, k * GRID, rtol=0, atol=1e-9) | (np.arange(len(tr.t)) == len(tr.t) - 1)
+    return tr.q[keep], tr.v[keep]
 
 
 def constraint_error(model: Model, q: np.ndarray, v: np.ndarray) -> float:
@@ -125,12 +142,12 @@ def score(case: Case, ref: Reference, integrator: str, setting: float) -> dict[s
         state_error, energy_error, constraint_error, cpu_s, wall_s, steps, diverged``.
     """
     adaptive = integrators.get(integrator).adaptive
-    kwargs = {"rtol": setting, "atol": setting} if adaptive else {}
+    stepper = integrators.get(integrator, **({"rtol": setting, "atol": setting} if adaptive else {}))
     dt = case.dt_out if adaptive else setting
     c0, w0 = time.process_time(), time.perf_counter()
     tr = simulate(  # the numpy path for every method: the CPU times compare methods, not implementations
-        case.model, case.q0, case.v0, case.t_final, dt=dt, integrator=integrator, u=case.u,
-        stabilization=case.stabilization, compiled=False, **kwargs,
+        case.model, case.q0, case.v0, case.t_final, dt=dt, integrator=stepper, u=case.u,
+        stabilization=case.stabilization, compiled=False,
     )  # fmt: skip
     cpu, wall = time.process_time() - c0, time.perf_counter() - w0
     diverged = bool(np.any(tr.diverged)) or not np.isclose(tr.t[-1], case.t_final)
@@ -141,16 +158,22 @@ def score(case: Case, ref: Reference, integrator: str, setting: float) -> dict[s
         "setting_name": "rtol" if adaptive else "dt",
         "setting": setting,
         "state_error": float("inf"),
+        "trajectory_error": float("inf"),
         "energy_error": float("nan"),
         "constraint_error": float("nan"),
         "cpu_s": cpu,
         "wall_s": wall,
-        "steps": None if adaptive else len(tr.t) - 1,
+        "steps": stepper.counters.get("steps") if adaptive else len(tr.t) - 1,
+        "halvings": stepper.counters.get("halvings", 0) if hasattr(stepper, "counters") and not adaptive else None,
+        "evaluations": stepper.counters.get("evaluations") if adaptive else None,
         "diverged": diverged,
     }
     if diverged:
         return row
     row["state_error"] = float(max(np.max(np.abs(tr.q[-1] - ref.q)), np.max(np.abs(tr.v[-1] - ref.v))))
+    Q, V = on_grid(tr)
+    if ref.Q is not None and Q.shape == ref.Q.shape:
+        row["trajectory_error"] = float(max(np.max(np.abs(Q - ref.Q)), np.max(np.abs(V - ref.V))))
     if case.conservative:
         E = case.model.energy(tr.q, tr.v)
         row["energy_error"] = float(np.max(np.abs(E - E[0])))
