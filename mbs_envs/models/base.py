@@ -154,8 +154,18 @@ def friction_law(v, b, f, v_s):
     return b * v + f * np.tanh(v / v_s)
 
 
-def smoothed_friction(v: np.ndarray, b: np.ndarray, f: np.ndarray, v_s: float) -> np.ndarray:
-    """Joint friction ``F_i(v) = b_i v_i + f_i tanh(v_i / v_s)`` (docs/physics.md §1).
+def stribeck_law(v, df, v_st, v_s):
+    """``df exp(-(v / v_st)^2) tanh(v / v_s)`` [N m]: the Stribeck peak, static friction ``df`` above
+    the Coulomb level, fading over the speed ``v_st``; smooth (floats or broadcasting arrays)."""
+    return df * np.exp(-((v / v_st) ** 2)) * np.tanh(v / v_s)
+
+
+def smoothed_friction(
+    v: np.ndarray, b: np.ndarray, f: np.ndarray, v_s: float, df: np.ndarray | None = None, v_st: float = 0.1
+) -> np.ndarray:
+    """Joint friction ``F_i(v) = b_i v_i + f_i tanh(v_i / v_s)`` (docs/physics.md §1), plus the
+    Stribeck peak ``df_i exp(-(v_i / v_st)^2) tanh(v_i / v_s)`` where ``df`` is given and nonzero
+    (:func:`stribeck_law`; at rest the friction then reaches ``f_i + df_i``).
 
     Parameters
     ----------
@@ -167,6 +177,10 @@ def smoothed_friction(v: np.ndarray, b: np.ndarray, f: np.ndarray, v_s: float) -
         Coulomb levels [N m], smoothed by ``tanh``.
     v_s : float
         Smoothing speed [rad/s]; small values make the equations stiff.
+    df : ndarray, shape (n,), optional
+        Stribeck excess [N m]: static friction above the Coulomb level (default none).
+    v_st : float
+        Stribeck speed [rad/s] over which that excess fades.
 
     Returns
     -------
@@ -175,9 +189,12 @@ def smoothed_friction(v: np.ndarray, b: np.ndarray, f: np.ndarray, v_s: float) -
     """
     b, f = np.asarray(b), np.asarray(f)
     if np.any(f):
-        return friction_law(v, b, f, v_s)
-    # the tanh is the costly part: frictionless models skip it (and zero b the product)
-    return b * v if np.any(b) else np.zeros(np.broadcast_shapes(np.shape(v), b.shape))
+        F = friction_law(v, b, f, v_s)
+    else:  # the tanh is the costly part: frictionless models skip it (and zero b the product)
+        F = b * v if np.any(b) else np.zeros(np.broadcast_shapes(np.shape(v), b.shape))
+    if df is not None and np.any(df):
+        F = F + stribeck_law(v, np.asarray(df), v_st, v_s)
+    return F
 
 
 # ---------------------------------------------------------------------------

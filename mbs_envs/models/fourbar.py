@@ -89,6 +89,10 @@ class FourBarParams(Params):
     f2: float = param(0.0, "nonnegative", "N m", "Coulomb friction, crank-coupler joint")
     f3: float = param(0.0, "nonnegative", "N m", "Coulomb friction, rocker pivot")
     v_s: float = param(0.01, "positive", "rad/s", "Coulomb smoothing speed")
+    df1: float = param(0.0, "nonnegative", "N m", "Stribeck excess (static above Coulomb friction), crank pivot")
+    df2: float = param(0.0, "nonnegative", "N m", "Stribeck excess, crank-coupler joint")
+    df3: float = param(0.0, "nonnegative", "N m", "Stribeck excess, rocker pivot")
+    v_st: float = param(0.1, "positive", "rad/s", "Stribeck speed")
 
     def _check(self) -> None:
         lengths = {"l0": self.l0, "l1": self.l1, "l2": self.l2, "l3": self.l3}
@@ -136,7 +140,7 @@ _closure_bias = njit(closure_bias)
 
 # kernel parameter rows (FourBarParams field order, :meth:`Model.kernel_params`)
 _L0, _L1, _L2, _L3, _M1, _M2, _M3, _R1, _R2, _R3, _I1, _I2, _I3, _G = range(14)
-_B1, _F1, _VS = 14, 17, 20
+_B1, _F1, _VS, _DF1, _VST = 14, 17, 20, 21, 24
 
 
 # -- the batch in columns, closed form ------------------------------------------------
@@ -169,7 +173,7 @@ def _friction_columns(v, theta):  # pragma: no cover - compiled
     F = np.empty(v.shape)
     for b in range(v.shape[1]):
         for i in range(3):
-            F[i, b] = _p2r._friction(v[i, b], theta[_B1 + i, b], theta[_F1 + i, b], theta[_VS, b])
+            F[i, b] = _p2r._friction(v[i, b], theta[_B1 + i, b], theta[_F1 + i, b], theta[_VS, b], theta[_DF1 + i, b], theta[_VST, b])
     return F
 
 
@@ -422,7 +426,7 @@ class FourBar(ConstrainedModel):
         p = self.params
         self.chain = Planar2R(
             m1=p.m1, m2=p.m2, l1=p.l1, l2=p.l2, r1=p.r1, r2=p.r2, I1=p.I1, I2=p.I2, g=p.g, v_s=p.v_s,
-            b1=p.b1, b2=p.b2, f1=p.f1, f2=p.f2,
+            b1=p.b1, b2=p.b2, f1=p.f1, f2=p.f2, df1=p.df1, df2=p.df2, v_st=p.v_st,
         )  # fmt: skip
 
     @property
@@ -472,7 +476,8 @@ class FourBar(ConstrainedModel):
         """Joint friction at O1, A and O4, shape ``(..., 3)`` [N m]."""
         p = self.params
         v = as_vector(v, 3, "v")
-        return smoothed_friction(v, np.array([p.b1, p.b2, p.b3]), np.array([p.f1, p.f2, p.f3]), p.v_s)
+        return smoothed_friction(v, np.array([p.b1, p.b2, p.b3]), np.array([p.f1, p.f2, p.f3]), p.v_s,
+                                 np.array([p.df1, p.df2, p.df3]), p.v_st)  # fmt: skip
 
     # -- loop closure ----------------------------------------------------------
 

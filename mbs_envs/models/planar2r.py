@@ -16,7 +16,7 @@ import numpy as np
 from ..dynamics import compiled as _compiled
 from ..dynamics.compiled import rk_run
 from ..dynamics.trig import sincos_checked, sincos_rows
-from .base import Model, Params, as_vector, friction_law, param, smoothed_friction
+from .base import Model, Params, as_vector, friction_law, param, smoothed_friction, stribeck_law
 
 
 @dataclasses.dataclass(frozen=True)
@@ -41,6 +41,9 @@ class Planar2RParams(Params):
     f1: float = param(0.0, "nonnegative", "N m", "smoothed Coulomb friction, joint 1")
     f2: float = param(0.0, "nonnegative", "N m", "smoothed Coulomb friction, joint 2")
     v_s: float = param(0.01, "positive", "rad/s", "Coulomb smoothing speed")
+    df1: float = param(0.0, "nonnegative", "N m", "Stribeck excess (static above Coulomb friction), joint 1")
+    df2: float = param(0.0, "nonnegative", "N m", "Stribeck excess (static above Coulomb friction), joint 2")
+    v_st: float = param(0.1, "positive", "rad/s", "Stribeck speed")
 
     def _check(self) -> None:
         # M is positive definite for all q iff each link has rotational inertia
@@ -91,12 +94,15 @@ _coriolis_entries = njit(coriolis_entries)
 _gravity_entries = njit(gravity_entries)
 _potential_entry = njit(potential_entry)
 _friction_law = njit(friction_law)
+_stribeck_law = njit(stribeck_law)
 
 
 @njit
-def _friction(v, b, f, v_s):  # pragma: no cover - compiled
-    """:func:`friction_law` for one joint, skipping the costly tanh when ``f = 0`` (as the numpy path)."""
-    return _friction_law(v, b, f, v_s) if f != 0.0 else b * v
+def _friction(v, b, f, v_s, df, v_st):  # pragma: no cover - compiled
+    """:func:`friction_law` for one joint, skipping the costly tanh when ``f = 0`` (as the numpy path),
+    plus :func:`stribeck_law` where ``df != 0`` (:func:`~mbs_envs.models.base.smoothed_friction`)."""
+    F = _friction_law(v, b, f, v_s) if f != 0.0 else b * v
+    return F + _stribeck_law(v, df, v_st, v_s) if df != 0.0 else F
 
 
 @njit
@@ -139,15 +145,15 @@ def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
     if q.shape[1] == 1:  # one member (a single env): straight-line scalar code, faster than the batch loop
         s1, c1 = sincos_checked(q[0, 0])
         s2, c2 = sincos_checked(q[1, 0])
-        F1 = _friction(v[0, 0], theta[9, 0], theta[11, 0], theta[13, 0])
-        F2 = _friction(v[1, 0], theta[10, 0], theta[12, 0], theta[13, 0])
+        F1 = _friction(v[0, 0], theta[9, 0], theta[11, 0], theta[13, 0], theta[14, 0], theta[16, 0])
+        F2 = _friction(v[1, 0], theta[10, 0], theta[12, 0], theta[13, 0], theta[15, 0], theta[16, 0])
         a[0, 0], a[1, 0] = _acceleration(s1, c1, s2, c2, v[0, 0], v[1, 0], F1, F2, tau[0, 0], tau[1, 0], theta, 0)
         return
     T = _trig(q)
     F = np.empty((2, q.shape[1]))  # a pass of its own: the tanh call would keep the main loop scalar
     for b in range(q.shape[1]):
-        F[0, b] = _friction(v[0, b], theta[9, b], theta[11, b], theta[13, b])
-        F[1, b] = _friction(v[1, b], theta[10, b], theta[12, b], theta[13, b])
+        F[0, b] = _friction(v[0, b], theta[9, b], theta[11, b], theta[13, b], theta[14, b], theta[16, b])
+        F[1, b] = _friction(v[1, b], theta[10, b], theta[12, b], theta[13, b], theta[15, b], theta[16, b])
     for b in range(q.shape[1]):
         a[0, b], a[1, b] = _acceleration(
             T[0, b], T[1, b], T[2, b], T[3, b], v[0, b], v[1, b], F[0, b], F[1, b], tau[0, b], tau[1, b], theta, b
@@ -237,15 +243,16 @@ class Planar2R(Model):
         return potential_entry(np.sin(q[..., 0]), np.sin(q[..., 0] + q[..., 1]), p.m1, p.m2, p.l1, p.r1, p.r2, p.g)
 
     def friction(self, v: np.ndarray) -> np.ndarray:
-        """``F_i = b_i v_i + f_i tanh(v_i / v_s)``, shape ``(..., 2)`` [N m]."""
+        """``F_i = b_i v_i + f_i tanh(v_i / v_s)`` (+ the Stribeck peak where ``df_i > 0``), shape ``(..., 2)`` [N m]."""
         p = self.params
         v = as_vector(v, 2, "v")
-        if isinstance(p.b1, float) and isinstance(p.b2, float) and isinstance(p.f1, float) and isinstance(p.f2, float):
-            b, f = np.array([p.b1, p.b2]), np.array([p.f1, p.f2])
+        if all(isinstance(x, float) for x in (p.b1, p.b2, p.f1, p.f2, p.df1, p.df2)):
+            b, f, df = np.array([p.b1, p.b2]), np.array([p.f1, p.f2]), np.array([p.df1, p.df2])
         else:  # per-member parameters (domain randomization): shape (B, 2)
             b = np.stack(np.broadcast_arrays(p.b1, p.b2), axis=-1)
             f = np.stack(np.broadcast_arrays(p.f1, p.f2), axis=-1)
-        return smoothed_friction(v, b, f, np.asarray(p.v_s)[..., None])
+            df = np.stack(np.broadcast_arrays(p.df1, p.df2), axis=-1)
+        return smoothed_friction(v, b, f, np.asarray(p.v_s)[..., None], df, np.asarray(p.v_st)[..., None])
 
     # -- compiled path (see :mod:`mbs_envs.dynamics.compiled`) -----------------------------
 

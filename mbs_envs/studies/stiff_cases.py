@@ -73,6 +73,8 @@ def stiff_cases(quick: bool = False) -> list[Case]:
              conservative=False, reference_method="radau"),
         Case("Coulomb f=2, v_s=1e-4", Planar2R(f1=2.0, f2=2.0, v_s=1e-4), q0, v0, 1.0,
              conservative=False, reference_method="radau"),
+        Case("Stribeck f=1, df=1, v_st=0.05, v_s=1e-3", Planar2R(f1=1.0, f2=1.0, df1=1.0, df2=1.0, v_st=0.05, v_s=1e-3),
+             q0, v0, 1.0, conservative=False, reference_method="radau"),
         Case("PD kp=1e5, kd=2e3", Planar2R(), q0, v0, 1.0, u=pd_law(1e5, 2e3, np.array([-0.5, 0.5])),
              conservative=False, reference_method="radau"),
     ]  # fmt: skip
