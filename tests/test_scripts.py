@@ -187,6 +187,17 @@ def test_implicit_chain_tiny_configuration(tmp_path):
         assert (tmp_path / name).stat().st_size > 0
 
 
+def test_what_to_pick_tiny_configuration(tmp_path):
+    """Viscous b = 400 at the 10 ms control step: RK4 is flagged at 1-8 substeps; SDIRK2 is usable at one."""
+    result = load_script("what_to_pick.py")["run"](tmp_path, cases=["viscous b=400"], methods=["rk4", "sdirk2"], accurate=1e-3, repeats=1)
+    (pick,) = result["picks"]
+    assert pick["usable"]["integrator"] == "sdirk2" and pick["usable"]["substeps"] == 1
+    rows = (tmp_path / "what_to_pick.csv").read_text().splitlines()
+    rk4 = [r for r in rows if r.startswith("viscous b=400,rk4,")]
+    assert [r.split(",")[4] for r in rk4[:4]] == ["True"] * 4  # flagged, not silently wrong
+    assert (tmp_path / "what_to_pick.md").stat().st_size > 0
+
+
 def test_stiff_cases_tiny_configuration(tmp_path):
     """Viscous b = 400: RK4 fails (reported) above its limit; SDIRK2 is usable 10x beyond it."""
     script = load_script("stiff_cases.py")

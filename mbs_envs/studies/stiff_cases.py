@@ -288,3 +288,68 @@ def largest_settling_step(n: int, method: str, dts: list[float], t_final: float 
         if error <= tol:
             return {"n_links": n, "integrator": method, "largest_stable_dt": dt, "final_error": error, "flagged_above": flagged}
     return {"n_links": n, "integrator": method, "largest_stable_dt": None, "final_error": None, "flagged_above": flagged}
+
+
+# -- what to pick, at the environments' control step (scripts/what_to_pick.py) ----------------
+
+#: the environments' control step [s]
+CONTROL_DT = 0.01
+#: physics steps per control step tried, in order (the environments' ``substeps``)
+SUBSTEPS = (1, 2, 4, 8, 16)
+
+
+def regimes() -> list[tuple[str, Case]]:
+    """One case per scene and regime: each scene's environment model under a held torque (nominal),
+    the disk at 100x its critical spin, stiff viscous, Coulomb and Stribeck friction on the 2R, and a
+    200-link chain under a 1000 rad/s joint PD (long chain); 1 s each."""
+    import gymnasium as gym
+
+    from ..envs import registry
+
+    out = []
+    for s in registry.SCENES:
+        env = gym.make(s.id, **dict(s.kwargs)).unwrapped
+        env.reset(seed=0)
+        stab = getattr(env.stabilization, "kind", None)
+        out.append(("nominal", Case(f"{s.name} (environment model, 0.3 u_max held)", env.model, env._q.copy(), env._v.copy(),
+                                    1.0, u=0.3 * np.asarray(env.u_max, float), stabilization=stab, conservative=False)))  # fmt: skip
+        env.close()
+    stiff = {c.scene: c for c in stiff_cases()}
+    out.append(("high spin", stiff["disk 100x critical spin"]))
+    for name in ("viscous b=400", "Coulomb f=2, v_s=1e-4", "Stribeck f=1, df=1, v_st=0.05, v_s=1e-3"):
+        out.append(("stiff friction", stiff[name]))
+    model, q0, v0, law, _ = stiff_pd_chain(200)
+    out.append(("long chain", Case("chain N=200, joint PD 1000 rad/s", model, q0, v0, 1.0, u=law, conservative=False,
+                                   reference_method="radau")))  # fmt: skip
+    return out
+
+
+def pick_rows(case: Case, ref: numerics.Reference, method: str, accurate: float = 1e-6, usable: float = 1e-2,
+              repeats: int = 3) -> list[dict[str, Any]]:  # fmt: skip
+    """``method`` at the control step with ``SUBSTEPS`` physics steps, fewest first, until its trajectory
+    error is at most ``accurate``: one row per run (trajectory error, flagged, median wall time of
+    ``repeats`` runs after a warm-up, on the path an environment takes: compiled where it applies)."""
+    from .work_precision import timed
+
+    import time
+
+    rows = []
+    for k in SUBSTEPS:
+        dt = CONTROL_DT / k
+        t0 = time.perf_counter()
+        tr = simulate(case.model, case.q0, case.v0, case.t_final, dt=dt, integrator=method, u=case.u,
+                      stabilization=case.stabilization)  # fmt: skip
+        first = time.perf_counter() - t0
+        flagged = bool(np.any(tr.diverged))
+        Q, V = numerics.on_grid(tr)
+        err = float("inf") if flagged or Q.shape != ref.Q.shape else float(max(np.max(np.abs(Q - ref.Q)), np.max(np.abs(V - ref.V))))
+        run = lambda: simulate(case.model, case.q0, case.v0, case.t_final, dt=dt, integrator=method, u=case.u,  # noqa: E731
+                               stabilization=case.stabilization)  # fmt: skip
+        # a warm-up (the first run may have compiled kernels), then the median of the repeats (one for runs over a second)
+        seconds = float("nan") if flagged else timed(run, 1 if first > 1.0 else repeats)[0]
+        rows.append({"case": case.scene, "integrator": method, "substeps": k, "dt": dt, "flagged": flagged,
+                     "trajectory_error": err, "usable": (not flagged) and err <= usable, "accurate": (not flagged) and err <= accurate,
+                     "seconds": seconds})  # fmt: skip
+        if rows[-1]["accurate"]:
+            break
+    return rows

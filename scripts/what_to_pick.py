@@ -1,0 +1,99 @@
+#!/usr/bin/env python
+"""What to pick, per scene and regime, at the environments' control step (10 ms).
+
+For each regime case (:func:`mbs_envs.studies.stiff_cases.regimes`: every scene's environment
+model under a held torque, the disk at 100x its critical spin, stiff viscous, Coulomb and Stribeck
+friction, a 200-link chain under a 1000 rad/s joint PD) and each fixed-step method, the control step
+is split into 1, 2, 4, 8, 16 physics steps (the environments' ``substeps``) until the trajectory
+error over 1 s (0.05 s grid, against the stiff set's reference) is at most 1e-6. Picked per case:
+the cheapest run (median wall time, on the path an environment takes) reaching 1e-6, and the
+cheapest merely *usable* one (not flagged, trajectory error at most 1e-2).
+
+Writes ``what_to_pick.csv`` (every run), ``what_to_pick.json`` and ``what_to_pick.md`` to ``--out``.
+
+    python scripts/what_to_pick.py --out results/what_to_pick    # about 10 min here
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import pathlib
+import sys
+import time
+
+from tqdm import tqdm
+
+from mbs_envs import integrators, numerics
+from mbs_envs import stiff_cases as sc
+
+METHODS = ("euler", "semi_implicit_euler", "midpoint", "rk4", "implicit_euler", "sdirk2", "sdirk3", "joint_implicit_euler")
+
+
+def run(out: pathlib.Path, cases: list[str] | None = None, methods: list[str] | None = None, accurate: float = 1e-6,
+        repeats: int = 3) -> dict:
+    t_start = time.perf_counter()
+    out.mkdir(parents=True, exist_ok=True)
+    chosen = [(regime, c) for regime, c in sc.regimes() if cases is None or c.scene in cases]
+    methods = list(methods or METHODS)
+    rows, picks = [], []
+    with tqdm(total=len(chosen) * (len(methods) + 1), desc="what to pick", unit="method") as bar:
+        for regime, case in chosen:
+            bar.set_postfix_str(f"{case.scene} reference", refresh=True)
+            ref = numerics.reference(case)
+            bar.update()
+            case_rows = []
+            for method in methods:
+                bar.set_postfix_str(f"{case.scene} {method}", refresh=True)
+                if integrators.applies(method, case.model):
+                    case_rows += sc.pick_rows(case, ref, method, accurate=accurate, repeats=repeats)
+                bar.update()
+            rows += case_rows
+            best = lambda key: min((r for r in case_rows if r[key]), key=lambda r: r["seconds"], default=None)  # noqa: E731
+            picks.append({"regime": regime, "case": case.scene, "reference_error_estimate": ref.error_estimate,
+                          "accurate": best("accurate"), "usable": best("usable")})  # fmt: skip
+    with open(out / "what_to_pick.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    result = {"picks": picks, "accurate": accurate, "repeats": repeats, "run_time_s": time.perf_counter() - t_start}
+    (out / "what_to_pick.json").write_text(json.dumps(result, indent=2, default=float))
+    text = report(picks, accurate)
+    (out / "what_to_pick.md").write_text(text)
+    print(text)
+    print(f"run time {result['run_time_s']:.0f} s; written to {out}/what_to_pick.csv, .json, .md")
+    return result
+
+
+def cell(r: dict | None) -> str:
+    if r is None:
+        return "none with up to 16 substeps"
+    return f"`{r['integrator']}`, {r['substeps']} substep{'s' if r['substeps'] > 1 else ''} ({r['trajectory_error']:.1e}; {1e3 * r['seconds']:.1f} ms)"
+
+
+def report(picks: list[dict], accurate: float = 1e-6) -> str:
+    lines = ["# What to pick at the 10 ms control step", "",
+             "Per case: the cheapest run (median wall time for 1 s, the path an environment takes) whose trajectory error "
+             f"is at most {accurate:g}, and the cheapest merely usable one (not flagged, error at most 1e-2); in brackets its "
+             "trajectory error and time.", "",
+             f"| regime | case | cheapest to {accurate:g} | cheapest usable |", "|---|---|---|---|"]  # fmt: skip
+    for p in picks:
+        lines.append(f"| {p['regime']} | {p['case']} | {cell(p['accurate'])} | {cell(p['usable'])} |")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--out", required=True, type=pathlib.Path)
+    p.add_argument("--cases", nargs="+", help="subset of case names")
+    p.add_argument("--methods", nargs="+", help="subset of integrators")
+    p.add_argument("--accurate", type=float, default=1e-6, help="trajectory error target (default 1e-6)")
+    p.add_argument("--repeats", type=int, default=3, help="timed runs after the warm-up (default 3)")
+    a = p.parse_args(argv)
+    run(a.out, a.cases, a.methods, a.accurate, a.repeats)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
