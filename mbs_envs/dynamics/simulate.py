@@ -173,7 +173,7 @@ def simulate(
     v0: np.ndarray,
     t_final: float,
     dt: float = 1e-3,
-    integrator: str = "rk4",
+    integrator: Any = "rk4",
     u: Input = None,
     *,
     stabilization: Any = None,
@@ -194,8 +194,9 @@ def simulate(
     dt : float
         Step [s] of the output grid ``0, dt, 2 dt, ..., t_final`` (the last
         interval may be shorter); the step size of fixed-step methods.
-    integrator : str
-        A name from :func:`mbs_envs.dynamics.integrators.available`.
+    integrator : str or stepper
+        A name from :func:`mbs_envs.dynamics.integrators.available`, or a ready stepper
+        (e.g. one whose ``counters`` a report reads afterwards).
     u : None, array_like (..., nu), or callable ``u(t, q, v)``
         The input; a callable is evaluated at every stage (continuous control).
     stabilization : {None, "projection", "baumgarte", "none"} or Stabilization
