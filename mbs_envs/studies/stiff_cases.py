@@ -117,8 +117,11 @@ def singular_cases() -> list[Case]:
     return [Case("disk falls flat", disk, q, v, 3.0, stabilization="projection")]
 
 
-def scan(case: Case, ref: numerics.Reference, method: str, dts: list[float], accept: float = 1e-2) -> list[dict[str, Any]]:
-    """Run ``method`` at ``dts`` (coarsest first) until a run is stable; return every row.
+def scan(case: Case, ref: numerics.Reference, method: str, dts: list[float], accept: float = 1e-2,
+         budget_s: float = 60.0) -> list[dict[str, Any]]:  # fmt: skip
+    """Run ``method`` at ``dts`` (coarsest first) until a run is stable, or until the runs so far
+    have used ``budget_s`` seconds of CPU (the finer steps are then not tried: a dense-Jacobian
+    method on a 500-link chain over 5 s would take hours); return every row.
 
     Each row is :func:`mbs_envs.studies.numerics.score`'s with ``stable`` and
     ``silent_failure`` added. Where the reference itself is not determined to
@@ -139,7 +142,7 @@ def scan(case: Case, ref: numerics.Reference, method: str, dts: list[float], acc
         row["stable"] = (not row["diverged"]) and bool(ok)
         row["silent_failure"] = (not row["diverged"]) and not row["stable"]
         rows.append(row)
-        if row["stable"]:
+        if row["stable"] or sum(r["cpu_s"] for r in rows) > budget_s:
             break
     return rows
 
@@ -162,6 +165,7 @@ def summarize_scan(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "unstable_flagged": sum(r["diverged"] for r in unstable),
         "silent_failures": sum(r["silent_failure"] for r in rows),
         "halvings": sum(r["halvings"] or 0 for r in rows),
+        "finest_dt_tried": min(r["setting"] for r in rows),
     }
 
 
