@@ -50,9 +50,7 @@ def run(out: pathlib.Path, cases: list[str] | None = None, methods: list[str] | 
                     case_rows += sc.pick_rows(case, ref, method, accurate=accurate, repeats=repeats)
                 bar.update()
             rows += case_rows
-            best = lambda key: min((r for r in case_rows if r[key]), key=lambda r: r["seconds"], default=None)  # noqa: E731
-            picks.append({"regime": regime, "case": case.scene, "reference_error_estimate": ref.error_estimate,
-                          "accurate": best("accurate"), "usable": best("usable")})  # fmt: skip
+            picks.append({"regime": regime, "case": case.scene, "reference_error_estimate": ref.error_estimate, **pick(case_rows)})
     with open(out / "what_to_pick.csv", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
@@ -66,6 +64,27 @@ def run(out: pathlib.Path, cases: list[str] | None = None, methods: list[str] | 
     return result
 
 
+def pick(rows: list[dict]) -> dict:
+    """The cheapest (median time) of ``rows`` that is accurate, usable, and merely stable (not flagged)."""
+    stable = [dict(r, stable=not r["flagged"]) for r in rows]
+    best = lambda key: min((r for r in stable if r[key]), key=lambda r: r["seconds"], default=None)  # noqa: E731
+    return {"accurate": best("accurate"), "usable": best("usable"), "stable": best("stable")}
+
+
+def from_csv(out: pathlib.Path) -> None:
+    """``what_to_pick.md`` again from ``what_to_pick.csv`` and ``.json`` in ``out`` (no runs)."""
+    meta = json.loads((out / "what_to_pick.json").read_text())
+    with open(out / "what_to_pick.csv") as f:
+        rows = list(csv.DictReader(f))
+    for r in rows:
+        r.update(substeps=int(r["substeps"]), trajectory_error=float(r["trajectory_error"]), seconds=float(r["seconds"]),
+                 flagged=r["flagged"] == "True", usable=r["usable"] == "True", accurate=r["accurate"] == "True")  # fmt: skip
+    picks = [{**p, **pick([r for r in rows if r["case"] == p["case"]])} for p in meta["picks"]]
+    meta["picks"] = picks
+    (out / "what_to_pick.json").write_text(json.dumps(meta, indent=2, default=float))
+    (out / "what_to_pick.md").write_text(report(picks, meta.get("accurate", 1e-6)))
+
+
 def cell(r: dict | None) -> str:
     if r is None:
         return "none with up to 16 substeps"
@@ -75,11 +94,11 @@ def cell(r: dict | None) -> str:
 def report(picks: list[dict], accurate: float = 1e-6) -> str:
     lines = ["# What to pick at the 10 ms control step", "",
              "Per case: the cheapest run (median wall time for 1 s, the path an environment takes) whose trajectory error "
-             f"is at most {accurate:g}, and the cheapest merely usable one (not flagged, error at most 1e-2); in brackets its "
-             "trajectory error and time.", "",
-             f"| regime | case | cheapest to {accurate:g} | cheapest usable |", "|---|---|---|---|"]  # fmt: skip
+             f"is at most {accurate:g}, the cheapest usable one (not flagged, error at most 1e-2) and the cheapest merely "
+             "stable one (not flagged as diverged, whatever its error); in brackets its trajectory error and time.", "",
+             f"| regime | case | cheapest to {accurate:g} | cheapest usable | cheapest stable |", "|---|---|---|---|---|"]  # fmt: skip
     for p in picks:
-        lines.append(f"| {p['regime']} | {p['case']} | {cell(p['accurate'])} | {cell(p['usable'])} |")
+        lines.append(f"| {p['regime']} | {p['case']} | {cell(p['accurate'])} | {cell(p['usable'])} | {cell(p['stable'])} |")
     return "\n".join(lines) + "\n"
 
 
@@ -90,7 +109,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--methods", nargs="+", help="subset of integrators")
     p.add_argument("--accurate", type=float, default=1e-6, help="trajectory error target (default 1e-6)")
     p.add_argument("--repeats", type=int, default=3, help="timed runs after the warm-up (default 3)")
+    p.add_argument("--from-csv", action="store_true", help="rewrite the picks and the table from the CSV in --out, no runs")
     a = p.parse_args(argv)
+    if a.from_csv:
+        from_csv(a.out)
+        return 0
     run(a.out, a.cases, a.methods, a.accurate, a.repeats)
     return 0
 
