@@ -136,12 +136,11 @@ def plot_problem(rows: list[dict], p: wp.Problem | None, ref: wp.Reference | flo
         ax.grid(True, which="both", alpha=0.3)
     handles, labels = axes[1].get_legend_handles_labels()
     fig.legend(handles, labels, loc="center right", fontsize=7)
-    fig.subplots_adjust(right=0.83, wspace=0.25)
     if title is None:
         what = "free motion" if p.u is None else f"torque held per {p.interval:g} s control step, default friction"
         title = f"{p.name}: {p.t_final:g} s, {what}"
     fig.suptitle(f"{title} (dotted: compiled path; dashed: adaptive)")
-    save(fig, path)
+    save(fig, path, rect=(0, 0, 0.86, 1))
 
 
 def replot(out: pathlib.Path) -> None:

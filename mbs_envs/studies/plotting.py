@@ -16,8 +16,8 @@ def pyplot() -> Any:
     return plt
 
 
-def save(fig: Any, path: pathlib.Path, dpi: int = 110) -> None:
-    """Lay out, write and close a figure."""
-    fig.tight_layout()
+def save(fig: Any, path: pathlib.Path, dpi: int = 110, rect: tuple | None = None) -> None:
+    """Lay out (within ``rect`` of the figure, leaving room for a figure legend), write and close a figure."""
+    fig.tight_layout(rect=rect)
     fig.savefig(path, dpi=dpi)
     pyplot().close(fig)
