@@ -14,7 +14,6 @@ from typing import Any
 import numpy as np
 
 
-
 @dataclasses.dataclass(frozen=True)
 class JointPD:
     """``u = u_ff + K_p (q_ref - B^T q) - K_d B^T v``: joint PD on the driven joints, held targets.

@@ -588,13 +588,16 @@ class JointImplicitEuler:
                 f"{type(model).__name__} has nc = {getattr(model, 'nc', 0)}, nq = {model.nq}, nv = {model.nv}"
             )
 
-    def step_model(self, model: Any, u: Any, t: float, q: np.ndarray, v: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
-        """Advance ``(q, v)`` of ``model`` from ``t`` to ``t + h`` under the input ``u``.
+    def step_model(self, model: Any, u: Callable, law: Any, t: float, q: np.ndarray, v: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+        """Advance ``(q, v)`` of ``model`` from ``t`` to ``t + h``.
 
         Parameters
         ----------
         model : Model
-        u : None, ndarray (..., nu), callable ``u(t, q, v)`` or :class:`~mbs_envs.dynamics.inputs.JointPD`
+        u : callable ``u(t, q, v)``
+            The input (:func:`mbs_envs.dynamics.simulate.input_function`), evaluated at ``(t, q, v)``.
+        law : :class:`~mbs_envs.dynamics.inputs.JointPD` or None
+            The PD law behind ``u``, if it is one: its stiffness and damping then enter implicitly.
         q, v : ndarray, shape (..., n)
         h : float
             [s]
@@ -603,20 +606,14 @@ class JointImplicitEuler:
         -------
         q, v : ndarray
         """
-        from .inputs import JointPD
-
         self.check_model(model)
-        B = model.actuation
         d = h * model.friction_slope(v)
-        if isinstance(u, JointPD):
-            kp, kd = u.diagonals(B)
-            u_now = u(t, q, v, B)
-            # the PD input at the new state: u(q+, v+) ~ u(q, v) - kp B^T (h v + h^2 a) - kd B^T h a
-            tau = model.generalized_input(u_now) - kp * (h * v) - model.friction(v)
+        tau = model.generalized_input(u(t, q, v)) - model.friction(v)
+        if law is not None:
+            # the PD input at the new state: u(q+, v+) ~ u(q, v) - K_p (h v + h^2 a) - K_d h a (joint space)
+            kp, kd = law.diagonals(model.actuation)
+            tau = tau - kp * (h * v)
             d = d + h * kd + h * h * kp
-        else:
-            u_now = None if u is None else (u(t, q, v) if callable(u) else u)
-            tau = model.generalized_input(u_now) - model.friction(v)
         a = model.shifted_forward_dynamics(q, v, tau, d)
         v_new = v + h * a
         return q + h * v_new, v_new
@@ -657,7 +654,7 @@ def get(name: str, **options: Any) -> Stepper:
     ValueError
         For an unknown name or an option the method does not take.
     """
-    if isinstance(name, (ExplicitRK, ImplicitRK, ScipyIVP, JointImplicitEuler)) and not options:
+    if isinstance(name, Stepper) and not options:
         return name  # a ready stepper (e.g. one whose counters a report reads)
     if not isinstance(name, str):
         raise ValueError(f"integrator must be a name (str) or a stepper, got {name!r}")

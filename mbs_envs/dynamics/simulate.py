@@ -149,12 +149,11 @@ def advance(
     acc = acceleration(model, u, stabilization)
     steps = 1 if isinstance(stepper, ScipyIVP) else substeps
     h = duration / steps
-    if isinstance(stepper, JointImplicitEuler):
+    step = stepper.step
+    if isinstance(stepper, JointImplicitEuler):  # steps the model itself (its mass matrix's diagonal)
         stepper.check_model(model)
-        u_model = u if u is None or isinstance(u, JointPD) or callable(u) else as_vector(u, model.nu, "u")
-        step = lambda acc, t, q, v, h: stepper.step_model(model, u_model, t, q, v, h)  # noqa: E731
-    else:
-        step = stepper.step
+        u_fn, law = input_function(model, u), (u if isinstance(u, JointPD) else None)
+        step = lambda acc, t, q, v, h: stepper.step_model(model, u_fn, law, t, q, v, h)  # noqa: E731
     try:
         with np.errstate(all="ignore"):
             for k in range(steps):

@@ -87,13 +87,14 @@ class Reference:
     error_estimate: float
     method: str
     rtol: float
-    Q: np.ndarray | None = None
+    Q: np.ndarray | None = None  # the states on the GRID points (trajectory errors)
     V: np.ndarray | None = None
 
 
 def reference(case: Case, rtol: float = 1e-12) -> Reference:
-    """High-accuracy final state of ``case`` (no stabilization: the exact index-1 ODE): one solve, output
-    every ``case.dt_out`` (the evaluation budget of the solve is per output interval)."""
+    """High-accuracy solution of ``case`` (no stabilization: the exact index-1 ODE): one solve, output
+    every ``case.dt_out`` (the evaluation budget of the solve is per output interval); kept at its
+    final time and on the :data:`GRID` points, with its error estimate over those points."""
     runs = []
     for tol in (rtol, 100 * rtol):
         tr = simulate(
@@ -104,7 +105,7 @@ def reference(case: Case, rtol: float = 1e-12) -> Reference:
             raise RuntimeError(f"reference solution of {case.scene} failed")
         runs.append(on_grid(tr))
     (Q, V), (Q2, V2) = runs
-    est = float(max(np.max(np.abs(Q - Q2)), np.max(np.abs(V - V2))))
+    est = state_difference(Q, V, Q2, V2)
     return Reference(Q[-1], V[-1], est, case.reference_method, rtol, Q, V)
 
 
@@ -118,6 +119,18 @@ def on_grid(tr: Any) -> tuple[np.ndarray, np.ndarray]:
     k = np.round(tr.t / GRID)
     keep = np.isclose(tr.t, k * GRID, rtol=0, atol=1e-9) | (np.arange(len(tr.t)) == len(tr.t) - 1)
     return tr.q[keep], tr.v[keep]
+
+
+def state_difference(Q: np.ndarray, V: np.ndarray, Q2: np.ndarray, V2: np.ndarray) -> float:
+    """``max(|Q - Q2|, |V - V2|)`` over every entry (max norm of the state, over all samples given)."""
+    return float(max(np.max(np.abs(Q - Q2)), np.max(np.abs(V - V2))))
+
+
+def trajectory_error(tr: Any, ref: Reference) -> float:
+    """:func:`state_difference` of a trajectory and the reference on the :data:`GRID` points; inf where
+    the trajectory does not cover them (it stopped early)."""
+    Q, V = on_grid(tr)
+    return state_difference(Q, V, ref.Q, ref.V) if Q.shape == ref.Q.shape else float("inf")
 
 
 def constraint_error(model: Model, q: np.ndarray, v: np.ndarray) -> float:
@@ -170,10 +183,8 @@ def score(case: Case, ref: Reference, integrator: str, setting: float) -> dict[s
     }
     if diverged:
         return row
-    row["state_error"] = float(max(np.max(np.abs(tr.q[-1] - ref.q)), np.max(np.abs(tr.v[-1] - ref.v))))
-    Q, V = on_grid(tr)
-    if ref.Q is not None and Q.shape == ref.Q.shape:
-        row["trajectory_error"] = float(max(np.max(np.abs(Q - ref.Q)), np.max(np.abs(V - ref.V))))
+    row["state_error"] = state_difference(tr.q[-1], tr.v[-1], ref.q, ref.v)
+    row["trajectory_error"] = trajectory_error(tr, ref)
     if case.conservative:
         E = case.model.energy(tr.q, tr.v)
         row["energy_error"] = float(np.max(np.abs(E - E[0])))
