@@ -9,5 +9,6 @@ scores an RL agent.
 from .base import Controller
 from .disk import LQR, NoControl, SteeringPD
 from .joint import PD, ComputedTorque, PDGravity
+from .swingup import SwingUpLQR
 
-__all__ = ["Controller", "PD", "PDGravity", "ComputedTorque", "LQR", "SteeringPD", "NoControl"]
+__all__ = ["Controller", "PD", "PDGravity", "ComputedTorque", "LQR", "SteeringPD", "NoControl", "SwingUpLQR"]

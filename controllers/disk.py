@@ -27,35 +27,8 @@ from mbs_envs import validation as check
 from mbs_envs.envs.rolling_disk import RollingDiskEnv
 from mbs_envs.models.rolling_disk import steady_turn_residual
 
-from .base import Controller
+from .base import Controller, linearize
 from .tuned import tuned_gains
-
-
-def linearize(f: Any, x0: np.ndarray, u0: np.ndarray, eps: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
-    """Jacobians ``A = df/dx``, ``B = df/du`` at ``(x0, u0)`` by central finite differences.
-
-    Central differences have truncation error ``O(eps^2)`` and round-off
-    ``O(1e-16 / eps)``: about 1e-10 relative at ``eps = 1e-6`` for these smooth maps.
-
-    Parameters
-    ----------
-    f : callable ``f(x, u) -> dx/dt``, batched over leading dimensions
-    x0 : ndarray, shape (n,)
-    u0 : ndarray, shape (m,)
-
-    Returns
-    -------
-    A : ndarray, shape (n, n)
-    B : ndarray, shape (n, m)
-    """
-    n, m = len(x0), len(u0)
-    dX = np.concatenate([np.eye(n), -np.eye(n)]) * eps
-    dU = np.concatenate([np.eye(m), -np.eye(m)]) * eps
-    fx = f(x0 + dX, np.broadcast_to(u0, (2 * n, m)))  # one batched call for all columns
-    fu = f(np.broadcast_to(x0, (2 * m, n)), u0 + dU)
-    A = (fx[:n] - fx[n:]).T / (2 * eps)
-    B = (fu[:m] - fu[m:]).T / (2 * eps)
-    return A, B
 
 
 def steady_lean(model: Any, W: Any, Omega: Any, dOmega: Any = 0.0, iterations: int = 4) -> tuple[np.ndarray, np.ndarray]:

@@ -12,7 +12,8 @@ and length mismatch). Each entry is keyed by env id and controller name:
   parameters and chain lengths;
 - ``LQR`` (disk): ``Q`` (5 diagonal weights), ``R`` (2, on the normalized
   input), ``q_integral``;
-- ``PD steering`` (disk): ``k_dlean, k_lean, k_h, k_r, k_w``.
+- ``PD steering`` (disk): ``k_dlean, k_lean, k_h, k_r, k_w``;
+- ``swing-up + LQR`` (Acrobot, Pendubot): ``k_q, k_v, k_E, catch``.
 
 Ids or controllers without an entry get :data:`FALLBACK` (the pre-tuning
 defaults: bandwidth 10 rad/s, critical damping).
@@ -34,6 +35,7 @@ FALLBACK: dict[str, dict[str, Any]] = {
     "computed torque": {"omega": 10.0, "zeta": 1.0},
     "LQR": {"Q": [10.0, 10.0, 1.0, 1.0, 0.1], "R": [1.0, 1.0], "q_integral": 1.0},
     "PD steering": {"k_dlean": 0.3, "k_lean": 0.05, "k_h": 0.5, "k_r": 0.0, "k_w": 0.05},
+    "swing-up + LQR": {"k_q": 40.0, "k_v": 10.0, "k_E": 4.0, "catch": 100.0},
 }
 
 

@@ -137,6 +137,35 @@ def pd_of(by_policy: dict) -> dict | None:
     return by_policy.get("PD") or by_policy.get("PD steering")
 
 
+def scoring_of(scene: str) -> str:
+    return registry.scene(scene).scoring
+
+
+def swing_up_headline(summary: dict) -> str:
+    """Best policy per side on the swing-up scenes: success (upright for the last 2 s), time to swing up,
+    energy, at nominal and under each perturbation."""
+    scenes = [s for s in summary if scoring_of(s) == "swing-up"]
+    if not scenes:
+        return ""
+    conds = [c for c in summary[scenes[0]] if c != "nominal"]
+    lines = ["| scene | side | policy | nominal: success | time to swing up [s] | energy used [J] | "
+             + " | ".join(f"{c}: success" for c in conds) + " |", "|---|---|---|---|---|---|" + "---|" * len(conds)]  # fmt: skip
+    for scene in scenes:
+        by_cond = summary[scene]
+        nominal = by_cond["nominal"]
+        for kind in KINDS:
+            if not any(m["kind"] == kind for m in nominal.values()):
+                continue
+            name = cmp.best_policy(nominal, kind, scoring="swing-up")
+            if name is None:
+                lines.append(f"| {scene} | best {kind} | (none swings up) |" + " |" * (3 + len(conds)))
+                continue
+            m = nominal[name]
+            cells = [success(m), ci(m, "time_to_swing_up"), ci(m, "energy_used")] + [success(by_cond[c][name]) for c in conds]
+            lines.append(f"| {scene} | best {kind} | {name} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def headline(summary: dict) -> str:
     """Best policy per side and scene: settled error and success at nominal and +-20 %, return, compute.
 
@@ -148,6 +177,8 @@ def headline(summary: dict) -> str:
              "nominal: return [95 % CI] | us per action (noisy obs) |",
              "|---|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
     for scene, by_cond in summary.items():
+        if scoring_of(scene) != "tracking":
+            continue
         nominal = by_cond["nominal"]
         for kind in KINDS:
             if not any(m["kind"] == kind for m in nominal.values()):
@@ -170,6 +201,8 @@ def two_metrics(summary: dict) -> str:
     """Per scene, the best policy by settled error and the best by episode return (nominal, >= 95 % success)."""
     lines = ["| scene | best by settled error (t >= 1 s) | best by return (the reward the agents maximize) |", "|---|---|---|"]
     for scene, by_cond in summary.items():
+        if scoring_of(scene) != "tracking":
+            continue
         ok = {n: m for n, m in by_cond["nominal"].items() if m["success"] >= 0.95 and np.isfinite(m["return"])}
         if not ok:
             continue
@@ -231,17 +264,18 @@ def plot_scene(scene: str, by_cond: dict, path: pathlib.Path) -> None:
     policies = [p for p in by_cond["nominal"] if p != "no control"]
     x = np.arange(len(conds))
     width = 0.8 / len(policies)
+    key = cmp.ERROR_METRIC[scoring_of(scene)]
     for k, name in enumerate(policies):
         m = [by_cond[c][name] for c in conds]
-        y = np.array([v["rms_error_settled"] for v in m])
-        err = np.array([[v["rms_error_settled"] - v["rms_error_settled_lo"], v["rms_error_settled_hi"] - v["rms_error_settled"]] for v in m]).T
+        y = np.array([v[key] for v in m])
+        err = np.array([[v[key] - v[key + "_lo"], v[key + "_hi"] - v[key]] for v in m]).T
         ax.bar(x + k * width, y, width, yerr=err, capsize=2, label=name)
         for xi, v in zip(x + k * width, m):
             if v["success"] < 1:
-                ax.text(xi, v["rms_error_settled"] if np.isfinite(v["rms_error_settled"]) else 1e-3, f"{v['success']:.0%}", fontsize=6, ha="center", va="bottom", rotation=90)
+                ax.text(xi, v[key] if np.isfinite(v[key]) else 1e-3, f"{v['success']:.0%}", fontsize=6, ha="center", va="bottom", rotation=90)
     ax.set_yscale("log")
     ax.set_xticks(x + 0.4 - width / 2, conds, fontsize=8)
-    ax.set_ylabel("settled RMS error, successful episodes [rad]")
+    ax.set_ylabel("settled RMS error, successful episodes [rad]" if key == "rms_error_settled" else "time to swing up, successful episodes [s]")
     ax.legend(fontsize=7, ncol=2)
     ax.set_title(f"{scene}: mean and 95 % CI over test episodes (and training seeds); labels: success rate if < 100 %")
     save(fig, path)
@@ -306,6 +340,11 @@ def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: 
              "observation at every call. Training wall times are as each run recorded them (one torch thread, evaluation "
              "excluded); runs may have shared the machine with other runs, so they bound the cost from above.")  # fmt: skip
     L += ["", "## Headline", "", headline(summary), ""]
+    if swing_up_headline(summary):
+        L += ["**Swing-up scenes** (Acrobot-v0, Pendubot-v0: one motor; an episode succeeds when both joints stay within "
+              "0.1 rad of upright for its last 2 s; time to swing up: from when it stays there; energy: the motor's work "
+              "int |u v_driven| dt; time and energy over the successful episodes; best = highest success, then time):", "",
+              swing_up_headline(summary), ""]  # fmt: skip
     L += ["**Two metrics.** The error columns are the tracking error after the first second; the agents were trained on the "
           "reward, whose return also counts the start transient and the effort. The two can disagree:", "", two_metrics(summary), ""]
     L += ["![learning curves](learning_curves.png)", ""]
@@ -323,20 +362,31 @@ def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: 
                          f"{', '.join(sc.get('at_grid_edge') or []) or 'no'} |")  # fmt: skip
         L.append("")
     for scene, by_cond in summary.items():
+        swing_up = scoring_of(scene) == "swing-up"
         L += [f"## {scene}", "", f"![{scene}](comparison_{scene}.png)", ""]
-        L.append("| condition | policy | success | RMS error t>=1 s | max error | RMS torque | peak torque | return | us/action (noisy) |")
+        if swing_up:
+            L.append("| condition | policy | success | time to swing up [s] | energy used [J] | RMS torque | peak torque | return | us/action (noisy) |")
+        else:
+            L.append("| condition | policy | success | RMS error t>=1 s | max error | RMS torque | peak torque | return | us/action (noisy) |")
         L.append("|---|---|---|---|---|---|---|---|---|")
         for cond, by_policy in by_cond.items():
             for name, m in by_policy.items():
                 lat = f"{m['latency_us']:.0f} ({m['latency_noisy_us']:.0f})" if np.isfinite(m["latency_us"]) else ""
-                L.append(f"| {cond} | {name} | {success(m)} | {ci(m, 'rms_error_settled')} | {m['max_error']:.3g} | {m['rms_torque']:.3g} | "
+                cells = f"{ci(m, 'time_to_swing_up')} | {ci(m, 'energy_used')}" if swing_up else f"{ci(m, 'rms_error_settled')} | {m['max_error']:.3g}"
+                L.append(f"| {cond} | {name} | {success(m)} | {cells} | {m['rms_torque']:.3g} | "
                          f"{m['peak_torque']:.3g} | {m['return']:.1f} | {lat} |")  # fmt: skip
         L.append("")
-        best_mb = cmp.best_policy(by_cond["nominal"], "model-based")
+        best_mb = cmp.best_policy(by_cond["nominal"], "model-based", scoring=scoring_of(scene))
         pd = pd_of(by_cond["nominal"])
         for name, c in curves.get(scene, {}).items():
             m = by_cond["nominal"][name]
-            verdict = "beats PD at the nominal plant" if beats(m, pd) else "**does not beat PD at the nominal plant** (not a \"best RL\" candidate by this rule; see its curve)"
+            if swing_up:
+                mb = by_cond["nominal"].get(best_mb) if best_mb else None
+                better = mb is None or (m["success"], -np.nan_to_num(m["time_to_swing_up"], nan=np.inf)) > (mb["success"], -np.nan_to_num(mb["time_to_swing_up"], nan=np.inf))
+                verdict = (f"{'beats' if better else '**does not beat**'} {best_mb or 'the model-based controller'} at the nominal plant "
+                           f"(success {m['success']:.0%} against {mb['success']:.0%})" if mb else "no model-based controller swings up")
+            else:
+                verdict = "beats PD at the nominal plant" if beats(m, pd) else "**does not beat PD at the nominal plant** (not a \"best RL\" candidate by this rule; see its curve)"
             L.append(f"- {name}: {len(c['runs'])} training seed(s), {verdict}.")
             for r in c["runs"]:
                 L.append(f"  - seed {r['seed']}: `{r['command']}` ({r['steps']:,} env steps, {r['wall']:.0f} s of training)")

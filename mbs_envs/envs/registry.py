@@ -21,6 +21,9 @@ JOINT_CONTROLLERS = MappingProxyType(
     {"PD": "controllers:PD", "PD+gravity": "controllers:PDGravity", "computed torque": "controllers:ComputedTorque"}
 )
 
+#: the swing-up scenes' model-based controller (underactuated: no joint tracking controller applies)
+SWING_UP_CONTROLLERS = MappingProxyType({"swing-up + LQR": "controllers:SwingUpLQR"})
+
 
 @dataclasses.dataclass(frozen=True)
 class Scene:
@@ -49,6 +52,9 @@ class Scene:
     edge_parameters : tuple of (str, Mapping)
         Parameters the reliability suite drives to their edges (0, negative, NaN, inf,
         tiny, huge), each with the other parameters it needs (e.g. ``r1 = 0`` for ``I1``).
+    scoring : {"tracking", "swing-up"}
+        How the comparison scores an episode (:data:`mbs_envs.studies.evaluation.SCORING`):
+        tracking error after the first second, or success, time to swing up and energy.
     """
 
     name: str
@@ -61,6 +67,7 @@ class Scene:
     kwargs: Mapping = dataclasses.field(default_factory=dict)
     model: str = ""
     edge_parameters: tuple = ()
+    scoring: str = "tracking"
 
 
 SCENES: tuple[Scene, ...] = (
@@ -75,6 +82,16 @@ SCENES: tuple[Scene, ...] = (
         controllers=MappingProxyType({"LQR": "controllers:LQR", "PD steering": "controllers:SteeringPD", "no control": "controllers:NoControl"}),
         residual_base="controllers:LQR", sizing=False,
         model="mbs_envs.models.rolling_disk:RollingDisk", edge_parameters=(("m", {}), ("r", {})),
+    ),
+    Scene(
+        "Acrobot", "mbs_envs/Acrobot-v0", "mbs_envs.envs.swingup:AcrobotEnv", 1500, controllers=SWING_UP_CONTROLLERS,
+        residual_base="controllers:SwingUpLQR", sizing=False, scoring="swing-up",
+        model="mbs_envs.models.planar2r:Planar2R", edge_parameters=(("m2", {}), ("l1", {})),
+    ),
+    Scene(
+        "Pendubot", "mbs_envs/Pendubot-v0", "mbs_envs.envs.swingup:PendubotEnv", 1500, controllers=SWING_UP_CONTROLLERS,
+        residual_base="controllers:SwingUpLQR", sizing=False, scoring="swing-up",
+        model="mbs_envs.models.planar2r:Planar2R", edge_parameters=(("m2", {}), ("l1", {})),
     ),
 )  # fmt: skip
 

@@ -2,7 +2,8 @@
 
 ``q = (th1, th2)``: ``th1`` angle of link 1 from the fixed +x axis
 (counter-clockwise), ``th2`` angle of link 2 relative to link 1. Gravity acts
-along -y. Both joints are driven (``B = I``).
+along -y. Both joints are driven (``B = I``) unless ``driven`` selects one:
+``Planar2R(driven=(1,))`` is the acrobot (elbow only), ``driven=(0,)`` the pendubot.
 """
 
 from __future__ import annotations
@@ -189,6 +190,23 @@ def advance_kernel(theta, stepper, q, v, tau):  # pragma: no cover - compiled
     rk_run(_this.acceleration_kernel, _compiled.no_projection, theta, stepper, q, v, tau)
 
 
+def driven_joints(driven, n: int) -> tuple[int, ...]:
+    """The driven joints as a sorted tuple of distinct indices in ``[0, n)``.
+
+    Raises
+    ------
+    ValueError
+        Naming ``driven`` if it is empty, repeats a joint or names one that does not exist.
+    """
+    try:
+        joints = tuple(int(j) for j in np.atleast_1d(np.asarray(driven)) if float(j) == int(j))
+    except (TypeError, ValueError):
+        joints = ()
+    if not joints or len(joints) != np.size(driven) or len(set(joints)) != len(joints) or not all(0 <= j < n for j in joints):
+        raise ValueError(f"driven must be distinct joint indices in [0, {n}), at least one, got {driven!r}")
+    return tuple(sorted(joints))
+
+
 class Planar2R(Model):
     """Planar two-link manipulator; equations as docs/physics.md §3.
 
@@ -202,12 +220,27 @@ class Planar2R(Model):
     batched_params = True
     nq = 2
     nv = 2
-    nu = 2
+    nu = 2  # per instance: len(driven)
+
+    def __init__(self, params=None, driven=(0, 1), **overrides):
+        super().__init__(params, **overrides)
+        self.driven = driven_joints(driven, self.nq)
+        self.nu = len(self.driven)
 
     @property
     def actuation(self) -> np.ndarray:
-        """``B = I`` (2 x 2): both joint torques act directly."""
-        return np.eye(2)
+        """``B`` (2 x nu): the columns of the identity of the driven joints (``B = I`` when both are)."""
+        return np.eye(2)[:, list(self.driven)]
+
+    def __eq__(self, other: object) -> bool:
+        return super().__eq__(other) and self.driven == other.driven
+
+    def __hash__(self) -> int:
+        return hash((super().__hash__(), self.driven))
+
+    def __repr__(self) -> str:
+        text = super().__repr__()
+        return text if self.driven == (0, 1) else text[:-1] + (", " if text[-2] != "(" else "") + f"driven={self.driven})"
 
     def mass_matrix(self, q: np.ndarray) -> np.ndarray:
         """``M(q)``, shape ``(..., 2, 2)`` [kg m^2]."""

@@ -30,7 +30,8 @@ import gymnasium as gym
 import numpy as np
 
 from ..envs.registry import SCENES as REGISTRY
-from .evaluation import episode_metrics, make_controller, rollout_batch
+from ..envs import registry
+from .evaluation import ERROR_METRIC, SCORING, make_controller, rollout_batch
 
 #: scene -> (env id, env kwargs, model-based controllers by display name -> "module:class"), from the registry
 SCENES: dict[str, tuple[str, dict, dict[str, str]]] = {s.name: (s.id, dict(s.kwargs), dict(s.controllers)) for s in REGISTRY}
@@ -38,20 +39,25 @@ SCENES: dict[str, tuple[str, dict, dict[str, str]]] = {s.name: (s.id, dict(s.kwa
 
 @dataclasses.dataclass(frozen=True)
 class Condition:
-    """A plant condition: ``scale`` of masses and lengths (1 = nominal) and observation noise."""
+    """A plant condition: ``scale`` of masses and lengths (1 = nominal), observation noise,
+    and an input delay of ``delay`` control steps (the plant applies the action chosen
+    ``delay`` steps earlier; zero before that)."""
 
     name: str
     scale: float = 1.0
     obs_noise: float = 0.0
+    delay: int = 0
 
 
-def conditions(levels: tuple[float, ...] = (0.2,), noise: float = 0.01) -> list[Condition]:
-    """Nominal, mismatch ``+-p`` for each level, and observation noise (if ``noise``)."""
+def conditions(levels: tuple[float, ...] = (0.2,), noise: float = 0.01, delay: int = 1) -> list[Condition]:
+    """Nominal, mismatch ``+-p`` for each level, observation noise (if ``noise``) and input delay (if ``delay``)."""
     out = [Condition("nominal")]
     for p in levels:
         out += [Condition(f"mismatch +{p:.0%}", 1 + p), Condition(f"mismatch -{p:.0%}", 1 - p)]
     if noise:
         out.append(Condition(f"obs noise {noise:g}", obs_noise=noise))
+    if delay:
+        out.append(Condition(f"input delay {delay} step" + ("s" if delay > 1 else ""), delay=delay))
     return out
 
 
@@ -158,6 +164,7 @@ def evaluate_cell(task: dict[str, Any]) -> list[dict[str, Any]]:
     torch.set_num_threads(1)
     scene, condition = task["scene"], Condition(**task["condition"])
     env_id, kwargs, _ = SCENES[scene]
+    scoring = SCORING[registry.scene(scene).scoring]
     nominal = gym.make(env_id, **kwargs)
     venv = gym.make_vec(env_id, num_envs=len(task["seeds"]), vectorization_mode="vector_entry_point",
                         autoreset_mode="Disabled", **plant_kwargs(scene, condition))  # fmt: skip
@@ -166,13 +173,14 @@ def evaluate_cell(task: dict[str, Any]) -> list[dict[str, Any]]:
     for name, specs in task["policies"].items():
         for k, spec in enumerate([specs] if isinstance(specs, str) else specs):
             policy = load_policy(spec, nominal)
-            episodes = rollout_batch(venv, policy, task["seeds"], obs_noise=condition.obs_noise, noise_seed=1)
+            episodes = rollout_batch(venv, policy, task["seeds"], obs_noise=condition.obs_noise, noise_seed=1, delay=condition.delay)
             lat = lat_noisy = float("nan")
             if condition.name == "nominal" and k == 0:
                 lat, lat_noisy = latency_us(policy, obs0), latency_us(policy, obs0, noise=task.get("latency_noise", 0.01))
             for seed, ep in zip(task["seeds"], episodes):
+                metrics, failed = scoring(ep)
                 rows.append({"scene": scene, "condition": condition.name, "policy": name, "kind": kind_of(name),
-                             "train_seed": k, "seed": seed, **episode_metrics(ep), "failed": bool(ep.terminated),
+                             "train_seed": k, "seed": seed, **metrics, "failed": failed,
                              "start_peak_torque": float(np.max(np.abs(ep.u[ep.t <= 1.0]))) if len(ep.t) else float("nan"),
                              "latency_us": lat, "latency_noisy_us": lat_noisy})  # fmt: skip
     venv.close()
@@ -231,7 +239,8 @@ def summarize_policy(rows: list[dict[str, Any]]) -> dict[str, Any]:
     success = [np.array([not r["failed"] for r in by_seed[k]], float) for k in seeds]
     out: dict[str, Any] = {"kind": rows[0]["kind"], "episodes": len(rows), "train_seeds": len(seeds)}
     out["success"], out["success_lo"], out["success_hi"] = hierarchical_bootstrap(success)
-    for m in ("rms_error_settled", "max_error", "rms_torque", "peak_torque", "return"):
+    swing_up = "time_to_swing_up" in rows[0]
+    for m in ("rms_error_settled", "max_error", "rms_torque", "peak_torque", "return") + (("time_to_swing_up", "energy_used") if swing_up else ()):
         groups = [np.array([float(r[m]) for r in by_seed[k] if not r["failed"] and np.isfinite(float(r[m]))]) for k in seeds]
         out[m], out[m + "_lo"], out[m + "_hi"] = hierarchical_bootstrap(groups)
     for m in ("latency_us", "latency_noisy_us"):
@@ -242,11 +251,18 @@ def summarize_policy(rows: list[dict[str, Any]]) -> dict[str, Any]:
     return out
 
 
-def best_policy(by_policy: dict[str, dict[str, Any]], kind: str, min_success: float = 0.95) -> str | None:
-    """The policy of ``kind`` with the smallest error among those with success >= ``min_success``.
+def best_policy(by_policy: dict[str, dict[str, Any]], kind: str, min_success: float = 0.95, scoring: str = "tracking") -> str | None:
+    """The best policy of ``kind``.
 
-    A policy below the success threshold is never "best", whatever its error
-    (its error averages only the episodes it survived).
+    Tracking: the smallest settled error among those with success >= ``min_success``; a
+    policy below the threshold is never "best", whatever its error (its error averages
+    only the episodes it survived). Swing-up: the highest success rate (no threshold:
+    a hard task), ties broken by the time to swing up.
     """
-    names = [n for n, m in by_policy.items() if m["kind"] == kind and m["success"] >= min_success and np.isfinite(m["rms_error_settled"])]
-    return min(names, key=lambda n: by_policy[n]["rms_error_settled"]) if names else None
+    metric = ERROR_METRIC[scoring]
+    if scoring == "swing-up":
+        names = [n for n, m in by_policy.items() if m["kind"] == kind and m["success"] > 0]
+        key = lambda n: (-by_policy[n]["success"], by_policy[n][metric] if np.isfinite(by_policy[n][metric]) else np.inf)  # noqa: E731
+        return min(names, key=key) if names else None
+    names = [n for n, m in by_policy.items() if m["kind"] == kind and m["success"] >= min_success and np.isfinite(m[metric])]
+    return min(names, key=lambda n: by_policy[n][metric]) if names else None

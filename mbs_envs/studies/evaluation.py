@@ -74,6 +74,10 @@ class Episode:
         Wall time of each ``predict`` call [s].
     diverged : bool
     terminated : bool
+    upright : ndarray of bool, shape (T,), optional
+        Within the upright tolerance after each step (swing-up scenes' ``info["upright"]``).
+    power : ndarray, shape (T,), optional
+        The motor's mechanical power after each step [W] (swing-up scenes' ``info["power"]``).
     """
 
     t: np.ndarray
@@ -83,12 +87,14 @@ class Episode:
     compute_time: np.ndarray
     diverged: bool
     terminated: bool
+    upright: np.ndarray | None = None
+    power: np.ndarray | None = None
 
 
 def rollout(env: gym.Env, policy: Any, seed: int, deterministic: bool = True) -> Episode:
     """Run one episode of ``policy`` on ``env`` from ``reset(seed=seed)``."""
     obs, _ = env.reset(seed=seed)
-    rows: dict[str, list] = {"t": [], "e": [], "u": [], "r": [], "dt": []}
+    rows: dict[str, list] = {"t": [], "e": [], "u": [], "r": [], "dt": [], "upright": [], "power": []}
     state = None
     start = np.ones((1,), dtype=bool)
     while True:
@@ -101,6 +107,9 @@ def rollout(env: gym.Env, policy: Any, seed: int, deterministic: bool = True) ->
         rows["e"].append(info["tracking_error"])
         rows["u"].append(info["u"])
         rows["r"].append(reward)
+        for key in ("upright", "power"):
+            if key in info:
+                rows[key].append(info[key])
         if terminated or truncated:
             break
     return Episode(
@@ -111,6 +120,8 @@ def rollout(env: gym.Env, policy: Any, seed: int, deterministic: bool = True) ->
         compute_time=np.array(rows["dt"]),
         diverged=bool(info["diverged"]),
         terminated=bool(terminated),
+        upright=np.array(rows["upright"], bool) if rows["upright"] else None,
+        power=np.array(rows["power"], float) if rows["power"] else None,
     )
 
 
@@ -137,6 +148,50 @@ def episode_metrics(ep: Episode, settle_time: float = 1.0) -> dict[str, float]:
     }
 
 
+def swing_up_metrics(ep: Episode, hold: float = 2.0, dt: float | None = None) -> dict[str, float]:
+    """Summary figures of a swing-up episode (Acrobot-v0, Pendubot-v0), with those of :func:`episode_metrics`.
+
+    - ``success``: within the upright tolerance at every step of the last ``hold`` seconds
+      of a whole (not terminated) episode;
+    - ``time_to_swing_up`` [s]: the time from which the arm stays upright to the end
+      (NaN unless successful);
+    - ``energy_used`` [J]: ``int |P| dt``, the motor's mechanical work whether it feeds
+      energy in or takes it out (``P = u v_driven``, rectangle rule on the control steps).
+
+    Parameters
+    ----------
+    ep : Episode
+        With ``upright`` and ``power``.
+    hold : float
+        [s].
+    dt : float, optional
+        Control step [s] (default from ``ep.t``).
+    """
+    if ep.upright is None or ep.power is None:
+        raise ValueError("a swing-up episode needs info['upright'] and info['power'] (Acrobot-v0, Pendubot-v0)")
+    out = episode_metrics(ep)
+    dt = float(ep.t[1] - ep.t[0]) if dt is None and len(ep.t) > 1 else (dt or 0.0)
+    last = ep.t >= ep.t[-1] - hold + 0.5 * dt if len(ep.t) else np.zeros(0, bool)
+    success = bool(len(ep.t) and not ep.terminated and np.all(ep.upright[last]))
+    time_up = float("nan")
+    if success:
+        down = np.flatnonzero(~ep.upright)
+        time_up = float(ep.t[down[-1]]) if len(down) else 0.0  # from the step after the last one outside
+    out.update({"success": success, "time_to_swing_up": time_up, "energy_used": float(np.sum(np.abs(ep.power)) * dt)})
+    return out
+
+
+#: how an episode is scored, by the scene registry's ``scoring``: metrics, and whether it failed
+SCORING = {
+    "tracking": lambda ep: (episode_metrics(ep), bool(ep.terminated)),
+    "swing-up": lambda ep: (lambda m: (m, not m["success"]))(swing_up_metrics(ep)),
+}
+
+
+#: the error a scene's episodes are ranked by (among those that did not fail), by ``scoring``
+ERROR_METRIC = {"tracking": "rms_error_settled", "swing-up": "time_to_swing_up"}
+
+
 def rollout_batch(
     venv: Any,
     policy: Any,
@@ -144,6 +199,7 @@ def rollout_batch(
     deterministic: bool = True,
     obs_noise: float = 0.0,
     noise_seed: int = 0,
+    delay: int = 0,
 ) -> list[Episode]:
     """One episode per seed, all at once on a batched vector env.
 
@@ -162,6 +218,9 @@ def rollout_batch(
         Standard deviation of Gaussian noise added to every observation entry
         the policy sees (the environment's state is untouched).
     noise_seed : int
+    delay : int
+        Input delay in control steps: the plant applies the action the policy chose
+        ``delay`` steps earlier (zero actions before that); the policy is unchanged.
 
     Returns
     -------
@@ -175,24 +234,33 @@ def rollout_batch(
         raise ValueError(f"venv has {venv.num_envs} members for {n} seeds")
     obs, _ = venv.reset(seed=list(seeds))
     rng = np.random.default_rng(noise_seed)
-    rows: dict[str, list] = {"t": [], "e": [], "u": [], "r": [], "dt": [], "div": []}
+    rows: dict[str, list] = {"t": [], "e": [], "u": [], "r": [], "dt": [], "div": [], "upright": [], "power": []}
     done = np.zeros(n, bool)
     end = np.zeros(n, int)
     terminated_any = np.zeros(n, bool)
     state = None
     start = np.ones(n, dtype=bool)
+    if not (isinstance(delay, (int, np.integer)) and delay >= 0):
+        raise ValueError(f"delay must be a whole number of control steps >= 0, got {delay!r}")
+    queue = [np.zeros(venv.action_space.shape, venv.action_space.dtype)] * int(delay)
     while not done.all():
         seen = obs + rng.normal(0.0, obs_noise, obs.shape).astype(obs.dtype) if obs_noise > 0 else obs
         tic = time.perf_counter()
         action, state = policy.predict(seen, state=state, episode_start=start, deterministic=deterministic)
         rows["dt"].append((time.perf_counter() - tic) / n)
         start = np.zeros(n, dtype=bool)
+        if delay:
+            queue.append(action)
+            action = queue.pop(0)
         obs, reward, terminated, truncated, info = venv.step(action)
         rows["t"].append(info["t"])
         rows["e"].append(info["tracking_error"])
         rows["u"].append(info["u"])
         rows["r"].append(reward)
         rows["div"].append(info["diverged"])
+        for key in ("upright", "power"):
+            if key in info:
+                rows[key].append(info[key])
         newly = ~done & (terminated | truncated)
         end[newly] = len(rows["t"])
         terminated_any |= newly & terminated
@@ -200,6 +268,8 @@ def rollout_batch(
     t, e, u, r = (np.array(rows[k]) for k in ("t", "e", "u", "r"))
     div = np.array(rows["div"])
     dt = np.array(rows["dt"])
+    up = np.array(rows["upright"], bool) if rows["upright"] else None
+    power = np.array(rows["power"], float) if rows["power"] else None
     return [
         Episode(
             t=t[: end[i], i],
@@ -209,6 +279,8 @@ def rollout_batch(
             compute_time=dt[: end[i]],
             diverged=bool(div[end[i] - 1, i]),
             terminated=bool(terminated_any[i]),
+            upright=None if up is None else up[: end[i], i],
+            power=None if power is None else power[: end[i], i],
         )
         for i in range(n)
     ]

@@ -21,7 +21,11 @@ one that loses none, whatever its error. The grids:
   ``Q = diag(q_h, q_h, 1, 1, 0.1)``, ``R = I`` on the normalized input,
   integral weight in {0, 1, 10, 100, 1000};
 - PD steering (disk): ``k_h`` in {0.5, 1, 2, 4, 8} 1/s, ``k_dlean`` in {0.3, 0.6, 1}
-  N m s/rad, ``k_lean`` in {0.02, 0.05, 0.15} N m/rad (``k_r = 0``, ``k_w = 0.05``).
+  N m s/rad, ``k_lean`` in {0.02, 0.05, 0.15} N m/rad (``k_r = 0``, ``k_w = 0.05``);
+- swing-up + LQR (acrobot, pendubot): the driven joint's PD ``k_q`` in {5, 20, 50} 1/s^2
+  and ``k_v`` in {2, 5, 10} 1/s, the pumping gain ``k_E`` in {2, 4, 8} 1/(J s), the LQR's
+  catch level ``x^T S x`` in {30, 100, 300}; there the error is the time to swing up and a
+  failure an episode that does not end upright (:data:`mbs_envs.studies.evaluation.SCORING`).
 
 A pick at the edge of its grid is reported as such by ``scripts/tune.py``
 (the grid should then be widened).
@@ -41,7 +45,8 @@ import gymnasium as gym
 import numpy as np
 
 from .comparison import SCENES, Condition, plant_kwargs
-from .evaluation import episode_metrics, make_controller, rollout_batch
+from ..envs import registry
+from .evaluation import ERROR_METRIC, SCORING, make_controller, rollout_batch
 from .seeds import tuning_seeds
 
 #: the plant conditions every candidate is scored on
@@ -72,6 +77,14 @@ def steering_grid() -> list[dict[str, float]]:
     ]
 
 
+def swing_up_grid() -> list[dict[str, float]]:
+    """Gain candidates of the swing-up + LQR controller (acrobot and pendubot)."""
+    return [
+        {"k_q": kq, "k_v": kv, "k_E": kE, "catch": c}
+        for kq, kv, kE, c in itertools.product((5.0, 20.0, 50.0), (2.0, 5.0, 10.0), (2.0, 4.0, 8.0), (30.0, 100.0, 300.0))
+    ]
+
+
 #: controller display name -> its grid
 GRIDS: dict[str, Callable[[], list[dict[str, Any]]]] = {
     "PD": joint_grid,
@@ -79,6 +92,7 @@ GRIDS: dict[str, Callable[[], list[dict[str, Any]]]] = {
     "computed torque": joint_grid,
     "LQR": lqr_grid,
     "PD steering": steering_grid,
+    "swing-up + LQR": swing_up_grid,
 }
 
 
@@ -105,6 +119,7 @@ def score(scene: str, name: str, entry: dict[str, Any] | None, seeds: list[int],
           conditions: tuple[Condition, ...] = TUNING_CONDITIONS, max_episode_steps: int | None = None) -> Score:  # fmt: skip
     """Roll out one candidate on ``seeds`` under ``conditions`` (batched, one rollout per condition)."""
     env_id, kwargs, _ = SCENES[scene]
+    scoring = registry.scene(scene).scoring
     nominal = gym.make(env_id, **kwargs)
     policy = build(scene, name, entry, nominal)
     failures, errors, per = [], [], {}
@@ -114,8 +129,9 @@ def score(scene: str, name: str, entry: dict[str, Any] | None, seeds: list[int],
                             autoreset_mode="Disabled", **plant_kwargs(scene, cond), **extra)  # fmt: skip
         episodes = rollout_batch(venv, policy, seeds)
         venv.close()
-        ok = [episode_metrics(ep)["rms_error_settled"] for ep in episodes if not ep.terminated]
-        failures += [ep.terminated for ep in episodes]
+        scored = [SCORING[scoring](ep) for ep in episodes]
+        ok = [m[ERROR_METRIC[scoring]] for m, failed in scored if not failed]
+        failures += [failed for _, failed in scored]
         per[cond.name] = float(np.mean(ok)) if ok else float("nan")
         errors.append(per[cond.name])
     error = float(np.mean(errors)) if np.all(np.isfinite(errors)) else float("nan")

@@ -1,0 +1,137 @@
+"""Swing-up and balance of the 2R arm with one motor: energy pumping through partial
+feedback linearization, switching to LQR about upright (Acrobot-v0, Pendubot-v0).
+
+Let ``a`` be the driven joint and ``p`` the passive one. With ``M q'' + h = B u``
+(``h = C v + G + F``; docs/physics.md §3) the passive row gives
+``q_p'' = -(M_pa y + h_p) / M_pp`` for a commanded ``q_a'' = y``, and the driven row
+the input that produces it (*collocated partial feedback linearization*, Spong 1994):
+
+    u = M_aa y + M_ap q_p'' + h_a.
+
+The outer loop pumps energy toward the upright energy ``E_up = V(q_up)`` while a PD
+keeps the driven joint near its upright value, with ``E~ = E - E_up``:
+
+- acrobot (elbow driven; Spong 1995):   ``y = -k_q wrap(th2) - k_v dth2 + k_E E~ dth1``
+- pendubot (shoulder driven):          ``y = -k_q wrap(th1 - pi/2) - k_v dth1 - k_E E~ dth1``
+
+(for the pendubot ``dE/dt = dth1 u`` with the friction-free arm, so ``-E~ dth1`` feeds
+energy in while ``E < E_up``; for the acrobot the elbow's motion pumps through the
+coupling, and ``+E~ dth1`` is the sign of Spong's law). Near upright an LQR balances:
+``u = -K x`` with ``x = (wrap(q - q_up), v)`` and ``K`` from ``control.lqr`` on the
+model's linearization about upright (central finite differences of the same
+``forward_dynamics`` the simulation uses), ``Q = diag(10, 10, 1, 1)``, ``R = 1``
+[(N m)^-2].
+
+**Switching rule** (with hysteresis): the LQR takes over when ``x^T S x < catch``
+(``S`` the Riccati solution, so ``x^T S x`` is the LQR's cost-to-go from ``x``) and hands
+back to swing-up only when ``x^T S x > release * catch``. The mode is the controller's
+memory, kept in SB3's ``state`` (reset where ``episode_start``), so ``evaluate_policy``
+and the batched rollouts carry it.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import control
+import numpy as np
+
+from mbs_envs import validation as check
+from mbs_envs.envs.swingup import Q_UP, SwingUpEnv, wrap_angle
+
+from .base import Controller, linearize
+from .tuned import tuned_gains
+
+
+def collocated_pfl(model: Any, q: np.ndarray, v: np.ndarray, y: np.ndarray, a: int) -> np.ndarray:
+    """The driven joint's torque that gives it the acceleration ``y`` (module docstring).
+
+    Parameters
+    ----------
+    model : Planar2R
+    q, v : ndarray, shape (..., 2)
+    y : ndarray, shape (...)
+        Commanded acceleration of joint ``a`` [rad/s^2].
+    a : {0, 1}
+        The driven joint.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        ``u`` [N m].
+    """
+    M, h = model.mass_matrix(q), model.bias(q, v)
+    p = 1 - a
+    a_p = -(M[..., p, a] * y + h[..., p]) / M[..., p, p]
+    return M[..., a, a] * y + M[..., a, p] * a_p + h[..., a]
+
+
+def upright_lqr(model: Any, Q: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(K, S)`` of ``control.lqr`` on the model linearized about ``(q_up, v = 0, u = 0)``."""
+
+    def f(x, u):
+        return np.concatenate([x[..., 2:], model.forward_dynamics(x[..., :2], x[..., 2:], u)], axis=-1)
+
+    A, B = linearize(f, np.concatenate([Q_UP, np.zeros(2)]), np.zeros(model.nu))
+    K, S, _ = control.lqr(A, B, Q, R)
+    return np.asarray(K), np.asarray(S)
+
+
+class SwingUpLQR(Controller):
+    """Energy-based swing-up through partial feedback linearization, then LQR (module docstring).
+
+    Parameters
+    ----------
+    env : gymnasium.Env
+        Acrobot-v0 or Pendubot-v0 (wrapped or not).
+    k_q, k_v : float, optional
+        PD of the driven joint during swing-up [1/s^2, 1/s]; default the tuned ones.
+    k_E : float, optional
+        Energy-pumping gain [1/(J s)]; default the tuned one.
+    catch : float, optional
+        LQR takes over below this cost-to-go ``x^T S x``; default the tuned one.
+    release : float
+        Swing-up resumes above ``release * catch`` (hysteresis, > 1).
+    """
+
+    fits = (SwingUpEnv,)
+    #: the entry of controllers/tuned.json
+    tuned_name = "swing-up + LQR"
+    Q = np.diag([10.0, 10.0, 1.0, 1.0])
+    R = np.eye(1)
+
+    def __init__(self, env: Any, k_q: Any = None, k_v: Any = None, k_E: Any = None, catch: Any = None, release: float = 4.0):
+        super().__init__(env)
+        tuned = tuned_gains(env, self.tuned_name)
+        self.k_q = check.nonnegative(tuned["k_q"] if k_q is None else k_q, "k_q")
+        self.k_v = check.nonnegative(tuned["k_v"] if k_v is None else k_v, "k_v")
+        self.k_E = check.nonnegative(tuned["k_E"] if k_E is None else k_E, "k_E")
+        self.catch = check.positive(tuned["catch"] if catch is None else catch, "catch")
+        self.release = check.real(release, "release", 1.0, np.inf, low_open=True)
+        self.driven = int(self.model.driven[0])
+        self.E_up = float(self.model.potential_energy(Q_UP))
+        self.K, self.S = upright_lqr(self.model, self.Q, self.R)
+
+    def swing_up(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """The swing-up input ``u`` [N m], shape ``(...)``."""
+        a = self.driven
+        E_err = self.model.energy(q, v) - self.E_up
+        pump = self.k_E * E_err * v[..., 0] * (1.0 if a == 1 else -1.0)
+        y = -self.k_q * wrap_angle(q[..., a] - Q_UP[a]) - self.k_v * v[..., a] + pump
+        return collocated_pfl(self.model, q, v, y, a)
+
+    def control(self, obs: Any, state: Any, episode_start: Any) -> tuple[np.ndarray, Any]:
+        q, v = obs.q, obs.v
+        x = np.concatenate([wrap_angle(q - Q_UP), v], axis=-1)
+        cost = np.einsum("...i,ij,...j->...", x, self.S, x)
+        lead = cost.shape
+        balancing = np.zeros(lead, bool) if state is None else np.array(state, bool).reshape(lead)
+        if episode_start is not None:
+            balancing = np.where(np.asarray(episode_start, bool).reshape(lead), False, balancing)
+        balancing = np.where(balancing, cost <= self.release * self.catch, cost < self.catch)
+        u = np.where(balancing, -(x @ self.K.T)[..., 0], self.swing_up(q, v))
+        return u[..., None], balancing
+
+    def input(self, obs: Any) -> np.ndarray:
+        """Inputs without memory (swing-up unless already inside the catch region)."""
+        return self.control(obs, None, None)[0]

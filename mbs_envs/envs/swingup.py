@@ -1,0 +1,282 @@
+"""``mbs_envs/Acrobot-v0`` and ``mbs_envs/Pendubot-v0``: swing the 2R arm up with one motor and balance it.
+
+The Planar2R model (docs/physics.md §3) with one driven joint
+(:class:`~mbs_envs.models.planar2r.Planar2R` ``driven``): the elbow for the
+acrobot, the shoulder for the pendubot. The task, written once for both:
+
+- upright is ``q_up = (pi/2, 0)``; the error ``e = wrap(q - q_up)`` in ``[-pi, pi)``;
+- reward ``r = w_h h - w_e |e|^2 - w_u |action|^2`` with the height term
+  ``h = (sin th1 + sin(th1 + th2)) / 2`` in ``[-1, 1]`` (the tip's height over the
+  arm's reach for equal links; 1 upright, -1 hanging) and default weights
+  ``(w_h, w_e, w_u) = (1, 0.05, 0.01)``;
+- observation ``[cos q (2), sin q (2), v (2)]``;
+- ``info``: the reward terms, ``tracking_error = e`` (the distance to upright, which
+  the evaluation scores), ``upright`` (``|e_i| <= upright_tolerance`` on both joints)
+  and ``power = u v_driven`` [W], the motor's mechanical power.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+
+from .. import validation as check
+from ..dynamics import compiled as _compiled
+from ..dynamics.jit import njit
+from ..dynamics.trig import sincos_columns
+from ..models import planar2r as _model
+from ..models.planar2r import Planar2R
+from .base import MBSEnv
+from .engine import engine_step
+from .rendering import Polyline
+from .tracking import wrap_angle
+
+_wrap = njit(wrap_angle)
+
+#: the upright configuration ``(th1, th2)`` [rad]
+Q_UP = np.array([np.pi / 2, 0.0])
+#: the hanging configuration [rad]
+Q_DOWN = np.array([-np.pi / 2, 0.0])
+
+
+@njit
+def swingup_columns(q, v, action, weights, u_max, driven, tolerance, obs, info):  # pragma: no cover - compiled
+    """The swing-up task (module docstring) of a batch in columns.
+
+    Parameters
+    ----------
+    q, v : ndarray, shape (2, B)
+        Joint angles [rad] and rates [rad/s].
+    action : ndarray, shape (1, B)
+        Normalized input.
+    weights : ndarray, shape (3,)
+        ``(w_h, w_e, w_u)``.
+    u_max : ndarray, shape (1,)
+        Torque limit [N m].
+    driven : ndarray of int, shape (1,)
+        The driven joint.
+    tolerance : float
+        Upright tolerance per joint [rad].
+    obs : ndarray, shape (B, 6)
+        Written: ``[cos q, sin q, v]``.
+    info : ndarray, shape (B, >= 9)
+        Written: ``(r, r_height, r_upright, r_effort, e1, e2, upright, power)`` in columns 0-7.
+    """
+    B = q.shape[1]
+    s, c = np.empty((2, B)), np.empty((2, B))
+    for i in range(2):
+        sincos_columns(q[i], s[i], c[i])
+    for b in range(B):
+        e1 = _wrap(q[0, b] - np.pi / 2)
+        e2 = _wrap(q[1, b])
+        h = 0.5 * (s[0, b] + s[0, b] * c[1, b] + c[0, b] * s[1, b])  # sin th1 + sin(th1 + th2), halved
+        a = action[0, b]
+        r_h, r_e, r_u = weights[0] * h, -weights[1] * (e1 * e1 + e2 * e2), -weights[2] * a * a
+        info[b, 0] = r_h + r_e + r_u
+        info[b, 1], info[b, 2], info[b, 3] = r_h, r_e, r_u
+        info[b, 4], info[b, 5] = e1, e2
+        info[b, 6] = abs(e1) <= tolerance and abs(e2) <= tolerance
+        info[b, 7] = a * u_max[0] * v[driven[0], b]
+        for i in range(2):
+            obs[b, i] = c[i, b]
+            obs[b, 2 + i] = s[i, b]
+            obs[b, 4 + i] = v[i, b]
+
+
+@njit
+def swingup_task(q, v, t, action, task, obs, info, terminated):  # pragma: no cover - compiled
+    """The task kernel (:mod:`mbs_envs.envs.engine`): ``task = (weights, u_max, driven, tolerance)``; no termination."""
+    weights, u_max, driven, tolerance = task
+    swingup_columns(q, v, action, weights, u_max, driven, tolerance, obs, info)
+    for b in range(q.shape[1]):
+        terminated[b] = False
+
+
+@njit
+def step_kernel(theta, stepper, control, task, state, out):  # pragma: no cover - compiled
+    """The compiled step of both scenes: :func:`~mbs_envs.envs.engine.engine_step` with Planar2R's kernels."""
+    engine_step(
+        _model.advance_kernel, _model.energy_kernel, _compiled.no_constraint_info, _compiled.never_singular, _this.swingup_task,
+        theta, stepper, control, task, state, out,
+    )
+
+
+_this = sys.modules[__name__]
+
+
+@dataclasses.dataclass(frozen=True)
+class SwingUpObservation:
+    """A decoded swing-up observation: ``q, v`` of shape ``(..., 2)`` (``q`` in ``[-pi, pi]``)."""
+
+    q: np.ndarray
+    v: np.ndarray
+
+
+def encode_swingup(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``[cos q, sin q, v]``, float32, shape ``(..., 6)``."""
+    q, v = np.broadcast_arrays(np.asarray(q, float), np.asarray(v, float))
+    return np.concatenate([np.cos(q), np.sin(q), v], axis=-1).astype(np.float32)
+
+
+def decode_swingup(obs: np.ndarray) -> SwingUpObservation:
+    """Invert :func:`encode_swingup` (batched); ``q = atan2(sin, cos)``."""
+    obs = np.asarray(obs, float)
+    if obs.shape[-1] != 6:
+        raise ValueError(f"observation must have shape (..., 6), got {obs.shape}")
+    return SwingUpObservation(q=np.arctan2(obs[..., 2:4], obs[..., 0:2]), v=obs[..., 4:6])
+
+
+def height(q: np.ndarray) -> np.ndarray:
+    """``h = (sin th1 + sin(th1 + th2)) / 2``, shape ``(...)``: 1 upright, -1 hanging."""
+    return 0.5 * (np.sin(q[..., 0]) + np.sin(q[..., 0] + q[..., 1]))
+
+
+class SwingUpEnv(MBSEnv):
+    """Swing a 2R arm with one motor up from hanging and balance it upright (module docstring).
+
+    ## Action Space
+
+    ``Box(-1, 1, (1,), float32)``: the driven joint's torque over ``torque_limit``.
+
+    ## Observation Space
+
+    ``Box((6,), float32)``: ``[cos th1, cos th2, sin th1, sin th2, dth1, dth2]``;
+    :func:`decode_swingup`.
+
+    ## Rewards
+
+    ``r = w_h h - w_e |wrap(q - q_up)|^2 - w_u |action|^2``, ``h = (sin th1 + sin(th1 + th2)) / 2``;
+    default ``(1, 0.05, 0.01)``; terms in ``info`` (``reward_height``, ``reward_upright``,
+    ``reward_effort``).
+
+    ## Starting State
+
+    Hanging: ``q0 = (-pi/2, 0) + U(-s, s)``, ``v0 = U(-s, s)`` with ``s = start_noise``
+    (default 0.1), or exactly ``reset(options={"q": ..., "v": ...})``.
+
+    ## Episode End
+
+    Truncation after ``max_episode_steps`` (1500: 15 s); termination only on
+    divergence (``info["diverged"]``). An episode *succeeds* when both joints stay
+    within ``upright_tolerance`` (default 0.1 rad) of upright for its last 2 s.
+
+    ## Arguments
+
+    ``gym.make(id, params=None, torque_limit=..., dt=0.01, integrator="rk4", substeps=2,
+    reward_weights=(1, 0.05, 0.01), start_noise=0.1, upright_tolerance=0.1, compiled=True, ...)``;
+    ``params`` overrides :class:`~mbs_envs.models.planar2r.Planar2RParams` (Planar2R-v0's defaults:
+    uniform 1 kg, 1 m rods, no friction).
+    """
+
+    step_kernel = staticmethod(step_kernel)
+    #: the driven joint (0: shoulder, 1: elbow)
+    driven: ClassVar[int]
+    #: the scene's default torque limit [N m]
+    default_torque_limit: ClassVar[float]
+
+    reward_weights = check.Checked(lambda x, name: check.vector(x, name, 3, 0.0, broadcast=False))
+    start_noise = check.Checked(lambda x, name: check.nonnegative(x, name, 1.0))
+    upright_tolerance = check.Checked(lambda x, name: check.positive(x, name, np.pi))
+
+    def __init__(
+        self,
+        params: Mapping[str, Any] | None = None,
+        torque_limit: Any = None,
+        substeps: int = 2,
+        reward_weights: Any = (1.0, 0.05, 0.01),
+        start_noise: float = 0.1,
+        upright_tolerance: float = 0.1,
+        **kwargs: Any,
+    ):
+        limit = self.default_torque_limit if torque_limit is None else torque_limit
+        super().__init__(Planar2R(params, driven=(self.driven,)), limit, substeps=substeps, **kwargs)
+        self.reward_weights = reward_weights
+        self.start_noise = start_noise
+        self.upright_tolerance = upright_tolerance
+        high = np.concatenate([np.ones(4), np.full(2, self.divergence_limit)]).astype(np.float32)
+        self.observation_space = gym.spaces.Box(-high, high, dtype=np.float32)
+        self._check_start_bound(np.pi / 2 + self.start_noise)
+
+    # -- the task, batched (see MBSEnv) ------------------------------------------
+
+    def _initial_state(self, task: Any, rng: np.random.Generator, model: Planar2R) -> tuple[np.ndarray, np.ndarray]:
+        s = self.start_noise
+        return Q_DOWN + rng.uniform(-s, s, 2), rng.uniform(-s, s, 2)
+
+    def observe(self, q, v, now, task) -> np.ndarray:
+        return encode_swingup(q, v)
+
+    @staticmethod
+    def decode_observation(obs: np.ndarray) -> SwingUpObservation:
+        """The state in an observation (batched); see :func:`decode_swingup`."""
+        return decode_swingup(obs)
+
+    def upright_error(self, q: np.ndarray) -> np.ndarray:
+        """``wrap(q - q_up)``, shape ``(..., 2)`` [rad]."""
+        return wrap_angle(np.asarray(q, float) - Q_UP)
+
+    def reward(self, q, v, now, task, u, action) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        w_h, w_e, w_u = self.reward_weights
+        e = self.upright_error(q)
+        terms = {
+            "reward_height": w_h * height(q),
+            "reward_upright": -w_e * np.sum(e * e, axis=-1),
+            "reward_effort": -w_u * np.sum(action * action, axis=-1),
+        }
+        return terms["reward_height"] + terms["reward_upright"] + terms["reward_effort"], terms
+
+    def task_info(self, q, v, now, task, u) -> dict[str, Any]:
+        e = self.upright_error(q)
+        return {
+            "tracking_error": e,
+            "upright": np.all(np.abs(e) <= self.upright_tolerance, axis=-1),
+            "power": u[..., 0] * v[..., self.driven],
+        }
+
+    # -- the compiled step (see mbs_envs.envs.engine) ----------------------------
+
+    def task_arguments(self) -> tuple:
+        key = (self.reward_weights.tobytes(), self.u_max.tobytes(), self.upright_tolerance)
+        cached = self.__dict__.get("_task_arguments")
+        if cached is None or cached[0] != key:  # built again only when one of them changes
+            args = (np.asarray(self.reward_weights, float), np.asarray(self.u_max, float),
+                    np.array([self.driven], np.int64), float(self.upright_tolerance))  # fmt: skip
+            cached = self._task_arguments = (key, args)
+        return cached[1]
+
+    def task_layout(self) -> tuple[tuple[str, int | None, bool], ...]:
+        names = ("reward", "reward_height", "reward_upright", "reward_effort")
+        return tuple((k, None, False) for k in names) + (("tracking_error", 2, False), ("upright", None, True), ("power", None, False))
+
+    # -- drawing ------------------------------------------------------------------
+
+    def _render_extent(self) -> float:
+        p = self.model.params
+        return 1.1 * (p.l1 + p.l2)
+
+    def _polylines(self, q: np.ndarray, t: float, task: Any) -> list[Polyline]:
+        return [
+            (self.model.joint_positions(Q_UP), (180, 200, 240)),
+            (self.model.joint_positions(q), (0, 90, 200)),
+        ]
+
+
+class AcrobotEnv(SwingUpEnv):
+    """``mbs_envs/Acrobot-v0``: only the elbow driven (:class:`SwingUpEnv`); torque limit 10 N m."""
+
+    step_kernel = staticmethod(step_kernel)  # declared per class: the same task (see MBSEnv.compiled)
+    driven = 1
+    default_torque_limit = 10.0
+
+
+class PendubotEnv(SwingUpEnv):
+    """``mbs_envs/Pendubot-v0``: only the shoulder driven (:class:`SwingUpEnv`); torque limit 5 N m."""
+
+    step_kernel = staticmethod(step_kernel)
+    driven = 0
+    default_torque_limit = 5.0
