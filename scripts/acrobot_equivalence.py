@@ -98,7 +98,7 @@ def run(out: pathlib.Path, n: int = 10_000, t_final: float = 20.0) -> dict:
     plt = pyplot()
     fig, axes = plt.subplots(1, 1 + len(mot), figsize=(5 * (1 + len(mot)), 3.8))
     axes[0].hist(np.log10(np.maximum(acc["relative"], 1e-18)), bins=40)
-    axes[0].set_xlabel("log10 relative difference of accelerations")
+    axes[0].set_xlabel("log10 relative difference of accelerations (-18: identical)")
     axes[0].set_ylabel("states")
     axes[0].set_title(f"{n} random states: max {acc['max_relative_difference']:.1e}", fontsize=9)
     for ax, (name, m) in zip(axes[1:], mot.items()):

@@ -1,7 +1,7 @@
 #!/usr/bin/env python
 """The main job: RL agents against model-based controllers on every scene.
 
-For each scene (Planar2R, FourBar, SerialChain with 10 links, RollingDisk) the
+For each scene (Planar2R, FourBar, SerialChain with 10 links, RollingDisk, Acrobot, Pendubot) the
 model-based controllers with their tuned gains (PD, PD + gravity, computed
 torque; on the disk LQR, PD steering, no control; ``scripts/tune.py``) and the
 shipped agents (``agents/<id>/<algo>/seed<k>/``: PPO, TD3 and residual PPO on
@@ -10,6 +10,9 @@ on the same held-out test seeds through ``predict``:
 
 - nominal plant; model mismatch (masses and lengths of the plant x (1 +- 0.2),
   controllers keep the nominal model; ``--full`` adds 10 and 30 %); observation noise;
+  a one-control-step input delay;
+- the swing-up scenes (Acrobot, Pendubot) are scored by success (upright for the last
+  2 s), time to swing up and the motor's energy;
 - per policy and condition: success rate, and over the successful episodes
   the settled RMS error, max error, torque, with 95 % bootstrap confidence
   intervals over training seeds and test episodes; "best" per side among
@@ -334,7 +337,7 @@ def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: 
              "rate, and a policy is \"best\" on its side only with >= 95 % success at the nominal plant. Brackets: 95 % confidence "
              "intervals from a bootstrap over training seeds and test episodes. Mismatch: the plant's masses and lengths "
              "x (1 +- p), inertias x (1 +- p)^3, controllers and actuator limits nominal; noise: Gaussian, std 0.01 on every "
-             "observation entry. On the disk, scaling `r` also moves the critical spin `sqrt(g / 3r)` against which each "
+             "observation entry; input delay: the plant applies the action chosen one control step earlier (10 ms; zero at the first step). On the disk, scaling `r` also moves the critical spin `sqrt(g / 3r)` against which each "
              "episode's commanded spin is drawn (0.3-2 times the plant's), so mismatch changes the task as well as the plant. "
              "Compute per action: one `predict` on one observation, one thread, median of 200; in brackets with a fresh noisy "
              "observation at every call. Training wall times are as each run recorded them (one torch thread, evaluation "

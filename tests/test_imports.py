@@ -10,7 +10,7 @@ import sys
 import gymnasium as gym
 import numpy as np
 import mbs_envs
-for env_id in ("mbs_envs/Planar2R-v0", "mbs_envs/SerialChain-v0"):
+for env_id in ("mbs_envs/Planar2R-v0", "mbs_envs/SerialChain-v0", "mbs_envs/Acrobot-v0", "mbs_envs/Pendubot-v0"):
     env = gym.make(env_id)
     env.reset(seed=0)
     for _ in range(3):

@@ -41,11 +41,25 @@ def test_compare_quick_end_to_end(tmp_path, capsys):
         assert np.isfinite(m["latency_us"]) and np.isfinite(m["latency_noisy_us"])
     assert all(np.isfinite(r["rms_error"]) for r in out["rows"])
     assert {r["seed"] for r in out["rows"]} == {0, 1, 2}  # test seeds
-    assert set(out["summary"]["Planar2R"]) == {"nominal", "mismatch +20%", "mismatch -20%", "obs noise 0.01"}
+    assert set(out["summary"]["Planar2R"]) == {"nominal", "mismatch +20%", "mismatch -20%", "obs noise 0.01", "input delay 1 step"}
     report = (tmp_path / "report.md").read_text()
     assert "Headline" in report and "Actuator sizing" in report and "disjoint" in report
     assert (tmp_path / "learning_curves.png").stat().st_size > 0
     assert "best model-based" in capsys.readouterr().out
+
+
+def test_compare_scores_a_swing_up_scene_by_success_time_and_energy(tmp_path):
+    script = load_script("compare.py")
+    out = script["run"](script["parse_args"](["--out", str(tmp_path), "--quick", "--scene", "Acrobot", "--no-agents", "--workers", "1"]))
+    by_cond = out["summary"]["Acrobot"]
+    assert set(by_cond) == {"nominal", "mismatch +20%", "mismatch -20%", "obs noise 0.01", "input delay 1 step"}
+    for r in out["rows"]:  # a failed episode is one that does not end upright; it has no time to swing up
+        assert r["failed"] == (not r["success"]) and (np.isfinite(r["time_to_swing_up"]) == r["success"])
+        assert r["energy_used"] > 0
+    m = by_cond["nominal"]["swing-up + LQR"]
+    assert 0 <= m["success_lo"] <= m["success"] <= m["success_hi"] <= 1
+    report = (tmp_path / "report.md").read_text()
+    assert "time to swing up [s]" in report and "energy used [J]" in report and "Swing-up scenes" in report
 
 
 def test_train_residual_writes_a_residual_agent(tmp_path):
