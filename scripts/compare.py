@@ -91,8 +91,8 @@ def run(args: argparse.Namespace) -> dict:
     else:
         results = run_tasks(cmp.evaluate_cell, tasks, ray_address=args.ray)
     rows = [r for cell in results for r in cell]
-    with open(args.out / "episodes.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+    with open(args.out / "episodes.csv", "w", newline="") as f:  # swing-up rows carry more columns
+        w = csv.DictWriter(f, fieldnames=list(dict.fromkeys(k for r in rows for k in r)), restval="")
         w.writeheader()
         w.writerows(rows)
     summary = summarize(rows)

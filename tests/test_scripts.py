@@ -96,10 +96,13 @@ def test_train_writes_an_agent_that_loads_and_predicts(tmp_path):
 def test_shipped_agents_load_predict_and_document_their_training():
     from mbs_envs.studies.training import load_agent
 
-    folders = sorted((ROOT / "agents").glob("*/*/seed*/agent.zip"))
+    folders = sorted((ROOT / "agents").glob("*/*/seed*/agent.zip")) + sorted((ROOT / "agents").glob("*/*/agent.zip"))
     for scene in ("Planar2R-v0", "FourBar-v0", "SerialChain-v0", "RollingDisk-v0"):
         assert len(list((ROOT / "agents" / scene / "ppo").glob("seed*/agent.zip"))) >= 3
         assert len(list((ROOT / "agents" / scene / "residual-ppo").glob("seed*/agent.zip"))) >= 3
+    for scene in ("Acrobot-v0", "Pendubot-v0"):  # the swing-up scenes: PPO over 3 seeds, and SAC
+        assert len(list((ROOT / "agents" / scene / "ppo").glob("seed*/agent.zip"))) >= 3
+        assert (ROOT / "agents" / scene / "sac" / "agent.zip").exists()
     total = sum(p.stat().st_size for p in (ROOT / "agents").rglob("*") if p.is_file())
     assert total < 20 * 2**20  # the budget for all shipped agents
     for path in folders:
