@@ -34,7 +34,7 @@ from ..models.planar2r import Planar2R
 from .base import MBSEnv
 from .engine import engine_step
 from .rendering import Polyline
-from .tracking import wrap_angle
+from .tracking import _as_columns, wrap_angle
 
 _wrap = njit(wrap_angle)
 
@@ -45,8 +45,21 @@ Q_DOWN = np.array([-np.pi / 2, 0.0])
 
 
 @njit
-def swingup_columns(q, v, action, weights, u_max, driven, tolerance, obs, info):  # pragma: no cover - compiled
-    """The swing-up task (module docstring) of a batch in columns.
+def observe_columns(q, v, obs):  # pragma: no cover - compiled
+    """``obs = [cos q, sin q, v]`` of a batch: ``q, v`` in columns (2, B), ``obs`` (B, 6) written."""
+    B = q.shape[1]
+    s, c = np.empty(B), np.empty(B)
+    for i in range(2):
+        sincos_columns(q[i], s, c)
+        for b in range(B):
+            obs[b, i] = c[b]
+            obs[b, 2 + i] = s[b]
+            obs[b, 4 + i] = v[i, b]
+
+
+@njit
+def swingup_columns(q, v, action, weights, u_max, driven, tolerance, info):  # pragma: no cover - compiled
+    """The swing-up task's reward and ``info`` (module docstring) of a batch in columns.
 
     Parameters
     ----------
@@ -62,9 +75,7 @@ def swingup_columns(q, v, action, weights, u_max, driven, tolerance, obs, info):
         The driven joint.
     tolerance : float
         Upright tolerance per joint [rad].
-    obs : ndarray, shape (B, 6)
-        Written: ``[cos q, sin q, v]``.
-    info : ndarray, shape (B, >= 9)
+    info : ndarray, shape (B, >= 8)
         Written: ``(r, r_height, r_upright, r_effort, e1, e2, upright, power)`` in columns 0-7.
     """
     B = q.shape[1]
@@ -82,17 +93,14 @@ def swingup_columns(q, v, action, weights, u_max, driven, tolerance, obs, info):
         info[b, 4], info[b, 5] = e1, e2
         info[b, 6] = abs(e1) <= tolerance and abs(e2) <= tolerance
         info[b, 7] = a * u_max[0] * v[driven[0], b]
-        for i in range(2):
-            obs[b, i] = c[i, b]
-            obs[b, 2 + i] = s[i, b]
-            obs[b, 4 + i] = v[i, b]
 
 
 @njit
 def swingup_task(q, v, t, action, task, obs, info, terminated):  # pragma: no cover - compiled
     """The task kernel (:mod:`mbs_envs.envs.engine`): ``task = (weights, u_max, driven, tolerance)``; no termination."""
     weights, u_max, driven, tolerance = task
-    swingup_columns(q, v, action, weights, u_max, driven, tolerance, obs, info)
+    swingup_columns(q, v, action, weights, u_max, driven, tolerance, info)
+    observe_columns(q, v, obs)
     for b in range(q.shape[1]):
         terminated[b] = False
 
@@ -118,9 +126,11 @@ class SwingUpObservation:
 
 
 def encode_swingup(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """``[cos q, sin q, v]``, float32, shape ``(..., 6)``."""
-    q, v = np.broadcast_arrays(np.asarray(q, float), np.asarray(v, float))
-    return np.concatenate([np.cos(q), np.sin(q), v], axis=-1).astype(np.float32)
+    """``[cos q, sin q, v]``, float32, shape ``(..., 6)`` (:func:`observe_columns`, batched)."""
+    lead, (q2, v2) = _as_columns(q, v)
+    obs = np.empty((q2.shape[1], 6), np.float32)
+    observe_columns(q2, v2, obs)
+    return obs.reshape(lead + (6,))
 
 
 def decode_swingup(obs: np.ndarray) -> SwingUpObservation:
@@ -129,11 +139,6 @@ def decode_swingup(obs: np.ndarray) -> SwingUpObservation:
     if obs.shape[-1] != 6:
         raise ValueError(f"observation must have shape (..., 6), got {obs.shape}")
     return SwingUpObservation(q=np.arctan2(obs[..., 2:4], obs[..., 0:2]), v=obs[..., 4:6])
-
-
-def height(q: np.ndarray) -> np.ndarray:
-    """``h = (sin th1 + sin(th1 + th2)) / 2``, shape ``(...)``: 1 upright, -1 hanging."""
-    return 0.5 * (np.sin(q[..., 0]) + np.sin(q[..., 0] + q[..., 1]))
 
 
 class SwingUpEnv(MBSEnv):
@@ -218,27 +223,20 @@ class SwingUpEnv(MBSEnv):
         """The state in an observation (batched); see :func:`decode_swingup`."""
         return decode_swingup(obs)
 
-    def upright_error(self, q: np.ndarray) -> np.ndarray:
-        """``wrap(q - q_up)``, shape ``(..., 2)`` [rad]."""
-        return wrap_angle(np.asarray(q, float) - Q_UP)
+    def task_rows(self, q, v, action) -> np.ndarray:
+        """:func:`swingup_columns` batched over leading dimensions: shape ``(..., 8)``."""
+        lead, (q2, v2, a2) = _as_columns(q, v, action)
+        info = np.empty((q2.shape[1], 8))
+        swingup_columns(q2, v2, a2, *self.task_arguments(), info)
+        return info.reshape(lead + (8,))
 
     def reward(self, q, v, now, task, u, action) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        w_h, w_e, w_u = self.reward_weights
-        e = self.upright_error(q)
-        terms = {
-            "reward_height": w_h * height(q),
-            "reward_upright": -w_e * np.sum(e * e, axis=-1),
-            "reward_effort": -w_u * np.sum(action * action, axis=-1),
-        }
-        return terms["reward_height"] + terms["reward_upright"] + terms["reward_effort"], terms
+        info = self.task_rows(q, v, action)
+        return info[..., 0], {"reward_height": info[..., 1], "reward_upright": info[..., 2], "reward_effort": info[..., 3]}
 
     def task_info(self, q, v, now, task, u) -> dict[str, Any]:
-        e = self.upright_error(q)
-        return {
-            "tracking_error": e,
-            "upright": np.all(np.abs(e) <= self.upright_tolerance, axis=-1),
-            "power": u[..., 0] * v[..., self.driven],
-        }
+        info = self.task_rows(q, v, np.asarray(u, float) / self.u_max)
+        return {"tracking_error": info[..., 4:6], "upright": info[..., 6].astype(bool), "power": info[..., 7]}
 
     # -- the compiled step (see mbs_envs.envs.engine) ----------------------------
 

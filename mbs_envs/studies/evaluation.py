@@ -181,11 +181,19 @@ def swing_up_metrics(ep: Episode, hold: float = 2.0, dt: float | None = None) ->
     return out
 
 
+def tracking_score(ep: Episode) -> tuple[dict[str, float], bool]:
+    """:func:`episode_metrics`, and whether the episode failed (it ended early)."""
+    return episode_metrics(ep), bool(ep.terminated)
+
+
+def swing_up_score(ep: Episode) -> tuple[dict[str, float], bool]:
+    """:func:`swing_up_metrics`, and whether the episode failed (it did not end upright)."""
+    m = swing_up_metrics(ep)
+    return m, not m["success"]
+
+
 #: how an episode is scored, by the scene registry's ``scoring``: metrics, and whether it failed
-SCORING = {
-    "tracking": lambda ep: (episode_metrics(ep), bool(ep.terminated)),
-    "swing-up": lambda ep: (lambda m: (m, not m["success"]))(swing_up_metrics(ep)),
-}
+SCORING = {"tracking": tracking_score, "swing-up": swing_up_score}
 
 
 #: the error a scene's episodes are ranked by (among those that did not fail), by ``scoring``

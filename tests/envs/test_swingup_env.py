@@ -82,7 +82,7 @@ def test_collocated_pfl_gives_the_driven_joint_the_commanded_acceleration(a):
     q, v, y = rng.uniform(-3, 3, (100, 2)), rng.normal(size=(100, 2)) * 3, rng.normal(size=100) * 10
     u = collocated_pfl(model, q, v, y, a)
     acc = model.forward_dynamics(q, v, u[:, None])
-    np.testing.assert_allclose(acc[:, a], y, rtol=1e-11, atol=1e-11)
+    np.testing.assert_allclose(acc[:, a], y, rtol=1e-12, atol=1e-12)
 
 
 @pytest.mark.parametrize("env_id, at_least", [(IDS[0], 12), (IDS[1], 2)])
