@@ -10,6 +10,7 @@ tensorboard logs. With several ``--seed`` values the runs go to
 
     python scripts/train.py --env mbs_envs/Planar2R-v0 --algo ppo --steps 1000000 --seed 0 --out agents/Planar2R-v0/ppo
     python scripts/train.py --env mbs_envs/SerialChain-v0 --env-kwargs '{"n_links": 5}' --algo sac --steps 100000 --out runs/chain
+    python scripts/train.py --env mbs_envs/Acrobot-v0 --algo ppo --hyper gamma=0.998 --steps 5000000 --seed 0 1 2 --out runs/acrobot
     python scripts/train.py --env mbs_envs/FourBar-v0 --algo ppo --residual --steps 2000000 --seed 0 1 2 --out runs/fourbar-res
 
 ``--residual [CONTROLLER]`` trains a correction on top of a model-based
@@ -26,7 +27,7 @@ import sys
 
 import mbs_envs  # noqa: F401
 from mbs_envs.studies.parallel import run_tasks
-from mbs_envs.studies.training import ALGOS, TrainConfig, residual_base, train
+from mbs_envs.studies.training import ALGOS, TrainConfig, hyper_setting, residual_base, train
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -41,6 +42,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--net-arch", type=int, nargs="+", help="hidden layers (default SB3's: 64 64 for PPO, 256 256 otherwise)")
     p.add_argument("--residual", nargs="?", const="default", help="train a residual agent on this controller ('module:Class'; default the scene's best)")
     p.add_argument("--residual-bound", type=float, default=0.25, help="largest correction, fraction of the actuator limit (default 0.25)")
+    p.add_argument("--hyper", action="append", default=[], metavar="KEY=VALUE", type=hyper_setting,
+                   help="override a numeric hyperparameter, e.g. --hyper gamma=0.998 (repeatable)")
     p.add_argument("--eval-every", type=int, help="env-steps between evaluations (default steps/10)")
     p.add_argument("--checkpoint-every", type=int, help="env-steps between checkpoints")
     p.add_argument("--tensorboard", action="store_true")
@@ -59,7 +62,8 @@ def run(args: argparse.Namespace) -> list[dict]:
     for seed in args.seed:
         config = dict(env_id=args.env, algo=args.algo, steps=args.steps, seed=seed, n_envs=args.n_envs,
                       env_kwargs=args.env_kwargs, net_arch=tuple(args.net_arch) if args.net_arch else None,
-                      eval_every=args.eval_every, residual=residual, residual_bound=args.residual_bound)  # fmt: skip
+                      eval_every=args.eval_every, residual=residual, residual_bound=args.residual_bound,
+                      hyper=dict(args.hyper))  # fmt: skip
         try:
             TrainConfig(**config)  # validate before starting anything
         except ValueError as exc:

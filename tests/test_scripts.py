@@ -93,6 +93,49 @@ def test_train_writes_an_agent_that_loads_and_predicts(tmp_path):
     assert log[0].startswith("timesteps,train_wall_s") and len(log) >= 3
 
 
+def test_hyperparameter_overrides_reach_sb3_and_bad_ones_are_refused():
+    from mbs_envs.studies.training import TrainConfig, hyper_setting, hyperparameters
+
+    cfg = TrainConfig("mbs_envs/Acrobot-v0", "ppo", 1000, n_envs=8, hyper={"gamma": 0.998, "n_steps": 256})
+    hyper = hyperparameters(cfg, 1)
+    assert hyper["gamma"] == 0.998 and hyper["n_steps"] == 256 and hyper["batch_size"] == 256 * 8 // 4  # minibatches follow
+    assert hyperparameters(TrainConfig("mbs_envs/Acrobot-v0", "sac", 1000), 1)["gamma"] == 0.99  # untouched default
+    for bad, culprit in (({"gama": 0.9}, "gama"), ({"gamma": 1.0}, "gamma"), ({"gamma": float("nan")}, "gamma"),
+                         ({"n_steps": 12.5}, "n_steps"), ({"policy_kwargs": 1}, "policy_kwargs"), ({"gamma": True}, "gamma")):
+        with pytest.raises(ValueError, match=culprit):
+            TrainConfig("mbs_envs/Acrobot-v0", "ppo", 1000, hyper=bad)
+    assert hyper_setting("gamma=0.995") == ("gamma", 0.995) and hyper_setting("n_steps=256") == ("n_steps", 256)
+    for bad in ("gamma", "=1", "gamma=fast"):
+        with pytest.raises(ValueError):
+            hyper_setting(bad)
+
+
+def test_tune_agent_trains_each_candidate_and_ranks_them(tmp_path):
+    from mbs_envs.studies.agent_tuning import agent_grid, rank_key
+
+    assert agent_grid({"gamma": [0.99, 0.998], "ent_coef": [0.0, 0.01]}) == [
+        {"gamma": 0.99, "ent_coef": 0.0}, {"gamma": 0.99, "ent_coef": 0.01},
+        {"gamma": 0.998, "ent_coef": 0.0}, {"gamma": 0.998, "ent_coef": 0.01}]  # fmt: skip
+    with pytest.raises(ValueError, match="gamma"):
+        agent_grid({"gamma": []})
+    # failures first, then the error of the episodes that did not fail (NaN: none did), then the return
+    a = {"failure_rate": 0.5, "time_to_swing_up": 9.0, "return": -10.0}
+    b = {"failure_rate": 0.1, "time_to_swing_up": 12.0, "return": -900.0}
+    c = {"failure_rate": 1.0, "time_to_swing_up": float("nan"), "return": 5.0}
+    d = {"failure_rate": 1.0, "time_to_swing_up": float("nan"), "return": -5.0}
+    assert sorted([a, b, c, d], key=lambda e: rank_key(e, "mbs_envs/Acrobot-v0")) == [b, a, c, d]
+    script = load_script("tune_agent.py")
+    record = script["run"](script["parse_args"](["--env", "mbs_envs/Acrobot-v0", "--algo", "ppo", "--steps", "1024", "--n-envs", "8",
+                                                 "--grid", "gamma=0.99,0.998", "--eval-seeds", "2", "--workers", "1", "--out", str(tmp_path)]))  # fmt: skip
+    assert [r["hyper"] for r in record["rows"]] == [{"gamma": 0.99}, {"gamma": 0.998}]
+    assert record["best"] == min(record["rows"], key=lambda r: rank_key(r, "mbs_envs/Acrobot-v0"))["hyper"]
+    for k, r in enumerate(record["rows"]):
+        cfg = json.loads((tmp_path / f"candidate{k}" / "config.json").read_text())
+        assert cfg["hyperparameters"]["gamma"] == r["hyper"]["gamma"] and cfg["hyper_overrides"] == r["hyper"]
+        assert cfg["validation_seeds"] == [10_000, 10_001] and 0 <= r["failure_rate"] <= 1
+    assert (tmp_path / "learning_curves.png").stat().st_size > 0 and (tmp_path / "tuning.csv").exists()
+
+
 def test_shipped_agents_load_predict_and_document_their_training():
     from mbs_envs.studies.training import load_agent
 

@@ -33,7 +33,7 @@ from tqdm import tqdm
 
 from . import seeds as seed_ranges
 from ..envs import registry
-from .evaluation import default_gains_entry, episode_metrics, make_controller, rollout_batch
+from .evaluation import ERROR_METRIC, SCORING, default_gains_entry, make_controller, rollout_batch
 from .residual import ResidualPolicy, check_bound, residual_vec_env
 from ..envs.sb3 import make_sb3_vec_env
 
@@ -74,6 +74,9 @@ class TrainConfig:
         built on the nominal env with its default gains); see :mod:`mbs_envs.studies.residual`.
     residual_bound : float
         Largest correction, as a fraction of the actuator limit.
+    hyper : dict, optional
+        Overrides of the numeric hyperparameters of :func:`hyperparameters`
+        (e.g. ``{"gamma": 0.998}``); a key it does not set is a ``ValueError``.
     """
 
     env_id: str
@@ -87,6 +90,7 @@ class TrainConfig:
     eval_seeds: int = 10
     residual: str | None = None
     residual_bound: float = 0.25
+    hyper: dict = dataclasses.field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.algo not in ALGOS:
@@ -100,6 +104,17 @@ class TrainConfig:
         if self.net_arch is not None and not (len(self.net_arch) > 0 and all(isinstance(k, int) and k > 0 for k in self.net_arch)):
             raise ValueError(f"net_arch must be positive layer widths, got {self.net_arch!r}")
         check_bound(self.residual_bound)
+        defaults = _defaults(self, 1)
+        for key, value in self.hyper.items():
+            if key not in defaults or not isinstance(defaults[key], (int, float)):
+                tunable = sorted(k for k, v in defaults.items() if isinstance(v, (int, float)))
+                raise ValueError(f"hyper: {key!r} is not a numeric hyperparameter of {self.algo}; one of {tunable}")
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
+                raise ValueError(f"hyper: {key}={value!r} is not a finite number")
+            if isinstance(defaults[key], int) and not isinstance(value, int):
+                raise ValueError(f"hyper: {key} must be an integer, got {value!r}")
+        if "gamma" in self.hyper and not 0.0 < self.hyper["gamma"] < 1.0:
+            raise ValueError(f"hyper: gamma must be in (0, 1), got {self.hyper['gamma']!r}")
 
     @property
     def members(self) -> int:
@@ -110,8 +125,23 @@ class TrainConfig:
         return list(self.net_arch) if self.net_arch else ([64, 64] if self.algo == "ppo" else [256, 256])
 
 
+def hyper_setting(text: str) -> tuple[str, int | float]:
+    """``"gamma=0.998"`` -> ``("gamma", 0.998)`` (an integer stays an integer)."""
+    key, sep, value = text.partition("=")
+    if not sep or not key:
+        raise ValueError(f"expected KEY=VALUE, got {text!r}")
+    try:
+        return key, int(value)
+    except ValueError:
+        try:
+            return key, float(value)
+        except ValueError:
+            raise ValueError(f"{key}: {value!r} is not a number") from None
+
+
 def hyperparameters(config: TrainConfig, action_dim: int) -> dict[str, Any]:
-    """SB3 constructor arguments used for ``config`` (recorded in ``config.json``).
+    """SB3 constructor arguments used for ``config`` (recorded in ``config.json``):
+    the defaults below with ``config.hyper`` applied.
 
     PPO: 128 steps per member and update, minibatches of a quarter of the
     rollout, 10 epochs, SB3's learning rate. SAC and TD3 (SB3-zoo settings of
@@ -125,6 +155,16 @@ def hyperparameters(config: TrainConfig, action_dim: int) -> dict[str, Any]:
     noise of a third of the actuator range (measured on the previous agents).
     Residual agents start with a small exploration noise (``log_std_init = -2``).
     """
+    hyper = {**_defaults(config, action_dim), **config.hyper}
+    if config.algo == "ppo" and "batch_size" not in config.hyper:
+        hyper["batch_size"] = hyper["n_steps"] * config.members // 4
+    if config.algo == "td3":
+        hyper["action_noise"] = NormalActionNoise(np.zeros(action_dim), 0.1 * np.ones(action_dim))
+    return hyper
+
+
+def _defaults(config: TrainConfig, action_dim: int) -> dict[str, Any]:
+    """The project's defaults of ``config.algo`` (:func:`hyperparameters`), without TD3's noise."""
     policy_kwargs: dict[str, Any] = {"net_arch": config.layers}
     if config.residual and config.algo in ("ppo", "sac"):
         # a residual starts as the base controller and explores gently around it: Gaussian
@@ -139,9 +179,7 @@ def hyperparameters(config: TrainConfig, action_dim: int) -> dict[str, Any]:
     common = {"learning_rate": 1e-3, "buffer_size": min(config.steps, 1_000_000), "learning_starts": 5_000,
               "batch_size": 256, "gamma": 0.99, "tau": 0.005, "train_freq": 1, "gradient_steps": -1,
               "policy_kwargs": policy_kwargs}  # fmt: skip
-    if config.algo == "td3":
-        common["action_noise"] = NormalActionNoise(np.zeros(action_dim), 0.1 * np.ones(action_dim))
-    else:
+    if config.algo == "sac":
         common["learning_rate"] = 3e-4
         common["target_entropy"] = -4.0 * action_dim
     return common
@@ -150,18 +188,22 @@ def hyperparameters(config: TrainConfig, action_dim: int) -> dict[str, Any]:
 def evaluate(policy: Any, env_id: str, seeds: list[int], env_kwargs: dict, **rollout_kwargs: Any) -> dict[str, float]:
     """Mean episode metrics of ``policy`` over ``seeds`` (one batched rollout), plus the failure rate.
 
-    ``rms_error_settled`` is the mean over the episodes that did not fail: a
-    failed episode's truncated error would flatter it (the failure rate says
-    how many failed).
+    A failure is what the scene's scoring calls one (:data:`mbs_envs.studies.evaluation.SCORING`:
+    an episode ended early; on a swing-up scene, one not ending upright).
+    ``rms_error_settled`` (and ``time_to_swing_up`` on a swing-up scene) is the mean
+    over the episodes that did not fail: a failed episode's figure would flatter
+    it (the failure rate says how many failed).
     """
     venv = gym.make_vec(env_id, num_envs=len(seeds), vectorization_mode="vector_entry_point", autoreset_mode="Disabled", **env_kwargs)
     episodes = rollout_batch(venv, policy, seeds, **rollout_kwargs)
     venv.close()
-    metrics = [episode_metrics(ep) for ep in episodes]
-    ok = [m for m, ep in zip(metrics, episodes) if not ep.terminated]
-    out = {k: float(np.mean([m[k] for m in metrics])) for k in ("return", "rms_error", "max_error", "rms_torque", "peak_torque")}
-    out["rms_error_settled"] = float(np.mean([m["rms_error_settled"] for m in ok])) if ok else float("nan")
-    out["failure_rate"] = float(np.mean([ep.terminated for ep in episodes]))
+    scoring = registry.scene(env_id).scoring
+    scored = [SCORING[scoring](ep) for ep in episodes]
+    ok = [m for m, failed in scored if not failed]
+    out = {k: float(np.mean([m[k] for m, _ in scored])) for k in ("return", "rms_error", "max_error", "rms_torque", "peak_torque")}
+    for k in dict.fromkeys(("rms_error_settled", ERROR_METRIC[scoring])):
+        out[k] = float(np.mean([m[k] for m in ok])) if ok else float("nan")
+    out["failure_rate"] = float(np.mean([failed for _, failed in scored]))
     return out
 
 
@@ -268,6 +310,7 @@ def train(config: TrainConfig, out: pathlib.Path, tensorboard: bool = False, che
         "net_arch": config.layers,
         "residual": {"base": config.residual, "gains": base_gains, "bound": config.residual_bound} if config.residual else None,
         "hyperparameters": {k: (repr(v) if k == "action_noise" else v) for k, v in hyper.items()},
+        "hyper_overrides": config.hyper,
         "command": "python " + " ".join(sys.argv) if sys.argv and sys.argv[0].endswith("train.py") else None,
         "train_wall_s": wall,
         "final_evaluation": log.rows[-1],
