@@ -21,7 +21,7 @@ from .. import validation as check
 from ..dynamics.compiled import TableauArrays, batch_theta, compiled_stepping, projection_tol
 from ..models.base import Model, as_vector
 from ..dynamics.simulate import DIVERGENCE_LIMIT, advance, diverged
-from .rendering import PlanarRenderer, Polyline
+from .rendering import PlanarRenderer, Shape, Text
 
 
 def _scalar(x: Any) -> Any:
@@ -375,9 +375,33 @@ class MBSEnv(gym.Env):
         """Task quantities for ``info``, each shaped ``(...)`` or ``(..., k)``."""
         return {}
 
-    def _polylines(self, q: np.ndarray, t: float, task: Any) -> list[Polyline]:
-        """What to draw of the state ``q`` at time ``t`` of an episode's ``task``, in world coordinates."""
+    def _drawing(self, q: np.ndarray, t: float, task: Any, u: np.ndarray, trail: np.ndarray | None = None) -> list[Shape]:
+        """What to draw of the state ``q`` at time ``t`` of an episode's ``task`` under the input
+        ``u`` [SI] (:mod:`mbs_envs.envs.rendering` shapes, world coordinates); ``trail`` the
+        scene's recent path where it keeps one (the disk's contact points, :meth:`trail`)."""
         raise NotImplementedError
+
+    #: what the caption calls ``info["tracking_error"]`` (its norm is shown)
+    error_label: ClassVar[str] = "tracking error"
+
+    def _caption(self, q: np.ndarray, v: np.ndarray, t: float, task: Any, u: np.ndarray) -> list[Shape]:
+        """The time and the norm of the tracking error [rad] as text."""
+        e = self.task_info(q, v, self.task_now(np.asarray(t), task), task, u).get("tracking_error")
+        lines = [f"t = {t:5.2f} s"]
+        if e is not None:
+            lines.append(f"{self.error_label} {float(np.linalg.norm(e)):.3g} rad")
+        return [Text(line, row) for row, line in enumerate(lines)]
+
+    def _torque_arcs(self, u: np.ndarray) -> list[tuple[int, float]]:
+        """``(joint, u / u_max)`` of each input acting on one joint alone (a column of ``B``
+        with one nonzero entry, e.g. the driven joints of an arm)."""
+        B = np.asarray(self.model.actuation)
+        out = []
+        for k in range(B.shape[1]):
+            (rows,) = np.nonzero(B[:, k])
+            if len(rows) == 1:
+                out.append((int(rows[0]), float(u[k] * B[rows[0], k] / self.u_max[k])))
+        return out
 
     def _render_extent(self) -> float:
         raise NotImplementedError
@@ -557,16 +581,31 @@ class MBSEnv(gym.Env):
                 'Set render_mode at initialization, e.g. gym.make(id, render_mode="rgb_array")'
             )
             return None
-        return self.render_state(self._q, self._t, self._task)
+        return self.render_state(self._q, self._t, self._task, self._v, self._u, self.trail())
 
-    def render_state(self, q: np.ndarray, t: float, task: Any) -> Any:
-        """Draw the state ``q`` at time ``t`` of an episode's ``task`` (this env's renderer and mode)."""
+    def trail(self) -> np.ndarray | None:
+        """The recent path drawn behind the scene (None: the scene keeps none)."""
+        return None
+
+    #: whether the renderer draws the ground line ``y = 0``
+    draws_ground: ClassVar[bool] = True
+
+    def render_state(self, q: np.ndarray, t: float, task: Any, v: np.ndarray | None = None, u: np.ndarray | None = None,
+                     trail: np.ndarray | None = None) -> Any:  # fmt: skip
+        """Draw the state ``(q, v)`` at time ``t`` of an episode's ``task`` under the input ``u`` [SI]
+        (this env's renderer and mode); without ``v`` no error caption, without ``u`` no torque arcs."""
         if self._renderer is None:
             self._renderer = PlanarRenderer(
-                self._render_extent(), self.render_mode, self.metadata["render_fps"], center=(0.0, 0.0)
+                self._render_extent(), self.render_mode, self.metadata["render_fps"], center=(0.0, 0.0), ground=self.draws_ground
             )
         self._renderer.center = np.asarray(self._render_center(q), float)  # the camera follows (the disk rolls away)
-        return self._renderer.draw(self._polylines(q, t, task))
+        u_draw = np.zeros(self.model.nu) if u is None else np.asarray(u, float)
+        shapes = self._drawing(q, t, task, u_draw, trail)
+        if v is not None:
+            shapes = shapes + self._caption(q, v, t, task, u_draw)
+        else:
+            shapes = shapes + [Text(f"t = {t:5.2f} s")]
+        return self._renderer.draw(shapes)
 
     def close(self) -> None:
         if self._renderer is not None:

@@ -12,7 +12,7 @@ from ..dynamics import compiled as _compiled
 from ..dynamics.jit import njit
 from ..models import fourbar as _model
 from ..models.fourbar import FourBar
-from .rendering import Polyline
+from .rendering import GROUND, Dot, Line, Polygon, Shape, arm_shapes
 from . import tracking as _tracking
 from .engine import engine_step
 from .tracking import JointTrackingEnv
@@ -146,10 +146,14 @@ class FourBarEnv(JointTrackingEnv):
     def _render_center(self, q: np.ndarray) -> tuple[float, float]:
         return (0.5 * self.model.params.l0, 0.0)
 
-    def _polylines(self, q: np.ndarray, t: float, task: Any) -> list[Polyline]:
-        p = self.model.params
-        lines: list[Polyline] = [(np.array([[0.0, 0.0], [p.l0, 0.0]]), (160, 160, 160))]
+    def _drawing(self, q: np.ndarray, t: float, task: Any, u: np.ndarray, trail: Any = None) -> list[Shape]:
+        """The ground link and its two pivots (hatched blocks), the crank, coupler and rocker, the
+        reference pose as a ghost and the crank torque."""
+        l0, h = self.model.params.l0, 0.06 * self._render_extent()
+        ground: list[Shape] = [Line(np.array([[0.0, 0.0], [l0, 0.0]]), GROUND, 4)]
+        for x in (0.0, l0):  # pivots: a triangle on a block
+            ground.append(Polygon(np.array([[x, 0.0], [x - h, -1.5 * h], [x + h, -1.5 * h]]), GROUND))
+            ground.append(Line(np.array([[x - 1.6 * h, -1.5 * h], [x + 1.6 * h, -1.5 * h]]), GROUND, 3))
         q_ref = self.model.assemble(self.task_now(np.asarray(t), task)[0][0], self.branch)
-        lines.append((self.model.joint_positions(q_ref), (180, 200, 240)))
-        lines.append((self.model.joint_positions(q), (0, 90, 200)))
-        return lines
+        arm = arm_shapes(self.model.joint_positions(q), self.model.joint_positions(q_ref), self._torque_arcs(u))
+        return ground + arm + [Dot(np.array([l0, 0.0]), 5)]

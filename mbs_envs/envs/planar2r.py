@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from ..models.planar2r import Planar2R
-from .rendering import Polyline
+from .rendering import Shape, arm_shapes
 from ..dynamics import compiled as _compiled
 from ..dynamics.jit import njit
 from ..models import planar2r as _model
@@ -101,9 +101,6 @@ class Planar2REnv(JointTrackingEnv):
         p = self.model.params
         return 1.1 * (p.l1 + p.l2)
 
-    def _polylines(self, q: np.ndarray, t: float, task: Any) -> list[Polyline]:
-        q_ref = self.task_now(np.asarray(t), task)[0]
-        return [
-            (self.model.joint_positions(q_ref), (180, 200, 240)),
-            (self.model.joint_positions(q), (0, 90, 200)),
-        ]
+    def _drawing(self, q: np.ndarray, t: float, task: Any, u: np.ndarray, trail: Any = None) -> list[Shape]:
+        ghost = self.model.joint_positions(self.task_now(np.asarray(t), task)[0])
+        return arm_shapes(self.model.joint_positions(q), ghost, self._torque_arcs(u))

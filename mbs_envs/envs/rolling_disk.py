@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import collections
 import dataclasses
 import sys
 from collections.abc import Mapping
@@ -18,7 +19,7 @@ from ..models.rolling_disk import RollingDisk
 from .references import SumOfSines, sample_sum_of_sines, sum_of_sines_columns
 from .base import MBSEnv
 from .engine import engine_step
-from .rendering import Polyline
+from .rendering import GHOST, GROUND, LINK, Arrow, Dot, Inset, Line, Polygon, Shape, Text, oblique
 from .tracking import wrap_angle
 
 _wrap = njit(wrap_angle)
@@ -275,22 +276,95 @@ class RollingDiskEnv(MBSEnv):
         names = ("reward", "reward_heading", "reward_lean", "reward_speed", "reward_effort", "lean")
         return tuple((k, None, False) for k in names) + (("fell", None, True), ("tracking_error", 1, False), ("spin_error", None, False))
 
-    # -- drawing: a view from above (x, y), the disk as its ground-plane footprint
+    # -- drawing: an oblique camera beside the disk, and a map seen from above ------------------
+
+    #: seconds of contact path drawn behind the disk
+    trail_seconds = 4.0
+    #: the camera looks at the disk from this angle behind its side [rad] (90 deg: square to its face)
+    camera_angle = np.deg2rad(70.0)
+    draws_ground = False  # the ground is drawn as a grid in the camera's projection
+    error_label = "heading error"
+
+    def _camera(self, q: np.ndarray) -> float:
+        """The camera's azimuth [rad]: it turns with the heading, ``camera_angle`` from the rolling direction."""
+        return float(q[3]) - self.camera_angle
+
     def _render_extent(self) -> float:
-        return 2.0
+        return 4.0 * self.model.params.r
 
     def _render_center(self, q: np.ndarray) -> tuple[float, float]:
-        return (float(q[0]), float(q[1]))
+        c = oblique(np.asarray(q[:3], float), self._camera(q))
+        return (float(c[0]), float(c[1]))
 
-    def _polylines(self, q: np.ndarray, t: float, task: DiskTask) -> list[Polyline]:
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        self._trail = collections.deque(maxlen=max(int(self.trail_seconds / self.dt), 2))
+        out = super().reset(seed=seed, options=options)
+        self._trail.append(self._contact_point(self._q))
+        return out
+
+    def step(self, action: Any):
+        out = super().step(action)
+        if self.render_mode is not None:  # the path is only kept for drawing
+            self._trail.append(self._contact_point(self._q))
+        return out
+
+    def trail(self) -> np.ndarray | None:
+        """The contact points of the last ``trail_seconds`` (k, 3) [m] (kept while rendering)."""
+        points = getattr(self, "_trail", None)
+        return np.array(points) if points else None
+
+    def _contact_point(self, q: np.ndarray) -> np.ndarray:
+        return np.asarray(q[:3], float) + self.model.contact_offset(q)
+
+    def _drawing(self, q: np.ndarray, t: float, task: DiskTask, u: np.ndarray, trail: np.ndarray | None = None) -> list[Shape]:
+        """The disk seen by a camera beside it (:meth:`_camera`, 30 deg above the ground): the rim
+        (the projected circle of the tilted disk, an ellipse) with a spoke turning with the spin, the
+        ground as a 0.5 m grid, the contact path of the last ``trail_seconds``, the direction of
+        rolling (blue) and the commanded heading (green) as arrows from the contact point. A map
+        seen from above (north up, fixed) shows the path, the disk's footprint and both arrows;
+        "FALLEN" once past the lean limit.
+        """
         r = self.model.params.r
-        heading = np.array([np.cos(q[3]), np.sin(q[3])])
-        centre = q[:2]
-        contact = centre + self.model.contact_offset(q)[:2]
+        q = np.asarray(q, float)
+        th1, th2, th3 = q[3], q[4], q[5]
+        c1, s1, c2, s2, c3, s3 = np.cos(th1), np.sin(th1), np.cos(th2), np.sin(th2), np.cos(th3), np.sin(th3)
+        R = (np.array([[c1, -s1, 0.0], [s1, c1, 0.0], [0.0, 0.0, 1.0]])
+             @ np.array([[1.0, 0.0, 0.0], [0.0, c2, -s2], [0.0, s2, c2]])
+             @ np.array([[c3, 0.0, s3], [0.0, 1.0, 0.0], [-s3, 0.0, c3]]))  # fmt: skip
+        az = self._camera(q)
+
+        def view(points):
+            return oblique(points, az)
+
+        centre, contact = q[:3], self._contact_point(q)
+        shapes: list[Shape] = []
+        step = 0.5
+        x0, y0 = np.round(centre[0] / step) * step, np.round(centre[1] / step) * step
+        span = np.arange(-4, 5) * step
+        for k in span:  # the ground grid around the disk
+            shapes.append(Line(view(np.array([[x0 + k, y0 + span[0], 0.0], [x0 + k, y0 + span[-1], 0.0]])), (225, 225, 225), 1))
+            shapes.append(Line(view(np.array([[x0 + span[0], y0 + k, 0.0], [x0 + span[-1], y0 + k, 0.0]])), (225, 225, 225), 1))
+        if trail is not None and len(trail) > 1:
+            shapes.append(Line(view(trail), (200, 60, 60), 2))
         h_ref = float(self.task_now(np.asarray(t), task)[0])
-        ref = np.array([np.cos(h_ref), np.sin(h_ref)])
-        return [
-            (np.stack([centre - r * heading, centre + r * heading]), (0, 90, 200)),
-            (np.stack([centre, contact]), (200, 60, 60)),
-            (np.stack([centre, centre + 0.8 * ref]), (180, 200, 240)),
-        ]
+        rolling = np.array([c1, s1, 0.0])
+        commanded = np.array([np.cos(h_ref), np.sin(h_ref), 0.0])
+        shapes.append(Arrow(view(contact), view(contact + 2.5 * r * commanded), (40, 160, 60)))
+        phi = np.linspace(0.0, 2 * np.pi, 49)[:-1]
+        rim = centre + r * (np.cos(phi)[:, None] * R[:, 0] + np.sin(phi)[:, None] * R[:, 2])
+        shapes.append(Polygon(view(rim), GHOST))
+        shapes.append(Line(view(rim), LINK, 3, closed=True))
+        spoke = np.stack([centre - r * R[:, 2], centre + r * R[:, 2]])
+        shapes.append(Line(view(spoke), LINK, 3))
+        shapes.append(Dot(view(spoke[1]), 5, (200, 60, 60)))
+        shapes.append(Arrow(view(contact), view(contact + 2.5 * r * rolling), LINK))
+        shapes.append(Dot(view(contact), 3, GROUND))
+        footprint = np.stack([contact[:2] - r * rolling[:2], contact[:2] + r * rolling[:2]])
+        top = [Line(trail[:, :2], (200, 60, 60), 2)] if trail is not None and len(trail) > 1 else []
+        top += [Line(footprint, LINK, 4), Arrow(contact[:2], contact[:2] + 3 * r * commanded[:2], (40, 160, 60), 2),
+                Arrow(contact[:2], contact[:2] + 3 * r * rolling[:2], LINK, 2)]  # fmt: skip
+        shapes.append(Inset(tuple(top), contact[:2], 6.0 * r, title="from above, N up"))
+        if self.fell(q):
+            shapes.append(Text("FALLEN (|lean| > lean limit)", 3, (200, 0, 0)))
+        shapes.append(Text(f"lean {np.degrees(th2):+5.1f} deg, spin {np.degrees(th3) % 360:5.1f} deg", 2))
+        return shapes

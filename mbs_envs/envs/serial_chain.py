@@ -9,7 +9,7 @@ import numpy as np
 
 from .. import validation as check
 from ..models.serial_chain import SerialChain, SerialChainParams, link_count
-from .rendering import Polyline
+from .rendering import Shape, arm_shapes
 from ..dynamics import compiled as _compiled
 from ..dynamics.jit import njit
 from ..models import serial_chain as _model
@@ -152,9 +152,6 @@ class SerialChainEnv(JointTrackingEnv):
     def _render_extent(self) -> float:
         return 1.1 * float(np.sum(self.model.params.l))
 
-    def _polylines(self, q: np.ndarray, t: float, task: Any) -> list[Polyline]:
-        q_ref = self.task_now(np.asarray(t), task)[0]
-        return [
-            (self.model.joint_positions(q_ref), (180, 200, 240)),
-            (self.model.joint_positions(q), (0, 90, 200)),
-        ]
+    def _drawing(self, q: np.ndarray, t: float, task: Any, u: np.ndarray, trail: Any = None) -> list[Shape]:
+        ghost = self.model.joint_positions(self.task_now(np.asarray(t), task)[0])
+        return arm_shapes(self.model.joint_positions(q), ghost, self._torque_arcs(u))

@@ -33,7 +33,7 @@ from ..models import planar2r as _model
 from ..models.planar2r import Planar2R
 from .base import MBSEnv
 from .engine import engine_step
-from .rendering import Polyline
+from .rendering import Shape, arm_shapes
 from .tracking import _as_columns, wrap_angle
 
 _wrap = njit(wrap_angle)
@@ -259,11 +259,10 @@ class SwingUpEnv(MBSEnv):
         p = self.model.params
         return 1.1 * (p.l1 + p.l2)
 
-    def _polylines(self, q: np.ndarray, t: float, task: Any) -> list[Polyline]:
-        return [
-            (self.model.joint_positions(Q_UP), (180, 200, 240)),
-            (self.model.joint_positions(q), (0, 90, 200)),
-        ]
+    error_label = "distance to upright"
+
+    def _drawing(self, q: np.ndarray, t: float, task: Any, u: np.ndarray, trail: Any = None) -> list[Shape]:
+        return arm_shapes(self.model.joint_positions(q), self.model.joint_positions(Q_UP), self._torque_arcs(u))
 
 
 class AcrobotEnv(SwingUpEnv):

@@ -326,7 +326,8 @@ class MBSVectorEnv(VectorEnv):
             return None
         env = self.env
         env.render_mode = "rgb_array"
-        return tuple(env.render_state(self._q[i], float(self._t[i]), self._pick(self._task, i)) for i in range(self.num_envs))
+        return tuple(env.render_state(self._q[i], float(self._t[i]), self._pick(self._task, i), self._v[i], self._u[i])
+                     for i in range(self.num_envs))  # fmt: skip
 
     def close_extras(self, **kwargs: Any) -> None:
         self.env.close()

@@ -22,10 +22,12 @@ one that loses none, whatever its error. The grids:
   integral weight in {0, 1, 10, 100, 1000};
 - PD steering (disk): ``k_h`` in {0.5, 1, 2, 4, 8} 1/s, ``k_dlean`` in {0.3, 0.6, 1}
   N m s/rad, ``k_lean`` in {0.02, 0.05, 0.15} N m/rad (``k_r = 0``, ``k_w = 0.05``);
-- swing-up + LQR (acrobot, pendubot): the driven joint's PD ``k_q`` in {5, 20, 50} 1/s^2
-  and ``k_v`` in {2, 5, 10} 1/s, the pumping gain ``k_E`` in {2, 4, 8} 1/(J s), the LQR's
-  catch level ``x^T S x`` in {30, 100, 300}; there the error is the time to swing up and a
-  failure an episode that does not end upright (:data:`mbs_envs.studies.evaluation.SCORING`).
+- swing-up + LQR (acrobot, pendubot): the driven joint's PD ``k_q`` in {1, 2, 5, 10, 20, 50}
+  1/s^2 and ``k_v`` in {0.25, 0.5, 1, 2, 5, 10} 1/s, the pumping gain ``k_E`` in
+  {0.5, 1, 2, 4, 8, 16} 1/(J s), the LQR's catch level ``x^T S x`` in {1, 3, 10, 30, 100}
+  (1,080 candidates; a first grid of 3 values each put both scenes' picks at its edges);
+  there the error is the time to swing up and a failure an episode that does not end
+  upright (:data:`mbs_envs.studies.evaluation.SCORING`).
 
 A pick at the edge of its grid is reported as such by ``scripts/tune.py``
 (the grid should then be widened).
@@ -81,7 +83,9 @@ def swing_up_grid() -> list[dict[str, float]]:
     """Gain candidates of the swing-up + LQR controller (acrobot and pendubot)."""
     return [
         {"k_q": kq, "k_v": kv, "k_E": kE, "catch": c}
-        for kq, kv, kE, c in itertools.product((5.0, 20.0, 50.0), (2.0, 5.0, 10.0), (2.0, 4.0, 8.0), (30.0, 100.0, 300.0))
+        for kq, kv, kE, c in itertools.product(
+            (1.0, 2.0, 5.0, 10.0, 20.0, 50.0), (0.25, 0.5, 1.0, 2.0, 5.0, 10.0), (0.5, 1.0, 2.0, 4.0, 8.0, 16.0), (1.0, 3.0, 10.0, 30.0, 100.0)
+        )
     ]
 
 

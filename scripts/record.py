@@ -1,0 +1,71 @@
+#!/usr/bin/env python
+"""Record an episode of a controller or a shipped agent to MP4 and GIF (``mbs_envs.studies.recording``).
+
+    python scripts/record.py --env mbs_envs/Acrobot-v0 --policy swingup --seed 0 --out results/videos
+    python scripts/record.py --env mbs_envs/RollingDisk-v0 --policy lqr --vs ppo --seed 3 --out results/videos
+
+``--policy`` (and ``--vs``, for a second panel on the same seed): a controller's short name
+(``pd``, ``pdgravity``, ``ct``, ``lqr``, ``steering``, ``swingup``, ...), a shipped agent group
+(``ppo``, ``sac``, ``td3``, ``residual-ppo``; training seed 0), ``module:Class`` or an agent
+folder. Writes ``<scene>_<policy>[_vs_<policy>]_seed<S>.mp4`` and ``.gif`` (``--format``) and a
+``.json`` with what was recorded (steps, return, how the episode ended, run time).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import pathlib
+import sys
+import time
+
+import mbs_envs  # noqa: F401
+from mbs_envs.studies.recording import record_episode, side_by_side, write_video
+
+
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--env", required=True, choices=list(mbs_envs.ENV_IDS))
+    p.add_argument("--policy", required=True, help="controller short name, agent group, module:Class or agent folder")
+    p.add_argument("--vs", help="a second policy, recorded on the same seed beside the first")
+    p.add_argument("--seed", type=int, default=0, help="reset seed (default 0)")
+    p.add_argument("--seconds", type=float, help="at most this much of the episode (default the whole episode)")
+    p.add_argument("--fps", type=float, default=25.0, help="frames per second of the video (default 25)")
+    p.add_argument("--size", type=int, help="pixels per panel (default 500, the env's frame)")
+    p.add_argument("--format", nargs="+", choices=["mp4", "gif"], default=["mp4", "gif"])
+    p.add_argument("--out", required=True, type=pathlib.Path)
+    return p.parse_args(argv)
+
+
+def run(args: argparse.Namespace) -> dict:
+    tic = time.perf_counter()
+    try:
+        recordings = [record_episode(args.env, name, args.seed, args.seconds, args.fps) for name in [args.policy] + ([args.vs] if args.vs else [])]
+    except ValueError as exc:
+        raise SystemExit(f"record.py: {exc}") from None
+    frames = side_by_side(recordings, args.size)
+    scene = args.env.split("/")[-1]
+    names = [n.replace(":", "-").replace("/", "-") for n in [args.policy] + ([args.vs] if args.vs else [])]
+    stem = f"{scene}_{'_vs_'.join(names)}_seed{args.seed}"
+    paths = [str(write_video(frames, args.out / f"{stem}.{fmt}", recordings[0].fps)) for fmt in args.format]
+    record = {
+        "env_id": args.env, "seed": args.seed, "fps": recordings[0].fps, "frames": len(frames), "files": paths,
+        "panels": [{"policy": n, "label": r.label, "steps": r.steps, "return": r.episode_return, "ended": r.ended}
+                   for n, r in zip([args.policy, args.vs], recordings)],
+        "run_time_s": time.perf_counter() - tic,
+        "command": "python scripts/record.py " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("record.py") else None,
+    }  # fmt: skip
+    (args.out / f"{stem}.json").write_text(json.dumps(record, indent=2))
+    for p in record["panels"]:
+        print(f"{p['label']}: {p['steps']} steps, return {p['return']:.1f} ({p['ended']})")
+    print(f"written {', '.join(paths)} in {record['run_time_s']:.1f} s")
+    return record
+
+
+def main(argv: list[str] | None = None) -> int:
+    run(parse_args(argv))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
