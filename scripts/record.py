@@ -9,6 +9,11 @@
 (``ppo``, ``sac``, ``td3``, ``residual-ppo``; training seed 0), ``module:Class`` or an agent
 folder. Writes ``<scene>_<policy>[_vs_<policy>]_seed<S>.mp4`` and ``.gif`` (``--format``) and a
 ``.json`` with what was recorded (steps, return, how the episode ended, run time).
+
+    python scripts/record.py --gallery --out docs/gallery     # the README's gallery: every scene, GIF
+
+``--gallery`` records every scene's best model-based controller beside PPO (training seed 0) on
+test seed 0, small GIFs (200 px panels, 10 frames/s, the first 8 s; 10 s on swing-up scenes).
 """
 
 from __future__ import annotations
@@ -25,8 +30,9 @@ from mbs_envs.studies.recording import record_episode, side_by_side, write_video
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--env", required=True, choices=list(mbs_envs.ENV_IDS))
-    p.add_argument("--policy", required=True, help="controller short name, agent group, module:Class or agent folder")
+    p.add_argument("--env", choices=list(mbs_envs.ENV_IDS))
+    p.add_argument("--policy", help="controller short name, agent group, module:Class or agent folder")
+    p.add_argument("--gallery", action="store_true", help="every scene: its best controller beside PPO, small GIFs")
     p.add_argument("--vs", help="a second policy, recorded on the same seed beside the first")
     p.add_argument("--seed", type=int, default=0, help="reset seed (default 0)")
     p.add_argument("--seconds", type=float, help="at most this much of the episode (default the whole episode)")
@@ -38,6 +44,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 
 def run(args: argparse.Namespace) -> dict:
+    if args.gallery:
+        return gallery(args)
+    if not (args.env and args.policy):
+        raise SystemExit("record.py: --env and --policy are required (or --gallery)")
     tic = time.perf_counter()
     try:
         recordings = [record_episode(args.env, name, args.seed, args.seconds, args.fps) for name in [args.policy] + ([args.vs] if args.vs else [])]
@@ -60,6 +70,20 @@ def run(args: argparse.Namespace) -> dict:
         print(f"{p['label']}: {p['steps']} steps, return {p['return']:.1f} ({p['ended']})")
     print(f"written {', '.join(paths)} in {record['run_time_s']:.1f} s")
     return record
+
+
+def gallery(args: argparse.Namespace) -> dict:
+    """The README gallery: one GIF per scene, model-based controller beside PPO (module docstring)."""
+    from mbs_envs.envs import registry
+    from mbs_envs.studies.recording import gallery_pairs
+
+    records = {}
+    for env_id, controller, agent in gallery_pairs():
+        seconds = 10.0 if registry.scene(env_id).scoring == "swing-up" else 8.0
+        sub = argparse.Namespace(**{**vars(args), "gallery": False, "env": env_id, "policy": controller, "vs": agent,
+                                    "seed": 0, "seconds": seconds, "fps": 10.0, "size": 200, "format": ["gif"]})  # fmt: skip
+        records[env_id] = run(sub)
+    return records
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -47,7 +47,10 @@ def run(
     repeats: int | None = None,
     n_fixed: int | None = None,
     n_adaptive: int | None = None,
+    add: bool = False,
 ) -> list[dict]:
+    """Measure the chosen problems and write the results to ``out``; with ``add``, into the results
+    already there (rows of the same problems replaced, the others kept)."""
     t_start = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
     horizon = 0.4 if quick else 1.0
@@ -75,11 +78,8 @@ def run(
                 bar.set_postfix_str(f"{p.name} {m} {s:.3g}", refresh=False)
                 rows.extend(wp.measure(p, refs[p.name], m, s, repeats))
                 bar.update()
-    write_csv(rows, out / "work_precision.csv")
     for p in chosen:
         plot_problem([r for r in rows if r["problem"] == p.name], p, refs[p.name], out / f"work_precision_{p.name}.png")
-    summary = summarize(rows, chosen, refs)
-    (out / "work_precision.md").write_text(summary)
     spreads = [r["time_max_s"] / r["time_min_s"] for r in rows if r["finished"] and r["time_min_s"] > 0]
     meta = {
         "quick": quick, "horizon_s": horizon, "repeats": repeats, "methods": methods,
@@ -90,6 +90,19 @@ def run(
         "timing_spread_max_over_min": {"median": float(np.median(spreads)), "p90": float(np.percentile(spreads, 90))} if spreads else None,
         "run_time_s": time.perf_counter() - t_start,
     }  # fmt: skip
+    if add and (out / "work_precision.json").exists():
+        old_rows, old_meta = load(out)
+        if (old_meta["quick"], old_meta["horizon_s"], old_meta["repeats"]) != (quick, horizon, repeats):
+            raise ValueError(f"--add: the results in {out} were made with quick={old_meta['quick']}, repeats={old_meta['repeats']}; "
+                             "add runs of the same configuration")  # fmt: skip
+        names = {p.name for p in chosen}
+        rows = [r for r in old_rows if r["problem"] not in names] + rows
+        added = {k: meta[k] for k in ("problems", "run_time_s", "timing_spread_max_over_min")}
+        meta = {**old_meta, "problems": {**old_meta["problems"], **meta["problems"]},
+                "added_runs": old_meta.get("added_runs", []) + [added]}  # fmt: skip
+    write_csv(rows, out / "work_precision.csv")
+    summary = summarize(rows, {name: info["reference_floor"] for name, info in meta["problems"].items()})
+    (out / "work_precision.md").write_text(summary)
     (out / "work_precision.json").write_text(json.dumps(meta, indent=2))
     print(summary)
     print(f"run time {meta['run_time_s']:.0f} s; written to {out}/work_precision.csv, .md, .json and one PNG per problem")
@@ -143,8 +156,8 @@ def plot_problem(rows: list[dict], p: wp.Problem | None, ref: wp.Reference | flo
     save(fig, path, rect=(0, 0, 0.86, 1))
 
 
-def replot(out: pathlib.Path) -> None:
-    """The plots again from ``work_precision.csv`` and ``.json`` in ``out`` (no runs)."""
+def load(out: pathlib.Path) -> tuple[list[dict], dict]:
+    """The rows of ``work_precision.csv`` (numbers parsed) and ``work_precision.json`` in ``out``."""
     meta = json.loads((out / "work_precision.json").read_text())
     with open(out / "work_precision.csv") as f:
         rows = list(csv.DictReader(f))
@@ -153,7 +166,15 @@ def replot(out: pathlib.Path) -> None:
     for r in rows:
         for k in numeric:
             r[k] = float(r[k]) if r.get(k) not in (None, "") else float("nan")
+        if float(r["rhs_evaluations"]).is_integer():  # written as an integer count
+            r["rhs_evaluations"] = int(r["rhs_evaluations"])
         r["finished"] = r["finished"] == "True"
+    return rows, meta
+
+
+def replot(out: pathlib.Path) -> None:
+    """The plots again from ``work_precision.csv`` and ``.json`` in ``out`` (no runs)."""
+    rows, meta = load(out)
     for name, info in meta["problems"].items():
         sub = [r for r in rows if r["problem"] == name]
         what = f"torque held per {info['interval_s']:g} s control step, default friction" if info["forced"] else "free motion"
@@ -161,21 +182,23 @@ def replot(out: pathlib.Path) -> None:
                      f"{name}: {info['interval_s'] * info['steps']:g} s, {what}")
 
 
-def summarize(rows: list[dict], chosen: list[wp.Problem], refs: dict) -> str:
+def summarize(rows: list[dict], floors: dict[str, float]) -> str:
+    """The markdown table of the cheapest run per error target, one row per problem of ``floors``
+    (problem name -> the reference's floor)."""
     lines = ["# Work-precision summary", "",
              "Cheapest run (median time) whose trajectory error reaches each target; `-` if none did. "
              "Floor: DOP853 against Radau at 1e-13.", ""]  # fmt: skip
     lines += ["| problem | floor | " + " | ".join(f"error <= {t:g}" for t in TARGETS) + " | unfinished runs |",
               "|" + "---|" * (len(TARGETS) + 3)]  # fmt: skip
-    for p in chosen:
-        sub = [r for r in rows if r["problem"] == p.name]
+    for name, floor in floors.items():
+        sub = [r for r in rows if r["problem"] == name]
         cells = []
         for target in TARGETS:
             best = wp.cheapest(sub, target)
             cells.append("-" if best is None else
                          f"{best['integrator']} ({best['path']}) {best['setting_name']}={best['setting']:.3g}: {1e3 * best['time_median_s']:.2f} ms")  # fmt: skip
         failed = sorted({f"{r['integrator']}@{r['setting']:.2g}" for r in sub if not r["finished"]})
-        lines.append(f"| {p.name} | {refs[p.name].floor:.1e} | " + " | ".join(cells) + f" | {', '.join(failed) or 'none'} |")
+        lines.append(f"| {name} | {float(floor):.1e} | " + " | ".join(cells) + f" | {', '.join(failed) or 'none'} |")
     return "\n".join(lines) + "\n"
 
 
@@ -188,12 +211,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--repeats", type=int, help="timed runs per setting after the warm-up (default 5, quick 3)")
     p.add_argument("--n-fixed", type=int, help="number of dt values (halving from the interval)")
     p.add_argument("--n-adaptive", type=int, help="number of rtol values")
+    p.add_argument("--add", action="store_true", help="merge into the results already in --out (same problems replaced)")
     p.add_argument("--replot", action="store_true", help="redraw the plots from the CSV and JSON in --out, no runs")
     a = p.parse_args(argv)
     if a.replot:
         replot(a.out)
         return 0
-    run(a.out, a.quick, a.problems, a.methods, a.repeats, a.n_fixed, a.n_adaptive)
+    run(a.out, a.quick, a.problems, a.methods, a.repeats, a.n_fixed, a.n_adaptive, a.add)
     return 0
 
 

@@ -234,6 +234,16 @@ def test_work_precision_tiny_configuration(tmp_path):
     assert {r["kind"] for r in fb if r["integrator"] == "dop853"} == {"adaptive, restarted"}
     meta = json.loads((tmp_path / "work_precision.json").read_text())
     assert 0 < meta["problems"]["planar2r-free"]["reference_floor"] < 1e-10
+    # --add: another scene's problem joins the results; those already there are kept
+    before = (tmp_path / "work_precision.csv").read_text().splitlines()
+    script["run"](tmp_path, quick=True, problems=["acrobot-forced"], methods=["rk4"], repeats=1, n_fixed=2, n_adaptive=2, add=True)
+    after = (tmp_path / "work_precision.csv").read_text().splitlines()
+    assert after[: len(before)] == before and len(after) == len(before) + 2 * 2
+    meta = json.loads((tmp_path / "work_precision.json").read_text())
+    assert list(meta["problems"]) == ["planar2r-free", "fourbar-forced", "acrobot-forced"] and len(meta["added_runs"]) == 1
+    assert "| acrobot-forced |" in (tmp_path / "work_precision.md").read_text()
+    with pytest.raises(ValueError, match="same configuration"):
+        script["run"](tmp_path, quick=False, problems=["pendubot-forced"], methods=["rk4"], repeats=1, n_fixed=2, n_adaptive=2, add=True)
 
 
 def test_implicit_chain_tiny_configuration(tmp_path):

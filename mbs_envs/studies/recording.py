@@ -7,8 +7,8 @@ seed 0 under ``agents/<id>/<group>/``), a ``"module:Class"`` controller, or a fo
 ``agent.zip``. :func:`record_episode` rolls it out from ``reset(seed=...)`` in
 ``render_mode="rgb_array"`` and keeps every k-th frame; :func:`side_by_side` puts two
 episodes of the same seed next to each other (the one that ends first holds its last
-frame); :func:`write_video` writes MP4 (ffmpeg, via imageio-ffmpeg) or GIF (Pillow) through
-imageio, which Gymnasium's ``RecordVideo`` would need moviepy for.
+frame); :func:`write_video` writes MP4 (ffmpeg through imageio and imageio-ffmpeg) or GIF
+(Pillow), where Gymnasium's ``RecordVideo`` would need moviepy.
 
 Requires the ``render`` extra (pygame, imageio, imageio-ffmpeg).
 """
@@ -65,7 +65,7 @@ def resolve_policy(env_id: str, name: str) -> tuple[str, str]:
         label = AGENT_GROUPS[name][0] + (" (training seed 0)" if run.name == "seed0" else "")
         return str(run), label
     if ":" in name and not pathlib.Path(name).exists():
-        return name, name.split(":")[-1]
+        return name, next((c for c, spec in scene.controllers.items() if spec == name), name.split(":")[-1])
     if (pathlib.Path(name) / "agent.zip").exists():
         return name, pathlib.Path(name).name
     raise ValueError(f"policy {name!r} is not known on {env_id}; one of {policy_names(env_id)}, 'module:Class' or an agent folder")
@@ -141,15 +141,23 @@ def side_by_side(recordings: list[Recording], size: int | None = None) -> np.nda
     return np.concatenate(columns, axis=2)
 
 
-def write_video(frames: np.ndarray, path: pathlib.Path, fps: float) -> pathlib.Path:
-    """Write ``frames`` (k, H, W, 3) uint8 to ``path``: ``.mp4`` (H.264, yuv420p) or ``.gif`` (looping)."""
-    import imageio.v2 as imageio
-
+def write_video(frames: np.ndarray, path: pathlib.Path, fps: float, colours: int = 64) -> pathlib.Path:
+    """Write ``frames`` (k, H, W, 3) uint8 to ``path``: ``.mp4`` (H.264, yuv420p, imageio-ffmpeg) or
+    ``.gif`` (looping; Pillow, one palette of ``colours`` for all frames, no dithering: the line
+    drawings stay crisp and the file small)."""
     path = pathlib.Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     if path.suffix == ".gif":
-        imageio.mimsave(path, list(frames), duration=1000.0 / fps, loop=0)
+        from PIL import Image
+
+        images = [Image.fromarray(f) for f in frames]
+        sample = Image.fromarray(np.concatenate([frames[0], frames[len(frames) // 2], frames[-1]], axis=0))
+        palette = sample.quantize(colors=colours, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
+        paletted = [im.quantize(palette=palette, dither=Image.Dither.NONE) for im in images]
+        paletted[0].save(path, save_all=True, append_images=paletted[1:], duration=int(round(1000.0 / fps)), loop=0, optimize=True)
     elif path.suffix == ".mp4":
+        import imageio.v2 as imageio
+
         h, w = frames.shape[1:3]  # H.264 in yuv420p needs even sides
         frames = frames[:, : h - h % 2, : w - w % 2]
         with imageio.get_writer(path, fps=fps, codec="libx264", pixelformat="yuv420p", macro_block_size=1) as writer:
@@ -158,3 +166,13 @@ def write_video(frames: np.ndarray, path: pathlib.Path, fps: float) -> pathlib.P
     else:
         raise ValueError(f"video path must end in .mp4 or .gif, got {path.name!r}")
     return path
+
+
+def gallery_pairs() -> list[tuple[str, str, str]]:
+    """``(env id, model-based controller, agent group)`` of the README gallery: each scene's best
+    model-based controller (:attr:`~mbs_envs.envs.registry.Scene.residual_base`) against PPO."""
+    pairs = []
+    for s in registry.SCENES:
+        display = next(c for c, spec in s.controllers.items() if spec == s.residual_base)
+        pairs.append((s.id, _squeeze(display), "ppo"))
+    return pairs
