@@ -364,6 +364,7 @@ def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: 
                          f"`{json.dumps(sc['pre_tuning']['entry'])}` | {sc['pre_tuning']['failure_rate']:.0%} / {sc['pre_tuning']['error']:.3g} | "
                          f"{', '.join(sc.get('at_grid_edge') or []) or 'no'} |")  # fmt: skip
         L.append("")
+    L += agent_tuning_section(ROOT / "docs" / "figures" / "tune_agent")
     for scene, by_cond in summary.items():
         swing_up = scoring_of(scene) == "swing-up"
         L += [f"## {scene}", "", f"![{scene}](comparison_{scene}.png)", ""]
@@ -412,6 +413,26 @@ def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: 
                 L.append("Peak joint reaction forces over all seeds [N] (from the Lagrange multipliers): " + ", ".join(f"{k} {v:.3g}" for k, v in s["peak_joint_force_N"].items()))
             L.append("")
     return "\n".join(L) + "\n"
+
+
+def agent_tuning_section(folder: pathlib.Path) -> list[str]:
+    """The report's account of the agents' hyperparameter searches (``scripts/tune_agent.py`` results
+    committed under ``folder/<name>/tuning.json``); empty without any."""
+    records = [json.loads(p.read_text()) for p in sorted(folder.glob("*/tuning.json"))]
+    if not records:
+        return []
+    L = ["## RL hyperparameters: how they were chosen", "",
+         "The agents train with the project's defaults (`mbs_envs/studies/training.py: hyperparameters`) unless their "
+         "command sets `--hyper`. Where a search was run (`scripts/tune_agent.py`, `mbs_envs/studies/agent_tuning.py`), "
+         "each candidate trained once (training seed 0, the budget below) and was ranked on the validation seeds by failure "
+         "rate, then the scene's error, then return; the shipped seeds train with the pick. Results and learning curves: "
+         "`docs/figures/tune_agent/`.", "",
+         "| env | algorithm | steps per candidate | candidate | failures | return | training [s] | picked |", "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    for rec in records:
+        for row in rec["rows"]:
+            L.append(f"| {rec['env_id']} | {rec['algo']} | {rec['steps']:,} | `{json.dumps(row['hyper'])}` | {row['failure_rate']:.0%} | "
+                     f"{row['return']:.1f} | {row['train_wall_s']:.0f} | {'yes' if row['hyper'] == rec['best'] else ''} |")  # fmt: skip
+    return L + [""]
 
 
 def main(argv: list[str] | None = None) -> int:

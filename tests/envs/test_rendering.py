@@ -142,3 +142,14 @@ def test_record_names_unknown_policies():
         resolve_policy("mbs_envs/Planar2R-v0", "dance")
     with pytest.raises(ValueError, match="swingup"):  # a controller of another scene
         resolve_policy("mbs_envs/Planar2R-v0", "swingup")
+
+
+def test_the_readme_gallery_shows_every_scene_in_small_gifs():
+    import re
+
+    readme = (ROOT / "README.md").read_text()
+    gifs = re.findall(r"\((docs/gallery/[^)]+\.gif)\)", readme)
+    assert {g.split("/")[-1].split("_")[0] for g in gifs} == {s.id.split("/")[-1] for s in registry.SCENES}
+    for g in gifs:
+        path = ROOT / g
+        assert path.exists() and 10_000 < path.stat().st_size < 500_000, g  # "a few hundred KB at most"
