@@ -13,7 +13,8 @@ folder. Writes ``<scene>_<policy>[_vs_<policy>]_seed<S>.mp4`` and ``.gif`` (``--
     python scripts/record.py --gallery --out docs/gallery     # the README's gallery: every scene, GIF
 
 ``--gallery`` records every scene's best model-based controller beside PPO (training seed 0) on
-test seed 0, small GIFs (200 px panels, 10 frames/s, the first 8 s; 10 s on swing-up scenes).
+test seed 0, small GIFs (200 px panels, 10 frames/s, the first 8 s; 10 s on swing-up scenes; the
+frame rate halved while a GIF is over 400 kB) and ``gallery.json``.
 """
 
 from __future__ import annotations
@@ -72,17 +73,27 @@ def run(args: argparse.Namespace) -> dict:
     return record
 
 
-def gallery(args: argparse.Namespace) -> dict:
-    """The README gallery: one GIF per scene, model-based controller beside PPO (module docstring)."""
+def gallery(args: argparse.Namespace, budget: int = 400_000) -> dict:
+    """The README gallery: one GIF per scene, model-based controller beside PPO (module docstring);
+    a GIF over ``budget`` bytes is written again with every other frame (half the frame rate)."""
     from mbs_envs.envs import registry
     from mbs_envs.studies.recording import gallery_pairs
 
     records = {}
     for env_id, controller, agent in gallery_pairs():
+        tic = time.perf_counter()
         seconds = 10.0 if registry.scene(env_id).scoring == "swing-up" else 8.0
-        sub = argparse.Namespace(**{**vars(args), "gallery": False, "env": env_id, "policy": controller, "vs": agent,
-                                    "seed": 0, "seconds": seconds, "fps": 10.0, "size": 200, "format": ["gif"]})  # fmt: skip
-        records[env_id] = run(sub)
+        recordings = [record_episode(env_id, name, 0, seconds, 10.0) for name in (controller, agent)]
+        frames, fps = side_by_side(recordings, 200), recordings[0].fps
+        path = args.out / f"{env_id.split('/')[-1]}_{controller}_vs_{agent}_seed0.gif"
+        while write_video(frames, path, fps).stat().st_size > budget and len(frames) > 10:
+            frames, fps = frames[::2], fps / 2
+        records[env_id] = {"file": str(path), "bytes": path.stat().st_size, "fps": fps, "frames": len(frames),
+                           "panels": [{"policy": n, "label": r.label, "steps": r.steps, "return": r.episode_return, "ended": r.ended}
+                                      for n, r in zip((controller, agent), recordings)],
+                           "run_time_s": time.perf_counter() - tic}  # fmt: skip
+        print(f"{path}: {path.stat().st_size / 1e3:.0f} kB, {len(frames)} frames at {fps:g}/s, {records[env_id]['run_time_s']:.1f} s")
+    (args.out / "gallery.json").write_text(json.dumps(records, indent=2))
     return records
 
 
