@@ -228,7 +228,9 @@ def hierarchical_bootstrap(groups: list[np.ndarray], n_boot: int = 2000, seed: i
 
 
 def summarize_policy(rows: list[dict[str, Any]]) -> dict[str, Any]:
-    """Success rate and errors (over successful episodes) with 95 % CIs for one policy in one condition.
+    """Success rate and errors (over successful episodes) with 95 % CIs for one policy in one condition;
+    on a swing-up scene also ``return_all``, the return over every episode that did not diverge (they
+    all run the full length there, so a failed one's return is not truncated and cannot flatter).
 
     ``rows``: one per (training seed, test episode), as from :func:`evaluate_cell`.
     """
@@ -243,6 +245,9 @@ def summarize_policy(rows: list[dict[str, Any]]) -> dict[str, Any]:
     for m in ("rms_error_settled", "max_error", "rms_torque", "peak_torque", "return") + (("time_to_swing_up", "energy_used") if swing_up else ()):
         groups = [np.array([float(r[m]) for r in by_seed[k] if not r["failed"] and np.isfinite(float(r[m]))]) for k in seeds]
         out[m], out[m + "_lo"], out[m + "_hi"] = hierarchical_bootstrap(groups)
+    if swing_up:  # every episode runs its full length unless it diverged, so its return can be compared as is
+        groups = [np.array([float(r["return"]) for r in by_seed[k] if not int(r.get("diverged", 0))]) for k in seeds]
+        out["return_all"], out["return_all_lo"], out["return_all_hi"] = hierarchical_bootstrap(groups)
     for m in ("latency_us", "latency_noisy_us"):
         values = [float(r[m]) for r in rows if np.isfinite(float(r.get(m, float("nan"))))]
         out[m] = float(np.median(values)) if values else float("nan")
