@@ -170,7 +170,8 @@ class SwingUpEnv(MBSEnv):
     divergence (``info["diverged"]``). An episode *succeeds* when both joints stay
     within ``upright_tolerance`` (default 0.1 rad) of upright for its last 2 s. The torque limits
     make a swing-up take several pumps: the tuned swing-up + LQR controller catches the acrobot
-    after 5 half-swings of link 1 (about 6 s), the pendubot after 7-10 (measured on the test seeds).
+    after 4-5 half-swings of link 1 (about 6 s, some 9.7 s), the pendubot after 11-15 (10-12 s;
+    measured on the test seeds).
 
     ## Arguments
 
