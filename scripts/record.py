@@ -14,7 +14,7 @@ folder. Writes ``<scene>_<policy>[_vs_<policy>]_seed<S>.mp4`` and ``.gif`` (``--
 
 ``--gallery`` records every scene's best model-based controller beside PPO (training seed 0) on
 test seed 0, small GIFs (200 px panels, 10 frames/s, the first 8 s; 10 s on swing-up scenes; the
-frame rate halved while a GIF is over 400 kB) and ``gallery.json``.
+frame rate halved while a GIF is over 400 kB), one full-size PNG frame per scene and ``gallery.json``.
 """
 
 from __future__ import annotations
@@ -76,6 +76,8 @@ def run(args: argparse.Namespace) -> dict:
 def gallery(args: argparse.Namespace, budget: int = 400_000) -> dict:
     """The README gallery: one GIF per scene, model-based controller beside PPO (module docstring);
     a GIF over ``budget`` bytes is written again with every other frame (half the frame rate)."""
+    from PIL import Image
+
     from mbs_envs.envs import registry
     from mbs_envs.studies.recording import gallery_pairs
 
@@ -85,10 +87,12 @@ def gallery(args: argparse.Namespace, budget: int = 400_000) -> dict:
         seconds = 10.0 if registry.scene(env_id).scoring == "swing-up" else 8.0
         recordings = [record_episode(env_id, name, 0, seconds, 10.0) for name in (controller, agent)]
         frames, fps = side_by_side(recordings, 200), recordings[0].fps
+        still = args.out / f"{env_id.split('/')[-1]}.png"  # one full-size frame of the controller's episode, at mid-way
+        Image.fromarray(recordings[0].frames[len(recordings[0].frames) // 2]).save(still)
         path = args.out / f"{env_id.split('/')[-1]}_{controller}_vs_{agent}_seed0.gif"
         while write_video(frames, path, fps).stat().st_size > budget and len(frames) > 10:
             frames, fps = frames[::2], fps / 2
-        records[env_id] = {"file": str(path), "bytes": path.stat().st_size, "fps": fps, "frames": len(frames),
+        records[env_id] = {"file": str(path), "frame": str(still), "bytes": path.stat().st_size, "fps": fps, "frames": len(frames),
                            "panels": [{"policy": n, "label": r.label, "steps": r.steps, "return": r.episode_return, "ended": r.ended}
                                       for n, r in zip((controller, agent), recordings)],
                            "run_time_s": time.perf_counter() - tic}  # fmt: skip

@@ -105,7 +105,7 @@ def run(
     (out / "work_precision.md").write_text(summary)
     (out / "work_precision.json").write_text(json.dumps(meta, indent=2))
     print(summary)
-    print(f"run time {meta['run_time_s']:.0f} s; written to {out}/work_precision.csv, .md, .json and one PNG per problem")
+    print(f"run time {time.perf_counter() - t_start:.0f} s; written to {out}/work_precision.csv, .md, .json and one PNG per problem")
     return rows
 
 
