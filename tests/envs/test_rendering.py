@@ -153,3 +153,13 @@ def test_the_readme_gallery_shows_every_scene_in_small_gifs():
     for g in gifs:
         path = ROOT / g
         assert path.exists() and 10_000 < path.stat().st_size < 500_000, g  # "a few hundred KB at most"
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_human_mode_draws_each_step_in_a_window(env_id):
+    env = gym.make(env_id, render_mode="human")  # SDL's dummy video driver stands in for the screen
+    env.reset(seed=0)
+    for _ in range(3):
+        env.step(np.zeros(env.action_space.shape, np.float32))
+    assert env.render() is None and env.unwrapped._renderer.fps == round(1 / env.unwrapped.dt)  # the control rate
+    env.close()
