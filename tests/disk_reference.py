@@ -40,7 +40,7 @@ def disk_functions():
     Psi = vC.jacobian(dq)
     dPsi_v = (Psi * sp.Matrix(dq)).jacobian(q) * sp.Matrix(dq)
     args = [m, r, g] + q + dq
-    f = {k: sp.lambdify(args, e, "numpy") for k, e in dict(M=M, Cv=Cv, G=G, Psi=Psi, dPsi_v=dPsi_v, T=T).items()}
+    f = {k: sp.lambdify(args, e, "numpy") for k, e in dict(M=M, Cv=Cv, G=G, Psi=Psi, dPsi_v=dPsi_v, T=T, R=R, rC=rC).items()}
     return f
 
 

@@ -327,10 +327,8 @@ class RollingDiskEnv(MBSEnv):
         r = self.model.params.r
         q = np.asarray(q, float)
         th1, th2, th3 = q[3], q[4], q[5]
-        c1, s1, c2, s2, c3, s3 = np.cos(th1), np.sin(th1), np.cos(th2), np.sin(th2), np.cos(th3), np.sin(th3)
-        R = (np.array([[c1, -s1, 0.0], [s1, c1, 0.0], [0.0, 0.0, 1.0]])
-             @ np.array([[1.0, 0.0, 0.0], [0.0, c2, -s2], [0.0, s2, c2]])
-             @ np.array([[c3, 0.0, s3], [0.0, 1.0, 0.0], [-s3, 0.0, c3]]))  # fmt: skip
+        c1, s1 = np.cos(th1), np.sin(th1)
+        R = self.model.orientation(q)
         az = self._camera(q)
 
         def view(points):

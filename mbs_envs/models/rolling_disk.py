@@ -535,6 +535,22 @@ class RollingDisk(ConstrainedModel):
         q = as_vector(q, 6, "q")
         return np.stack(contact_offset_entries(*self._trig(q), self.params.r), axis=-1)
 
+    def orientation(self, q: np.ndarray) -> np.ndarray:
+        """The disk's rotation ``R = Rz(th1) Rx(th2) Ry(th3)`` (body to ground), shape ``(..., 3, 3)``:
+        its columns ``R e_x`` and ``R e_z`` span the disk's plane, ``R e_y`` is :meth:`spin_axis`."""
+        q = as_vector(q, 6, "q")
+        s1, c1, s2, c2 = self._trig(q)
+        s3, c3 = np.sin(q[..., 5]), np.cos(q[..., 5])
+        zero, one = np.zeros_like(s1), np.ones_like(s1)
+
+        def mat(*rows):
+            return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
+
+        Rz = mat((c1, -s1, zero), (s1, c1, zero), (zero, zero, one))
+        Rx = mat((one, zero, zero), (zero, c2, -s2), (zero, s2, c2))
+        Ry = mat((c3, zero, s3), (zero, one, zero), (-s3, zero, c3))
+        return Rz @ Rx @ Ry
+
     def spin_axis(self, q: np.ndarray) -> np.ndarray:
         """``n = R e_y = (-s1 c2, c1 c2, s2)``, shape ``(..., 3)``."""
         q = as_vector(q, 6, "q")

@@ -41,6 +41,13 @@ def test_matches_independent_sympy_model():
         np.testing.assert_allclose(a, a_ref, rtol=1e-10, atol=1e-10)
         np.testing.assert_allclose(lam, lam_ref, rtol=1e-10, atol=1e-10)
         assert model.kinetic_energy(q, v) == pytest.approx(f["T"](*args), rel=1e-12)
+        # the orientation (drawn by the renderer) and the contact offset are SymPy's R and lowest rim point
+        R = model.orientation(q)
+        np.testing.assert_allclose(R, np.array(f["R"](*args), float), atol=1e-14)
+        np.testing.assert_allclose(R[:, 1], model.spin_axis(q), atol=1e-15)
+        np.testing.assert_allclose(model.contact_offset(q), np.ravel(f["rC"](*args)), atol=1e-12)
+    qs = np.stack([random_state(model)[0] for _ in range(4)])
+    np.testing.assert_array_equal(model.orientation(qs)[2], model.orientation(qs[2]))  # batched = one at a time
 
 
 def test_multipliers_are_the_contact_force():
