@@ -26,6 +26,8 @@ import pathlib
 import sys
 
 import mbs_envs  # noqa: F401
+from mbs_envs.envs import registry
+from mbs_envs.studies.evaluation import ERROR_METRIC
 from mbs_envs.studies.parallel import run_tasks
 from mbs_envs.studies.training import ALGOS, TrainConfig, hyper_setting, residual_base, train
 
@@ -73,8 +75,9 @@ def run(args: argparse.Namespace) -> list[dict]:
     records = run_tasks(_train_one, tasks, ray_address=args.ray)
     for task, r in zip(tasks, records):
         e = r["final_evaluation"]
+        metric = ERROR_METRIC[registry.scene(r["env_id"]).scoring]  # of the episodes that did not fail
         print(f"{task['out']}: {r['algo']} {r['env_id']} seed {r['seed']}: {r['train_wall_s']:.0f} s, "
-              f"rms error (t >= 1 s) {e['rms_error_settled']:.3g} rad, return {e['return']:.1f}, failures {e['failure_rate']:.0%}")  # fmt: skip
+              f"{metric} {e[metric]:.3g}, return {e['return']:.1f}, failures {e['failure_rate']:.0%}")  # fmt: skip
     return records
 
 
