@@ -46,6 +46,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--residual-bound", type=float, default=0.25, help="largest correction, fraction of the actuator limit (default 0.25)")
     p.add_argument("--hyper", action="append", default=[], metavar="KEY=VALUE", type=hyper_setting,
                    help="override a numeric hyperparameter, e.g. --hyper gamma=0.998 (repeatable)")
+    p.add_argument("--action-repeat", type=int, default=1, metavar="K",
+                   help="hold each action for K control steps (the agent decides every K dt; default 1)")
+    p.add_argument("--eval-seeds", type=int, default=10, help="validation episodes per evaluation (default 10)")
     p.add_argument("--eval-every", type=int, help="env-steps between evaluations (default steps/10)")
     p.add_argument("--checkpoint-every", type=int, help="env-steps between checkpoints")
     p.add_argument("--tensorboard", action="store_true")
@@ -64,8 +67,8 @@ def run(args: argparse.Namespace) -> list[dict]:
     for seed in args.seed:
         config = dict(env_id=args.env, algo=args.algo, steps=args.steps, seed=seed, n_envs=args.n_envs,
                       env_kwargs=args.env_kwargs, net_arch=tuple(args.net_arch) if args.net_arch else None,
-                      eval_every=args.eval_every, residual=residual, residual_bound=args.residual_bound,
-                      hyper=dict(args.hyper))  # fmt: skip
+                      eval_every=args.eval_every, eval_seeds=args.eval_seeds, residual=residual, residual_bound=args.residual_bound,
+                      hyper=dict(args.hyper), action_repeat=args.action_repeat)  # fmt: skip
         try:
             TrainConfig(**config)  # validate before starting anything
         except ValueError as exc:

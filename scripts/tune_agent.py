@@ -10,6 +10,9 @@ shipped seeds with the pick: ``scripts/train.py --hyper KEY=VALUE ...``.
 
     python scripts/tune_agent.py --env mbs_envs/Acrobot-v0 --algo ppo --steps 1000000 \\
         --grid gamma=0.99,0.995,0.998 --grid ent_coef=0,0.01 --out results/tune-acrobot-ppo
+
+``--grid action_repeat=1,4,8`` searches the control steps each action is held for
+(a training setting, not an SB3 argument; ``scripts/train.py --action-repeat``).
 """
 
 from __future__ import annotations
@@ -70,7 +73,8 @@ def run(args: argparse.Namespace) -> dict:
     for r in rows:
         mark = "*" if r["hyper"] == best else " "
         print(f"{mark} {r['hyper']}: failures {r['failure_rate']:.0%}, return {r['return']:.1f}, {r['train_wall_s']:.0f} s")
-    print(f"best {best}; train the shipped seeds with: " + " ".join(f"--hyper {k}={v}" for k, v in best.items()))
+    flags = [f"--action-repeat {v}" if k == "action_repeat" else f"--hyper {k}={v}" for k, v in best.items()]
+    print(f"best {best}; train the shipped seeds with: " + " ".join(flags))
     return record
 
 

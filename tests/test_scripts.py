@@ -93,6 +93,28 @@ def test_train_writes_an_agent_that_loads_and_predicts(tmp_path):
     assert log[0].startswith("timesteps,train_wall_s") and len(log) >= 3
 
 
+def test_train_with_action_repeat_counts_control_steps_and_the_agent_holds_its_decisions(tmp_path):
+    script = load_script("train.py")
+    records = script["run"](script["parse_args"](["--env", "mbs_envs/Acrobot-v0", "--algo", "ppo", "--steps", "4096", "--n-envs", "8",
+                                                  "--action-repeat", "4", "--hyper", "n_steps=32", "--eval-seeds", "2",
+                                                  "--out", str(tmp_path)]))  # fmt: skip
+    from mbs_envs.studies.evaluation import rollout
+    from mbs_envs.studies.held import HeldPolicy
+    from mbs_envs.studies.training import TrainConfig, load_agent
+
+    assert records[0]["action_repeat"] == 4
+    log = (tmp_path / "training_log.csv").read_text().splitlines()
+    assert log[-1].split(",")[0] == "4096"  # control steps: 128 decisions of 8 members, 4 steps each
+    policy, cfg = load_agent(tmp_path)
+    assert isinstance(policy, HeldPolicy) and policy.action_repeat == 4
+    ep = rollout(gym.make("mbs_envs/Acrobot-v0", max_episode_steps=12), policy, seed=0)
+    assert [len(set(ep.u[k : k + 4, 0])) for k in (0, 4, 8)] == [1, 1, 1]  # held for 4 steps
+    with pytest.raises(ValueError, match="action_repeat"):
+        TrainConfig("mbs_envs/Acrobot-v0", "ppo", 1000, action_repeat=0)
+    with pytest.raises(ValueError, match="residual"):
+        TrainConfig("mbs_envs/FourBar-v0", "ppo", 1000, residual="controllers:ComputedTorque", action_repeat=2)
+
+
 def test_hyperparameter_overrides_reach_sb3_and_bad_ones_are_refused():
     from mbs_envs.studies.training import TrainConfig, hyper_setting, hyperparameters
 

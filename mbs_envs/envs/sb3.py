@@ -4,6 +4,17 @@
 ``SAME_STEP`` autoreset mode) as an SB3 ``VecEnv``: one batched physics step
 per ``step_wait``, SB3's conventions for episode ends
 (``info["terminal_observation"]``, ``info["TimeLimit.truncated"]``).
+
+With ``action_repeat = K > 1`` (the vector env then in ``DISABLED`` autoreset
+mode) each ``step_wait`` holds the agent's action for ``K`` control steps (one
+batched step each) and returns the sum of their rewards: the agent decides
+every ``K dt`` and its discount ``gamma`` spans ``K`` times as much simulated
+time. A member whose episode ends inside the ``K`` steps stops counting reward
+there; its terminal observation is the one at its end, and it is reset after
+the ``K`` steps from its own generator (the steps it made past its end are
+discarded), so its next episode starts exactly as with ``K = 1``. The policy
+must then hold its decisions the same way at evaluation
+(:class:`mbs_envs.studies.held.HeldPolicy`).
 :func:`make_sb3_vec_env` builds it for a registered id, with ``VecMonitor`` so
 SB3 logs episode returns::
 
@@ -36,11 +47,14 @@ class SB3VecEnv(VecEnv):
     task env shared by all members: the same value for every index.
     """
 
-    def __init__(self, venv: MBSVectorEnv):
+    def __init__(self, venv: MBSVectorEnv, action_repeat: int = 1):
         if not isinstance(venv, MBSVectorEnv):
             raise ValueError(f"venv must be an MBSVectorEnv, got {type(venv).__name__}")
-        if venv.autoreset_mode != AutoresetMode.SAME_STEP:
-            raise ValueError("SB3VecEnv needs autoreset_mode=SAME_STEP (SB3 resets within the step)")
+        self.action_repeat = check_action_repeat(action_repeat)
+        mode = AutoresetMode.SAME_STEP if action_repeat == 1 else AutoresetMode.DISABLED
+        if venv.autoreset_mode != mode:
+            raise ValueError(f"SB3VecEnv with action_repeat={action_repeat} needs autoreset_mode={mode.name} "
+                             f"(SB3 resets within the step), got {venv.autoreset_mode.name}")  # fmt: skip
         self.venv = venv
         self._actions: np.ndarray | None = None
         super().__init__(venv.num_envs, venv.single_observation_space, venv.single_action_space)
@@ -60,14 +74,24 @@ class SB3VecEnv(VecEnv):
         self._actions = np.asarray(actions)
 
     def step_wait(self):
-        obs, reward, terminated, truncated, info = self.venv.step(self._actions)
-        dones = terminated | truncated
+        same_step = self.action_repeat == 1
+        total = np.zeros(self.num_envs)
+        dones = np.zeros(self.num_envs, bool)
         infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
-        for i in np.flatnonzero(dones):
-            infos[i]["terminal_observation"] = info["final_obs"][i]
-            infos[i]["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
-            infos[i]["diverged"] = bool(info["final_info"]["diverged"][i])
-        return obs, reward.astype(np.float32), dones, infos
+        for _ in range(self.action_repeat):
+            obs, reward, terminated, truncated, info = self.venv.step(self._actions)
+            total[~dones] += reward[~dones]
+            ended = (terminated | truncated) & ~dones
+            for i in np.flatnonzero(ended):
+                infos[i]["terminal_observation"] = info["final_obs"][i] if same_step else obs[i].copy()
+                infos[i]["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
+                infos[i]["diverged"] = bool((info["final_info"] if same_step else info)["diverged"][i])
+            dones |= ended
+            if dones.all():
+                break
+        if not same_step and dones.any():
+            obs[dones] = self.venv.reset(options={"reset_mask": dones})[0][dones]
+        return obs, total.astype(np.float32), dones, infos
 
     def close(self) -> None:
         self.venv.close()
@@ -91,7 +115,16 @@ class SB3VecEnv(VecEnv):
         return [None] * self.num_envs if frames is None else list(frames)
 
 
-def make_sb3_vec_env(env_id: str, n_envs: int = 8, seed: int | None = None, monitor: bool = True, **kwargs: Any) -> VecEnv:
+def check_action_repeat(action_repeat: Any) -> int:
+    """``action_repeat`` if it is a whole number >= 1, else a ``ValueError`` naming it."""
+    if isinstance(action_repeat, bool) or not isinstance(action_repeat, (int, np.integer)) or action_repeat < 1:
+        raise ValueError(f"action_repeat must be an integer >= 1 (control steps per decision), got {action_repeat!r}")
+    return int(action_repeat)
+
+
+def make_sb3_vec_env(
+    env_id: str, n_envs: int = 8, seed: int | None = None, monitor: bool = True, action_repeat: int = 1, **kwargs: Any
+) -> VecEnv:
     """SB3 ``VecEnv`` of ``n_envs`` batched members of a registered id.
 
     Parameters
@@ -103,14 +136,15 @@ def make_sb3_vec_env(env_id: str, n_envs: int = 8, seed: int | None = None, moni
         Member ``i`` is seeded with ``seed + i`` at the first reset.
     monitor : bool
         Wrap in ``VecMonitor`` (episode returns and lengths for SB3's logger).
+    action_repeat : int
+        Control steps each action is held for (see the module docstring).
     **kwargs
         Env arguments (``params``, ``dt``, ``n_links``, ``randomize``, ...).
     """
     kwargs.setdefault("full_info", False)
-    venv = gym.make_vec(
-        env_id, num_envs=n_envs, vectorization_mode="vector_entry_point", autoreset_mode=AutoresetMode.SAME_STEP, **kwargs
-    )
-    env: VecEnv = SB3VecEnv(venv)
+    mode = AutoresetMode.SAME_STEP if check_action_repeat(action_repeat) == 1 else AutoresetMode.DISABLED
+    venv = gym.make_vec(env_id, num_envs=n_envs, vectorization_mode="vector_entry_point", autoreset_mode=mode, **kwargs)
+    env: VecEnv = SB3VecEnv(venv, action_repeat)
     if seed is not None:
         env.seed(seed)
     return VecMonitor(env) if monitor else env

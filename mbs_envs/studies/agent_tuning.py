@@ -3,7 +3,8 @@
 The model-based controllers get their gains from a grid rolled out on the tuning
 seeds (:mod:`mbs_envs.studies.tuning`); an agent gets the same care here: a grid of
 hyperparameter overrides (:attr:`mbs_envs.studies.training.TrainConfig.hyper`, e.g.
-the discount ``gamma`` or the entropy coefficient), one training run per candidate
+the discount ``gamma`` or the entropy coefficient) and training settings
+(:data:`SETTINGS`: the action repeat), one training run per candidate
 (training seed ``seed``, i.e. its members' seeds from the training range), each
 scored by its last evaluation on the **validation seeds**, never on the test seeds of
 the comparison. Candidates are ranked like the controllers' (lexicographically):
@@ -30,6 +31,18 @@ from ..envs import registry
 from .evaluation import ERROR_METRIC
 from .parallel import run_tasks
 from .training import TrainConfig, train
+
+
+#: grid keys that are training settings (:class:`~mbs_envs.studies.training.TrainConfig` fields), not SB3 arguments
+SETTINGS = ("action_repeat",)
+
+
+def candidate_config(hyper: Mapping[str, float]) -> dict[str, Any]:
+    """The :class:`TrainConfig` fields of one grid candidate: its :data:`SETTINGS` as
+    fields, the rest as ``hyper`` overrides (``{"action_repeat": 8, "gamma": 0.99}`` ->
+    ``{"action_repeat": 8, "hyper": {"gamma": 0.99}}``)."""
+    fields: dict[str, Any] = {k: v for k, v in hyper.items() if k in SETTINGS}
+    return {**fields, "hyper": {k: v for k, v in hyper.items() if k not in SETTINGS}}
 
 
 def agent_grid(spec: Mapping[str, Sequence[float]]) -> list[dict[str, float]]:
@@ -81,7 +94,7 @@ def tune_agent(env_id: str, algo: str, steps: int, grid: list[dict[str, float]],
     out = pathlib.Path(out)
     tasks = []
     for k, hyper in enumerate(grid):
-        cfg = dict(env_id=env_id, algo=algo, steps=steps, seed=seed, eval_seeds=eval_seeds, hyper=dict(hyper), **config)
+        cfg = dict(env_id=env_id, algo=algo, steps=steps, seed=seed, eval_seeds=eval_seeds, **candidate_config(hyper), **config)
         TrainConfig(**cfg)  # validate every candidate before training any
         tasks.append({"config": cfg, "out": str(out / f"candidate{k}")})
     records = run_tasks(_train_candidate, tasks, max_workers=workers)

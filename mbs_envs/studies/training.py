@@ -35,7 +35,8 @@ from . import seeds as seed_ranges
 from ..envs import registry
 from .evaluation import ERROR_METRIC, SCORING, default_gains_entry, make_controller, rollout_batch
 from .residual import ResidualPolicy, check_bound, residual_vec_env
-from ..envs.sb3 import make_sb3_vec_env
+from ..envs.sb3 import check_action_repeat, make_sb3_vec_env
+from .held import HeldPolicy
 
 ALGOS = {"ppo": PPO, "sac": SAC, "td3": TD3}
 
@@ -77,6 +78,14 @@ class TrainConfig:
     hyper : dict, optional
         Overrides of the numeric hyperparameters of :func:`hyperparameters`
         (e.g. ``{"gamma": 0.998}``); a key it does not set is a ``ValueError``.
+    action_repeat : int
+        Control steps each of the agent's actions is held for (``K``; 1: it decides
+        every step). The agent trains through the adapter's action repeat
+        (:class:`mbs_envs.envs.sb3.SB3VecEnv`) and is evaluated, compared and
+        recorded holding its decisions the same way
+        (:class:`mbs_envs.studies.held.HeldPolicy`). ``steps`` still counts control
+        steps (the simulated time), so a run with ``K = 8`` makes 8 times fewer
+        decisions and gradient updates for the same budget.
     """
 
     env_id: str
@@ -91,6 +100,7 @@ class TrainConfig:
     residual: str | None = None
     residual_bound: float = 0.25
     hyper: dict = dataclasses.field(default_factory=dict)
+    action_repeat: int = 1
 
     def __post_init__(self) -> None:
         if self.algo not in ALGOS:
@@ -104,6 +114,9 @@ class TrainConfig:
         if self.net_arch is not None and not (len(self.net_arch) > 0 and all(isinstance(k, int) and k > 0 for k in self.net_arch)):
             raise ValueError(f"net_arch must be positive layer widths, got {self.net_arch!r}")
         check_bound(self.residual_bound)
+        check_action_repeat(self.action_repeat)
+        if self.residual and self.action_repeat != 1:
+            raise ValueError("action_repeat > 1 is not available for residual agents (their base acts every step)")
         defaults = _defaults(self, 1)
         for key, value in self.hyper.items():
             if key not in defaults or not isinstance(defaults[key], (int, float)):
@@ -226,24 +239,29 @@ class TrainingLog(BaseCallback):
         self._bar = tqdm(total=self.config.steps, desc=f"{self.config.algo} {self.config.env_id}", unit="step", mininterval=1.0)
         self._evaluate()
 
+    @property
+    def env_steps(self) -> int:
+        """Control steps so far (SB3 counts decisions: ``action_repeat`` steps each)."""
+        return int(self.num_timesteps) * self.config.action_repeat
+
     def _evaluate(self) -> None:
         tic = time.perf_counter()
         seeds = seed_ranges.validation_seeds(self.config.eval_seeds)
         metrics = evaluate(self.as_policy(self.model), self.config.env_id, seeds, self.config.env_kwargs)
         self.eval_time += time.perf_counter() - tic
         wall = time.perf_counter() - self._t0 - self.eval_time
-        self.rows.append({"timesteps": int(self.num_timesteps), "train_wall_s": wall, **metrics})
-        self._next = self.num_timesteps + self.eval_every
+        self.rows.append({"timesteps": self.env_steps, "train_wall_s": wall, **metrics})
+        self._next = self.env_steps + self.eval_every
 
     def _on_step(self) -> bool:
         if self._bar is not None:
-            self._bar.update(min(self.num_timesteps, self.config.steps) - self._bar.n)
-        if self.num_timesteps >= self._next:
+            self._bar.update(min(self.env_steps, self.config.steps) - self._bar.n)
+        if self.env_steps >= self._next:
             self._evaluate()
         return True
 
     def _on_training_end(self) -> None:
-        if self.rows[-1]["timesteps"] != self.num_timesteps:
+        if self.rows[-1]["timesteps"] != self.env_steps:
             self._evaluate()
         if self._bar is not None:
             self._bar.close()
@@ -273,8 +291,10 @@ def train(config: TrainConfig, out: pathlib.Path, tensorboard: bool = False, che
     out.mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(1)
     members = seed_ranges.training_members(config.seed, config.members)
-    venv = make_sb3_vec_env(config.env_id, n_envs=config.members, seed=members[0], **config.env_kwargs)
+    venv = make_sb3_vec_env(config.env_id, n_envs=config.members, seed=members[0], action_repeat=config.action_repeat, **config.env_kwargs)
     as_policy = base_gains = None
+    if config.action_repeat > 1:
+        as_policy = lambda model: HeldPolicy(model, config.action_repeat)  # noqa: E731
     if config.residual:
         nominal = gym.make(config.env_id, **config.env_kwargs)
         base_gains = default_gains_entry(config.residual, nominal)  # recorded: a later retune leaves this agent's base alone
@@ -289,8 +309,9 @@ def train(config: TrainConfig, out: pathlib.Path, tensorboard: bool = False, che
     log = TrainingLog(config, config.eval_every or max(config.steps // 10, 1), as_policy)
     callbacks: list[BaseCallback] = [log]
     if checkpoint_every:
-        callbacks.append(CheckpointCallback(max(checkpoint_every // config.members, 1), str(out / "checkpoints"), name_prefix="agent"))
-    model.learn(config.steps, callback=CallbackList(callbacks))
+        every = checkpoint_every // (config.members * config.action_repeat)
+        callbacks.append(CheckpointCallback(max(every, 1), str(out / "checkpoints"), name_prefix="agent"))
+    model.learn(config.steps // config.action_repeat, callback=CallbackList(callbacks))
     wall = log.train_wall_s
     model.save(out / "agent.zip")
     venv.close()
@@ -311,6 +332,7 @@ def train(config: TrainConfig, out: pathlib.Path, tensorboard: bool = False, che
         "residual": {"base": config.residual, "gains": base_gains, "bound": config.residual_bound} if config.residual else None,
         "hyperparameters": {k: (repr(v) if k == "action_noise" else v) for k, v in hyper.items()},
         "hyper_overrides": config.hyper,
+        "action_repeat": config.action_repeat,
         "command": "python " + " ".join(sys.argv) if sys.argv and sys.argv[0].endswith("train.py") else None,
         "train_wall_s": wall,
         "final_evaluation": log.rows[-1],
@@ -326,7 +348,8 @@ def load_agent(folder: pathlib.Path) -> tuple[Any, dict[str, Any]]:
 
     A residual agent comes back as a :class:`~mbs_envs.studies.residual.ResidualPolicy`
     around its base controller, built on the nominal env of its record with
-    the gains it was trained with.
+    the gains it was trained with; an agent trained with ``action_repeat > 1`` as a
+    :class:`~mbs_envs.studies.held.HeldPolicy` holding its decisions as in training.
     """
     folder = pathlib.Path(folder)
     record = json.loads((folder / "config.json").read_text())
@@ -335,4 +358,5 @@ def load_agent(folder: pathlib.Path) -> tuple[Any, dict[str, Any]]:
     if residual:
         base = make_controller(residual["base"], gym.make(record["env_id"], **record.get("env_kwargs", {})), residual.get("gains"))
         return ResidualPolicy(base, model, residual["bound"]), record
-    return model, record
+    repeat = record.get("action_repeat", 1)
+    return (HeldPolicy(model, repeat) if repeat > 1 else model), record

@@ -191,3 +191,75 @@ def test_rgb_array_render_gives_one_frame_per_member():
     frames = venv.render()
     assert len(frames) == 2 and frames[0].ndim == 3 and frames[0].shape[-1] == 3
     assert not np.array_equal(frames[0], frames[1])  # different members, different pictures
+
+
+def test_sb3_action_repeat_holds_each_action_k_steps_with_exact_episode_ends():
+    """An action held K steps by the adapter = K steps of single envs with that action: rewards
+    summed up to each member's own end, the terminal observation at that end, the steps past it
+    discarded and the next episode started from the member's generator. Episodes of 10 steps
+    and K = 4, so ends fall inside a repeat; member 0 is restarted one decision late, so it
+    ends while the others run on (and the reverse)."""
+    pytest.importorskip("stable_baselines3")
+    from mbs_envs.envs.sb3 import make_sb3_vec_env
+
+    env_id, n, K = "mbs_envs/Acrobot-v0", 3, 4
+    singles = [gym.make(env_id, max_episode_steps=10) for _ in range(n)]
+    venv = make_sb3_vec_env(env_id, n_envs=n, seed=7, monitor=False, action_repeat=K, max_episode_steps=10)
+    obs = venv.reset()
+    for i, env in enumerate(singles):
+        np.testing.assert_array_equal(obs[i], env.reset(seed=7 + i)[0])
+    rng = np.random.default_rng(0)
+    ended = set()
+    for decision in range(9):
+        if decision == 1:  # restart member 0 mid-episode in both
+            venv.venv.reset(options={"reset_mask": np.array([True, False, False])})
+            singles[0].reset()
+        a = rng.uniform(-1, 1, (n, 1))
+        obs, reward, dones, infos = venv.step(a)
+        for i, env in enumerate(singles):
+            total = 0.0
+            for k in range(K):
+                o, r, term, trunc, _ = env.step(a[i])
+                total += r
+                if term or trunc:
+                    break
+            assert dones[i] == (term or trunc)
+            assert reward[i] == pytest.approx(total, rel=1e-6)  # float32 rewards (SB3's)
+            if dones[i]:
+                ended.add((i, decision, k))
+                np.testing.assert_allclose(infos[i]["terminal_observation"], o, rtol=0, atol=1e-12)
+                assert infos[i]["TimeLimit.truncated"] and not infos[i]["diverged"]
+                o, _ = env.reset()
+            np.testing.assert_allclose(obs[i], o, rtol=0, atol=1e-12)
+    by_decision = {d: {i for i, dd, _ in ended if dd == d} for _, d, _ in ended}
+    assert any(0 < len(m) < n for m in by_decision.values())  # some members ended while others ran on
+    assert all(k == 1 for _, _, k in ended)  # inside the repeat (on its 2nd step), not at its end
+    for bad in (0, -1, 2.0, True):
+        with pytest.raises(ValueError, match="action_repeat"):
+            make_sb3_vec_env(env_id, n_envs=2, action_repeat=bad)
+
+
+def test_held_policy_decides_every_k_calls_per_member_and_restarts_with_episodes():
+    from mbs_envs.studies.held import HeldPolicy
+
+    class Counter:  # returns how many times it was asked, per member
+        calls = 0
+
+        def predict(self, obs, state=None, episode_start=None, deterministic=True):
+            Counter.calls += 1
+            return np.full((np.atleast_2d(obs).shape[0], 1), float(Counter.calls)).squeeze(0) if np.ndim(obs) == 1 else np.full((len(obs), 1), float(Counter.calls)), None
+
+    policy, state, seen = HeldPolicy(Counter(), 3), None, []
+    for k in range(7):
+        start = np.array([k == 0, k == 4])  # member 1 starts a new episode at call 4
+        action, state = policy.predict(np.zeros((2, 5)), state=state, episode_start=start)
+        seen.append(action[:, 0].tolist())
+    # member 0 decides at calls 0, 3, 6; member 1 at 0, 3, then 4 (new episode), then 7
+    assert seen == [[1, 1], [1, 1], [1, 1], [2, 2], [2, 3], [2, 3], [4, 3]]
+    one = HeldPolicy(Counter(), 2)
+    a0, s = one.predict(np.zeros(5))
+    a1, s = one.predict(np.zeros(5), state=s)
+    a2, s = one.predict(np.zeros(5), state=s)
+    assert a0.shape == (1,) and a1 == a0 and a2 != a0
+    with pytest.raises(ValueError, match="action_repeat"):
+        HeldPolicy(Counter(), 0)
