@@ -10,7 +10,10 @@ model). A candidate's score is
      mean over the three conditions of the settled RMS error of the episodes that did not fail),
 
 compared lexicographically: a candidate that loses an episode never beats
-one that loses none, whatever its error. The grids:
+one that loses none, whatever its error. Where a condition has no successful
+episode the error is undefined; such candidates come after those with one and,
+between themselves, are ranked by the error over the conditions they do win
+(:attr:`Score.key`). The grids:
 
 - PD, PD + gravity, computed torque: closed-loop bandwidth
   ``omega = 3 * 1.5^k`` rad/s, ``k = 0..10`` (3 to 173 rad/s; the control
@@ -114,9 +117,13 @@ class Score:
     per_condition: dict[str, float]
 
     @property
-    def key(self) -> tuple[float, float]:
-        """Sort key: failures first, then error (NaN error, i.e. every episode failed, last)."""
-        return (self.failure_rate, self.error if np.isfinite(self.error) else np.inf)
+    def key(self) -> tuple[float, float, float]:
+        """Sort key: failures first, then the error; a candidate with a condition where every
+        episode failed has no error (NaN, ranked after every finite one), and such candidates
+        are ranked, after equal failures, by the mean error over the conditions where some
+        episode succeeded (inf if none)."""
+        finite = [e for e in self.per_condition.values() if np.isfinite(e)]
+        return (self.failure_rate, self.error if np.isfinite(self.error) else np.inf, float(np.mean(finite)) if finite else np.inf)
 
 
 def score(scene: str, name: str, entry: dict[str, Any] | None, seeds: list[int],
