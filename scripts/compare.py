@@ -415,9 +415,27 @@ def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: 
     return "\n".join(L) + "\n"
 
 
-def agent_tuning_section(folder: pathlib.Path) -> list[str]:
+def shipped_settings(agents: pathlib.Path, env_id: str, algo: str) -> dict | None:
+    """The settings of the shipped ``algo`` agents on ``env_id`` (their SB3 hyperparameters and
+    ``action_repeat``, as a search's candidates name them; seed 0's record), None if none is shipped."""
+    folder = agents / env_id.split("/")[-1] / algo
+    path = next((p for p in (folder / "config.json", folder / "seed0" / "config.json") if p.exists()), None)
+    if path is None:
+        return None
+    record = json.loads(path.read_text())
+    return {**record.get("hyperparameters", {}), "action_repeat": record.get("action_repeat", 1)}
+
+
+def is_shipped(candidate: dict, shipped: dict | None) -> bool:
+    """Whether the shipped agents train with ``candidate``'s settings (an unset action repeat is 1)."""
+    return shipped is not None and all(shipped.get(k, 1 if k == "action_repeat" else None) == v
+                                       for k, v in {"action_repeat": 1, **candidate}.items())  # fmt: skip
+
+
+def agent_tuning_section(folder: pathlib.Path, agents: pathlib.Path = ROOT / "agents") -> list[str]:
     """The report's account of the agents' hyperparameter searches (``scripts/tune_agent.py`` results
-    committed under ``folder/<name>/tuning.json``); empty without any."""
+    committed under ``folder/<name>/tuning.json``); empty without any. "picked" is each search's
+    choice, "shipped" whether the agents under ``agents`` train with that candidate's settings."""
     records = [json.loads(p.read_text()) for p in sorted(folder.glob("*/tuning.json"))]
     if not records:
         return []
@@ -425,13 +443,18 @@ def agent_tuning_section(folder: pathlib.Path) -> list[str]:
          "The agents train with the project's defaults (`mbs_envs/studies/training.py: hyperparameters`) unless their "
          "command sets `--hyper`. Where a search was run (`scripts/tune_agent.py`, `mbs_envs/studies/agent_tuning.py`), "
          "each candidate trained once (training seed 0, the budget below) and was ranked on the validation seeds by failure "
-         "rate, then the scene's error, then return; the shipped seeds train with the pick. Results and learning curves: "
-         "`docs/figures/tune_agent/`.", "",
-         "| env | algorithm | steps per candidate | candidate | failures | return | training [s] | picked |", "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+         "rate, then the scene's error, then return; a later search may start from an earlier one's pick, and the "
+         "\"shipped\" column marks the candidate the shipped agents train with. `action_repeat` K holds each action for K "
+         "control steps (`--action-repeat`: the agent decides every K dt and is evaluated the same way); steps count "
+         "control steps whatever K. Results and learning curves: `docs/figures/tune_agent/`.", "",
+         "| env | algorithm | steps per candidate | candidate | failures | return | training [s] | picked | shipped |",
+         "|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
     for rec in records:
+        shipped = shipped_settings(agents, rec["env_id"], rec["algo"])
         for row in rec["rows"]:
             L.append(f"| {rec['env_id']} | {rec['algo']} | {rec['steps']:,} | `{json.dumps(row['hyper'])}` | {row['failure_rate']:.0%} | "
-                     f"{row['return']:.1f} | {row['train_wall_s']:.0f} | {'yes' if row['hyper'] == rec['best'] else ''} |")  # fmt: skip
+                     f"{row['return']:.1f} | {row['train_wall_s']:.0f} | {'yes' if row['hyper'] == rec['best'] else ''} | "
+                     f"{'yes' if is_shipped(row['hyper'], shipped) else ''} |")  # fmt: skip
     return L + [""]
 
 
