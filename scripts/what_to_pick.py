@@ -11,7 +11,8 @@ cheapest merely *usable* one (not flagged, trajectory error at most 1e-2).
 
 Writes ``what_to_pick.csv`` (every run), ``what_to_pick.json`` and ``what_to_pick.md`` to ``--out``.
 
-    python scripts/what_to_pick.py --out results/what_to_pick    # about 10 min here
+    python scripts/what_to_pick.py --out results/what_to_pick    # about 20 min here
+    python scripts/what_to_pick.py --out docs/figures/what_to_pick --add --cases "Acrobot (environment model, 0.3 u_max held)"
 """
 
 from __future__ import annotations
@@ -32,10 +33,14 @@ METHODS = ("euler", "semi_implicit_euler", "midpoint", "rk4", "implicit_euler", 
 
 
 def run(out: pathlib.Path, cases: list[str] | None = None, methods: list[str] | None = None, accurate: float = 1e-6,
-        repeats: int = 3) -> dict:
+        repeats: int = 3, add: bool = False) -> dict:
     t_start = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
-    chosen = [(regime, c) for regime, c in sc.regimes() if cases is None or c.scene in cases]
+    known = sc.regimes()
+    unknown = sorted(set(cases or []) - {c.scene for _, c in known})
+    if unknown:
+        raise SystemExit(f"what_to_pick.py: no case {unknown}; the cases: {[c.scene for _, c in known]}")
+    chosen = [(regime, c) for regime, c in known if cases is None or c.scene in cases]
     methods = list(methods or METHODS)
     rows, picks = [], []
     with tqdm(total=len(chosen) * (len(methods) + 1), desc="what to pick", unit="method") as bar:
@@ -51,11 +56,19 @@ def run(out: pathlib.Path, cases: list[str] | None = None, methods: list[str] | 
                 bar.update()
             rows += case_rows
             picks.append({"regime": regime, "case": case.scene, "reference_error_estimate": ref.error_estimate, **pick(case_rows)})
+    run_time = time.perf_counter() - t_start
+    if add:  # the other cases' runs and picks as they were; these cases' replaced
+        meta = json.loads((out / "what_to_pick.json").read_text())
+        names = {c.scene for _, c in chosen}
+        rows = [r for r in read_rows(out) if r["case"] not in names] + rows
+        order = {c.scene: k for k, (_, c) in enumerate(known)}
+        picks = sorted([p for p in meta["picks"] if p["case"] not in names] + picks, key=lambda p: order.get(p["case"], len(order)))
+        run_time += meta["run_time_s"]
     with open(out / "what_to_pick.csv", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
-    result = {"picks": picks, "accurate": accurate, "repeats": repeats, "run_time_s": time.perf_counter() - t_start}
+    result = {"picks": picks, "accurate": accurate, "repeats": repeats, "run_time_s": run_time}
     (out / "what_to_pick.json").write_text(json.dumps(result, indent=2, default=float))
     text = report(picks, accurate)
     (out / "what_to_pick.md").write_text(text)
@@ -71,14 +84,20 @@ def pick(rows: list[dict]) -> dict:
     return {"accurate": best("accurate"), "usable": best("usable"), "stable": best("stable")}
 
 
-def from_csv(out: pathlib.Path) -> None:
-    """``what_to_pick.md`` again from ``what_to_pick.csv`` and ``.json`` in ``out`` (no runs)."""
-    meta = json.loads((out / "what_to_pick.json").read_text())
+def read_rows(out: pathlib.Path) -> list[dict]:
+    """The runs of ``out/what_to_pick.csv`` with their types."""
     with open(out / "what_to_pick.csv") as f:
         rows = list(csv.DictReader(f))
     for r in rows:
         r.update(substeps=int(r["substeps"]), trajectory_error=float(r["trajectory_error"]), seconds=float(r["seconds"]),
                  flagged=r["flagged"] == "True", usable=r["usable"] == "True", accurate=r["accurate"] == "True")  # fmt: skip
+    return rows
+
+
+def from_csv(out: pathlib.Path) -> None:
+    """``what_to_pick.md`` again from ``what_to_pick.csv`` and ``.json`` in ``out`` (no runs)."""
+    meta = json.loads((out / "what_to_pick.json").read_text())
+    rows = read_rows(out)
     picks = [{**p, **pick([r for r in rows if r["case"] == p["case"]])} for p in meta["picks"]]
     meta["picks"] = picks
     (out / "what_to_pick.json").write_text(json.dumps(meta, indent=2, default=float))
@@ -110,11 +129,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--accurate", type=float, default=1e-6, help="trajectory error target (default 1e-6)")
     p.add_argument("--repeats", type=int, default=3, help="timed runs after the warm-up (default 3)")
     p.add_argument("--from-csv", action="store_true", help="rewrite the picks and the table from the CSV in --out, no runs")
+    p.add_argument("--add", action="store_true", help="run only --cases and merge them into the results already in --out")
     a = p.parse_args(argv)
     if a.from_csv:
         from_csv(a.out)
         return 0
-    run(a.out, a.cases, a.methods, a.accurate, a.repeats)
+    if a.add and not (a.cases and (a.out / "what_to_pick.json").exists()):
+        p.error("--add needs --cases and earlier results in --out")
+    run(a.out, a.cases, a.methods, a.accurate, a.repeats, a.add)
     return 0
 
 

@@ -288,6 +288,16 @@ def test_what_to_pick_tiny_configuration(tmp_path):
     rk4 = [r for r in rows if r.startswith("viscous b=400,rk4,")]
     assert [r.split(",")[4] for r in rk4[:4]] == ["True"] * 4  # flagged, not silently wrong
     assert (tmp_path / "what_to_pick.md").stat().st_size > 0
+    # --add: another case merged in, the first one's runs and pick kept as they were
+    script = load_script("what_to_pick.py")
+    merged = script["run"](tmp_path, cases=["Acrobot (environment model, 0.3 u_max held)"], methods=["rk4"], accurate=1e-3, repeats=1, add=True)
+    assert [p["case"] for p in merged["picks"]] == ["Acrobot (environment model, 0.3 u_max held)", "viscous b=400"]  # the regimes' order
+    assert merged["picks"][1] == json.loads(json.dumps(pick, default=float))
+    after = (tmp_path / "what_to_pick.csv").read_text().splitlines()
+    assert [r for r in after if r.startswith("viscous")] == [r for r in rows if r.startswith("viscous")]
+    assert "Acrobot" in (tmp_path / "what_to_pick.md").read_text()
+    with pytest.raises(SystemExit, match="no case"):
+        script["run"](tmp_path, cases=["no such case"], add=True)
 
 
 def test_stiff_cases_tiny_configuration(tmp_path):
