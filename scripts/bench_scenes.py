@@ -1,7 +1,8 @@
 #!/usr/bin/env python
 """Every scene's step against Gymnasium's peers, in one run; optionally an earlier version beside it.
 
-Per scene (``gym.make`` defaults; SerialChain at ``n_links`` 10 and 100):
+Per registered scene (``gym.make`` defaults; the registry's ``bench_kwargs``: SerialChain at
+``n_links`` 10 and 100):
 
 - ``single``: median wall time of one ``env.step`` [us] over repeats, and its
   ratio to Acrobot-v1's step timed in the same process (interleaved);
@@ -36,13 +37,18 @@ import time
 
 import numpy as np
 
-SCENES = {
-    "Planar2R-v0": ("mbs_envs/Planar2R-v0", {}),
-    "FourBar-v0": ("mbs_envs/FourBar-v0", {}),
-    "RollingDisk-v0": ("mbs_envs/RollingDisk-v0", {}),
-    "SerialChain-v0 (n_links=10)": ("mbs_envs/SerialChain-v0", {"n_links": 10}),
-    "SerialChain-v0 (n_links=100)": ("mbs_envs/SerialChain-v0", {"n_links": 100}),
-}
+def scenes() -> dict[str, tuple[str, dict]]:
+    """Label -> (id, kwargs) of every configuration timed: each registered scene's ``bench_kwargs``
+    (:mod:`mbs_envs.envs.registry`; a checkout without them: its ``kwargs``)."""
+    from mbs_envs.envs import registry
+
+    out = {}
+    for s in registry.SCENES:
+        for kw in getattr(s, "bench_kwargs", ()) or (dict(s.kwargs),):
+            label = s.id.split("/")[-1] + (" (" + ", ".join(f"{k}={v}" for k, v in kw.items()) + ")" if kw else "")
+            out[label] = (s.id, dict(kw))
+    return out
+
 
 COLD = """
 import time, sys
@@ -92,7 +98,7 @@ def measure(repeats: int, steps: int, num_envs: int, cold: bool) -> dict:
             [rng.integers(0, 2, num_envs) for _ in range(max(steps // 10, 20))],
         )
     }
-    for name, (env_id, kwargs) in SCENES.items():
+    for name, (env_id, kwargs) in scenes().items():
         e = gym.make(env_id, **kwargs)
         nu = e.action_space.shape[0]
         singles[name] = (e, list(rng.uniform(-1, 1, (steps, nu)).astype(np.float32)))
@@ -123,7 +129,7 @@ def measure(repeats: int, steps: int, num_envs: int, cold: bool) -> dict:
     if cold:
         root = out["python_path"]
         starts = {"Acrobot-v1": cold_start("Acrobot-v1", {}, root)}
-        for name, (env_id, kwargs) in tqdm(list(SCENES.items()), desc="cold starts", file=sys.stderr):
+        for name, (env_id, kwargs) in tqdm(list(scenes().items()), desc="cold starts", file=sys.stderr):
             starts[name] = cold_start(env_id, kwargs, root)
         out["first_step_s"] = starts
     return out
@@ -137,7 +143,7 @@ def table(r: dict, title: str) -> str:
         "| first step, fresh process: cold / warm cache [s] |",
         "|---|---|---|---|---|---|",
     ]  # fmt: skip
-    for name in SCENES:
+    for name in (k for k in r["single_step_us"] if k != "Acrobot-v1"):
         b = r["batched_per_env_step_us"].get(name)
         fs = r.get("first_step_s", {}).get(name)
         lines.append(

@@ -336,3 +336,16 @@ def test_determinism_across_vectorizations_and_start_methods():
     for env_id in ("mbs_envs/Planar2R-v0", "mbs_envs/RollingDisk-v0"):
         d = determinism(env_id, steps=20)
         assert all(v == 0.0 for v in d["max_difference"].values()), d
+
+
+def test_bench_scenes_times_every_registered_scene():
+    """The scene benchmark reads the registry: every scene (and SerialChain at 10 and 100 links) is timed."""
+    from mbs_envs.envs import registry
+
+    script = load_script("bench_scenes.py")
+    r = script["measure"](repeats=1, steps=5, num_envs=4, cold=False)
+    names = [k for k in r["single_step_us"] if k != "Acrobot-v1"]
+    assert {script["scenes"]()[k][0] for k in names} == {s.id for s in registry.SCENES}
+    assert "SerialChain-v0 (n_links=100)" in names and "Acrobot-v0" in names
+    assert all(np.isfinite(v) and v > 0 for v in r["single_ratio_to_acrobot"].values())
+    assert "Pendubot-v0" in script["table"](r, "test")

@@ -55,6 +55,8 @@ class Scene:
     scoring : {"tracking", "swing-up"}
         How the comparison scores an episode (:data:`mbs_envs.studies.evaluation.SCORING`):
         tracking error after the first second, or success, time to swing up and energy.
+       bench_kwargs : tuple of Mapping
+        The configurations ``scripts/bench_scenes.py`` times (default: ``kwargs`` alone).
     """
 
     name: str
@@ -68,6 +70,7 @@ class Scene:
     model: str = ""
     edge_parameters: tuple = ()
     scoring: str = "tracking"
+    bench_kwargs: tuple = ()
 
 
 SCENES: tuple[Scene, ...] = (
@@ -76,7 +79,8 @@ SCENES: tuple[Scene, ...] = (
     Scene("FourBar", "mbs_envs/FourBar-v0", "mbs_envs.envs.fourbar:FourBarEnv", 500,
           model="mbs_envs.models.fourbar:FourBar", edge_parameters=(("m2", {}), ("l2", {}))),
     Scene("SerialChain", "mbs_envs/SerialChain-v0", "mbs_envs.envs.serial_chain:SerialChainEnv", 500,
-          model="mbs_envs.models.serial_chain:SerialChain", edge_parameters=(("m", {"n_links": 5}), ("l", {"n_links": 5}))),
+          model="mbs_envs.models.serial_chain:SerialChain", edge_parameters=(("m", {"n_links": 5}), ("l", {"n_links": 5})),
+          bench_kwargs=({"n_links": 10}, {"n_links": 100})),
     Scene(
         "RollingDisk", "mbs_envs/RollingDisk-v0", "mbs_envs.envs.rolling_disk:RollingDiskEnv", 1000,
         controllers=MappingProxyType({"LQR": "controllers:LQR", "PD steering": "controllers:SteeringPD", "no control": "controllers:NoControl"}),
