@@ -19,8 +19,9 @@ energy in while ``E < E_up``; for the acrobot the elbow's motion pumps through t
 coupling, and ``+E~ dth1`` is the sign of Spong's law). Near upright an LQR balances:
 ``u = -K x`` with ``x = (wrap(q - q_up), v)`` and ``K`` from ``control.lqr`` on the
 model's linearization about upright (central finite differences of the same
-``forward_dynamics`` the simulation uses), ``Q = diag(10, 10, 1, 1)``, ``R = 1``
-[(N m)^-2].
+``forward_dynamics`` the simulation uses), ``Q = diag(10, 10, 1, 1)``, ``R = lqr_r``
+[(N m)^-2] (default 1; tuned with the catch level: a larger ``R`` gives smaller gains, which
+saturate the motor later, so the LQR holds from farther out).
 
 **Switching rule** (with hysteresis): the LQR takes over when ``x^T S x < catch``
 (``S`` the Riccati solution, so ``x^T S x`` is the LQR's cost-to-go from ``x``) and hands
@@ -92,15 +93,17 @@ class SwingUpLQR(Controller):
         LQR takes over below this cost-to-go ``x^T S x``; default the tuned one.
     release : float
         Swing-up resumes above ``release * catch`` (hysteresis, > 1).
+    lqr_r : float, optional
+        The LQR's input weight ``R`` [(N m)^-2]; default the tuned one (1 if none).
     """
 
     fits = (SwingUpEnv,)
     #: the entry of controllers/tuned.json
     tuned_name = "swing-up + LQR"
     Q = np.diag([10.0, 10.0, 1.0, 1.0])
-    R = np.eye(1)
 
-    def __init__(self, env: Any, k_q: Any = None, k_v: Any = None, k_E: Any = None, catch: Any = None, release: float = 4.0):
+    def __init__(self, env: Any, k_q: Any = None, k_v: Any = None, k_E: Any = None, catch: Any = None, release: float = 4.0,
+                 lqr_r: Any = None):  # fmt: skip
         super().__init__(env)
         tuned = tuned_gains(env, self.tuned_name)
         self.k_q = check.nonnegative(tuned["k_q"] if k_q is None else k_q, "k_q")
@@ -108,6 +111,8 @@ class SwingUpLQR(Controller):
         self.k_E = check.nonnegative(tuned["k_E"] if k_E is None else k_E, "k_E")
         self.catch = check.positive(tuned["catch"] if catch is None else catch, "catch")
         self.release = check.real(release, "release", 1.0, np.inf, low_open=True)
+        self.lqr_r = check.positive(tuned.get("lqr_r", 1.0) if lqr_r is None else lqr_r, "lqr_r")
+        self.R = np.full((1, 1), self.lqr_r)
         self.driven = int(self.model.driven[0])
         self.E_up = float(self.model.potential_energy(Q_UP))
         self.K, self.S = upright_lqr(self.model, self.Q, self.R)

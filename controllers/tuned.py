@@ -13,7 +13,8 @@ and length mismatch). Each entry is keyed by env id and controller name:
 - ``LQR`` (disk): ``Q`` (5 diagonal weights), ``R`` (2, on the normalized
   input), ``q_integral``;
 - ``PD steering`` (disk): ``k_dlean, k_lean, k_h, k_r, k_w``;
-- ``swing-up + LQR`` (Acrobot, Pendubot): ``k_q, k_v, k_E, catch``.
+- ``swing-up + LQR`` (Acrobot, Pendubot): ``k_q, k_v, k_E, catch`` and optionally ``lqr_r``
+  (the LQR's input weight, 1 if absent).
 
 Ids or controllers without an entry get :data:`FALLBACK` (the pre-tuning
 defaults: bandwidth 10 rad/s, critical damping).

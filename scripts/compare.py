@@ -355,7 +355,8 @@ def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: 
         L += ["## Model-based gains: how they were chosen", "", "```", (tuned_record.get("procedure") or "").strip(), "```", "",
               f"Tuning seeds {tuned_record['tuning_seeds'][0]}-{tuned_record['tuning_seeds'][1]}, conditions {', '.join(tuned_record['conditions'])}. "
               "Score: failure rate, then mean settled error over the conditions. Commands: "
-              + "; ".join(sorted({f"`{sc['command']}`" for by_c in tuned_record["scores"].values() for sc in by_c.values() if sc.get("command")})) + ".", "",
+              + "; ".join(sorted({f"`{c}`" for by_c in tuned_record["scores"].values() for sc in by_c.values()
+                                  for c in (sc.get("first_stage", {}).get("command"), sc.get("command")) if c})) + ".", "",
               "| env | controller | tuned gains | tuned: failures / error | pre-tuning default | pre-tuning: failures / error | at grid edge |", "|---|---|---|---|---|---|---|"]  # fmt: skip
         for env_id, by_c in tuned_record["gains"].items():
             for name, entry in by_c.items():

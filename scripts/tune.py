@@ -10,6 +10,11 @@ Writes ``tuning.csv``, ``tuning.json`` and ``tuning.png`` to ``--out``; with
 (``controllers/tuned.json``).
 
     python scripts/tune.py --out results/tune --write        # about 15 minutes on 2 cores
+    python scripts/tune.py --scene Acrobot --refine-only --seeds 20 --out results/tune   # only the second stage
+
+A controller with a second stage (:data:`mbs_envs.studies.tuning.REFINE`: the swing-up's LQR
+weight and catch level) searches it around the first stage's pick; ``--refine-only`` starts it
+from the stored pick instead of running the first stage again.
 """
 
 from __future__ import annotations
@@ -42,6 +47,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--scene", action="append", choices=list(SCENES), help="scene(s) (default all)")
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--write", action="store_true", help="store the chosen gains in controllers/tuned.json")
+    p.add_argument("--refine-only", action="store_true",
+                   help="skip the first stage: refine the stored pick (controllers/tuned.json) in the second stage, where one exists")
     return p.parse_args(argv)
 
 
@@ -51,7 +58,7 @@ def tune_one(task: dict) -> dict:
 
     torch.set_num_threads(1)
     tic = time.perf_counter()
-    best, rows = tuning.tune(task["scene"], task["controller"], n_seeds=task["seeds"])
+    best, rows = tuning.tune(task["scene"], task["controller"], n_seeds=task["seeds"], start=task.get("start"))
     old = tuning.score(task["scene"], task["controller"], tuned.FALLBACK[task["controller"]], tuning.tuning_seeds(task["seeds"]))
     return {**task, "best": best, "rows": rows, "wall_s": time.perf_counter() - tic,
             "pre_tuning": {"entry": tuned.FALLBACK[task["controller"]], "failure_rate": old.failure_rate, "error": old.error}}  # fmt: skip
@@ -60,6 +67,11 @@ def tune_one(task: dict) -> dict:
 def run(args: argparse.Namespace) -> dict:
     scenes = args.scene or list(SCENES)
     tasks = [{"scene": s, "controller": c, "seeds": args.seeds} for s in scenes for c in SCENES[s][2] if c in tuning.GRIDS]
+    stored = json.loads(tuned.PATH.read_text()) if tuned.PATH.exists() else {"gains": {}, "scores": {}}
+    if args.refine_only:  # the stored first stage's pick is where the second stage starts
+        tasks = [dict(t, start=stored["gains"][SCENES[t["scene"]][0]][t["controller"]]) for t in tasks if t["controller"] in tuning.REFINE]
+        if not tasks:
+            raise SystemExit("tune.py: --refine-only: none of these controllers has a second stage")
     args.out.mkdir(parents=True, exist_ok=True)
     results = []
     with ProcessPoolExecutor(args.workers, mp_context=multiprocessing.get_context("spawn")) as pool:
@@ -84,10 +96,15 @@ def run(args: argparse.Namespace) -> dict:
         env_id = SCENES[r["scene"]][0]
         record["gains"].setdefault(env_id, {})[r["controller"]] = r["best"]
         chosen = next(x for x in r["rows"] if x["entry"] == r["best"])
-        edge = tuning.at_grid_edge(r["best"], tuning.GRIDS[r["controller"]]())
-        record["scores"].setdefault(env_id, {})[r["controller"]] = {
-            "tuned": {"failure_rate": chosen["failure_rate"], "error": chosen["error"]},
-            "pre_tuning": r["pre_tuning"], "at_grid_edge": edge, "wall_s": r["wall_s"], "command": command}  # fmt: skip
+        grid = tuning.GRIDS[r["controller"]]() + (tuning.REFINE[r["controller"]](r["best"]) if r["controller"] in tuning.REFINE else [])
+        edge = tuning.at_grid_edge(r["best"], grid)
+        score = {"tuned": {"failure_rate": chosen["failure_rate"], "error": chosen["error"]},
+                 "pre_tuning": r["pre_tuning"], "at_grid_edge": edge, "wall_s": r["wall_s"], "command": command}  # fmt: skip
+        if r.get("start") is not None:  # the first stage is the stored one
+            first = stored["scores"][env_id][r["controller"]]
+            score.update(first_stage={"entry": r["start"], "command": first["command"], "wall_s": first["wall_s"],
+                                      "tuned": first["tuned"]}, wall_s=first["wall_s"] + r["wall_s"])  # fmt: skip
+        record["scores"].setdefault(env_id, {})[r["controller"]] = score
         print(f"{r['scene']:12s} {r['controller']:16s} tuned {r['best']}: failures {chosen['failure_rate']:.0%}, "
               f"error {chosen['error']:.3g} (pre-tuning: {r['pre_tuning']['failure_rate']:.0%}, {r['pre_tuning']['error']:.3g})"
               + (f"; at the grid's edge in {', '.join(edge)}" if edge else ""))  # fmt: skip
@@ -95,7 +112,6 @@ def run(args: argparse.Namespace) -> dict:
     plot(results, args.out / "tuning.png")
     if args.write:  # scenes not tuned in this run keep their stored entries
         if tuned.PATH.exists():
-            stored = json.loads(tuned.PATH.read_text())
             for key in ("gains", "scores"):
                 record[key] = {**{k: v for k, v in stored.get(key, {}).items() if k not in record[key]}, **record[key]}
         tuned.PATH.write_text(json.dumps(record, indent=2) + "\n")

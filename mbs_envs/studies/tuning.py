@@ -30,7 +30,10 @@ between themselves, are ranked by the error over the conditions they do win
   {0.5, 1, 2, 4, 8, 16} 1/(J s), the LQR's catch level ``x^T S x`` in {1, 3, 10, 30, 100}
   (1,080 candidates; a first grid of 3 values each put both scenes' picks at its edges);
   there the error is the time to swing up and a failure an episode that does not end
-  upright (:data:`mbs_envs.studies.evaluation.SCORING`).
+  upright (:data:`mbs_envs.studies.evaluation.SCORING`). A second stage (:data:`REFINE`) keeps
+  the pumping gains of the first stage's pick and searches the LQR's input weight
+  ``R`` in {0.1, 1, 10, 100, 1000} (the first stage used 1) with the catch level in
+  {1, 3, 10, ..., 1e5} (``x^T S x`` grows with ``R``): 55 candidates, among them the first pick.
 
 A pick at the edge of its grid is reported as such by ``scripts/tune.py``
 (the grid should then be widened).
@@ -92,6 +95,18 @@ def swing_up_grid() -> list[dict[str, float]]:
     ]
 
 
+def swing_up_refine_grid(best: dict[str, Any]) -> list[dict[str, Any]]:
+    """The second stage of the swing-up + LQR search: ``best``'s pumping gains with the LQR's input
+    weight and the catch level (module docstring)."""
+    return [
+        {**best, "catch": c, "lqr_r": r}
+        for r, c in itertools.product((0.1, 1.0, 10.0, 100.0, 1000.0), (1.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0, 3000.0, 1e4, 3e4, 1e5))
+    ]
+
+
+#: controller display name -> the grid of a second stage around the first stage's pick
+REFINE: dict[str, Callable[[dict[str, Any]], list[dict[str, Any]]]] = {"swing-up + LQR": swing_up_refine_grid}
+
 #: controller display name -> its grid
 GRIDS: dict[str, Callable[[], list[dict[str, Any]]]] = {
     "PD": joint_grid,
@@ -150,27 +165,42 @@ def score(scene: str, name: str, entry: dict[str, Any] | None, seeds: list[int],
 
 
 def tune(scene: str, name: str, n_seeds: int = 10, grid: list[dict[str, Any]] | None = None,
-         progress: Callable[[], None] | None = None, **score_kwargs: Any) -> tuple[dict[str, Any], list[dict[str, Any]]]:  # fmt: skip
+         progress: Callable[[], None] | None = None, start: dict[str, Any] | None = None,
+         **score_kwargs: Any) -> tuple[dict[str, Any], list[dict[str, Any]]]:  # fmt: skip
     """The best candidate of ``name`` on ``scene`` and every candidate's row.
+
+    With the default grid, a controller with a second stage (:data:`REFINE`) searches it
+    around the first stage's pick; ``start`` skips the first stage and refines this entry
+    (e.g. the stored pick of an earlier first stage).
 
     Returns
     -------
     best : dict
         The chosen entry (as stored in ``controllers/tuned.json``).
     rows : list of dict
-        ``{"scene", "controller", "entry", "failure_rate", "error", <condition>: error, ...}``.
+        ``{"scene", "controller", "stage", "entry", "failure_rate", "error", <condition>: error, ...}``.
     """
     seeds = tuning_seeds(n_seeds)
-    rows = []
-    best, best_key = None, None
-    for entry in grid if grid is not None else GRIDS[name]():
-        s = score(scene, name, entry, seeds, **score_kwargs)
-        rows.append({"scene": scene, "controller": name, "entry": entry, "failure_rate": s.failure_rate,
-                     "error": s.error, **s.per_condition})  # fmt: skip
-        if best_key is None or s.key < best_key:
-            best, best_key = entry, s.key
-        if progress is not None:
-            progress()
+    rows: list[dict[str, Any]] = []
+    best, best_key = start, None
+
+    def run_stage(stage: int, candidates: list[dict[str, Any]]) -> None:
+        nonlocal best, best_key
+        for entry in candidates:
+            s = score(scene, name, entry, seeds, **score_kwargs)
+            rows.append({"scene": scene, "controller": name, "stage": stage, "entry": entry, "failure_rate": s.failure_rate,
+                         "error": s.error, **s.per_condition})  # fmt: skip
+            if best_key is None or s.key < best_key:
+                best, best_key = entry, s.key
+            if progress is not None:
+                progress()
+
+    if start is None:
+        run_stage(1, grid if grid is not None else GRIDS[name]())
+    if grid is None and name in REFINE:
+        run_stage(2, REFINE[name](dict(best)))
+    if best is None:
+        raise ValueError(f"no candidates for {name!r}")
     return dict(best), rows
 
 

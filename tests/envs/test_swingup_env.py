@@ -111,6 +111,31 @@ def test_swing_up_controller_balances_from_near_upright_with_lqr():
     assert bool(state) and info["upright"] and np.max(np.abs(info["tracking_error"])) < 1e-3
 
 
+def test_a_larger_lqr_input_weight_gives_smaller_gains_and_a_larger_cost_to_go():
+    """R trades gain for effort: K shrinks and S grows with R (Riccati's monotonicity); the tuned
+    entry's R (1 without one) is what the controller uses."""
+    env = gym.make("mbs_envs/Acrobot-v0")
+    ctrls = [SwingUpLQR(env, lqr_r=r) for r in (0.1, 1.0, 10.0, 100.0)]
+    norms = [np.abs(c.K).max() for c in ctrls]
+    assert all(a > b for a, b in zip(norms, norms[1:]))
+    assert all(np.all(np.linalg.eigvalsh(b.S - a.S) > 0) for a, b in zip(ctrls, ctrls[1:]))
+    with pytest.raises(ValueError, match="lqr_r"):
+        SwingUpLQR(env, lqr_r=0.0)
+
+
+def test_second_tuning_stage_refines_the_lqr_weight_and_catch_around_a_pick():
+    from mbs_envs.studies import tuning
+
+    start = {"k_q": 2.0, "k_v": 5.0, "k_E": 2.0, "catch": 3.0}
+    best, rows = tuning.tune("Acrobot", "swing-up + LQR", n_seeds=1, start=start, max_episode_steps=20)
+    assert len(rows) == len(tuning.swing_up_refine_grid(start)) and {r["stage"] for r in rows} == {2}
+    assert {**start, "lqr_r": 1.0} in [r["entry"] for r in rows]  # the first stage's pick is a candidate
+    assert all({k: r["entry"][k] for k in ("k_q", "k_v", "k_E")} == {k: start[k] for k in ("k_q", "k_v", "k_E")} for r in rows)
+    chosen = next(r for r in rows if r["entry"] == best)
+    assert all((chosen["failure_rate"], chosen["error"] if np.isfinite(chosen["error"]) else np.inf)
+               <= (r["failure_rate"], r["error"] if np.isfinite(r["error"]) else np.inf) for r in rows)  # fmt: skip
+
+
 def test_swing_up_metrics_on_a_made_up_episode():
     t = np.arange(1, 501) * 0.01
     up = t > 2.505
