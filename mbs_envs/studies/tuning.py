@@ -32,8 +32,10 @@ between themselves, are ranked by the error over the conditions they do win
   there the error is the time to swing up and a failure an episode that does not end
   upright (:data:`mbs_envs.studies.evaluation.SCORING`). A second stage (:data:`REFINE`) keeps
   the pumping gains of the first stage's pick and searches the LQR's input weight
-  ``R`` in {0.1, 1, 10, 100, 1000} (the first stage used 1) with the catch level in
-  {1, 3, 10, ..., 1e5} (``x^T S x`` grows with ``R``): 55 candidates, among them the first pick.
+  ``R`` in {0.1, 1, 10, ..., 1e6} (the first stage used 1) with the catch level in
+  {1, 3, 10, 30, ..., 1e8} (``x^T S x`` grows with ``R``): 128 candidates, among them the first
+  pick (runs of this stage with ``R`` up to 1e3, then 1e4, picked the largest on the pendubot,
+  so it was widened).
 
 A pick at the edge of its grid is reported as such by ``scripts/tune.py``
 (the grid should then be widened).
@@ -100,7 +102,7 @@ def swing_up_refine_grid(best: dict[str, Any]) -> list[dict[str, Any]]:
     weight and the catch level (module docstring)."""
     return [
         {**best, "catch": c, "lqr_r": r}
-        for r, c in itertools.product((0.1, 1.0, 10.0, 100.0, 1000.0), (1.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0, 3000.0, 1e4, 3e4, 1e5))
+        for r, c in itertools.product([10.0**k for k in range(-1, 7)], [f * 10.0**k for k in range(8) for f in (1.0, 3.0)][:-1] + [1e8])
     ]
 
 
