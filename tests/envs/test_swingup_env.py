@@ -85,10 +85,11 @@ def test_collocated_pfl_gives_the_driven_joint_the_commanded_acceleration(a):
     np.testing.assert_allclose(acc[:, a], y, rtol=1e-12, atol=1e-12)
 
 
-@pytest.mark.parametrize("env_id, at_least", [(IDS[0], 15), (IDS[1], 2)])
+@pytest.mark.parametrize("env_id, at_least", [(IDS[0], 15), (IDS[1], 1)])
 def test_swing_up_controller_reaches_upright_at_the_nominal_plant(env_id, at_least):
     """On the 20 test seeds with the tuned gains, episodes end balanced (upright within 0.1 rad for the
-    last 2 s): the acrobot 17 of 20 when measured, the pendubot 2 of 20 (its law is the weak side)."""
+    last 2 s): the acrobot 17 of 20 when measured, the pendubot 1 of 20 (its law is the weak side; 2 of
+    20 with the first tuning stage's gains, which scored worse on the tuning seeds: 70 % failures against 67 %)."""
     env = gym.make(env_id)
     venv = gym.make_vec(env_id, num_envs=20, vectorization_mode="vector_entry_point", autoreset_mode="Disabled")
     episodes = rollout_batch(venv, SwingUpLQR(env), list(range(20)))
