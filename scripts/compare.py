@@ -390,6 +390,9 @@ def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: 
                 better = mb is None or (m["success"], -np.nan_to_num(m["time_to_swing_up"], nan=np.inf)) > (mb["success"], -np.nan_to_num(mb["time_to_swing_up"], nan=np.inf))
                 verdict = (f"{'beats' if better else '**does not beat**'} {best_mb or 'the model-based controller'} at the nominal plant "
                            f"(success {m['success']:.0%} against {mb['success']:.0%})" if mb else "no model-based controller swings up")
+                if mb and not better and m["return_all"] > mb["return_all"]:  # the reward and the task disagree: say so
+                    verdict += (f", though its mean return is higher ({m['return_all']:.0f} against {mb['return_all']:.0f}): "
+                                "the reward pays for height along the way, and the agent gathers it without holding the arm upright")
             else:
                 verdict = "beats PD at the nominal plant" if beats(m, pd) else "**does not beat PD at the nominal plant** (not a \"best RL\" candidate by this rule; see its curve)"
             L.append(f"- {name}: {len(c['runs'])} training seed(s), {verdict}.")
