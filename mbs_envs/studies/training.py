@@ -333,7 +333,7 @@ def train(config: TrainConfig, out: pathlib.Path, tensorboard: bool = False, che
         "hyperparameters": {k: (repr(v) if k == "action_noise" else v) for k, v in hyper.items()},
         "hyper_overrides": config.hyper,
         "action_repeat": config.action_repeat,
-        "command": "python " + " ".join(sys.argv) if sys.argv and sys.argv[0].endswith("train.py") else None,
+        "command": "python scripts/train.py " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("train.py") else None,
         "train_wall_s": wall,
         "final_evaluation": log.rows[-1],
         "versions": {"python": platform.python_version(), "stable_baselines3": stable_baselines3.__version__,
