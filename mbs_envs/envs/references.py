@@ -94,7 +94,7 @@ class SumOfSines:
         columns = self.columns(t.shape)
         lead = np.broadcast_shapes(t.shape, self.center.shape[:-1])
         out = np.empty((3,) + columns[0].shape)
-        sum_of_sines_columns(np.ascontiguousarray(np.broadcast_to(t, lead).reshape(-1)), *columns, *out)
+        sum_of_sines_columns(np.require(np.broadcast_to(t, lead).reshape(-1), requirements=("C", "W")), *columns, *out)
         n = self.center.shape[-1]
         return tuple(x.T.reshape(lead + (n,)) for x in out)
 

@@ -116,7 +116,9 @@ def _as_columns(*arrays: np.ndarray) -> tuple[tuple, list[np.ndarray]]:
     members and lay each out in contiguous columns ``(k_i, L)``."""
     arrays = [np.asarray(x, float) for x in arrays]
     lead = np.broadcast_shapes(*(x.shape[:-1] for x in arrays))
-    return lead, [np.ascontiguousarray(np.broadcast_to(x, lead + x.shape[-1:]).reshape(-1, x.shape[-1]).T) for x in arrays]
+    # writable as well as contiguous: the kernels' calls from compiled code pass writable arrays, and a
+    # read-only argument (a no-op broadcast's view) would compile every kernel a second time
+    return lead, [np.require(np.broadcast_to(x, lead + x.shape[-1:]).reshape(-1, x.shape[-1]).T, requirements=("C", "W")) for x in arrays]
 
 
 @njit
