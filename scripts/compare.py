@@ -431,9 +431,8 @@ def shipped_settings(agents: pathlib.Path, env_id: str, algo: str) -> dict | Non
 
 
 def is_shipped(candidate: dict, shipped: dict | None) -> bool:
-    """Whether the shipped agents train with ``candidate``'s settings (an unset action repeat is 1)."""
-    return shipped is not None and all(shipped.get(k, 1 if k == "action_repeat" else None) == v
-                                       for k, v in {"action_repeat": 1, **candidate}.items())  # fmt: skip
+    """Whether the shipped agents train with ``candidate``'s settings (a candidate without an action repeat has 1)."""
+    return shipped is not None and all(shipped.get(k) == v for k, v in {"action_repeat": 1, **candidate}.items())
 
 
 def agent_tuning_section(folder: pathlib.Path, agents: pathlib.Path = ROOT / "agents") -> list[str]:

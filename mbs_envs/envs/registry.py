@@ -55,7 +55,7 @@ class Scene:
     scoring : {"tracking", "swing-up"}
         How the comparison scores an episode (:data:`mbs_envs.studies.evaluation.SCORING`):
         tracking error after the first second, or success, time to swing up and energy.
-       bench_kwargs : tuple of Mapping
+    bench_kwargs : tuple of Mapping
         The configurations ``scripts/bench_scenes.py`` times (default: ``kwargs`` alone).
     """
 

@@ -37,6 +37,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.vec_env import VecEnv, VecMonitor
 
+from .. import validation as check
 from .vector import MBSVectorEnv
 
 
@@ -115,11 +116,14 @@ class SB3VecEnv(VecEnv):
         return [None] * self.num_envs if frames is None else list(frames)
 
 
+#: the longest hold of an action [control steps]
+MAX_ACTION_REPEAT = 10_000
+
+
 def check_action_repeat(action_repeat: Any) -> int:
-    """``action_repeat`` if it is a whole number >= 1, else a ``ValueError`` naming it."""
-    if isinstance(action_repeat, bool) or not isinstance(action_repeat, (int, np.integer)) or action_repeat < 1:
-        raise ValueError(f"action_repeat must be an integer >= 1 (control steps per decision), got {action_repeat!r}")
-    return int(action_repeat)
+    """``action_repeat`` (control steps per decision) as an int in ``[1, MAX_ACTION_REPEAT]``, else a
+    ``ValueError`` naming it (:func:`mbs_envs.validation.integer`)."""
+    return check.integer(action_repeat, "action_repeat", 1, MAX_ACTION_REPEAT)
 
 
 def make_sb3_vec_env(

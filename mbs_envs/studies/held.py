@@ -44,10 +44,8 @@ class HeldPolicy:
         single = obs.ndim == 1
         n = 1 if single else obs.shape[0]
         inner, count, held = state if state is not None else (None, np.zeros(n, int), None)
-        start = np.ones(n, bool) if episode_start is None and state is None else np.zeros(n, bool)
         if episode_start is not None:
-            start = np.asarray(episode_start, bool).reshape(n)
-        count = np.where(start, 0, count)
+            count = np.where(np.asarray(episode_start, bool).reshape(n), 0, count)
         decide = count % self.action_repeat == 0
         if held is None or decide.any():
             fresh, inner = self.policy.predict(observation, state=inner, episode_start=episode_start, deterministic=deterministic)
