@@ -29,6 +29,7 @@ import time
 import numpy as np
 from tqdm import tqdm
 
+from mbs_envs.envs.serial_chain import drive_chain
 from mbs_envs.studies import stiff_cases as sc
 from mbs_envs.studies.plotting import pyplot, save
 
@@ -45,7 +46,7 @@ def run(out: pathlib.Path, ns: list[int] | None = None, quick: bool = False, rep
     times, stability = [], []
     with tqdm(total=len(ns) * (len(TIMED) + 2), desc="implicit chain", unit="run") as bar:
         for n in ns:
-            model = sc.chain(n, True)
+            model = drive_chain(n)
             for method, compiled in TIMED:
                 bar.set_postfix_str(f"N={n} {method}{' compiled' if compiled else ''}", refresh=True)
                 steps = 3 if method == "sdirk2" and n > 100 else 20

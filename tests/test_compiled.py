@@ -202,6 +202,33 @@ def test_constrained_kernels_equal_the_numpy_model(case):
     np.testing.assert_allclose(res, np.max(np.abs(model.constraint_residual(qn)), axis=-1), rtol=0, atol=1e-15)
 
 
+@pytest.mark.parametrize("case", [fourbar_case, disk_case], ids=["fourbar", "disk"])
+def test_the_models_compiled_projection_and_multipliers_take_any_leading_shape(case):
+    """``project_compiled`` and ``multipliers(compiled=True)`` (what a compiled env's reset uses, so that
+    it needs no numpy-path kernel) equal the numpy methods for one state, rows and a (2, 3) grid of
+    states, float32 input included; a NaN member stays NaN and leaves the others alone."""
+    rng = np.random.default_rng(3)
+    model, q0, v0, u = case(rng, 6)
+    q0, v0 = q0 + rng.normal(0, 1e-3, q0.shape), v0 + rng.normal(0, 1e-2, v0.shape)
+    q0[5, 0] = np.nan
+    for shape in [(), (6,), (2, 3)]:
+        n = int(np.prod(shape))
+        q, v, uu = (x[:max(n, 1)].reshape(shape + x.shape[1:]) for x in (q0, v0, u))
+        for dtype in (np.float64, np.float32):
+            qc, vc = model.project_compiled(q.astype(dtype), v.astype(dtype))
+            with np.errstate(all="ignore"):
+                qn, vn = model.project(q.astype(dtype), v.astype(dtype))
+            assert qc.shape == q.shape and vc.shape == v.shape and qc.dtype == np.float64
+            np.testing.assert_allclose(qc, qn, rtol=0, atol=1e-12)
+            np.testing.assert_allclose(vc, vn, rtol=0, atol=1e-12 * np.nanmax(np.abs(vn)))
+        lam = model.multipliers(qn, vn, uu, compiled=True)
+        with np.errstate(all="ignore"):
+            lam_np = model.multipliers(qn, vn, uu)
+        assert lam.shape == lam_np.shape == shape + (model.nc,)
+        np.testing.assert_allclose(lam, lam_np, rtol=0, atol=1e-12 * np.nanmax(np.abs(lam_np)))
+    assert np.isnan(qc[1, 2, 0]) and np.all(np.isfinite(qc[:1])) and np.all(np.isfinite(qc[1, :2]))
+
+
 def test_constrained_kernels_hand_singular_and_broken_members_to_the_general_path():
     """Members the closed-form batch solve must not take (a change point of the parallelogram, where the
     complement's condition number is 3e15; a flat disk, whose M is singular; a NaN crank angle) get the
@@ -382,3 +409,36 @@ def test_kernels_are_stamped_with_the_whole_package_so_no_stale_binding_survives
         return x
 
     assert not type(outside._cache._impl.locator).__name__.startswith("MbsEnvs")
+
+
+COLD = """
+import gymnasium as gym
+import mbs_envs
+from mbs_envs.dynamics import constraints
+from mbs_envs.models import fourbar, rolling_disk
+for env_id in ("mbs_envs/FourBar-v0", "mbs_envs/RollingDisk-v0"):
+    env = gym.make(env_id)
+    env.reset(seed=0)
+    env.step(env.action_space.sample())
+    envs = gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point")
+    envs.reset(seed=0)
+    envs.step(envs.action_space.sample())
+kernels = [constraints._schur_kernel, constraints.schur_member]
+kernels += [getattr(m, "general_" + k) for m in (fourbar, rolling_disk) for k in ("acceleration", "projection", "constraint_info")]
+print(sum(len(k.signatures) for k in kernels))
+"""
+
+
+@pytest.mark.slow
+def test_a_constrained_scenes_first_steps_compile_no_general_member_path(tmp_path):
+    """With numba's cache empty (what a fresh install pays once), making, resetting and stepping the
+    constrained scenes compiles none of the general member path (Cholesky, LAPACK, pseudo-inverse):
+    the closed-form kernels call it from object mode, compiled only where a member needs it (issue 18's
+    cold start; about 20 s of the first step). About 30 s."""
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
+    out = subprocess.run([sys.executable, "-c", COLD], env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.split()[0] == "0", out.stdout

@@ -91,3 +91,32 @@ def test_the_module_paths_of_earlier_versions_still_import_the_same_modules():
     assert callable(mbs_envs.simulate)  # the name stays the function after its module was imported
     top = sorted(p.stem for p in mbs_envs.dynamics.jit.PACKAGE.glob("*.py"))
     assert top == ["__init__", "lazy", "simulate", "validation"], top
+
+
+def test_the_numerics_studies_take_their_cases_from_the_registry(monkeypatch):
+    """Free motions, stiff and singular cases are declared by each scene's registry entry (functions in
+    its task file): the studies list exactly those, and a new entry's cases join them."""
+    import dataclasses
+
+    import numpy as np
+
+    from mbs_envs.envs import registry
+    from mbs_envs.studies import numerics, stiff_cases, work_precision
+
+    free = work_precision.free_problems(0.2)
+    stiff, singular = stiff_cases.stiff_cases(quick=True), stiff_cases.singular_cases()
+    declared = [s for s in registry.SCENES if s.free_motions]
+    assert {s.name for s in declared} == {"Planar2R", "FourBar", "SerialChain", "RollingDisk"}
+    assert [p.name for p in free] == [f"{m[0]}-free" for s in declared for m in registry.load(s.free_motions)()]
+    assert all(p.steps == 5 and p.q0.dtype == np.float64 for p in free)
+    for p in free:  # every free motion starts consistent with its model's constraints
+        assert np.max(p.model.constraint_violation(p.q0, p.v0)) < 1e-9, p.name
+    names = [c.scene for c in stiff + singular]
+    assert len(set(names)) == len(names) and all(isinstance(c, numerics.Case) for c in stiff + singular)
+    assert [c.scene for c in singular] == ["disk falls flat"]
+    assert len(stiff_cases.stiff_cases(quick=False)) == len(stiff) + 1  # the 500-link chain
+    fourbar = registry.scene("FourBar")
+    extra = dataclasses.replace(fourbar, name="FourBar2", id="mbs_envs/FourBar2-v0")
+    monkeypatch.setattr(registry, "SCENES", registry.SCENES + (extra,))
+    assert len(stiff_cases.stiff_cases(quick=True)) == len(stiff) + len(registry.load(fourbar.stiff_cases)())
+    assert len(work_precision.free_problems(0.2)) == len(free) + 1

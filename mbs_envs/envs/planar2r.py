@@ -104,3 +104,44 @@ class Planar2REnv(JointTrackingEnv):
     def _drawing(self, q: np.ndarray, t: float, task: Any, u: np.ndarray, trail: Any = None) -> list[Shape]:
         ghost = self.model.joint_positions(self.task_now(np.asarray(t), task)[0])
         return arm_shapes(self.model.joint_positions(q), ghost, self._torque_arcs(u))
+
+
+# -- numerics studies (declared in the registry) ----------------------------------------------
+
+
+def free_motions() -> list[tuple]:
+    """The work-precision study's free motion: the default arm from a bent posture, no input."""
+    return [("planar2r", Planar2R(), np.array([-1.0, 0.8]), np.array([0.5, -1.0]), None)]
+
+
+def stiff_cases(quick: bool = False) -> list:
+    """Stiff friction (viscous, Coulomb, Stribeck), stiff feedback (PD, computed torque) and
+    extreme mass and inertia ratios, 1 s each from one state (``docs/numerics.md``)."""
+    from ..studies.numerics import Case
+    from ..studies.stiff_cases import computed_torque_law, pd_law
+    from .references import SumOfSines
+
+    q0, v0 = np.array([-1.0, 0.5]), np.array([1.0, -2.0])
+    cases = [
+        Case("viscous b=400", Planar2R(b1=400.0, b2=400.0), q0, v0, 1.0, u=np.array([30.0, 5.0]),
+             conservative=False, reference_method="radau"),
+        Case("Coulomb f=2, v_s=1e-4", Planar2R(f1=2.0, f2=2.0, v_s=1e-4), q0, v0, 1.0,
+             conservative=False, reference_method="radau"),
+        Case("Stribeck f=1, df=1, v_st=0.05, v_s=1e-3", Planar2R(f1=1.0, f2=1.0, df1=1.0, df2=1.0, v_st=0.05, v_s=1e-3),
+             q0, v0, 1.0, conservative=False, reference_method="radau"),
+        Case("PD kp=1e5, kd=2e3", Planar2R(), q0, v0, 1.0, u=pd_law(1e5, 2e3, np.array([-0.5, 0.5])),
+             conservative=False, reference_method="radau"),
+    ]  # fmt: skip
+    ref = SumOfSines(np.array([-1.2, 0.4]), np.array([[0.3], [0.5]]), np.array([[2.0], [3.0]]), np.zeros((2, 1)))
+    m2r = Planar2R()
+    cases.append(
+        Case("computed torque w=1000", m2r, q0, v0, 1.0, u=computed_torque_law(m2r, ref, 1e6, 2e3),
+             conservative=False, reference_method="radau")
+    )  # fmt: skip
+    for label, kw in {
+        "mass ratio 1e-3": {"m1": 1.0, "m2": 1e-3, "I1": 1 / 12, "I2": 1e-3 / 12},
+        "mass ratio 1e3": {"m1": 1.0, "m2": 1e3, "I1": 1 / 12, "I2": 1e3 / 12},
+        "inertia ratio 1e-3 (r2=0)": {"m2": 1.0, "r2": 0.0, "I2": 1e-3 / 12},
+    }.items():
+        cases.append(Case(label, Planar2R(**kw), q0, v0, 1.0))
+    return cases

@@ -5,7 +5,9 @@ A scene is a model file (``mbs_envs/models/<scene>.py``), a task file
 From it, ``import mbs_envs`` registers the Gymnasium id (with the batched
 ``vector_entry_point``), and the comparison, tuning, training and benchmark
 code find the scene's controllers, residual base and whether actuator sizing
-applies. Entries are plain data (entry points as ``"module:attr"`` strings), so
+applies; the reliability suite its model and edge parameters; the numerics
+studies its free motions and its stiff and singular cases (functions in the
+task file). Entries are plain data (entry points as ``"module:attr"`` strings), so
 reading the registry imports no scene: constrained scenes load the constraint
 machinery only when made.
 """
@@ -57,6 +59,16 @@ class Scene:
         tracking error after the first second, or success, time to swing up and energy.
     bench_kwargs : tuple of Mapping
         The configurations ``scripts/bench_scenes.py`` times (default: ``kwargs`` alone).
+    free_motions : str
+        ``"module:function"`` returning the scene's free motions for the work-precision study,
+        a sequence of ``(label, model, q0, v0, stabilization)``
+        (:func:`mbs_envs.studies.work_precision.free_problems`); "" for none.
+    stiff_cases : str
+        ``"module:function"`` of ``quick: bool`` returning the scene's stiff and extreme cases,
+        a list of :class:`mbs_envs.studies.numerics.Case` (:func:`mbs_envs.studies.stiff_cases.stiff_cases`).
+    singular_cases : str
+        ``"module:function"`` returning cases whose true motion ends at a coordinate singularity
+        (:func:`mbs_envs.studies.stiff_cases.singular_cases`).
     """
 
     name: str
@@ -71,21 +83,29 @@ class Scene:
     edge_parameters: tuple = ()
     scoring: str = "tracking"
     bench_kwargs: tuple = ()
+    free_motions: str = ""
+    stiff_cases: str = ""
+    singular_cases: str = ""
 
 
 SCENES: tuple[Scene, ...] = (
     Scene("Planar2R", "mbs_envs/Planar2R-v0", "mbs_envs.envs.planar2r:Planar2REnv", 500,
-          model="mbs_envs.models.planar2r:Planar2R", edge_parameters=(("m2", {}), ("l1", {}), ("I1", {"r1": 0.0}))),
+          model="mbs_envs.models.planar2r:Planar2R", edge_parameters=(("m2", {}), ("l1", {}), ("I1", {"r1": 0.0})),
+          free_motions="mbs_envs.envs.planar2r:free_motions", stiff_cases="mbs_envs.envs.planar2r:stiff_cases"),
     Scene("FourBar", "mbs_envs/FourBar-v0", "mbs_envs.envs.fourbar:FourBarEnv", 500,
-          model="mbs_envs.models.fourbar:FourBar", edge_parameters=(("m2", {}), ("l2", {}))),
+          model="mbs_envs.models.fourbar:FourBar", edge_parameters=(("m2", {}), ("l2", {})),
+          free_motions="mbs_envs.envs.fourbar:free_motions", stiff_cases="mbs_envs.envs.fourbar:stiff_cases"),
     Scene("SerialChain", "mbs_envs/SerialChain-v0", "mbs_envs.envs.serial_chain:SerialChainEnv", 500,
           model="mbs_envs.models.serial_chain:SerialChain", edge_parameters=(("m", {"n_links": 5}), ("l", {"n_links": 5})),
-          bench_kwargs=({"n_links": 10}, {"n_links": 100})),
+          bench_kwargs=({"n_links": 10}, {"n_links": 100}),
+          free_motions="mbs_envs.envs.serial_chain:free_motions", stiff_cases="mbs_envs.envs.serial_chain:stiff_cases"),
     Scene(
         "RollingDisk", "mbs_envs/RollingDisk-v0", "mbs_envs.envs.rolling_disk:RollingDiskEnv", 1000,
         controllers=MappingProxyType({"LQR": "controllers:LQR", "PD steering": "controllers:SteeringPD", "no control": "controllers:NoControl"}),
         residual_base="controllers:LQR", sizing=False,
         model="mbs_envs.models.rolling_disk:RollingDisk", edge_parameters=(("m", {}), ("r", {})),
+        free_motions="mbs_envs.envs.rolling_disk:free_motions", stiff_cases="mbs_envs.envs.rolling_disk:stiff_cases",
+        singular_cases="mbs_envs.envs.rolling_disk:singular_cases",
     ),
     Scene(
         "Acrobot", "mbs_envs/Acrobot-v0", "mbs_envs.envs.swingup:AcrobotEnv", 1500, controllers=SWING_UP_CONTROLLERS,

@@ -17,8 +17,14 @@ from ..dynamics.constraints import (
     gauss_newton_projection,
     project_velocities,
 )
+from ..dynamics.compiled import batch_theta
 from ..dynamics.linalg import batched_matvec
 from .base import Model, as_vector
+
+
+def _columns(x: np.ndarray) -> np.ndarray:
+    """A new float64 array of the rows ``(..., n)`` as contiguous columns ``(n, B)``, the kernels' layout."""
+    return np.array(x.reshape(-1, x.shape[-1]).T, dtype=np.float64, order="C")
 
 
 class ConstrainedModel(Model):
@@ -37,6 +43,12 @@ class ConstrainedModel(Model):
     position_rows: ClassVar[tuple[int, ...] | None] = None
     #: independent coordinates (velocities) that parametrize the motion
     independent: ClassVar[tuple[int, ...]]
+    #: The compiled projection ``(q, v, theta, tol)`` of a batch in columns, in place (with
+    #: ``kernels``; see :meth:`project_compiled`), or None.
+    project_kernel: ClassVar[Any] = None
+    #: The compiled ``(q, v, tau, theta, residual, lam)`` of a batch in columns (see
+    #: :meth:`multipliers`), or None.
+    constraint_info_kernel: ClassVar[Any] = None
 
     @abc.abstractmethod
     def constraint_residual(self, q: np.ndarray) -> np.ndarray:
@@ -92,9 +104,22 @@ class ConstrainedModel(Model):
         """Accelerations with the constraints enforced (Schur complement), shape ``(..., nv)``."""
         return self.solve(q, v, u, alpha, beta, conditioning=False)[0]
 
-    def multipliers(self, q: np.ndarray, v: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
-        """Lagrange multipliers ``lam`` with ``M a + C v + G + F = B u + Psi^T lam``, shape ``(..., nc)``."""
-        return self.solve(q, v, u, conditioning=False)[1]
+    def multipliers(self, q: np.ndarray, v: np.ndarray, u: np.ndarray | None = None, compiled: bool = False) -> np.ndarray:
+        """Lagrange multipliers ``lam`` with ``M a + C v + G + F = B u + Psi^T lam``, shape ``(..., nc)``.
+
+        ``compiled=True`` takes the model's ``constraint_info_kernel`` where it has one (what its
+        compiled steps report; equal to rounding, tested), else the numpy solve.
+        """
+        if not compiled or self.constraint_info_kernel is None:
+            return self.solve(q, v, u, conditioning=False)[1]
+        tau = self.generalized_input(u)
+        q, v, tau = np.broadcast_arrays(as_vector(q, self.nq, "q"), as_vector(v, self.nv, "v"), tau)
+        lead = q.shape[:-1]
+        qc, vc, tc = _columns(q), _columns(v), _columns(tau)
+        B = qc.shape[1]
+        res, lam = np.empty(B), np.empty((B, self.nc))
+        self.constraint_info_kernel(qc, vc, tc, batch_theta(self, B), res, lam)
+        return lam.reshape(lead + (self.nc,))
 
     def constraint_conditioning(self, q: np.ndarray) -> np.ndarray:
         """Condition number of ``Psi M^-1 Psi^T`` (inf where ``Psi`` loses rank), shape ``(...)``."""
@@ -161,15 +186,34 @@ class ConstrainedModel(Model):
         v = project_velocities(as_vector(v, self.nv, "v"), self.mass_matrix(q), self.constraint_jacobian(q))
         return q, v
 
+    def project_compiled(self, q: np.ndarray, v: np.ndarray, tol: float = 1e-12) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`project` by the model's compiled ``project_kernel`` (the projection its compiled
+        steps use; equal to :meth:`project` to rounding, tested), or by :meth:`project` without one.
+
+        Parameters
+        ----------
+        q : ndarray, shape (..., nq)
+        v : ndarray, shape (..., nv)
+        tol : float
+            Gauss-Newton stops when ``max |phi| <= tol`` [m].
+        """
+        if self.project_kernel is None:
+            return self.project(q, v, tol)
+        q, v = np.broadcast_arrays(as_vector(q, self.nq, "q"), as_vector(v, self.nv, "v"))
+        lead = q.shape[:-1]
+        qc, vc = _columns(q), _columns(v)
+        self.project_kernel(qc, vc, batch_theta(self, qc.shape[1]), float(tol))
+        return qc.T.reshape(lead + (self.nq,)), vc.T.reshape(lead + (self.nv,))
+
     def make_consistent(self, q: np.ndarray, v: np.ndarray, tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
-        """Project a state onto the constraints (:meth:`project`); refuse it if it cannot be.
+        """Project a state onto the constraints (:meth:`project_compiled`); refuse it if it cannot be.
 
         Raises
         ------
         ValueError
             If the projection is not finite or leaves a constraint residual above ``tol`` [m].
         """
-        q_p, v_p = self.project(q, v)
+        q_p, v_p = self.project_compiled(q, v)
         residual = np.max(np.abs(self.constraint_residual(q_p)))
         if not np.all(np.isfinite(q_p)) or residual > tol:
             raise ValueError(

@@ -17,6 +17,7 @@ import sys
 from typing import ClassVar
 
 import numpy as np
+from numba import objmode
 
 from ..dynamics import constraints as _constraints
 from ..dynamics.compiled import rk_run
@@ -301,6 +302,26 @@ _this = sys.modules[__name__]
 
 
 @njit
+def general_acceleration(q, v, tau, theta, a):  # pragma: no cover - compiled
+    """The general member path (:func:`mbs_envs.dynamics.constraints.constrained_acceleration_columns`)
+    for the members the closed form leaves to it. The batch kernels call the three ``general_*``
+    kernels from object mode, so that numba compiles them only in a process that needs them."""
+    _constraints.constrained_acceleration_columns(_this.terms_member, 2, q, v, tau, theta, a)
+
+
+@njit
+def general_projection(q, v, theta, tol):  # pragma: no cover - compiled
+    """:func:`mbs_envs.dynamics.constraints.project_columns` of members (see :func:`general_acceleration`)."""
+    _constraints.project_columns(_this.residual_member, _this.jacobian_member, _this.mass_member, _ROWS, 2, q, v, theta, tol)
+
+
+@njit
+def general_constraint_info(q, v, tau, theta, res, lam):  # pragma: no cover - compiled
+    """:func:`mbs_envs.dynamics.constraints.constraint_info_columns` of members (see :func:`general_acceleration`)."""
+    _constraints.constraint_info_columns(_this.terms_member, _this.residual_member, q, v, tau, theta, res, lam)
+
+
+@njit
 def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
     """Forward dynamics with the loop closed (Schur complement), a batch in columns (3, B)."""
     B = q.shape[1]
@@ -315,9 +336,9 @@ def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
     for b in range(B):
         if not ok[b]:  # the general member path
             ab = np.empty((3, 1))
-            _constraints.constrained_acceleration_columns(
-                _this.terms_member, 2, _constraints.column(q, b), _constraints.column(v, b), _constraints.column(tau, b), _constraints.column(theta, b), ab
-            )
+            qb, vb, tb, pb = _constraints.column(q, b), _constraints.column(v, b), _constraints.column(tau, b), _constraints.column(theta, b)
+            with objmode():  # compiled on first use (see general_acceleration)
+                _this.general_acceleration(qb, vb, tb, pb, ab)
             for i in range(3):
                 a[i, b] = ab[i, 0]
 
@@ -366,8 +387,9 @@ def project_kernel(q, v, theta, tol):  # pragma: no cover - compiled
             v[1, b] += d2
             v[2, b] += d3
         else:  # the general member path, from the member's state as it came in
-            qb, vb = _constraints.column(q_in, b), _constraints.column(v_in, b)
-            _constraints.project_columns(_this.residual_member, _this.jacobian_member, _this.mass_member, _ROWS, 2, qb, vb, _constraints.column(theta, b), tol)
+            qb, vb, pb = _constraints.column(q_in, b), _constraints.column(v_in, b), _constraints.column(theta, b)
+            with objmode():
+                _this.general_projection(qb, vb, pb, tol)
             for i in range(3):
                 q[i, b], v[i, b] = qb[i, 0], vb[i, 0]
 
@@ -388,9 +410,9 @@ def constraint_info_kernel(q, v, tau, theta, res, lam):  # pragma: no cover - co
         _, _, _, lam[b, 0], lam[b, 1], ok = _schur_closed(m11, m12, m22, m33, f1, f2, f3, P0, P1, g0, g1)
         if not ok:
             rb, lb = np.empty(1), np.empty((1, 2))
-            _constraints.constraint_info_columns(
-                _this.terms_member, _this.residual_member, _constraints.column(q, b), _constraints.column(v, b), _constraints.column(tau, b), _constraints.column(theta, b), rb, lb
-            )
+            qb, vb, tb, pb = _constraints.column(q, b), _constraints.column(v, b), _constraints.column(tau, b), _constraints.column(theta, b)
+            with objmode():
+                _this.general_constraint_info(qb, vb, tb, pb, rb, lb)
             res[b], lam[b, 0], lam[b, 1] = rb[0], lb[0, 0], lb[0, 1]
 
 
@@ -420,6 +442,8 @@ class FourBar(ConstrainedModel):
     # -- compiled path (see :mod:`mbs_envs.dynamics.compiled`) -----------------------------
     kernels = (acceleration_kernel, energy_kernel)
     advance_kernel = staticmethod(advance_kernel)
+    project_kernel = staticmethod(project_kernel)
+    constraint_info_kernel = staticmethod(constraint_info_kernel)
 
     def __init__(self, params=None, **overrides):
         super().__init__(params, **overrides)

@@ -34,6 +34,7 @@ import sys
 from typing import ClassVar
 
 import numpy as np
+from numba import objmode
 
 from ..dynamics import constraints as _constraints
 from ..dynamics.compiled import rk_run
@@ -351,6 +352,26 @@ _this = sys.modules[__name__]
 
 
 @njit
+def general_acceleration(q, v, tau, theta, a):  # pragma: no cover - compiled
+    """The general member path (:func:`mbs_envs.dynamics.constraints.constrained_acceleration_columns`)
+    for the members the closed form leaves to it, called from object mode (compiled when first
+    needed, see :func:`mbs_envs.models.fourbar.general_acceleration`)."""
+    _constraints.constrained_acceleration_columns(_this.terms_member, 3, q, v, tau, theta, a)
+
+
+@njit
+def general_projection(q, v, theta, tol):  # pragma: no cover - compiled
+    """:func:`mbs_envs.dynamics.constraints.project_columns` of members (see :func:`general_acceleration`)."""
+    _constraints.project_columns(_this.residual_member, _this.jacobian_member, _this.mass_member, _ROWS, 3, q, v, theta, tol)
+
+
+@njit
+def general_constraint_info(q, v, tau, theta, res, lam):  # pragma: no cover - compiled
+    """:func:`mbs_envs.dynamics.constraints.constraint_info_columns` of members (see :func:`general_acceleration`)."""
+    _constraints.constraint_info_columns(_this.terms_member, _this.residual_member, q, v, tau, theta, res, lam)
+
+
+@njit
 def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
     """Forward dynamics with the rolling constraints (Schur complement), a batch in columns (6, B)."""
     B = q.shape[1]
@@ -365,10 +386,9 @@ def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
     for b in range(B):
         if not ok[b]:  # the general member path
             ab = np.empty((6, 1))
-            _constraints.constrained_acceleration_columns(
-                _this.terms_member, 3, _constraints.column(q, b), _constraints.column(v, b), _constraints.column(tau, b),
-                _constraints.column(theta, b), ab,
-            )
+            qb, vb, tb, pb = _constraints.column(q, b), _constraints.column(v, b), _constraints.column(tau, b), _constraints.column(theta, b)
+            with objmode():  # compiled on first use (see general_acceleration)
+                _this.general_acceleration(qb, vb, tb, pb, ab)
             for i in range(6):
                 a[i, b] = ab[i, 0]
 
@@ -408,10 +428,9 @@ def project_kernel(q, v, theta, tol):  # pragma: no cover - compiled
             for i in range(6):
                 v[i, b] += dv[i]
         else:  # the general member path, from the member's state as it came in
-            qb, vb = _constraints.column(q_in, b), _constraints.column(v_in, b)
-            _constraints.project_columns(
-                _this.residual_member, _this.jacobian_member, _this.mass_member, _ROWS, 3, qb, vb, _constraints.column(theta, b), tol
-            )
+            qb, vb, pb = _constraints.column(q_in, b), _constraints.column(v_in, b), _constraints.column(theta, b)
+            with objmode():
+                _this.general_projection(qb, vb, pb, tol)
             for i in range(6):
                 q[i, b], v[i, b] = qb[i, 0], vb[i, 0]
 
@@ -429,10 +448,9 @@ def constraint_info_kernel(q, v, tau, theta, res, lam):  # pragma: no cover - co
         lam[b, 0], lam[b, 1], lam[b, 2] = lb
         if not ok:
             rb, lb2 = np.empty(1), np.empty((1, 3))
-            _constraints.constraint_info_columns(
-                _this.terms_member, _this.residual_member, _constraints.column(q, b), _constraints.column(v, b),
-                _constraints.column(tau, b), _constraints.column(theta, b), rb, lb2,
-            )
+            qb, vb, tb, pb = _constraints.column(q, b), _constraints.column(v, b), _constraints.column(tau, b), _constraints.column(theta, b)
+            with objmode():
+                _this.general_constraint_info(qb, vb, tb, pb, rb, lb2)
             res[b], lam[b, 0], lam[b, 1], lam[b, 2] = rb[0], lb2[0, 0], lb2[0, 1], lb2[0, 2]
 
 
@@ -459,6 +477,8 @@ class RollingDisk(ConstrainedModel):
     # -- compiled path (see :mod:`mbs_envs.dynamics.compiled`) -----------------------------
     kernels = (acceleration_kernel, energy_kernel)
     advance_kernel = staticmethod(advance_kernel)
+    project_kernel = staticmethod(project_kernel)
+    constraint_info_kernel = staticmethod(constraint_info_kernel)
 
     @property
     def inertias(self) -> tuple[float, float]:

@@ -19,10 +19,11 @@ import numpy as np
 
 from ..dynamics import integrators
 from . import numerics
-from ..models import FourBar, Planar2R, RollingDisk, SerialChain
 from ..models.base import Model
 from ..envs.references import SumOfSines
 from ..dynamics.simulate import acceleration, simulate
+from ..envs.serial_chain import drive_chain
+from ..models import FourBar, Planar2R
 
 Case = numerics.Case
 
@@ -58,63 +59,19 @@ def computed_torque_law(model: Model, reference: SumOfSines, kp: float, kd: floa
     return u
 
 
-def chain(n: int, armature: bool) -> SerialChain:
-    """The default rope of ``n`` links, bare or with SerialChain-v0's drives' armature."""
-    if not armature:
-        return SerialChain(n_links=n)
-    return SerialChain(n_links=n, armature=np.abs(SerialChain(n_links=n).gravity(np.zeros(n))) / 30.0)
-
-
 def stiff_cases(quick: bool = False) -> list[Case]:
-    """The stiff and extreme cases of the report (see ``docs/numerics.md``)."""
-    q0, v0 = np.array([-1.0, 0.5]), np.array([1.0, -2.0])
-    cases = [
-        Case("viscous b=400", Planar2R(b1=400.0, b2=400.0), q0, v0, 1.0, u=np.array([30.0, 5.0]),
-             conservative=False, reference_method="radau"),
-        Case("Coulomb f=2, v_s=1e-4", Planar2R(f1=2.0, f2=2.0, v_s=1e-4), q0, v0, 1.0,
-             conservative=False, reference_method="radau"),
-        Case("Stribeck f=1, df=1, v_st=0.05, v_s=1e-3", Planar2R(f1=1.0, f2=1.0, df1=1.0, df2=1.0, v_st=0.05, v_s=1e-3),
-             q0, v0, 1.0, conservative=False, reference_method="radau"),
-        Case("PD kp=1e5, kd=2e3", Planar2R(), q0, v0, 1.0, u=pd_law(1e5, 2e3, np.array([-0.5, 0.5])),
-             conservative=False, reference_method="radau"),
-    ]  # fmt: skip
-    ref = SumOfSines(np.array([-1.2, 0.4]), np.array([[0.3], [0.5]]), np.array([[2.0], [3.0]]), np.zeros((2, 1)))
-    m2r = Planar2R()
-    cases.append(
-        Case("computed torque w=1000", m2r, q0, v0, 1.0, u=computed_torque_law(m2r, ref, 1e6, 2e3),
-             conservative=False, reference_method="radau")
-    )  # fmt: skip
-    for label, kw in {
-        "mass ratio 1e-3": {"m1": 1.0, "m2": 1e-3, "I1": 1 / 12, "I2": 1e-3 / 12},
-        "mass ratio 1e3": {"m1": 1.0, "m2": 1e3, "I1": 1 / 12, "I2": 1e3 / 12},
-        "inertia ratio 1e-3 (r2=0)": {"m2": 1.0, "r2": 0.0, "I2": 1e-3 / 12},
-    }.items():
-        cases.append(Case(label, Planar2R(**kw), q0, v0, 1.0))
-    tr = FourBar(l0=1.0, l1=0.9, l2=0.5, l3=0.7)  # non-Grashof triple rocker: the crank meets toggles
-    qt, vt = tr.consistent_state(1.2, 3.0)
-    cases.append(Case("four-bar toggles (triple rocker)", tr, qt, vt, 2.0, stabilization="projection"))
-    q4, v4 = FourBar().consistent_state(0.2, 4.0)
-    for gain in (1e2, 1e3):  # Baumgarte's feedback on the residual: fast modes -alpha (twice), stiff at large gains
-        cases.append(Case(f"four-bar Baumgarte alpha=beta={gain:g}", FourBar(), q4, v4, 1.0,
-                          stabilization=FourBar().stabilization("baumgarte", alpha=gain, beta=gain)))  # fmt: skip
-    cp = FourBar(l0=1.0, l1=0.4, l2=1.0, l3=0.4)  # parallelogram: change point at th1 = 0
-    qc, vc = cp.consistent_state(0.5, -3.0)
-    cases.append(Case("four-bar change point (parallelogram)", cp, qc, vc, 1.0, stabilization="projection"))
-    disk = RollingDisk()
-    for factor in (10, 100):  # spin rate far above the critical one: the fast gyroscopic mode sets the step
-        qd, vd = disk.rolling_state(lean=0.1, dspin=factor * disk.critical_spin, dlean=0.2)
-        cases.append(Case(f"disk {factor}x critical spin", disk, qd, vd, 1.0, stabilization="projection"))
-    for n in (200,) if quick else (200, 500):
-        cases.append(Case(f"chain N={n}, drives", chain(n, True), np.r_[-0.3, np.full(n - 1, 1.5 / n)], np.zeros(n), 5.0))
-    cases.append(Case("chain N=200, bare", chain(200, False), np.r_[-0.3, np.full(199, 1.5 / 200)], np.zeros(200), 0.3))
-    return cases
+    """The stiff and extreme cases of the report (see ``docs/numerics.md``): each scene's, as its
+    registry entry declares them (:attr:`mbs_envs.envs.registry.Scene.stiff_cases`)."""
+    from ..envs import registry
+
+    return [c for s in registry.SCENES if s.stiff_cases for c in registry.load(s.stiff_cases)(quick)]
 
 
 def singular_cases() -> list[Case]:
-    """Cases whose true motion ends at a coordinate singularity: the disk falling flat."""
-    disk = RollingDisk()
-    q, v = disk.rolling_state(lean=1.2, dspin=0.3 * disk.critical_spin)
-    return [Case("disk falls flat", disk, q, v, 3.0, stabilization="projection")]
+    """Cases whose true motion ends at a coordinate singularity (the disk falling flat), from the registry."""
+    from ..envs import registry
+
+    return [c for s in registry.SCENES if s.singular_cases for c in registry.load(s.singular_cases)()]
 
 
 def scan(case: Case, ref: numerics.Reference, method: str, dts: list[float], accept: float = 1e-2,
@@ -250,7 +207,7 @@ def stiff_pd_chain(n: int, bandwidth: float = 1000.0):
     0.3 rad off. Returns ``(model, q0, v0, law, target)``; the start hangs at rest."""
     from ..dynamics.inputs import JointPD
 
-    model = chain(n, True)
+    model = drive_chain(n)
     hanging = np.r_[-np.pi / 2, np.zeros(n - 1)]
     J = 1.0 / np.diag(np.linalg.inv(model.mass_matrix(hanging)))
     target = hanging + np.r_[0.3, np.zeros(n - 1)]

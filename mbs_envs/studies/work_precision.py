@@ -45,10 +45,8 @@ import numpy as np
 
 from ..dynamics import integrators
 from ..dynamics.simulate import acceleration, advance, diverged
-from ..models import FourBar, Planar2R, RollingDisk
 from ..models.base import Model
 from .numerics import state_difference
-from .stiff_cases import chain
 
 #: fixed-step methods of the set (the joint-implicit one on unconstrained models)
 FIXED = ("euler", "semi_implicit_euler", "midpoint", "rk4", "implicit_euler", "sdirk2", "sdirk3", "joint_implicit_euler")
@@ -114,18 +112,17 @@ def smooth_torque(u_max: np.ndarray, times: np.ndarray, seed: int = 0) -> np.nda
 
 
 def free_problems(t_final: float = 1.0) -> list[Problem]:
-    """Free, frictionless motion of each model: the 2R and chains from a bent posture, the four-bar
-    turning its crank, the disk rolling above its critical spin with a small lean."""
+    """Free motion of each model (the 2R and chains from a bent posture, the four-bar turning its
+    crank, the disk rolling above its critical spin with a small lean), as each scene's registry
+    entry declares it (:attr:`mbs_envs.envs.registry.Scene.free_motions`); output every 0.04 s."""
+    from ..envs import registry
+
     steps = int(round(t_final / 0.04))
-    out = [Problem("planar2r", "free", Planar2R(), np.array([-1.0, 0.8]), np.array([0.5, -1.0]), 0.04, steps)]
-    fb = FourBar()
-    out.append(Problem("fourbar", "free", fb, *fb.consistent_state(0.2, 4.0), 0.04, steps, stabilization="projection"))
-    disk = RollingDisk()
-    qd, vd = disk.rolling_state(lean=0.1, dspin=2.0 * disk.critical_spin, dlean=0.2)
-    out.append(Problem("rollingdisk", "free", disk, qd, vd, 0.04, steps, stabilization="projection"))
-    for n in (10, 50):
-        out.append(Problem(f"chain{n}", "free", chain(n, armature=True), np.r_[-0.3, np.full(n - 1, 1.5 / n)], np.zeros(n), 0.04, steps))
-    return out
+    return [
+        Problem(label, "free", model, np.asarray(q0, float), np.asarray(v0, float), 0.04, steps, stabilization=stab)
+        for s in registry.SCENES if s.free_motions
+        for label, model, q0, v0, stab in registry.load(s.free_motions)()
+    ]  # fmt: skip
 
 
 def forced_problems(t_final: float = 1.0) -> list[Problem]:
