@@ -38,7 +38,8 @@ import control
 import numpy as np
 
 from mbs_envs import validation as check
-from mbs_envs.envs.swingup import Q_UP, SwingUpEnv, wrap_angle
+from mbs_envs.envs.swingup import Q_UP, SwingUpEnv
+from mbs_envs.envs.tracking import wrap_angle
 
 from .base import Controller, linearize
 from .tuned import tuned_gains

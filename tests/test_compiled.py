@@ -442,3 +442,43 @@ def test_a_constrained_scenes_first_steps_compile_no_general_member_path(tmp_pat
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
     out = subprocess.run([sys.executable, "-c", COLD], env=env, capture_output=True, text=True, check=True)
     assert out.stdout.split()[0] == "0", out.stdout
+
+
+def test_chain_kernels_take_whole_tiles_by_simd_with_the_member_paths_bits():
+    """SerialChain's acceleration and energy kernels run whole tiles of members with the member loop
+    innermost (SIMD) and the rest one member at a time: every member's result has the same bits as
+    the member path alone (a batch of one), with per-member parameters (the kernels' columns),
+    Coulomb friction in some members only, an angle beyond the SIMD sincos's range, a NaN and
+    signed zeros; and equals the numpy model to 1e-12."""
+    from mbs_envs.models import SerialChain
+    from mbs_envs.models import serial_chain as sc
+
+    rng = np.random.default_rng(12)
+    N, B = 7, 2 * sc.TILE + 5
+    model = SerialChain(n_links=N, b=0.1)
+    q, v, tau = rng.uniform(-3, 3, (N, B)), rng.uniform(-4, 4, (N, B)), rng.uniform(-5, 5, (N, B))
+    q[0, 3] = 1e7  # beyond SINCOS_RANGE: libm for that member
+    q[2, sc.TILE + 1] = np.nan
+    v[:, 7], tau[:, 7] = -0.0, -0.0
+    uniform = batch_theta(model, B)
+    a, E = np.empty((N, B)), np.empty(B)
+    sc.acceleration_kernel(q, v, tau, uniform, a)
+    a_np = model.forward_dynamics(q.T, v.T, tau.T)
+    ok = np.all(np.isfinite(a_np), axis=-1)
+    assert np.max(np.abs(a.T[ok] - a_np[ok]) / (1 + np.abs(a_np[ok]))) < 1e-12
+    theta = uniform.copy()
+    theta[2 * N : 3 * N] = rng.uniform(0.1, 2.0, (N, B))  # m
+    theta[4 * N : 5 * N] = rng.uniform(0.0, 0.1, (N, B))  # armature
+    theta[5 * N : 6 * N] = rng.uniform(0.0, 0.3, (N, B))  # b
+    for friction in ("viscous only", "some Coulomb"):
+        if friction == "some Coulomb":
+            theta[6 * N : 7 * N] = np.where(rng.random(B) < 0.3, rng.uniform(0, 0.5, (N, B)), 0.0)
+        sc.acceleration_kernel(q, v, tau, theta, a)
+        sc.energy_kernel(q, v, theta, E)
+        for k in range(B):
+            a1, E1 = np.empty((N, 1)), np.empty(1)
+            th = np.ascontiguousarray(theta[:, k : k + 1])
+            sc.acceleration_kernel(q[:, k : k + 1].copy(), v[:, k : k + 1].copy(), tau[:, k : k + 1].copy(), th, a1)
+            sc.energy_kernel(q[:, k : k + 1].copy(), v[:, k : k + 1].copy(), th, E1)
+            assert np.array_equal(a[:, k].view(np.int64), a1[:, 0].view(np.int64)) or np.isnan(a[:, k]).all() and np.isnan(a1).all(), (friction, k)
+            assert E[k].tobytes() == E1[0].tobytes() or np.isnan(E[k]) and np.isnan(E1[0]), (friction, k)

@@ -60,3 +60,50 @@ def test_out_of_range_and_non_finite_arguments_take_libm_without_touching_the_ot
     out = finite & (np.abs(x) > SINCOS_RANGE)
     np.testing.assert_array_equal(s[out], ref_s[out])
     np.testing.assert_array_equal(c[out], ref_c[out])
+
+
+def _bits(x: np.ndarray) -> np.ndarray:
+    """Bit patterns, every NaN as one (comparing values bit for bit, signed zeros included)."""
+    x = np.where(np.isnan(x), np.nan, x)
+    return np.ascontiguousarray(x).view(np.int64)
+
+
+def test_wrap_gives_python_remainders_bits_and_hands_the_rest_to_fmod():
+    """``wrap`` = ``(x + pi) % (2 pi) - pi`` by one FMA instead of libm's fmod: the same bits as numpy's
+    (and Python's) remainder everywhere it claims ``ok``, including at and beside multiples of 2 pi,
+    signed zeros, subnormals and up to WRAP_RANGE; NaN, inf and larger arguments go to fmod."""
+    from mbs_envs.dynamics.trig import TWO_PI, WRAP_RANGE, wrap
+    from mbs_envs.envs.tracking import error_columns, wrap_angle
+
+    rng = np.random.default_rng(5)
+    k = np.arange(-100_000, 100_001)
+    on = k * TWO_PI - np.pi  # x + pi is a multiple of 2 pi (to rounding)
+    x = np.concatenate(
+        [
+            rng.uniform(-10, 10, 300_000),
+            rng.normal(0, 1, 100_000),
+            rng.uniform(-WRAP_RANGE, WRAP_RANGE, 100_000) * 0.99,
+            np.exp(rng.uniform(-745, 27, 100_000)) * rng.choice([-1, 1], 100_000),
+            on, np.nextafter(on, np.inf), np.nextafter(on, -np.inf), on + 1e-15, on - 1e-15,
+            np.nextafter(k * np.pi, np.inf), np.nextafter(k * np.pi, -np.inf),
+            [0.0, -0.0, np.pi, -np.pi, 5e-324, -5e-324, 0.99 * WRAP_RANGE, -0.99 * WRAP_RANGE],
+            [np.nan, np.inf, -np.inf, WRAP_RANGE, -2 * WRAP_RANGE, 1e300, -1e300],  # fmod's
+        ]
+    )  # fmt: skip
+    with np.errstate(invalid="ignore"):
+        ref = wrap_angle(x)
+    assert np.array_equal(_bits(ref[:2000]), _bits(np.array([(v + np.pi) % (2 * np.pi) - np.pi for v in x[:2000]])))
+    e = np.empty((1, x.size))
+    error_columns(np.zeros((1, x.size)), x[None, :].copy(), np.zeros(1, np.int64), e)  # q = 0: e = wrap(q_ref)
+    assert np.array_equal(_bits(e[0]), _bits(ref))
+    assert all(np.array_equal(_bits(np.array([wrap(v)])), _bits(np.array([r]))) for v, r in zip(x[-20:], ref[-20:]))
+
+
+@settings(max_examples=2000, deadline=None)
+@given(st.floats(allow_nan=True, allow_infinity=True))
+def test_wrap_bits_anywhere(x):
+    from mbs_envs.dynamics.trig import wrap
+    from mbs_envs.envs.tracking import wrap_angle
+
+    with np.errstate(invalid="ignore"):
+        assert np.array_equal(_bits(np.array([wrap(x)])), _bits(np.array([wrap_angle(np.float64(x))])))

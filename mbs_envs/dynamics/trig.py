@@ -21,6 +21,8 @@ non-finite ones) with libm in a second, scalar pass (:func:`in_range`).
 from __future__ import annotations
 
 import numpy as np
+from numba import types
+from numba.core.extending import intrinsic
 
 from .jit import njit
 
@@ -117,3 +119,67 @@ def sincos_columns(x, s, c):  # pragma: no cover - compiled
         for i in range(x.shape[0]):
             if not in_range(x[i]):
                 s[i], c[i] = sincos_libm(x[i])
+
+
+# -- wrapping angles ------------------------------------------------------------------------------
+#
+# ``wrap(x) = (x + pi) % (2 pi) - pi`` as Python computes it: ``%`` is ``fmod`` and then the
+# denominator's sign (CPython's float_divmod, which numba and numpy follow). ``fmod`` is a libm call
+# that keeps a compiled loop scalar; here its result is computed exactly in straight-line arithmetic.
+
+TWO_PI = 2.0 * np.pi
+"""The ``2 pi`` of :func:`wrap` (the double ``2 * np.pi``)."""
+
+WRAP_RANGE = 2.0**40
+"""``|x + pi|`` below which :func:`wrap_fast` is exact: the float quotient ``|x + pi| / 2 pi`` is then
+within ``2^-13`` of the true one, so its integer part is off by at most one."""
+
+
+@intrinsic
+def fma(typingctx, a, b, c):  # pragma: no cover - compiled
+    """``a b + c`` rounded once (IEEE 754 fused multiply-add; the hardware instruction where
+    there is one, else libm's correctly rounded ``fma``), float64."""
+    sig = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, signature, args):
+        return builder.fma(*args)
+
+    return sig, codegen
+
+
+@njit(inline="always")
+def wrap_fast(x):  # pragma: no cover - compiled
+    """``((x + pi) % (2 pi) - pi, ok)``: the same bits as Python's ``%`` where ``ok``
+    (``|x + pi| <`` :data:`WRAP_RANGE`; False for NaN and inf, where the value is meaningless).
+
+    ``fmod(a, 2 pi) = a - n 2 pi`` with ``n`` the integer part of the true quotient is exactly
+    representable, so one FMA computes it exactly once ``n`` is right; ``n`` is the float
+    quotient's integer part, corrected by one where the FMA with it lands outside ``[0, 2 pi)``
+    (that FMA's sign is exact). Then Python's rule: a nonzero remainder takes the sign of
+    ``2 pi`` (``+ 2 pi`` if negative), a zero one is ``+0``.
+    """
+    a = x + np.pi
+    ax = abs(a)
+    n0 = np.trunc(ax / TWO_PI)
+    r0 = fma(-n0, TWO_PI, ax)
+    n = n0 - 1.0 if r0 < 0.0 else (n0 + 1.0 if r0 >= TWO_PI else n0)
+    r = fma(-n, TWO_PI, ax)
+    r = -r if a < 0.0 else r  # fmod takes the sign of its numerator
+    r = r + TWO_PI if r < 0.0 else r
+    r = 0.0 if r == 0.0 else r
+    return r - np.pi, ax < WRAP_RANGE
+
+
+@njit
+def wrap_python(x):  # pragma: no cover - compiled
+    """``(x + pi) % (2 pi) - pi`` by numba's ``%`` (libm's ``fmod``): the scalar pass of :func:`wrap_fast`."""
+    return (x + np.pi) % TWO_PI - np.pi
+
+
+@njit(inline="always")
+def wrap(x):  # pragma: no cover - compiled
+    """``(x + pi) % (2 pi) - pi`` [rad], Python's bits, for one argument: :func:`wrap_fast`, else
+    :func:`wrap_python` (loops over a batch take :func:`wrap_fast` in one pass and the rare
+    rest in a second, to stay SIMD)."""
+    w, ok = wrap_fast(x)
+    return w if ok else wrap_python(x)

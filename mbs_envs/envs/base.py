@@ -154,7 +154,8 @@ class MBSEnv(gym.Env):
         self.u_max = u_max
         self.divergence_limit = divergence_limit
         self.render_mode = render_mode
-        self.metadata = {**self.metadata, "render_fps": max(1, int(round(1.0 / self.dt)))}
+        # a (validated, positive) dt may be subnormal: 1 / dt is then inf, capped here
+        self.metadata = {**self.metadata, "render_fps": max(1, int(round(min(1.0 / self.dt, 1e6))))}
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(model.nu,), dtype=np.float32)
         self._q = np.zeros(model.nq)
         self._v = np.zeros(model.nv)
@@ -172,8 +173,6 @@ class MBSEnv(gym.Env):
     #: kernels, or None (numpy path). It applies to the class that declares it: a subclass
     #: steps compiled only if it declares one too (its task may differ).
     step_kernel: ClassVar[Any] = None
-    #: Whether the vector env steps its batch with ``step_kernel`` too (else the numpy path, batched).
-    batch_compiled: ClassVar[bool] = True
     #: the largest constraint residual [m] of a state that has not diverged (constrained scenes)
     residual_limit: float = np.inf
 

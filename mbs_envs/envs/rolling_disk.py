@@ -14,6 +14,7 @@ import numpy as np
 from ..dynamics import compiled as _compiled
 from .. import validation as check
 from ..dynamics.jit import njit
+from ..dynamics.trig import wrap
 from ..models import rolling_disk as _model
 from ..models.rolling_disk import RollingDisk
 from .references import SumOfSines, sample_sum_of_sines, sum_of_sines_columns
@@ -22,7 +23,6 @@ from .engine import engine_step
 from .rendering import GHOST, GROUND, LINK, Arrow, Dot, Inset, Line, Polygon, Shape, Text, oblique
 from .tracking import wrap_angle
 
-_wrap = njit(wrap_angle)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -66,7 +66,7 @@ def disk_task(q, v, t, action, task, obs, info, terminated):  # pragma: no cover
     refs = np.empty((3, 1, B))
     sum_of_sines_columns(t, center, rate, amplitude, omega, phase, refs[0], refs[1], refs[2])
     for b in range(B):
-        e_h = _wrap(refs[0, 0, b] - q[3, b])
+        e_h = wrap(refs[0, 0, b] - q[3, b])
         e_s = (v[5, b] - spin_ref[b]) / Wc
         effort = 0.0
         for k in range(action.shape[0]):

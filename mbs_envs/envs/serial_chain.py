@@ -97,9 +97,6 @@ class SerialChainEnv(JointTrackingEnv):
     """
 
     step_kernel = staticmethod(step_kernel)
-    #: the vector env takes the numpy path: its row-wise ABA over the batch measured faster than
-    #: the column kernel at 1024 members, n_links = 10 (docs/performance.md)
-    batch_compiled = False
 
     omega_range = (0.5, 3.0)
     #: the longest chain of the task (its construction forms the N x N mass matrix once)

@@ -28,15 +28,14 @@ import numpy as np
 from .. import validation as check
 from ..dynamics import compiled as _compiled
 from ..dynamics.jit import njit
-from ..dynamics.trig import sincos_columns
+from ..dynamics.trig import sincos_columns, wrap
 from ..models import planar2r as _model
 from ..models.planar2r import Planar2R
 from .base import MBSEnv
 from .engine import engine_step
 from .rendering import Shape, arm_shapes
-from .tracking import _as_columns, wrap_angle
+from .tracking import _as_columns
 
-_wrap = njit(wrap_angle)
 
 #: the upright configuration ``(th1, th2)`` [rad]
 Q_UP = np.array([np.pi / 2, 0.0])
@@ -83,8 +82,8 @@ def swingup_columns(q, v, action, weights, u_max, driven, tolerance, info):  # p
     for i in range(2):
         sincos_columns(q[i], s[i], c[i])
     for b in range(B):
-        e1 = _wrap(q[0, b] - np.pi / 2)
-        e2 = _wrap(q[1, b])
+        e1 = wrap(q[0, b] - np.pi / 2)
+        e2 = wrap(q[1, b])
         h = 0.5 * (s[0, b] + s[0, b] * c[1, b] + c[0, b] * s[1, b])  # sin th1 + sin(th1 + th2), halved
         a = action[0, b]
         r_h, r_e, r_u = weights[0] * h, -weights[1] * (e1 * e1 + e2 * e2), -weights[2] * a * a

@@ -25,7 +25,7 @@ from ..dynamics.jit import njit
 import numpy as np
 
 from .references import SumOfSines, sample_sum_of_sines, sum_of_sines_columns
-from ..dynamics.trig import sincos_columns
+from ..dynamics.trig import sincos_columns, wrap, wrap_fast
 from .. import validation as check
 from .base import MBSEnv
 
@@ -35,8 +35,6 @@ def wrap_angle(x: np.ndarray) -> np.ndarray:
     return (x + np.pi) % (2 * np.pi) - np.pi
 
 
-_wrap = njit(wrap_angle)
-
 
 # ---------------------------------------------------------------------------
 # The task's formulas for one member (compiled), and their batched callers
@@ -44,20 +42,45 @@ _wrap = njit(wrap_angle)
 
 
 @njit
-def encode_columns(q, v, q_ref, v_ref, a_ref, tracked, obs):  # pragma: no cover - compiled
-    """``obs = [cos q, sin q, v, wrap(q_ref - q[tracked]), v_ref, a_ref]`` of a batch.
+def error_columns(q, q_ref, tracked, e):  # pragma: no cover - compiled
+    """The tracking error ``e = wrap(q_ref - q[tracked])`` of a batch (computed once per step:
+    the observation and the reward both read it).
+
+    Parameters
+    ----------
+    q : ndarray, shape (n, B)
+        Columns (:mod:`mbs_envs.dynamics.compiled`).
+    q_ref : ndarray, shape (m, B)
+    tracked : ndarray of int, shape (m,)
+    e : ndarray, shape (m, B)
+        Written [rad], in ``[-pi, pi)``: :func:`wrap_angle`'s bits (:func:`mbs_envs.dynamics.trig.wrap_fast`).
+    """
+    ok = True
+    for j in range(tracked.shape[0]):  # one SIMD pass (exact where ok), then the rest by fmod
+        for b in range(q.shape[1]):
+            e[j, b], ok_b = wrap_fast(q_ref[j, b] - q[tracked[j], b])
+            ok &= ok_b
+    if not ok:
+        for j in range(tracked.shape[0]):
+            for b in range(q.shape[1]):
+                e[j, b] = wrap(q_ref[j, b] - q[tracked[j], b])
+
+
+@njit
+def encode_columns(q, v, e, v_ref, a_ref, obs):  # pragma: no cover - compiled
+    """``obs = [cos q, sin q, v, e, v_ref, a_ref]`` of a batch.
 
     Parameters
     ----------
     q, v : ndarray, shape (n, B)
         Columns (:mod:`mbs_envs.dynamics.compiled`).
-    q_ref, v_ref, a_ref : ndarray, shape (m, B)
-    tracked : ndarray of int, shape (m,)
+    e, v_ref, a_ref : ndarray, shape (m, B)
+        The tracking error (:func:`error_columns`) and the reference's rates.
     obs : ndarray, shape (B, 3 n + 3 m)
         Written, one row per member (as the env returns it).
     """
     n, B = q.shape
-    m = tracked.shape[0]
+    m = e.shape[0]
     s, c = np.empty(B), np.empty(B)
     for i in range(n):
         sincos_columns(q[i], s, c)
@@ -67,35 +90,33 @@ def encode_columns(q, v, q_ref, v_ref, a_ref, tracked, obs):  # pragma: no cover
             obs[b, 2 * n + i] = v[i, b]
     for j in range(m):
         for b in range(B):
-            obs[b, 3 * n + j] = _wrap(q_ref[j, b] - q[tracked[j], b])
+            obs[b, 3 * n + j] = e[j, b]
             obs[b, 3 * n + m + j] = v_ref[j, b]
             obs[b, 3 * n + 2 * m + j] = a_ref[j, b]
 
 
 @njit
-def reward_columns(q, v, q_ref, v_ref, action, tracked, weights, terms, e):  # pragma: no cover - compiled
+def reward_columns(v, e, v_ref, action, tracked, weights, terms):  # pragma: no cover - compiled
     """The reward terms (module docstring) of a batch.
 
     Parameters
     ----------
-    q, v : ndarray, shape (n, B)
-    q_ref, v_ref : ndarray, shape (m, B)
+    v : ndarray, shape (n, B)
+    e, v_ref : ndarray, shape (m, B)
+        The tracking error (:func:`error_columns`) and the reference rate.
     action : ndarray, shape (nu, B)
     tracked : ndarray of int, shape (m,)
     weights : ndarray, shape (3,)
         ``(w_e, w_de, w_u)``.
     terms : ndarray, shape (B, >= 4)
         Written: columns ``(r, r_e, r_de, r_u)``, one row per member.
-    e : ndarray, shape (B, m)
-        Written: the tracking error ``wrap(q_ref - q[tracked])``.
     """
-    B = q.shape[1]
+    B = v.shape[1]
     s_e, s_de, s_u = np.zeros(B), np.zeros(B), np.zeros(B)
     for j in range(tracked.shape[0]):
         for b in range(B):
-            ej = _wrap(q_ref[j, b] - q[tracked[j], b])
+            ej = e[j, b]
             de = v_ref[j, b] - v[tracked[j], b]
-            e[b, j] = ej
             s_e[b] += ej * ej
             s_de[b] += de * de
     for k in range(action.shape[0]):
@@ -135,12 +156,13 @@ def tracking_task(q, v, t, action, task, obs, info, terminated):  # pragma: no c
     m = tracked.shape[0]
     refs = np.empty((3, m, B))
     sum_of_sines_columns(t, center, rate, amplitude, omega, phase, refs[0], refs[1], refs[2])
-    e = np.empty((B, m))
-    reward_columns(q, v, refs[0], refs[1], action, tracked, weights, info, e)
-    encode_columns(q, v, refs[0], refs[1], refs[2], tracked, obs)
+    e = np.empty((m, B))
+    error_columns(q, refs[0], tracked, e)
+    reward_columns(v, e, refs[1], action, tracked, weights, info)
+    encode_columns(q, v, e, refs[1], refs[2], obs)
     for b in range(B):
         for j in range(m):
-            info[b, 4 + j] = e[b, j]
+            info[b, 4 + j] = e[j, b]
             info[b, 4 + m + j] = refs[0, j, b]
         terminated[b] = False
 
@@ -174,10 +196,12 @@ def encode_tracking(q, v, q_ref, v_ref, a_ref, tracked: tuple[int, ...]) -> np.n
     -------
     ndarray, float32, shape (..., 3 n + 3 m)
     """
-    lead, columns = _as_columns(q, v, q_ref, v_ref, a_ref)
-    (n, L), m = columns[0].shape, len(tracked)
+    lead, (q2, v2, q_ref2, v_ref2, a_ref2) = _as_columns(q, v, q_ref, v_ref, a_ref)
+    (n, L), m = q2.shape, len(tracked)
     obs = np.empty((L, 3 * (n + m)), np.float32)
-    encode_columns(*columns, np.asarray(tracked, np.int64), obs)
+    e = np.empty(q_ref2.shape)
+    error_columns(q2, q_ref2, np.asarray(tracked, np.int64), e)
+    encode_columns(q2, v2, e, v_ref2, a_ref2, obs)
     return obs.reshape(lead + (3 * (n + m),))
 
 
@@ -336,8 +360,9 @@ class JointTrackingEnv(MBSEnv):
 
     def reward(self, q, v, now, task, u, action) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         lead, (q2, v2, q_ref, v_ref, a2) = _as_columns(q, v, now[0], now[1], action)
-        terms = np.empty((q2.shape[1], 4))
-        reward_columns(q2, v2, q_ref, v_ref, a2, self._tracked, self.reward_weights, terms, np.empty(q_ref.shape[::-1]))
+        terms, e = np.empty((q2.shape[1], 4)), np.empty(q_ref.shape)
+        error_columns(q2, q_ref, self._tracked, e)
+        reward_columns(v2, e, v_ref, a2, self._tracked, self.reward_weights, terms)
         terms = terms.reshape(lead + (4,))
         return terms[..., 0], {k: terms[..., i + 1] for i, k in enumerate(self.reward_terms)}
 

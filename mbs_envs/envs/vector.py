@@ -227,7 +227,7 @@ class MBSVectorEnv(VectorEnv):
             raise gym.error.ResetNeeded("call reset() before step()")
         env = self.env
         a = validate_action(actions, self.model.nu, self.num_envs)
-        if getattr(env, "compiled", None) is not None and env.batch_compiled:
+        if getattr(env, "compiled", None) is not None:
             obs, reward, bad, terminated, values = self._step_compiled(a)
         else:
             obs, reward, bad, terminated, values = self._step_numpy(a)

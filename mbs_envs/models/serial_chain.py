@@ -31,7 +31,9 @@ import numpy as np
 from ..dynamics.jit import njit
 from ..dynamics import compiled as _compiled
 from ..dynamics.compiled import rk_run
-from ..dynamics.trig import sincos_columns
+from numba import uint64
+
+from ..dynamics.trig import in_range, sincos, sincos_columns
 from .base import Model, Params, as_vector, param, smoothed_friction
 
 
@@ -248,10 +250,177 @@ def _energy_rows(q, w, l, r, m, Ic, arm, g):  # pragma: no cover - compiled
 #    = (l, r, m, I, armature, b, f) per link, then g, v_s (SerialChain.kernel_params)
 
 
+@njit(inline="always")
+def _member_acceleration(q, v, tau, theta, a, k, work, net):  # pragma: no cover - compiled
+    """Member ``k`` of :func:`acceleration_kernel` by :func:`_aba_member` (scalar code)."""
+    N = q.shape[0]
+    th = theta[:, k]
+    for i in range(N):
+        net[i] = tau[i, k]
+    _aba_member(q[:, k], v[:, k], net, th[0:N], th[N : 2 * N], th[2 * N : 3 * N], th[3 * N : 4 * N],
+                th[4 * N : 5 * N], th[7 * N], a[:, k], work)  # fmt: skip
+
+
+@njit
+def _net_torque(v, tau, theta, net):  # pragma: no cover - compiled
+    """``net = tau - F(v)`` of a batch in columns (N, B), ``F`` the smoothed friction
+    (:func:`mbs_envs.models.base.smoothed_friction`; the ``tanh`` only for a member with some
+    ``f != 0``, as the numpy path). Without Coulomb friction in the batch, one SIMD pass."""
+    N, B = v.shape
+    coulomb = False
+    for i in range(N):
+        for k in range(B):
+            coulomb |= theta[6 * N + i, k] != 0.0
+    if not coulomb:
+        vf, tf, pf, nf = np.ascontiguousarray(v).ravel(), np.ascontiguousarray(tau).ravel(), np.ascontiguousarray(theta).ravel(), net.ravel()
+        for i in range(N):
+            for k in range(B):
+                nf[uint64(i * B + k)] = tf[uint64(i * B + k)] - pf[uint64((5 * N + i) * B + k)] * vf[uint64(i * B + k)]
+        return
+    for k in range(B):
+        b, f, v_s = theta[5 * N : 6 * N, k], theta[6 * N : 7 * N, k], theta[7 * N + 1, k]
+        member = False
+        for i in range(N):
+            member |= f[i] != 0.0
+        for i in range(N):
+            F = b[i] * v[i, k] + f[i] * np.tanh(v[i, k] / v_s) if member else b[i] * v[i, k]
+            net[i, k] = tau[i, k] - F
+
+
+#: members per tile of :func:`_aba_tile` (a compile-time constant: the work slots' offsets are then
+#: known to LLVM, which proves them disjoint and vectorizes the member loops)
+TILE = 32
+#: work slots per link and member in :func:`_aba_tile`
+_SLOTS = 20
+
+
+@njit(inline="always")
+def _at(o, slot, b):  # pragma: no cover - compiled
+    """Flat index of work ``slot`` of member ``b`` at link offset ``o`` (unsigned: no negative-index
+    wraparound in the address, which would hide it from the vectorizer)."""
+    return uint64(o + slot * TILE + b)
+
+
+@njit
+def _aba_tile(q, v, tau, theta, N, B, b0, W, S):  # pragma: no cover - compiled
+    """:func:`_aba_member` of the members ``b0 .. b0 + TILE - 1`` at once, the member loops innermost
+    (SIMD), every operation in the same order as :func:`_aba_member` (bit for bit the same result).
+
+    Parameters
+    ----------
+    q, v, tau : ndarray, shape (N B,)
+        The batch's columns (N, B) flattened; ``tau`` the net torque (:func:`_net_torque`).
+    theta : ndarray, shape ((7 N + 2) B,)
+        The parameters' columns flattened.
+    N, B, b0 : int
+    W : ndarray, shape (N * 20 * TILE,)
+        Work: per link and member the axis ``(s1, s2)``, bias acceleration ``(c1, c2)``, articulated
+        inertia (6) and bias force (3), ``U`` (3), ``D``, ``u``, the acceleration and whether the
+        absolute angle is inside :data:`mbs_envs.dynamics.trig.SINCOS_RANGE` (written).
+    S : ndarray, shape (9 * TILE,)
+        Work: what the passes carry from link to link (absolute angle, joint position, velocity,
+        acceleration).
+    """
+    for b in range(TILE):  # pass 1: kinematics, velocities, bias accelerations, inertias, bias forces
+        for j in range(6):
+            S[j * TILE + b] = 0.0
+    for i in range(N):
+        o = i * _SLOTS * TILE
+        for b in range(TILE):
+            m = b0 + b
+            th = S[b] + q[uint64(i * B + m)]
+            S[b] = th
+            sn, cs = sincos(th)
+            li, ri = theta[uint64(i * B + m)], theta[uint64((N + i) * B + m)]
+            mi, Ici = theta[uint64((2 * N + i) * B + m)], theta[uint64((3 * N + i) * B + m)]
+            x, y = S[TILE + b], S[2 * TILE + b]
+            cx, cy = x + ri * cs, y + ri * sn
+            S[TILE + b] = x + li * cs
+            S[2 * TILE + b] = y + li * sn
+            s1, s2 = y, -x
+            qd = v[uint64(i * B + m)]
+            vp0, vp1, vp2 = S[3 * TILE + b], S[4 * TILE + b], S[5 * TILE + b]
+            c1 = (-vp0 * s2 + 1.0 * vp2) * qd
+            c2 = (vp0 * s1 - 1.0 * vp1) * qd
+            v0 = vp0 + 1.0 * qd
+            v1 = vp1 + s1 * qd
+            v2 = vp2 + s2 * qd
+            S[3 * TILE + b], S[4 * TILE + b], S[5 * TILE + b] = v0, v1, v2
+            h1 = -mi * cy * v0 + mi * v1
+            h2 = mi * cx * v0 + mi * v2
+            W[_at(o, 0, b)], W[_at(o, 1, b)], W[_at(o, 2, b)], W[_at(o, 3, b)] = s1, s2, c1, c2
+            W[_at(o, 4, b)] = Ici + mi * (cx * cx + cy * cy)
+            W[_at(o, 5, b)], W[_at(o, 6, b)] = -mi * cy, mi * cx
+            W[_at(o, 7, b)], W[_at(o, 8, b)], W[_at(o, 9, b)] = mi, 0.0, mi
+            W[_at(o, 10, b)], W[_at(o, 11, b)], W[_at(o, 12, b)] = v1 * h2 - v2 * h1, -v0 * h2, v0 * h1
+            W[_at(o, 19, b)] = 1.0 if in_range(th) else 0.0
+    for i in range(N - 1, -1, -1):  # pass 2: articulated inertias (a loop without branches each)
+        o = i * _SLOTS * TILE
+        for b in range(TILE):
+            s1, s2 = W[_at(o, 0, b)], W[_at(o, 1, b)]
+            U0 = W[_at(o, 4, b)] * 1.0 + W[_at(o, 5, b)] * s1 + W[_at(o, 6, b)] * s2
+            U1 = W[_at(o, 5, b)] * 1.0 + W[_at(o, 7, b)] * s1 + W[_at(o, 8, b)] * s2
+            U2 = W[_at(o, 6, b)] * 1.0 + W[_at(o, 8, b)] * s1 + W[_at(o, 9, b)] * s2
+            W[_at(o, 13, b)], W[_at(o, 14, b)], W[_at(o, 15, b)] = U0, U1, U2
+            W[_at(o, 16, b)] = 1.0 * U0 + s1 * U1 + s2 * U2 + theta[uint64((4 * N + i) * B + b0 + b)]
+            W[_at(o, 17, b)] = tau[uint64(i * B + b0 + b)] - (1.0 * W[_at(o, 10, b)] + s1 * W[_at(o, 11, b)] + s2 * W[_at(o, 12, b)])
+        if i > 0:
+            p = o - _SLOTS * TILE
+            for b in range(TILE):
+                U0, U1, U2, D, u = W[_at(o, 13, b)], W[_at(o, 14, b)], W[_at(o, 15, b)], W[_at(o, 16, b)], W[_at(o, 17, b)]
+                c1, c2 = W[_at(o, 2, b)], W[_at(o, 3, b)]
+                A00 = W[_at(o, 4, b)] - U0 * U0 / D
+                A01 = W[_at(o, 5, b)] - U0 * U1 / D
+                A02 = W[_at(o, 6, b)] - U0 * U2 / D
+                A11 = W[_at(o, 7, b)] - U1 * U1 / D
+                A12 = W[_at(o, 8, b)] - U1 * U2 / D
+                A22 = W[_at(o, 9, b)] - U2 * U2 / D
+                pa0 = W[_at(o, 10, b)] + U0 * u / D
+                pa0 += A00 * 0.0  # c0 = 0, added as _aba_member adds it (signed zeros alike)
+                pa0 += A01 * c1
+                pa0 += A02 * c2
+                pa1 = W[_at(o, 11, b)] + U1 * u / D
+                pa1 += A01 * 0.0
+                pa1 += A11 * c1
+                pa1 += A12 * c2
+                pa2 = W[_at(o, 12, b)] + U2 * u / D
+                pa2 += A02 * 0.0
+                pa2 += A12 * c1
+                pa2 += A22 * c2
+                W[_at(p, 4, b)] += A00
+                W[_at(p, 5, b)] += A01
+                W[_at(p, 6, b)] += A02
+                W[_at(p, 7, b)] += A11
+                W[_at(p, 8, b)] += A12
+                W[_at(p, 9, b)] += A22
+                W[_at(p, 10, b)] += pa0
+                W[_at(p, 11, b)] += pa1
+                W[_at(p, 12, b)] += pa2
+    for b in range(TILE):  # pass 3: accelerations (gravity as base acceleration)
+        S[6 * TILE + b], S[7 * TILE + b], S[8 * TILE + b] = 0.0, 0.0, theta[uint64(7 * N * B + b0 + b)]
+    for i in range(N):
+        o = i * _SLOTS * TILE
+        for b in range(TILE):
+            s1, s2 = W[_at(o, 0, b)], W[_at(o, 1, b)]
+            a0 = S[6 * TILE + b] + 0.0
+            a1 = S[7 * TILE + b] + W[_at(o, 2, b)]
+            a2 = S[8 * TILE + b] + W[_at(o, 3, b)]
+            qdd = (W[_at(o, 17, b)] - (W[_at(o, 13, b)] * a0 + W[_at(o, 14, b)] * a1 + W[_at(o, 15, b)] * a2)) / W[_at(o, 16, b)]
+            W[_at(o, 18, b)] = qdd
+            S[6 * TILE + b] = a0 + 1.0 * qdd
+            S[7 * TILE + b] = a1 + s1 * qdd
+            S[8 * TILE + b] = a2 + s2 * qdd
+
+
 @njit
 def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
     """Forward dynamics of a batch in columns: ``a = ABA(q, v, tau - F(v))``, ``F`` the
     smoothed friction of :func:`mbs_envs.models.base.smoothed_friction`.
+
+    Whole tiles of :data:`TILE` members go through :func:`_aba_tile` (SIMD over the members);
+    the rest of the batch, and a member with an absolute angle beyond
+    :data:`mbs_envs.dynamics.trig.SINCOS_RANGE` (or not finite), through :func:`_aba_member`.
+    Both give the same bits (tested).
 
     Parameters
     ----------
@@ -262,30 +431,91 @@ def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
     """
     N, B = q.shape
     work = _aba_work(N)
-    net = np.empty(N)
-    for k in range(B):
-        th = theta[:, k]
-        b, f, v_s = th[5 * N : 6 * N], th[6 * N : 7 * N], th[7 * N + 1]
-        coulomb = False
-        for i in range(N):
-            coulomb |= f[i] != 0.0
-        for i in range(N):  # tau - F, as the numpy path: the tanh only when some f != 0
-            F = b[i] * v[i, k] + f[i] * np.tanh(v[i, k] / v_s) if coulomb else b[i] * v[i, k]
-            net[i] = tau[i, k] - F
-        _aba_member(q[:, k], v[:, k], net, th[0:N], th[N : 2 * N], th[2 * N : 3 * N], th[3 * N : 4 * N],
-                    th[4 * N : 5 * N], th[7 * N], a[:, k], work)  # fmt: skip
+    one = np.empty(N)
+    net = np.empty((N, B))
+    _net_torque(v, tau, theta, net)
+    tiled = B - B % TILE
+    if tiled > 0:
+        qf, vf, nf = np.ascontiguousarray(q).ravel(), np.ascontiguousarray(v).ravel(), net.ravel()
+        pf = np.ascontiguousarray(theta).ravel()
+        W, S = np.empty(N * _SLOTS * TILE), np.empty(9 * TILE)
+        for b0 in range(0, tiled, TILE):
+            _aba_tile(qf, vf, nf, pf, N, B, b0, W, S)
+            for b in range(TILE):
+                ok = True
+                for i in range(N):
+                    a[i, b0 + b] = W[_at(i * _SLOTS * TILE, 18, b)]
+                    ok &= W[_at(i * _SLOTS * TILE, 19, b)] != 0.0
+                if not ok:  # libm's sincos where the SIMD one is not accurate
+                    _member_acceleration(q, v, net, theta, a, b0 + b, work, one)
+    for k in range(tiled, B):
+        _member_acceleration(q, v, net, theta, a, k, work, one)
+
+
+@njit
+def _energy_tile(q, v, theta, N, B, b0, S):  # pragma: no cover - compiled
+    """:func:`_energy_member` of the members ``b0 .. b0 + TILE - 1`` at once (SIMD over the members,
+    the operations in :func:`_energy_member`'s order: the same bits). Arrays flattened as in
+    :func:`_aba_tile`; ``S`` (10 * TILE,) work (slots: absolute angle, unused, joint height, link rate,
+    joint velocity (2), the sums ``T``, ``V``, unused), whose slots 6, 7 end as ``T``, ``V`` and slot 9
+    as whether every absolute angle was inside :data:`mbs_envs.dynamics.trig.SINCOS_RANGE`."""
+    for b in range(TILE):
+        for j in range(9):
+            S[j * TILE + b] = 0.0
+        S[9 * TILE + b] = 1.0
+    for i in range(N):
+        for b in range(TILE):
+            m = b0 + b
+            th = S[b] + q[uint64(i * B + m)]
+            S[b] = th
+            sn, cs = sincos(th)
+            li, ri = theta[uint64(i * B + m)], theta[uint64((N + i) * B + m)]
+            mi, Ici, arm = theta[uint64((2 * N + i) * B + m)], theta[uint64((3 * N + i) * B + m)], theta[uint64((4 * N + i) * B + m)]
+            w = v[uint64(i * B + m)]
+            y = S[2 * TILE + b]
+            cy = y + ri * sn
+            S[2 * TILE + b] = y + li * sn
+            om = S[3 * TILE + b] + w
+            S[3 * TILE + b] = om
+            nx, ny = -sn * om, cs * om
+            jx, jy = S[4 * TILE + b], S[5 * TILE + b]
+            vx, vy = jx + ri * nx, jy + ri * ny
+            S[6 * TILE + b] = S[6 * TILE + b] + (mi * (vx * vx + vy * vy) + Ici * om * om + arm * w * w)
+            S[7 * TILE + b] = S[7 * TILE + b] + mi * cy
+            S[4 * TILE + b] = jx + li * nx
+            S[5 * TILE + b] = jy + li * ny
+            S[9 * TILE + b] = S[9 * TILE + b] if in_range(th) else 0.0
 
 
 @njit
 def energy_kernel(q, v, theta, E):  # pragma: no cover - compiled
-    """Mechanical energy ``T + V`` [J] of a batch in columns (:func:`_energy_member`); writes ``E`` (B,)."""
+    """Mechanical energy ``T + V`` [J] of a batch in columns (:func:`_energy_member`); writes ``E`` (B,).
+    Whole tiles by :func:`_energy_tile` (SIMD), the rest and members with an angle beyond
+    the SIMD sincos's range by :func:`_energy_member` (the same bits, tested)."""
     N, B = q.shape
     work = _aba_work(N)
-    for k in range(B):
-        th = theta[:, k]
-        T, V = _energy_member(q[:, k], v[:, k], th[0:N], th[N : 2 * N], th[2 * N : 3 * N], th[3 * N : 4 * N],
-                              th[4 * N : 5 * N], th[7 * N], work)  # fmt: skip
-        E[k] = T + V
+    tiled = B - B % TILE
+    if tiled > 0:
+        qf, vf, pf = np.ascontiguousarray(q).ravel(), np.ascontiguousarray(v).ravel(), np.ascontiguousarray(theta).ravel()
+        S = np.empty(10 * TILE)
+        for b0 in range(0, tiled, TILE):
+            _energy_tile(qf, vf, pf, N, B, b0, S)
+            for b in range(TILE):
+                E[b0 + b] = 0.5 * S[6 * TILE + b] + theta[7 * N, b0 + b] * S[7 * TILE + b]
+                if S[9 * TILE + b] == 0.0:
+                    _energy_one(q, v, theta, E, b0 + b, work)
+    for k in range(tiled, B):
+        _energy_one(q, v, theta, E, k, work)
+
+
+@njit(inline="always")
+def _energy_one(q, v, theta, E, k, work):  # pragma: no cover - compiled
+    """Member ``k`` of :func:`energy_kernel` by :func:`_energy_member` (scalar code)."""
+    N = q.shape[0]
+    th = theta[:, k]
+    T, V = _energy_member(q[:, k], v[:, k], th[0:N], th[N : 2 * N], th[2 * N : 3 * N], th[3 * N : 4 * N],
+                          th[4 * N : 5 * N], th[7 * N], work)  # fmt: skip
+    E[k] = T + V
 
 
 @njit
