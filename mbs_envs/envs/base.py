@@ -334,11 +334,12 @@ class MBSEnv(gym.Env):
 
     # -- the task (override) ---------------------------------------------------
     #
-    # The task is written once, as functions of explicit arrays batched over
-    # leading dimensions: this env calls them with its own state, shape (n,),
-    # and :class:`mbs_envs.envs.vector.MBSVectorEnv` with a batch, shape (N, n).
-    # ``task`` is what an episode draws at reset (e.g. a reference), stacked
-    # member-wise in the vector env; ``now`` is what the task needs at time t.
+    # The task is written once, in its module, as pure functions of explicit arrays
+    # batched over leading dimensions and of the task's parameters (a frozen dataclass,
+    # the env's ``task_params``; Gymnasium's phys2d style). These hooks call them: this
+    # env with its own state, shape (n,), and :class:`mbs_envs.envs.vector.MBSVectorEnv`
+    # with a batch, shape (N, n). ``task`` is what an episode draws at reset (e.g. a
+    # reference), stacked member-wise in the vector env; ``now`` is what the task needs at time t.
 
     def _reset_task(self, options: dict, rng: np.random.Generator) -> Any:
         """Draw the episode's task from ``rng`` (default: none)."""

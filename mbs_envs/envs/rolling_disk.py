@@ -21,7 +21,7 @@ from .references import SumOfSines, sample_sum_of_sines, sum_of_sines_columns
 from .base import MBSEnv
 from .engine import engine_step
 from .rendering import GHOST, GROUND, LINK, Arrow, Dot, Inset, Line, Polygon, Shape, Text, oblique
-from .tracking import wrap_angle
+from .tracking import _as_columns
 
 
 
@@ -51,22 +51,30 @@ class DiskTask:
 
 
 @njit
-def disk_task(q, v, t, action, task, obs, info, terminated):  # pragma: no cover - compiled
-    """The task kernel of RollingDisk-v0 (:mod:`mbs_envs.envs.engine`), the formulas of
-    :meth:`RollingDiskEnv.reward`, :meth:`~RollingDiskEnv.observe`, :meth:`~RollingDiskEnv.task_info`
-    and :meth:`~RollingDiskEnv.terminated` for a batch in columns.
+def disk_columns(q, v, h, dh, ddh, spin_ref, action, weights, Wc, lean_limit, obs, info, terminated):  # pragma: no cover - compiled
+    """The task's formulas (:class:`RollingDiskEnv`'s docstring) for a batch in columns.
 
-    ``task = (weights, W_c, lean_limit, center, rate, amplitude, omega, phase, spin_ref)``:
-    the reward weights, the critical spin, the fall limit, the heading references in
-    columns (:meth:`SumOfSines.columns`) and the commanded spins ``(B,)``. Info columns:
-    ``(r, r_heading, r_lean, r_speed, r_effort, lean, fell, heading error, spin error)``.
+    Parameters
+    ----------
+    q, v : ndarray, shape (6, B)
+    h, dh, ddh : ndarray, shape (B,)
+        The heading reference and its rates [rad, rad/s, rad/s^2].
+    spin_ref : ndarray, shape (B,)
+        Commanded spin rates [rad/s].
+    action : ndarray, shape (2, B)
+    weights : ndarray, shape (4,)
+        ``(w_h, w_l, w_s, w_u)``.
+    Wc, lean_limit : float
+        The critical spin [rad/s] and the fall limit [rad].
+    obs : ndarray, shape (B, 8)
+        Written (:data:`OBS_FIELDS`).
+    info : ndarray, shape (B, >= 9)
+        Written: ``(r, r_heading, r_lean, r_speed, r_effort, lean, fell, heading error, spin error)``.
+    terminated : ndarray of bool, shape (B,)
+        Written: fell.
     """
-    weights, Wc, lean_limit, center, rate, amplitude, omega, phase, spin_ref = task
-    B = q.shape[1]
-    refs = np.empty((3, 1, B))
-    sum_of_sines_columns(t, center, rate, amplitude, omega, phase, refs[0], refs[1], refs[2])
-    for b in range(B):
-        e_h = wrap(refs[0, 0, b] - q[3, b])
+    for b in range(q.shape[1]):
+        e_h = wrap(h[b] - q[3, b])
         e_s = (v[5, b] - spin_ref[b]) / Wc
         effort = 0.0
         for k in range(action.shape[0]):
@@ -77,9 +85,25 @@ def disk_task(q, v, t, action, task, obs, info, terminated):  # pragma: no cover
         info[b, 1], info[b, 2], info[b, 3], info[b, 4] = r_h, r_l, r_s, r_u
         info[b, 5], info[b, 6], info[b, 7], info[b, 8] = q[4, b], fell, e_h, v[5, b] - spin_ref[b]
         terminated[b] = fell
-        fields = (q[4, b], v[4, b], v[3, b], v[5, b], e_h, refs[1, 0, b], refs[2, 0, b], spin_ref[b])
+        fields = (q[4, b], v[4, b], v[3, b], v[5, b], e_h, dh[b], ddh[b], spin_ref[b])
         for i in range(8):
             obs[b, i] = fields[i]
+
+
+@njit
+def disk_task(q, v, t, action, task, obs, info, terminated):  # pragma: no cover - compiled
+    """The task kernel of RollingDisk-v0 (:mod:`mbs_envs.envs.engine`): the heading reference at
+    ``t``, then :func:`disk_columns`.
+
+    ``task = (weights, W_c, lean_limit, center, rate, amplitude, omega, phase, spin_ref)``:
+    :meth:`DiskTaskParams.kernel_arguments`, the heading references in columns
+    (:meth:`SumOfSines.columns`) and the commanded spins ``(B,)``.
+    """
+    weights, Wc, lean_limit, center, rate, amplitude, omega, phase, spin_ref = task
+    B = q.shape[1]
+    refs = np.empty((3, 1, B))
+    sum_of_sines_columns(t, center, rate, amplitude, omega, phase, refs[0], refs[1], refs[2])
+    disk_columns(q, v, refs[0, 0], refs[1, 0], refs[2, 0], spin_ref, action, weights, Wc, lean_limit, obs, info, terminated)
 
 
 @njit
@@ -93,6 +117,98 @@ def step_kernel(theta, stepper, control, task, state, out):  # pragma: no cover 
 
 
 _this = sys.modules[__name__]
+
+
+@dataclasses.dataclass(frozen=True)
+class DiskTaskParams:
+    """The disk task's parameters, explicit and immutable (Gymnasium's phys2d style); an env holds
+    its own as :attr:`RollingDiskEnv.task_params`.
+
+    Attributes
+    ----------
+    weights : ndarray, shape (4,)
+        ``(w_h, w_l, w_s, w_u)`` of the reward.
+    critical_spin : float
+        The model's critical spin ``W_c`` [rad/s] (the unit of the speed error).
+    lean_limit : float
+        Termination beyond this lean [rad].
+    spin_range : (float, float)
+        Commanded spin in units of ``W_c``.
+    heading_amplitude : float
+        [rad]
+    heading_omega : (float, float)
+        Frequencies of the heading reference [rad/s].
+    """
+
+    weights: np.ndarray
+    critical_spin: float
+    lean_limit: float
+    spin_range: tuple[float, float]
+    heading_amplitude: float
+    heading_omega: tuple[float, float]
+
+    def kernel_arguments(self) -> tuple:
+        """``(weights, W_c, lean_limit)`` as :func:`disk_columns` takes them."""
+        return (np.asarray(self.weights, float), float(self.critical_spin), float(self.lean_limit))
+
+
+def sample(p: DiskTaskParams, rng: np.random.Generator, spin_ref: Any = None) -> DiskTask:
+    """An episode's commands: a spin rate in ``spin_range`` (or ``spin_ref`` [rad/s], checked; the
+    draw is made either way) and a heading reference."""
+    spin = float(rng.uniform(*p.spin_range) * p.critical_spin)
+    if spin_ref is not None:
+        W_max = p.spin_range[1] * p.critical_spin
+        spin = check.real(spin_ref, "options['spin_ref']", -W_max, W_max)
+    heading = sample_sum_of_sines(rng, [-np.pi], [np.pi], [p.heading_amplitude], p.heading_omega, n_components=2)
+    return DiskTask(heading=heading, spin_ref=np.asarray(spin))
+
+
+def start(p: DiskTaskParams, task: DiskTask, rng: np.random.Generator, model: RollingDisk) -> tuple[np.ndarray, np.ndarray]:
+    """Upright rolling at the commanded spin, heading near the reference's, small lean and lean rate."""
+    heading0 = float(task.heading(0.0)[0][0] + rng.uniform(-0.1, 0.1))
+    return model.rolling_state(heading=heading0, lean=float(rng.uniform(-0.05, 0.05)), dlean=float(rng.uniform(-0.1, 0.1)),
+                               dspin=float(task.spin_ref))  # fmt: skip
+
+
+def reference(task: DiskTask, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(heading_ref, dheading_ref, ddheading_ref)`` at ``t``, each shape ``(...)``."""
+    h, dh, ddh = task.heading(t)
+    return h[..., 0], dh[..., 0], ddh[..., 0]
+
+
+def task_rows(p: DiskTaskParams, q, v, now: tuple, task: DiskTask, action=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`disk_columns` batched over leading dimensions: ``obs (..., 8)`` float32,
+    ``info (..., 9)`` and ``fell (...)`` (``action`` None: no effort)."""
+    action = np.zeros(2) if action is None else action
+    cols = (now[0], now[1], now[2], task.spin_ref)
+    lead, (q2, v2, a2, *refs) = _as_columns(q, v, action, *(np.asarray(x, float)[..., None] for x in cols))
+    B = q2.shape[1]
+    obs, info, fell = np.empty((B, 8), np.float32), np.empty((B, 9)), np.empty(B, bool)
+    disk_columns(q2, v2, refs[0][0], refs[1][0], refs[2][0], refs[3][0], a2, *p.kernel_arguments(), obs, info, fell)
+    return obs.reshape(lead + (8,)), info.reshape(lead + (9,)), fell.reshape(lead)
+
+
+def observe(p: DiskTaskParams, q, v, now: tuple, task: DiskTask) -> np.ndarray:
+    """The observation (:data:`OBS_FIELDS`), float32 ``(..., 8)``."""
+    return task_rows(p, q, v, now, task)[0]
+
+
+def reward(p: DiskTaskParams, q, v, now: tuple, task: DiskTask, action) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """``r = 1 - (w_h e_h^2 + w_l lean^2 + w_s ((dspin - W_ref) / W_c)^2 + w_u |action|^2)`` and its terms."""
+    info = task_rows(p, q, v, now, task, action)[1]
+    names = ("reward_heading", "reward_lean", "reward_speed", "reward_effort")
+    return info[..., 0], {k: info[..., 1 + i] for i, k in enumerate(names)}
+
+
+def terminated(p: DiskTaskParams, q, v, now: tuple, task: DiskTask) -> np.ndarray:
+    """Fell: ``|lean| > lean_limit``, bool ``(...)``."""
+    return task_rows(p, q, v, now, task)[2]
+
+
+def info(p: DiskTaskParams, q, v, now: tuple, task: DiskTask) -> dict[str, np.ndarray]:
+    """``lean``, ``fell``, ``tracking_error`` (the heading error, ``(..., 1)``) and ``spin_error`` [rad/s]."""
+    rows = task_rows(p, q, v, now, task)[1]
+    return {"lean": rows[..., 5], "fell": rows[..., 6].astype(bool), "tracking_error": rows[..., 7:8], "spin_error": rows[..., 8]}
 
 
 class RollingDiskEnv(MBSEnv):
@@ -184,22 +300,28 @@ class RollingDiskEnv(MBSEnv):
         W_top = self.spin_range[1] * Wc
         self._check_start_bound(max(np.pi + self.heading_amplitude + 0.1, model.params.r, W_top * max(1.0, model.params.r) + 1.0))
 
+    # -- the task: the module's functions with this env's parameters -----------------
+
+    def _task_cache(self) -> tuple:
+        """``(key, task_params, kernel arguments)``, built again only when a setting they hold changes."""
+        key = (self.model, self.lean_limit, self.reward_weights)
+        cached = self.__dict__.get("_task_arguments")
+        if cached is None or cached[0] != key:
+            params = DiskTaskParams(np.asarray(self.reward_weights, float), float(self.model.critical_spin), float(self.lean_limit),
+                                    self.spin_range, self.heading_amplitude, self.heading_omega)  # fmt: skip
+            cached = self._task_arguments = (key, params, params.kernel_arguments())
+        return cached
+
+    @property
+    def task_params(self) -> DiskTaskParams:
+        """This env's task parameters, from its current settings."""
+        return self._task_cache()[1]
+
     def _reset_task(self, options: dict, rng: np.random.Generator) -> DiskTask:
-        spin_ref = float(rng.uniform(*self.spin_range) * self.model.critical_spin)
-        if options.get("spin_ref") is not None:
-            W_max = self.spin_range[1] * self.model.critical_spin
-            spin_ref = check.real(options["spin_ref"], "options['spin_ref']", -W_max, W_max)
-        heading = sample_sum_of_sines(rng, [-np.pi], [np.pi], [self.heading_amplitude], self.heading_omega, n_components=2)
-        return DiskTask(heading=heading, spin_ref=np.asarray(spin_ref))
+        return sample(self.task_params, rng, options.get("spin_ref"))
 
     def _initial_state(self, task: DiskTask, rng: np.random.Generator, model: RollingDisk) -> tuple[np.ndarray, np.ndarray]:
-        heading0 = float(task.heading(0.0)[0][0] + rng.uniform(-0.1, 0.1))
-        return model.rolling_state(
-            heading=heading0,
-            lean=float(rng.uniform(-0.05, 0.05)),
-            dlean=float(rng.uniform(-0.1, 0.1)),
-            dspin=float(task.spin_ref),
-        )
+        return start(self.task_params, task, rng, model)
 
     @property
     def spin_ref(self) -> float:
@@ -212,13 +334,10 @@ class RollingDiskEnv(MBSEnv):
 
     def task_now(self, t: np.ndarray, task: DiskTask) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(heading_ref, dheading_ref, ddheading_ref)``, each shape ``(...)``."""
-        h, dh, ddh = task.heading(t)
-        return h[..., 0], dh[..., 0], ddh[..., 0]
+        return reference(task, t)
 
     def observe(self, q, v, now, task) -> np.ndarray:
-        h, dh, ddh = now
-        fields = (q[..., 4], v[..., 4], v[..., 3], v[..., 5], wrap_angle(h - q[..., 3]), dh, ddh, task.spin_ref)
-        return np.stack(np.broadcast_arrays(*fields), axis=-1).astype(np.float32)
+        return observe(self.task_params, q, v, now, task)
 
     @staticmethod
     def decode_observation(obs: np.ndarray) -> DiskObservation:
@@ -233,41 +352,22 @@ class RollingDiskEnv(MBSEnv):
         return np.abs(q[..., 4]) > self.lean_limit
 
     def terminated(self, q, v, now, task) -> np.ndarray:
-        return self.fell(q)
+        return terminated(self.task_params, q, v, now, task)
 
     def reward(self, q, v, now, task, u, action) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        w_h, w_l, w_s, w_u = self.reward_weights
-        e_h = wrap_angle(now[0] - q[..., 3])
-        e_s = (v[..., 5] - task.spin_ref) / self.model.critical_spin
-        terms = {
-            "reward_heading": -w_h * e_h**2,
-            "reward_lean": -w_l * q[..., 4] ** 2,
-            "reward_speed": -w_s * e_s**2,
-            "reward_effort": -w_u * np.sum(action * action, axis=-1),
-        }
-        total = 1.0 + terms["reward_heading"] + terms["reward_lean"] + terms["reward_speed"] + terms["reward_effort"]
-        return total, terms
+        return reward(self.task_params, q, v, now, task, action)
 
     def task_info(self, q, v, now, task, u) -> dict[str, Any]:
-        e_h = wrap_angle(now[0] - q[..., 3])
         return {
             "constraint_residual": np.max(np.abs(self.model.constraint_residual(q)), axis=-1),
             "multipliers": self.model.multipliers(q, v, u, compiled=self.compiled is not None),
-            "lean": q[..., 4],
-            "fell": self.fell(q),
-            "tracking_error": e_h[..., None],
-            "spin_error": v[..., 5] - task.spin_ref,
+            **info(self.task_params, q, v, now, task),
         }
 
     # -- the compiled step (see mbs_envs.envs.engine) ----------------------------
 
     def task_arguments(self) -> tuple:
-        key = (self.model, self.lean_limit, self.reward_weights)
-        cached = self.__dict__.get("_task_arguments")
-        if cached is None or cached[0] != key:  # built again only when one of them changes
-            args = (np.asarray(self.reward_weights, float), float(self.model.critical_spin), float(self.lean_limit))
-            cached = self._task_arguments = (key, args)
-        return cached[1]
+        return self._task_cache()[2]
 
     def task_columns(self, task: DiskTask) -> tuple:
         return task.heading.columns() + (np.array(np.reshape(task.spin_ref, -1), float),)

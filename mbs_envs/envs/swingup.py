@@ -140,6 +140,62 @@ def decode_swingup(obs: np.ndarray) -> SwingUpObservation:
     return SwingUpObservation(q=np.arctan2(obs[..., 2:4], obs[..., 0:2]), v=obs[..., 4:6])
 
 
+@dataclasses.dataclass(frozen=True)
+class SwingUpTaskParams:
+    """The swing-up task's parameters, explicit and immutable (Gymnasium's phys2d style); an env
+    holds its own as :attr:`SwingUpEnv.task_params`.
+
+    Attributes
+    ----------
+    weights : ndarray, shape (3,)
+        ``(w_h, w_e, w_u)`` of the reward.
+    u_max : ndarray, shape (1,)
+        Torque limit [N m] (the power in ``info``).
+    driven : int
+        The driven joint.
+    tolerance : float
+        Upright tolerance per joint [rad].
+    start_noise : float
+        ``q0 = q_down + U(-s, s)``, ``v0 = U(-s, s)``.
+    """
+
+    weights: np.ndarray
+    u_max: np.ndarray
+    driven: int
+    tolerance: float
+    start_noise: float
+
+    def kernel_arguments(self) -> tuple:
+        """``(weights, u_max, driven, tolerance)`` as :func:`swingup_columns` takes them."""
+        return (np.asarray(self.weights, float), np.asarray(self.u_max, float), np.array([self.driven], np.int64), float(self.tolerance))
+
+
+def start(p: SwingUpTaskParams, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """A start ``(q0, v0)`` near hanging, shape ``(2,)`` each (the task has no other episode state)."""
+    s = p.start_noise
+    return Q_DOWN + rng.uniform(-s, s, 2), rng.uniform(-s, s, 2)
+
+
+def task_rows(p: SwingUpTaskParams, q: np.ndarray, v: np.ndarray, action: np.ndarray) -> np.ndarray:
+    """:func:`swingup_columns` batched over leading dimensions: shape ``(..., 8)``."""
+    lead, (q2, v2, a2) = _as_columns(q, v, action)
+    info = np.empty((q2.shape[1], 8))
+    swingup_columns(q2, v2, a2, *p.kernel_arguments(), info)
+    return info.reshape(lead + (8,))
+
+
+def reward(p: SwingUpTaskParams, q: np.ndarray, v: np.ndarray, action: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The reward ``(...)`` (module docstring) and its terms."""
+    rows = task_rows(p, q, v, action)
+    return rows[..., 0], {"reward_height": rows[..., 1], "reward_upright": rows[..., 2], "reward_effort": rows[..., 3]}
+
+
+def info(p: SwingUpTaskParams, q: np.ndarray, v: np.ndarray, action: np.ndarray) -> dict[str, np.ndarray]:
+    """The task's ``info``: the distance to upright ``tracking_error`` (..., 2), ``upright`` and the driven joint's ``power``."""
+    rows = task_rows(p, q, v, action)
+    return {"tracking_error": rows[..., 4:6], "upright": rows[..., 6].astype(bool), "power": rows[..., 7]}
+
+
 class SwingUpEnv(MBSEnv):
     """Swing a 2R arm with one motor up from hanging and balance it upright (module docstring).
 
@@ -209,11 +265,24 @@ class SwingUpEnv(MBSEnv):
         self.observation_space = gym.spaces.Box(-high, high, dtype=np.float32)
         self._check_start_bound(np.pi / 2 + self.start_noise)
 
-    # -- the task, batched (see MBSEnv) ------------------------------------------
+    # -- the task: the module's functions with this env's parameters -----------------
+
+    def _task_cache(self) -> tuple:
+        """``(key, task_params, kernel arguments)``, built again only when a setting they hold changes."""
+        key = (self.reward_weights.tobytes(), self.u_max.tobytes(), self.upright_tolerance, self.start_noise)
+        cached = self.__dict__.get("_task_params")
+        if cached is None or cached[0] != key:
+            params = SwingUpTaskParams(self.reward_weights, self.u_max, self.driven, self.upright_tolerance, self.start_noise)
+            cached = self._task_params = (key, params, params.kernel_arguments())
+        return cached
+
+    @property
+    def task_params(self) -> SwingUpTaskParams:
+        """This env's task parameters, from its current settings."""
+        return self._task_cache()[1]
 
     def _initial_state(self, task: Any, rng: np.random.Generator, model: Planar2R) -> tuple[np.ndarray, np.ndarray]:
-        s = self.start_noise
-        return Q_DOWN + rng.uniform(-s, s, 2), rng.uniform(-s, s, 2)
+        return start(self.task_params, rng)
 
     def observe(self, q, v, now, task) -> np.ndarray:
         return encode_swingup(q, v)
@@ -223,31 +292,16 @@ class SwingUpEnv(MBSEnv):
         """The state in an observation (batched); see :func:`decode_swingup`."""
         return decode_swingup(obs)
 
-    def task_rows(self, q, v, action) -> np.ndarray:
-        """:func:`swingup_columns` batched over leading dimensions: shape ``(..., 8)``."""
-        lead, (q2, v2, a2) = _as_columns(q, v, action)
-        info = np.empty((q2.shape[1], 8))
-        swingup_columns(q2, v2, a2, *self.task_arguments(), info)
-        return info.reshape(lead + (8,))
-
     def reward(self, q, v, now, task, u, action) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        info = self.task_rows(q, v, action)
-        return info[..., 0], {"reward_height": info[..., 1], "reward_upright": info[..., 2], "reward_effort": info[..., 3]}
+        return reward(self.task_params, q, v, action)
 
     def task_info(self, q, v, now, task, u) -> dict[str, Any]:
-        info = self.task_rows(q, v, np.asarray(u, float) / self.u_max)
-        return {"tracking_error": info[..., 4:6], "upright": info[..., 6].astype(bool), "power": info[..., 7]}
+        return info(self.task_params, q, v, np.asarray(u, float) / self.u_max)
 
     # -- the compiled step (see mbs_envs.envs.engine) ----------------------------
 
     def task_arguments(self) -> tuple:
-        key = (self.reward_weights.tobytes(), self.u_max.tobytes(), self.upright_tolerance)
-        cached = self.__dict__.get("_task_arguments")
-        if cached is None or cached[0] != key:  # built again only when one of them changes
-            args = (np.asarray(self.reward_weights, float), np.asarray(self.u_max, float),
-                    np.array([self.driven], np.int64), float(self.upright_tolerance))  # fmt: skip
-            cached = self._task_arguments = (key, args)
-        return cached[1]
+        return self._task_cache()[2]
 
     def task_layout(self) -> tuple[tuple[str, int | None, bool], ...]:
         names = ("reward", "reward_height", "reward_upright", "reward_effort")

@@ -231,6 +231,87 @@ def decode_tracking(obs: np.ndarray, n: int, tracked: tuple[int, ...] | None = N
     return TrackingObservation(q=q, v=v, q_ref=q[..., list(tracked)] + e, v_ref=v_ref, a_ref=a_ref, tracked=tracked)
 
 
+#: names in ``info`` of the reward terms (columns 1-3 of :func:`reward_columns`'s output)
+REWARD_TERMS = ("reward_tracking", "reward_velocity", "reward_effort")
+
+
+@dataclasses.dataclass(frozen=True)
+class TrackingTaskParams:
+    """The tracking task's parameters, explicit and immutable (Gymnasium's phys2d style): the
+    task is the functions below of ``(q, v, t, task state, params)``; an env holds its
+    parameters as :attr:`JointTrackingEnv.task_params`.
+
+    Attributes
+    ----------
+    tracked : tuple of int
+        The tracked coordinates (``m`` of them).
+    weights : ndarray, shape (3,)
+        ``(w_e, w_de, w_u)`` of the reward.
+    center_low, center_high : ndarray, shape (m,)
+        Range of the reference's centre [rad].
+    max_amplitude : ndarray, shape (m,)
+        Largest total amplitude [rad].
+    omega_range : (float, float)
+        Frequencies [rad/s].
+    rate_range : (float, float) or None
+        Mean rate [rad/s] (None: no drift).
+    n_components : int
+    start_noise : float
+        ``q0 = q_ref(0) + U(-s, s)``, ``v0 = v_ref(0) + U(-s, s)`` on the tracked coordinates.
+    """
+
+    tracked: tuple[int, ...]
+    weights: np.ndarray
+    center_low: np.ndarray
+    center_high: np.ndarray
+    max_amplitude: np.ndarray
+    omega_range: tuple[float, float]
+    rate_range: tuple[float, float] | None
+    n_components: int
+    start_noise: float
+
+
+def sample(p: TrackingTaskParams, rng: np.random.Generator) -> SumOfSines:
+    """An episode's task state: its reference (:func:`sample_sum_of_sines`)."""
+    return sample_sum_of_sines(rng, p.center_low, p.center_high, p.max_amplitude, p.omega_range, p.n_components, p.rate_range)
+
+
+def start_tracked(p: TrackingTaskParams, reference: SumOfSines, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """The tracked coordinates' start ``(q_t, v_t)``, shape ``(m,)`` each: the reference at 0 plus noise
+    (a scene completes the rest of the state)."""
+    q_ref, v_ref, _ = reference(0.0)
+    s, m = p.start_noise, len(p.tracked)
+    return q_ref + rng.uniform(-s, s, m), v_ref + rng.uniform(-s, s, m)
+
+
+def observe(p: TrackingTaskParams, q: np.ndarray, v: np.ndarray, now: tuple) -> np.ndarray:
+    """The observation (module docstring) at ``now = (q_ref, v_ref, a_ref)``, float32 ``(..., 3 n + 3 m)``."""
+    return encode_tracking(q, v, *now, p.tracked)
+
+
+def errors(p: TrackingTaskParams, q: np.ndarray, v: np.ndarray, now: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """``(wrap(q_ref - q), v_ref - v)`` on the tracked coordinates, shape ``(..., m)``."""
+    q_ref, v_ref, _ = now
+    idx = list(p.tracked)
+    return wrap_angle(q_ref - q[..., idx]), v_ref - v[..., idx]
+
+
+def reward(p: TrackingTaskParams, q: np.ndarray, v: np.ndarray, now: tuple, action: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The reward ``(...)`` (module docstring) and its terms (:data:`REWARD_TERMS`), by :func:`reward_columns`."""
+    lead, (q2, v2, q_ref, v_ref, a2) = _as_columns(q, v, now[0], now[1], action)
+    tracked = np.asarray(p.tracked, np.int64)
+    terms, e = np.empty((q2.shape[1], 4)), np.empty(q_ref.shape)
+    error_columns(q2, q_ref, tracked, e)
+    reward_columns(v2, e, v_ref, a2, tracked, np.asarray(p.weights, float), terms)
+    terms = terms.reshape(lead + (4,))
+    return terms[..., 0], {k: terms[..., i + 1] for i, k in enumerate(REWARD_TERMS)}
+
+
+def info(p: TrackingTaskParams, q: np.ndarray, v: np.ndarray, now: tuple) -> dict[str, np.ndarray]:
+    """The task's ``info``: ``tracking_error`` and ``q_ref``, shape ``(..., m)`` each (no termination)."""
+    return {"tracking_error": errors(p, q, v, now)[0], "q_ref": now[0]}
+
+
 class JointTrackingEnv(MBSEnv):
     """Track a random smooth reference (:class:`SumOfSines`) of the ``tracked`` coordinates.
 
@@ -314,25 +395,21 @@ class JointTrackingEnv(MBSEnv):
         """``(q_ref, v_ref, a_ref)`` at the current time."""
         return self.now()
 
-    # -- the task, batched (see MBSEnv) ------------------------------------------
+    # -- the task: the module's functions with this env's parameters -----------------
+
+    @property
+    def task_params(self) -> TrackingTaskParams:
+        """This env's task parameters, from its current settings (a new value each call)."""
+        return TrackingTaskParams(
+            self.tracked, self.reward_weights, np.asarray(self.center_low, float), np.asarray(self.center_high, float),
+            np.asarray(self.max_amplitude, float), self.omega_range, self.rate_range, self.n_components, self.start_noise,
+        )  # fmt: skip
 
     def _reset_task(self, options: dict, rng: np.random.Generator) -> SumOfSines:
-        return sample_sum_of_sines(
-            rng,
-            self.center_low,
-            self.center_high,
-            self.max_amplitude,
-            self.omega_range,
-            self.n_components,
-            self.rate_range,
-        )
+        return sample(self.task_params, rng)
 
     def _initial_state(self, task: SumOfSines, rng: np.random.Generator, model) -> tuple[np.ndarray, np.ndarray]:
-        q_ref, v_ref, _ = task(0.0)
-        s, m = self.start_noise, len(self.tracked)
-        q_t = q_ref + rng.uniform(-s, s, m)
-        v_t = v_ref + rng.uniform(-s, s, m)
-        return self._state_from_tracked(q_t, v_t, model)
+        return self._state_from_tracked(*start_tracked(self.task_params, task, rng), model)
 
     def _state_from_tracked(self, q_t: np.ndarray, v_t: np.ndarray, model) -> tuple[np.ndarray, np.ndarray]:
         """Whole state from the tracked coordinates (identity when all are tracked)."""
@@ -343,7 +420,7 @@ class JointTrackingEnv(MBSEnv):
         return task(t)
 
     def observe(self, q, v, now, task) -> np.ndarray:
-        return encode_tracking(q, v, *now, self.tracked)
+        return observe(self.task_params, q, v, now)
 
     def decode_observation(self, obs: np.ndarray) -> TrackingObservation:
         """The state and reference in an observation (batched); see :func:`decode_tracking`."""
@@ -351,21 +428,12 @@ class JointTrackingEnv(MBSEnv):
 
     def errors(self, q: np.ndarray, v: np.ndarray, now) -> tuple[np.ndarray, np.ndarray]:
         """``(wrap(q_ref - q), v_ref - v)`` on the tracked coordinates, shape ``(..., m)``."""
-        q_ref, v_ref, _ = now
-        idx = list(self.tracked)
-        return wrap_angle(q_ref - q[..., idx]), v_ref - v[..., idx]
+        return errors(self.task_params, q, v, now)
 
-    #: names in ``info`` of the reward terms (columns 1-3 of :func:`reward_columns`'s output)
-    reward_terms: ClassVar[tuple[str, ...]] = ("reward_tracking", "reward_velocity", "reward_effort")
+    reward_terms: ClassVar[tuple[str, ...]] = REWARD_TERMS
 
     def reward(self, q, v, now, task, u, action) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        lead, (q2, v2, q_ref, v_ref, a2) = _as_columns(q, v, now[0], now[1], action)
-        terms, e = np.empty((q2.shape[1], 4)), np.empty(q_ref.shape)
-        error_columns(q2, q_ref, self._tracked, e)
-        reward_columns(v2, e, v_ref, a2, self._tracked, self.reward_weights, terms)
-        terms = terms.reshape(lead + (4,))
-        return terms[..., 0], {k: terms[..., i + 1] for i, k in enumerate(self.reward_terms)}
+        return reward(self.task_params, q, v, now, action)
 
     def task_info(self, q, v, now, task, u) -> dict[str, Any]:
-        e, _ = self.errors(q, v, now)
-        return {"tracking_error": e, "q_ref": now[0]}
+        return info(self.task_params, q, v, now)
