@@ -39,9 +39,15 @@ import numpy as np
 
 def scenes() -> dict[str, tuple[str, dict]]:
     """Label -> (id, kwargs) of every configuration timed: each registered scene's ``bench_kwargs``
-    (:mod:`mbs_envs.envs.registry`; a checkout without them: its ``kwargs``)."""
-    from mbs_envs.envs import registry
-
+    (:mod:`mbs_envs.envs.registry`; a checkout without them: its ``kwargs``; one from before the
+    registry, e.g. issue 18's baseline: the four scenes it had, the chain at 10 and 100 links)."""
+    try:
+        from mbs_envs.envs import registry
+    except ImportError:
+        return {"Planar2R-v0": ("mbs_envs/Planar2R-v0", {}), "FourBar-v0": ("mbs_envs/FourBar-v0", {}),
+                "SerialChain-v0 (n_links=10)": ("mbs_envs/SerialChain-v0", {"n_links": 10}),
+                "SerialChain-v0 (n_links=100)": ("mbs_envs/SerialChain-v0", {"n_links": 100}),
+                "RollingDisk-v0": ("mbs_envs/RollingDisk-v0", {})}  # fmt: skip
     out = {}
     for s in registry.SCENES:
         for kw in getattr(s, "bench_kwargs", ()) or (dict(s.kwargs),):

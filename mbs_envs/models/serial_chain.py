@@ -30,7 +30,7 @@ import numpy as np
 
 from ..dynamics.jit import njit
 from ..dynamics import compiled as _compiled
-from ..dynamics.compiled import rk_run
+from ..dynamics.compiled import batch_theta, rk_run
 from numba import uint64
 
 from ..dynamics.trig import in_range, sincos, sincos_columns
@@ -430,12 +430,11 @@ def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
         Written [rad/s^2].
     """
     N, B = q.shape
-    work = _aba_work(N)
-    one = np.empty(N)
     net = np.empty((N, B))
     _net_torque(v, tau, theta, net)
     tiled = B - B % TILE
-    if tiled > 0:
+    scalar = np.ones(B, np.bool_)  # the members the member path takes: the rest of the batch, and
+    if tiled > 0:  # those with an angle beyond the SIMD sincos's range (libm's there)
         qf, vf, nf = np.ascontiguousarray(q).ravel(), np.ascontiguousarray(v).ravel(), net.ravel()
         pf = np.ascontiguousarray(theta).ravel()
         W, S = np.empty(N * _SLOTS * TILE), np.empty(9 * TILE)
@@ -446,10 +445,11 @@ def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
                 for i in range(N):
                     a[i, b0 + b] = W[_at(i * _SLOTS * TILE, 18, b)]
                     ok &= W[_at(i * _SLOTS * TILE, 19, b)] != 0.0
-                if not ok:  # libm's sincos where the SIMD one is not accurate
-                    _member_acceleration(q, v, net, theta, a, b0 + b, work, one)
-    for k in range(tiled, B):
-        _member_acceleration(q, v, net, theta, a, k, work, one)
+                scalar[b0 + b] = not ok
+    work, one = _aba_work(N), np.empty(N)
+    for k in range(B):  # one call site: the member path is inlined once
+        if scalar[k]:
+            _member_acceleration(q, v, net, theta, a, k, work, one)
 
 
 @njit
@@ -495,8 +495,8 @@ def energy_kernel(q, v, theta, E):  # pragma: no cover - compiled
     Whole tiles by :func:`_energy_tile` (SIMD), the rest and members with an angle beyond
     the SIMD sincos's range by :func:`_energy_member` (the same bits, tested)."""
     N, B = q.shape
-    work = _aba_work(N)
     tiled = B - B % TILE
+    scalar = np.ones(B, np.bool_)
     if tiled > 0:
         qf, vf, pf = np.ascontiguousarray(q).ravel(), np.ascontiguousarray(v).ravel(), np.ascontiguousarray(theta).ravel()
         S = np.empty(10 * TILE)
@@ -504,10 +504,11 @@ def energy_kernel(q, v, theta, E):  # pragma: no cover - compiled
             _energy_tile(qf, vf, pf, N, B, b0, S)
             for b in range(TILE):
                 E[b0 + b] = 0.5 * S[6 * TILE + b] + theta[7 * N, b0 + b] * S[7 * TILE + b]
-                if S[9 * TILE + b] == 0.0:
-                    _energy_one(q, v, theta, E, b0 + b, work)
-    for k in range(tiled, B):
-        _energy_one(q, v, theta, E, k, work)
+                scalar[b0 + b] = S[9 * TILE + b] == 0.0
+    work = _aba_work(N)
+    for k in range(B):
+        if scalar[k]:
+            _energy_one(q, v, theta, E, k, work)
 
 
 @njit(inline="always")
@@ -759,9 +760,16 @@ class SerialChain(Model):
         return self._energies(q, np.zeros(q.shape[-1:]))[1]
 
     def energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """``T + V`` [J], one pass."""
-        T, V = self._energies(q, v)
-        return T + V
+        """``T + V`` [J], one pass: :func:`energy_kernel`, the compiled step's own (the same bits as
+        ``kinetic_energy + potential_energy``; one kernel less to compile on a first reset)."""
+        n = self.n_links
+        q, v = np.broadcast_arrays(as_vector(q, n, "q"), as_vector(v, n, "v"))
+        lead = q.shape[:-1]
+        qc = np.array(q.reshape(-1, n).T, dtype=np.float64, order="C")
+        vc = np.array(v.reshape(-1, n).T, dtype=np.float64, order="C")
+        E = np.empty(qc.shape[1])
+        energy_kernel(qc, vc, batch_theta(self, qc.shape[1]), E)
+        return E.reshape(lead)
 
     # -- compiled path (see :mod:`mbs_envs.dynamics.compiled`) -----------------------------
 
