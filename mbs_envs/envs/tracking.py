@@ -35,7 +35,6 @@ def wrap_angle(x: np.ndarray) -> np.ndarray:
     return (x + np.pi) % (2 * np.pi) - np.pi
 
 
-
 # ---------------------------------------------------------------------------
 # The task's formulas for one member (compiled), and their batched callers
 # ---------------------------------------------------------------------------
