@@ -397,7 +397,8 @@ class RollingDiskEnv(MBSEnv):
         return (float(c[0]), float(c[1]))
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
-        self._trail = collections.deque(maxlen=max(int(self.trail_seconds / self.dt), 2))
+        # points kept: trail_seconds of steps, at most 100,000 (a tiny valid dt would ask for more than memory)
+        self._trail = collections.deque(maxlen=int(max(min(self.trail_seconds / self.dt, 1e5), 2)))
         out = super().reset(seed=seed, options=options)
         self._trail.append(self._contact_point(self._q))
         return out

@@ -86,6 +86,14 @@ def test_constructor_keywords_give_a_working_env_or_a_value_error(pair, value):
     _usable(env)
 
 
+@pytest.mark.parametrize("dt", [5e-324, 2.2250738585e-313, 1e-300])
+def test_every_scene_takes_a_subnormal_or_tiny_dt(dt):
+    """Found by the test above in two runs (1 / dt overflowed render_fps, and the disk's trail length):
+    a valid dt this small builds, resets and steps every scene (deterministic here)."""
+    for env_id in IDS:
+        _usable(gym.make(env_id, dt=dt, disable_env_checker=True))
+
+
 SETTABLE = {"dt": WILD, "substeps": WILD, "start_noise": WILD, "reward_weights": WILD, "divergence_limit": WILD, "u_max": WILD}
 
 
