@@ -188,6 +188,13 @@ def no_constraint_info(q, v, tau, theta, residual, lam):  # pragma: no cover - c
         residual[b] = 0.0
 
 
+def columns_of(x: np.ndarray) -> np.ndarray:
+    """A new float64 array of the rows ``(..., n)`` as contiguous columns ``(n, B)``, the kernels'
+    layout (``B`` the leading dimensions flattened)."""
+    x = np.asarray(x)
+    return np.array(x.reshape(-1, x.shape[-1]).T, dtype=np.float64, order="C")
+
+
 def batch_theta(model: Model, batch: int) -> np.ndarray:
     """``model.kernel_params()`` as contiguous columns ``(P, batch)``, cached on the model
     for its current parameters (read only)."""

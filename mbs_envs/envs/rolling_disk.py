@@ -11,7 +11,6 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from ..dynamics import compiled as _compiled
 from .. import validation as check
 from ..dynamics.jit import njit
 from ..dynamics.trig import wrap
@@ -22,7 +21,6 @@ from .base import MBSEnv
 from .engine import engine_step
 from .rendering import GHOST, GROUND, LINK, Arrow, Dot, Inset, Line, Polygon, Shape, Text, oblique
 from .tracking import _as_columns
-
 
 
 @dataclasses.dataclass(frozen=True)

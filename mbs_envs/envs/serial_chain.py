@@ -158,11 +158,8 @@ class SerialChainEnv(JointTrackingEnv):
 
 
 def drive_chain(n: int, armature: bool = True) -> SerialChain:
-    """The default rope of ``n`` links, bare or with SerialChain-v0's drives' armature."""
-    if not armature:
-        return SerialChain(n_links=n)
-    nominal = SerialChain(n_links=n)
-    return SerialChain(n_links=n, armature=SerialChainEnv.horizontal_gravity_torque(nominal) / SerialChainEnv.rotor_acceleration)
+    """The default rope of ``n`` links: SerialChain-v0's model (its drives' armature), or bare."""
+    return SerialChainEnv(n_links=n).model if armature else SerialChain(n_links=n)
 
 
 def _bent(n: int) -> np.ndarray:

@@ -17,14 +17,9 @@ from ..dynamics.constraints import (
     gauss_newton_projection,
     project_velocities,
 )
-from ..dynamics.compiled import batch_theta
+from ..dynamics.compiled import batch_theta, columns_of
 from ..dynamics.linalg import batched_matvec
 from .base import Model, as_vector
-
-
-def _columns(x: np.ndarray) -> np.ndarray:
-    """A new float64 array of the rows ``(..., n)`` as contiguous columns ``(n, B)``, the kernels' layout."""
-    return np.array(x.reshape(-1, x.shape[-1]).T, dtype=np.float64, order="C")
 
 
 class ConstrainedModel(Model):
@@ -115,7 +110,7 @@ class ConstrainedModel(Model):
         tau = self.generalized_input(u)
         q, v, tau = np.broadcast_arrays(as_vector(q, self.nq, "q"), as_vector(v, self.nv, "v"), tau)
         lead = q.shape[:-1]
-        qc, vc, tc = _columns(q), _columns(v), _columns(tau)
+        qc, vc, tc = columns_of(q), columns_of(v), columns_of(tau)
         B = qc.shape[1]
         res, lam = np.empty(B), np.empty((B, self.nc))
         self.constraint_info_kernel(qc, vc, tc, batch_theta(self, B), res, lam)
@@ -201,7 +196,7 @@ class ConstrainedModel(Model):
             return self.project(q, v, tol)
         q, v = np.broadcast_arrays(as_vector(q, self.nq, "q"), as_vector(v, self.nv, "v"))
         lead = q.shape[:-1]
-        qc, vc = _columns(q), _columns(v)
+        qc, vc = columns_of(q), columns_of(v)
         self.project_kernel(qc, vc, batch_theta(self, qc.shape[1]), float(tol))
         return qc.T.reshape(lead + (self.nq,)), vc.T.reshape(lead + (self.nv,))
 

@@ -27,12 +27,11 @@ import sys
 from typing import Any
 
 import numpy as np
+from numba import uint64
 
 from ..dynamics.jit import njit
 from ..dynamics import compiled as _compiled
-from ..dynamics.compiled import batch_theta, rk_run
-from numba import uint64
-
+from ..dynamics.compiled import batch_theta, columns_of, rk_run
 from ..dynamics.trig import in_range, sincos, sincos_columns
 from .base import Model, Params, as_vector, param, smoothed_friction
 
@@ -765,8 +764,7 @@ class SerialChain(Model):
         n = self.n_links
         q, v = np.broadcast_arrays(as_vector(q, n, "q"), as_vector(v, n, "v"))
         lead = q.shape[:-1]
-        qc = np.array(q.reshape(-1, n).T, dtype=np.float64, order="C")
-        vc = np.array(v.reshape(-1, n).T, dtype=np.float64, order="C")
+        qc, vc = columns_of(q), columns_of(v)
         E = np.empty(qc.shape[1])
         energy_kernel(qc, vc, batch_theta(self, qc.shape[1]), E)
         return E.reshape(lead)
