@@ -31,7 +31,7 @@ from numba import uint64
 
 from ..dynamics.jit import njit
 from ..dynamics import compiled as _compiled
-from ..dynamics.compiled import batch_theta, columns_of, rk_run
+from ..dynamics.compiled import aligned_empty, batch_theta, columns_of, rk_run
 from ..dynamics.trig import in_range, sincos, sincos_columns
 from .base import Model, Params, as_vector, param, smoothed_friction
 
@@ -175,11 +175,12 @@ def _aba_member(q, w, tau, l, r, m, Ic, arm, g, out, work):  # pragma: no cover 
         D[i] = s0 * U[i, 0] + s1 * U[i, 1] + s2 * U[i, 2] + arm[i]
         u[i] = tau[i] - (s0 * pA[i, 0] + s1 * pA[i, 1] + s2 * pA[i, 2])
         if i > 0:
+            Dinv = 1.0 / D[i]  # one division, then U_r (U_k / D) (Pinocchio's UDinv)
             for r_ in range(3):
-                for k in range(3):
-                    Ia[r_, k] = IA[i, r_, k] - U[i, r_] * U[i, k] / D[i]
+                for k in range(3):  # the upper triangle's product in both halves: Ia stays symmetric to the bit
+                    Ia[r_, k] = IA[i, r_, k] - U[i, min(r_, k)] * (U[i, max(r_, k)] * Dinv)
             for r_ in range(3):
-                pa = pA[i, r_] + U[i, r_] * u[i] / D[i]
+                pa = pA[i, r_] + (U[i, r_] * Dinv) * u[i]
                 for k in range(3):
                     pa += Ia[r_, k] * c[i, k]
                     IA[i - 1, r_, k] += Ia[r_, k]
@@ -290,7 +291,7 @@ def _net_torque(v, tau, theta, net):  # pragma: no cover - compiled
 #: known to LLVM, which proves them disjoint and vectorizes the member loops)
 TILE = 32
 #: work slots per link and member in :func:`_aba_tile`
-_SLOTS = 20
+_SLOTS = 18
 
 
 @njit(inline="always")
@@ -301,7 +302,7 @@ def _at(o, slot, b):  # pragma: no cover - compiled
 
 
 @njit
-def _aba_tile(q, v, tau, theta, N, B, b0, W, S):  # pragma: no cover - compiled
+def _aba_tile(q, v, tau, theta, N, B, b0, W, S, A):  # pragma: no cover - compiled
     """:func:`_aba_member` of the members ``b0 .. b0 + TILE - 1`` at once, the member loops innermost
     (SIMD), every operation in the same order as :func:`_aba_member` (bit for bit the same result).
 
@@ -312,17 +313,20 @@ def _aba_tile(q, v, tau, theta, N, B, b0, W, S):  # pragma: no cover - compiled
     theta : ndarray, shape ((7 N + 2) B,)
         The parameters' columns flattened.
     N, B, b0 : int
-    W : ndarray, shape (N * 20 * TILE,)
+    W : ndarray, shape (N * 18 * TILE,)
         Work: per link and member the axis ``(s1, s2)``, bias acceleration ``(c1, c2)``, articulated
-        inertia (6) and bias force (3), ``U`` (3), ``D``, ``u``, the acceleration and whether the
-        absolute angle is inside :data:`mbs_envs.dynamics.trig.SINCOS_RANGE` (written).
-    S : ndarray, shape (9 * TILE,)
+        inertia (6) and bias force (3), ``U`` (3), ``D``, ``u``.
+    S : ndarray, shape (10 * TILE,)
         Work: what the passes carry from link to link (absolute angle, joint position, velocity,
-        acceleration).
+        acceleration); slot 9 ends as whether every absolute angle was inside
+        :data:`mbs_envs.dynamics.trig.SINCOS_RANGE` (1.0) or not (0.0).
+    A : ndarray, shape (N B,)
+        Written: the tile's accelerations [rad/s^2] in the flattened columns.
     """
     for b in range(TILE):  # pass 1: kinematics, velocities, bias accelerations, inertias, bias forces
         for j in range(6):
             S[j * TILE + b] = 0.0
+        S[9 * TILE + b] = 1.0
     for i in range(N):
         o = i * _SLOTS * TILE
         for b in range(TILE):
@@ -352,7 +356,7 @@ def _aba_tile(q, v, tau, theta, N, B, b0, W, S):  # pragma: no cover - compiled
             W[_at(o, 5, b)], W[_at(o, 6, b)] = -mi * cy, mi * cx
             W[_at(o, 7, b)], W[_at(o, 8, b)], W[_at(o, 9, b)] = mi, 0.0, mi
             W[_at(o, 10, b)], W[_at(o, 11, b)], W[_at(o, 12, b)] = v1 * h2 - v2 * h1, -v0 * h2, v0 * h1
-            W[_at(o, 19, b)] = 1.0 if in_range(th) else 0.0
+            S[9 * TILE + b] = S[9 * TILE + b] if in_range(th) else 0.0
     for i in range(N - 1, -1, -1):  # pass 2: articulated inertias (a loop without branches each)
         o = i * _SLOTS * TILE
         for b in range(TILE):
@@ -368,21 +372,23 @@ def _aba_tile(q, v, tau, theta, N, B, b0, W, S):  # pragma: no cover - compiled
             for b in range(TILE):
                 U0, U1, U2, D, u = W[_at(o, 13, b)], W[_at(o, 14, b)], W[_at(o, 15, b)], W[_at(o, 16, b)], W[_at(o, 17, b)]
                 c1, c2 = W[_at(o, 2, b)], W[_at(o, 3, b)]
-                A00 = W[_at(o, 4, b)] - U0 * U0 / D
-                A01 = W[_at(o, 5, b)] - U0 * U1 / D
-                A02 = W[_at(o, 6, b)] - U0 * U2 / D
-                A11 = W[_at(o, 7, b)] - U1 * U1 / D
-                A12 = W[_at(o, 8, b)] - U1 * U2 / D
-                A22 = W[_at(o, 9, b)] - U2 * U2 / D
-                pa0 = W[_at(o, 10, b)] + U0 * u / D
+                Dinv = 1.0 / D
+                V0, V1, V2 = U0 * Dinv, U1 * Dinv, U2 * Dinv
+                A00 = W[_at(o, 4, b)] - U0 * V0
+                A01 = W[_at(o, 5, b)] - U0 * V1
+                A02 = W[_at(o, 6, b)] - U0 * V2
+                A11 = W[_at(o, 7, b)] - U1 * V1
+                A12 = W[_at(o, 8, b)] - U1 * V2
+                A22 = W[_at(o, 9, b)] - U2 * V2
+                pa0 = W[_at(o, 10, b)] + V0 * u
                 pa0 += A00 * 0.0  # c0 = 0, added as _aba_member adds it (signed zeros alike)
                 pa0 += A01 * c1
                 pa0 += A02 * c2
-                pa1 = W[_at(o, 11, b)] + U1 * u / D
+                pa1 = W[_at(o, 11, b)] + V1 * u
                 pa1 += A01 * 0.0
                 pa1 += A11 * c1
                 pa1 += A12 * c2
-                pa2 = W[_at(o, 12, b)] + U2 * u / D
+                pa2 = W[_at(o, 12, b)] + V2 * u
                 pa2 += A02 * 0.0
                 pa2 += A12 * c1
                 pa2 += A22 * c2
@@ -405,7 +411,7 @@ def _aba_tile(q, v, tau, theta, N, B, b0, W, S):  # pragma: no cover - compiled
             a1 = S[7 * TILE + b] + W[_at(o, 2, b)]
             a2 = S[8 * TILE + b] + W[_at(o, 3, b)]
             qdd = (W[_at(o, 17, b)] - (W[_at(o, 13, b)] * a0 + W[_at(o, 14, b)] * a1 + W[_at(o, 15, b)] * a2)) / W[_at(o, 16, b)]
-            W[_at(o, 18, b)] = qdd
+            A[uint64(i * B + b0 + b)] = qdd
             S[6 * TILE + b] = a0 + 1.0 * qdd
             S[7 * TILE + b] = a1 + s1 * qdd
             S[8 * TILE + b] = a2 + s2 * qdd
@@ -429,22 +435,21 @@ def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
         Written [rad/s^2].
     """
     N, B = q.shape
-    net = np.empty((N, B))
+    net = aligned_empty(N * B).reshape((N, B))
     _net_torque(v, tau, theta, net)
     tiled = B - B % TILE
     scalar = np.ones(B, np.bool_)  # the members the member path takes: the rest of the batch, and
     if tiled > 0:  # those with an angle beyond the SIMD sincos's range (libm's there)
         qf, vf, nf = np.ascontiguousarray(q).ravel(), np.ascontiguousarray(v).ravel(), net.ravel()
         pf = np.ascontiguousarray(theta).ravel()
-        W, S = np.empty(N * _SLOTS * TILE), np.empty(9 * TILE)
+        W, S = aligned_empty(N * _SLOTS * TILE), aligned_empty(10 * TILE)
+        af = a.ravel() if a.flags.c_contiguous else aligned_empty(N * B)  # ravel: a view of a
         for b0 in range(0, tiled, TILE):
-            _aba_tile(qf, vf, nf, pf, N, B, b0, W, S)
+            _aba_tile(qf, vf, nf, pf, N, B, b0, W, S, af)
             for b in range(TILE):
-                ok = True
-                for i in range(N):
-                    a[i, b0 + b] = W[_at(i * _SLOTS * TILE, 18, b)]
-                    ok &= W[_at(i * _SLOTS * TILE, 19, b)] != 0.0
-                scalar[b0 + b] = not ok
+                scalar[b0 + b] = S[9 * TILE + b] == 0.0
+        if not a.flags.c_contiguous:
+            a[:, :tiled] = af.reshape((N, B))[:, :tiled]
     work, one = _aba_work(N), np.empty(N)
     for k in range(B):  # one call site: the member path is inlined once
         if scalar[k]:
@@ -498,7 +503,7 @@ def energy_kernel(q, v, theta, E):  # pragma: no cover - compiled
     scalar = np.ones(B, np.bool_)
     if tiled > 0:
         qf, vf, pf = np.ascontiguousarray(q).ravel(), np.ascontiguousarray(v).ravel(), np.ascontiguousarray(theta).ravel()
-        S = np.empty(10 * TILE)
+        S = aligned_empty(10 * TILE)
         for b0 in range(0, tiled, TILE):
             _energy_tile(qf, vf, pf, N, B, b0, S)
             for b in range(TILE):
