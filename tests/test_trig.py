@@ -6,7 +6,9 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mbs_envs.dynamics.trig import SINCOS_RANGE, sincos, sincos_columns
+from numba import njit
+
+from mbs_envs.dynamics.trig import SINCOS_RANGE, sincos, sincos_checked, sincos_columns
 
 
 def ulps(x: np.ndarray, ref: np.ndarray) -> np.ndarray:
@@ -107,3 +109,51 @@ def test_wrap_bits_anywhere(x):
 
     with np.errstate(invalid="ignore"):
         assert np.array_equal(_bits(np.array([wrap(x)])), _bits(np.array([wrap_angle(np.float64(x))])))
+
+
+def test_sum_of_sines_columns_in_one_pass_has_the_elementwise_definitions_bits():
+    """The references' kernel (one SIMD pass, a second with libm when an argument is beyond the
+    SIMD sincos's range) against the module docstring's formulas written elementwise with
+    :func:`sincos_checked`, bit for bit: in range, with some members' ``w t + p`` beyond the range
+    (huge times) and with a NaN time; and against numpy's ``sin``/``cos`` to 1e-12 where in range."""
+    from mbs_envs.envs.references import sum_of_sines_columns
+
+    @njit
+    def elementwise(t, center, rate, A, w, p):
+        n, K, B = A.shape
+        out = np.empty((3, n, B))
+        for i in range(n):
+            for b in range(B):
+                q, dq, ddq = 0.0, 0.0, 0.0
+                for k in range(K):
+                    s, c = sincos_checked(w[i, k, b] * t[b] + p[i, k, b])
+                    As = A[i, k, b] * s
+                    q += As
+                    dq += A[i, k, b] * w[i, k, b] * c
+                    ddq += As * w[i, k, b] ** 2
+                out[0, i, b] = center[i, b] + q + rate[i, b] * t[b]
+                out[1, i, b] = dq + rate[i, b]
+                out[2, i, b] = -ddq
+        return out
+
+    rng = np.random.default_rng(3)
+    n, K, B = 4, 3, 37
+    center, rate = rng.normal(size=(n, B)), rng.normal(size=(n, B))
+    A, w, p = rng.normal(size=(n, K, B)), rng.uniform(0.2, 3, (n, K, B)), rng.uniform(0, 6, (n, K, B))
+    for case in ("in range", "beyond", "nan"):
+        t = rng.uniform(0, 20, B)
+        if case == "beyond":
+            t[[2, 30]] = [1e9, -3e12]
+        if case == "nan":
+            t[5] = np.nan
+        out = np.empty((3, n, B))
+        sum_of_sines_columns(t, center, rate, A, w, p, out[0], out[1], out[2])
+        ref = elementwise(t, center, rate, A, w, p)
+        same = (out.view(np.int64) == ref.view(np.int64)) | (np.isnan(out) & np.isnan(ref))
+        assert same.all(), case
+        if case == "in range":
+            x = w * t + p
+            q = center + rate * t + np.sum(A * np.sin(x), axis=1)
+            np.testing.assert_allclose(out[0], q, rtol=0, atol=1e-12 * np.abs(q).max())
+            v = rate + np.sum(A * w * np.cos(x), axis=1)
+            np.testing.assert_allclose(out[1], v, rtol=0, atol=1e-12 * np.abs(v).max())

@@ -232,7 +232,9 @@ class MBSEnv(gym.Env):
             cached = self._info_columns_cache = (c, tuple(columns[1:]))
         return cached
 
-    def run_step_kernel(self, model: Model, q, v, t, task_columns: tuple, action, tab: TableauArrays | None = None) -> tuple:
+    def run_step_kernel(
+        self, model: Model, q, v, t, task_columns: tuple, action, tab: TableauArrays | None = None, full_info: bool = True
+    ) -> tuple:
         """The compiled control step of a batch of rows (a single env: one row), in place.
 
         Parameters
@@ -249,6 +251,9 @@ class MBSEnv(gym.Env):
             Validated and clipped.
         tab : TableauArrays, optional
             :attr:`compiled` (looked up when not given).
+        full_info : bool
+            Whether the ``info`` quantities no step needs are computed (the energy; as
+            :meth:`step_rows`'s ``full_info``); if not, its column is NaN.
 
         Returns
         -------
@@ -265,7 +270,8 @@ class MBSEnv(gym.Env):
         obs = np.empty((B,) + self.observation_space.shape, np.float32)
         bad, terminated = np.empty(B, bool), np.zeros(B, bool)
         stepper = tab.packed(self.dt / self.substeps, self.substeps, projection_tol(self.stabilization))
-        control = (float(self.dt), float(self.divergence_limit), float(self.residual_limit), self.u_max, self._actuated, model.nc)
+        control = (float(self.dt), float(self.divergence_limit), float(self.residual_limit), self.u_max, self._actuated, model.nc,
+                   bool(full_info))  # fmt: skip
         self.step_kernel(  # compiled code raises no floating-point warnings
             batch_theta(model, B), stepper, control, self.task_arguments() + task_columns,
             (q, v, t, action), (u, obs, info, bad, terminated),

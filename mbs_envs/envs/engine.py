@@ -13,12 +13,13 @@ The sequence is :meth:`MBSEnv.step`'s numpy one:
    constraint residual beyond ``residual_limit``; a diverged member keeps its state;
 4. ``t += dt``; the task's kernel writes the observation, the reward and its
    terms, its ``info`` quantities and its termination;
-5. the model's energy, and for constrained models the constraint residual and
+5. the model's energy (unless ``full`` is False), and for constrained models the constraint residual and
    the multipliers, complete ``info``.
 
 Arguments are packed tuples (no long positional lists):
 
-- ``control = (dt, limit, residual_limit, u_max, actuated, nc)``;
+- ``control = (dt, limit, residual_limit, u_max, actuated, nc, full)``; ``full`` False skips the
+  energy (its ``info`` column NaN), which no step needs;
 - ``task``: the task's own tuple (its static arguments, then its per-member
   columns; see the task's ``task_arguments`` and ``task_columns``);
 - ``state = (q, v, t, action)``: rows ``(B, n)``, ``(B, n)``, ``(B,)`` updated
@@ -57,7 +58,7 @@ def engine_step(advance, energy, constraint_info, singular, task_step, theta, st
     control, task, state, out : tuple
         See the module docstring.
     """
-    dt, limit, residual_limit, u_max, actuated, nc = control
+    dt, limit, residual_limit, u_max, actuated, nc, full = control
     q, v, t, action = state
     u, obs, info, bad, terminated = out
     B, n = q.shape
@@ -93,8 +94,9 @@ def engine_step(advance, energy, constraint_info, singular, task_step, theta, st
     if reverted:  # the info of the states kept
         constraint_info(qc, vc, tau, theta, residual, lam)
     task_step(qc, vc, t, ac, task, obs, info, terminated)
-    E = np.empty(B)
-    energy(qc, vc, theta, E)
+    E = np.full(B, np.nan)
+    if full:
+        energy(qc, vc, theta, E)
     c = info.shape[1] - 1 - (1 + nc if nc > 0 else 0)
     for b in range(B):
         terminated[b] = terminated[b] or bad[b]

@@ -15,13 +15,25 @@ from __future__ import annotations
 import dataclasses
 
 from ..dynamics.jit import njit
-from ..dynamics.trig import sincos_columns
+from ..dynamics.trig import in_range, sincos, sincos_libm
 import numpy as np
+
+
+@njit(inline="always")
+def _components(t, amplitude, omega, phase, i, k, b, s, c):  # pragma: no cover - compiled
+    """Component ``k`` of coordinate ``i``, member ``b``, given ``s, c = sin, cos(w t + p)``:
+    its terms ``(A sin, A w cos, A sin w^2)`` of ``q_ref, v_ref, -a_ref``."""
+    w = omega[i, k, b]
+    As = amplitude[i, k, b] * s
+    return As, amplitude[i, k, b] * w * c, As * w**2
 
 
 @njit
 def sum_of_sines_columns(t, center, rate, amplitude, omega, phase, q_ref, v_ref, a_ref):  # pragma: no cover
     """The reference formulas (module docstring) of ``B`` members at their times ``t``, in columns.
+
+    One SIMD pass (:func:`mbs_envs.dynamics.trig.sincos`); if some argument ``w t + p`` is beyond
+    its range, a second pass of the whole batch with libm's there (the same bits either way).
 
     Parameters
     ----------
@@ -33,7 +45,7 @@ def sum_of_sines_columns(t, center, rate, amplitude, omega, phase, q_ref, v_ref,
         Outputs [rad], [rad/s], [rad/s^2].
     """
     n, K, B = amplitude.shape
-    arg, s, c = np.empty(B), np.empty(B), np.empty(B)
+    ok = True
     for i in range(n):
         for b in range(B):
             q_ref[i, b] = 0.0
@@ -41,14 +53,32 @@ def sum_of_sines_columns(t, center, rate, amplitude, omega, phase, q_ref, v_ref,
             a_ref[i, b] = 0.0
         for k in range(K):
             for b in range(B):
-                arg[b] = omega[i, k, b] * t[b] + phase[i, k, b]
-            sincos_columns(arg, s, c)
+                x = omega[i, k, b] * t[b] + phase[i, k, b]
+                s, c = sincos(x)
+                ok &= in_range(x)
+                dq, dv, da = _components(t, amplitude, omega, phase, i, k, b, s, c)
+                q_ref[i, b] += dq
+                v_ref[i, b] += dv
+                a_ref[i, b] += da
+        for b in range(B):
+            q_ref[i, b] = center[i, b] + q_ref[i, b] + rate[i, b] * t[b]
+            v_ref[i, b] = v_ref[i, b] + rate[i, b]
+            a_ref[i, b] = -a_ref[i, b]
+    if ok:
+        return
+    for i in range(n):  # some argument beyond the SIMD range: again, libm's sincos there
+        for b in range(B):
+            q_ref[i, b] = 0.0
+            v_ref[i, b] = 0.0
+            a_ref[i, b] = 0.0
+        for k in range(K):
             for b in range(B):
-                w = omega[i, k, b]
-                As = amplitude[i, k, b] * s[b]
-                q_ref[i, b] += As
-                v_ref[i, b] += amplitude[i, k, b] * w * c[b]
-                a_ref[i, b] += As * w**2
+                x = omega[i, k, b] * t[b] + phase[i, k, b]
+                s, c = sincos(x) if in_range(x) else sincos_libm(x)
+                dq, dv, da = _components(t, amplitude, omega, phase, i, k, b, s, c)
+                q_ref[i, b] += dq
+                v_ref[i, b] += dv
+                a_ref[i, b] += da
         for b in range(B):
             q_ref[i, b] = center[i, b] + q_ref[i, b] + rate[i, b] * t[b]
             v_ref[i, b] = v_ref[i, b] + rate[i, b]

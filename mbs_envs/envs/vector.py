@@ -273,7 +273,9 @@ class MBSVectorEnv(VectorEnv):
         env = self.env
         if self._task_columns is None:
             self._task_columns = env.task_columns(self._task)
-        obs, values, self._u, bad, terminated = env.run_step_kernel(self.model, self._q, self._v, self._t, self._task_columns, a)
+        obs, values, self._u, bad, terminated = env.run_step_kernel(
+            self.model, self._q, self._v, self._t, self._task_columns, a, full_info=self.full_info
+        )
         return obs, values[:, 0].copy(), bad, terminated, env.info_rows(values) if self.full_info else {}
 
     def _restart(self, idx: np.ndarray) -> np.ndarray:

@@ -52,6 +52,26 @@ def test_vector_env_equals_single_envs_over_200_steps_with_autoresets(env_id):
     assert resets >= n * 3
 
 
+@pytest.mark.parametrize("env_id", IDS)
+def test_full_info_false_steps_alike_and_leaves_out_only_the_info(env_id):
+    """``full_info=False`` (the SB3 adapter's setting; the compiled step then skips the energy) gives
+    the very same observations, rewards, ends and divergence flags as ``full_info=True``."""
+    kw = dict(num_envs=4, vectorization_mode="vector_entry_point", max_episode_steps=EPISODE, **SMALL.get(env_id, {}))
+    full, lean = gym.make_vec(env_id, **kw), gym.make_vec(env_id, full_info=False, **kw)
+    o1, _ = full.reset(seed=5)
+    o2, _ = lean.reset(seed=5)
+    np.testing.assert_array_equal(o1, o2)
+    rng = np.random.default_rng(1)
+    for _ in range(60):
+        a = rng.uniform(-1.2, 1.2, full.action_space.shape)
+        s1, s2 = full.step(a), lean.step(a)
+        for x1, x2 in zip(s1[:4], s2[:4]):
+            np.testing.assert_array_equal(x1, x2)
+        np.testing.assert_array_equal(s1[4]["diverged"], s2[4]["diverged"])
+        assert "energy" in s1[4] and "energy" not in s2[4]
+        assert np.all(np.isfinite(s1[4]["energy"]))
+
+
 @pytest.mark.parametrize("env_id", ["mbs_envs/Planar2R-v0", "mbs_envs/RollingDisk-v0"])
 def test_same_step_autoreset_reports_the_final_observation(env_id):
     venv, singles = make_pair(env_id, 2, AutoresetMode.SAME_STEP)
