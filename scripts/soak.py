@@ -39,7 +39,10 @@ from mbs_envs import stiff_cases as sc
 from mbs_envs.studies.plotting import pyplot, save
 
 
-def run(out: pathlib.Path, episodes: int, quick: bool = False, ids: list[str] | None = None, processes: bool = True) -> dict:
+def run(out: pathlib.Path, episodes: int, quick: bool = False, ids: list[str] | None = None, processes: bool = True,
+        integrator_episodes: int | None = None, integrator_envs: int = 16) -> dict:  # fmt: skip
+    """All parts of the soak; ``integrator_episodes`` (default 8 with ``quick``, else 32) random episodes
+    per integrator and id on ``integrator_envs`` members."""
     out.mkdir(parents=True, exist_ok=True)
     ids = ids or list(mbs_envs.ENV_IDS)
     soak = [rl.random_episodes(i, episodes) for i in tqdm(ids, desc="random episodes")]
@@ -48,7 +51,8 @@ def run(out: pathlib.Path, episodes: int, quick: bool = False, ids: list[str] | 
     edges = rl.parameter_edges()
     models = {i: registry.load(registry.scene(i).model)() for i in ids}
     pairs = [(i, name) for name in integrators.available() for i in ids if integrators.applies(name, models[i])]
-    per_integrator = [rl.integrator_soak(i, name, episodes=8 if quick else 32) for i, name in tqdm(pairs, desc="integrators")]
+    n_int = integrator_episodes or (8 if quick else 32)
+    per_integrator = [rl.integrator_soak(i, name, episodes=n_int, num_envs=integrator_envs) for i, name in tqdm(pairs, desc="integrators")]
     result = {"episodes_per_id": episodes, "soak": soak, "determinism": det, "long_runs": long, "edges": edges,
               "integrators": per_integrator}  # fmt: skip
     (out / "soak.json").write_text(json.dumps(result, indent=2, default=float))
@@ -78,7 +82,9 @@ def report(r: dict) -> str:
     for x in r["long_runs"]:
         c = "-" if not np.isfinite(x["constraint_error"]) else f"{x['constraint_error']:.1e}"
         L.append(f"| {x['scene']} | {x['steps']} | {x['dt']:g} | {x['energy_drift']:.2e} | {x['energy_drift_relative']:.2e} | {c} | {x['diverged']} |")
-    L += ["", "## Every integrator (random-action episodes of 100 steps on 16 batched members; then 4 runaway episodes at a 1e200 N m torque limit)", "",
+    first = r["integrators"][0] if r["integrators"] else {}
+    L += ["", f"## Every integrator (random-action episodes of {first.get('episode_steps', 100)} steps on {first.get('num_envs', 16)} batched "
+          "members; then 4 runaway episodes at a 1e200 N m torque limit)", "",
           "| integrator | id | episodes | steps | slowest batched step [ms] | divergences reported | non-finite outputs | exceptions | hangs | runaway steps flagged | worst diverging step [ms] |",
           "|---|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
     for x in r.get("integrators", []):

@@ -99,7 +99,8 @@ def integrator_soak(env_id: str, integrator: str, episodes: int = 32, num_envs: 
     """
     import time
 
-    out = {"env_id": env_id, "integrator": integrator, "exceptions": 0, "hangs": 0, "nonfinite": 0, "errors": []}
+    out = {"env_id": env_id, "integrator": integrator, "num_envs": num_envs, "episode_steps": episode_steps,
+           "exceptions": 0, "hangs": 0, "nonfinite": 0, "errors": []}  # fmt: skip
     old = signal.signal(signal.SIGALRM, _alarm)
 
     def guarded(fn: Any, bound: int | None = hang_s) -> Any:
