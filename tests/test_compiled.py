@@ -482,3 +482,26 @@ def test_chain_kernels_take_whole_tiles_by_simd_with_the_member_paths_bits():
             sc.energy_kernel(q[:, k : k + 1].copy(), v[:, k : k + 1].copy(), th, E1)
             assert np.array_equal(a[:, k].view(np.int64), a1[:, 0].view(np.int64)) or np.isnan(a[:, k]).all() and np.isnan(a1).all(), (friction, k)
             assert E[k].tobytes() == E1[0].tobytes() or np.isnan(E[k]) and np.isnan(E1[0]), (friction, k)
+
+
+def test_aligned_copies_and_work_arrays_start_on_a_64_byte_boundary():
+    """``compiled.aligned`` (numpy) and ``aligned_empty`` (compiled) give arrays on a cache-line
+    boundary, of the requested size, the copy equal to its input (any layout and dtype)."""
+    from numba import njit
+
+    from mbs_envs.dynamics.compiled import ALIGN, aligned, aligned_empty
+
+    @njit
+    def address_and_size(n):
+        x = aligned_empty(n)
+        x[:] = 1.0
+        return x.ctypes.data % ALIGN, x.size
+
+    for n in (0, 1, 7, 8, 9, 1000):
+        assert address_and_size(n) == (0, n)
+    rng = np.random.default_rng(0)
+    for x in (rng.normal(size=(3, 5)).T, np.arange(12, dtype=np.int32).reshape(3, 4)[:, ::2], np.zeros((0, 4)),
+              rng.normal(size=(2, 3, 4)).astype(">f8")):  # fmt: skip
+        y = aligned(x)
+        assert (y.ctypes.data % ALIGN == 0 or y.size == 0) and y.flags.c_contiguous and y.dtype == np.float64
+        np.testing.assert_array_equal(y, x)

@@ -203,6 +203,18 @@ def no_constraint_info(q, v, tau, theta, residual, lam):  # pragma: no cover - c
         residual[b] = 0.0
 
 
+def aligned(x: Any) -> np.ndarray:
+    """A new C-contiguous float64 copy of ``x`` whose data starts on an :data:`ALIGN`-byte boundary
+    (numpy's allocator aligns to 16 bytes): the arrays the kernels' SIMD loops read once per step
+    (parameters, references), like :func:`aligned_empty`'s work arrays."""
+    x = np.asarray(x, dtype=np.float64)
+    raw = np.empty(x.size + ALIGN // 8)
+    skip = (-raw.ctypes.data % ALIGN) // 8
+    out = raw[skip : skip + x.size].reshape(x.shape)
+    out[...] = x
+    return out
+
+
 def columns_of(x: np.ndarray) -> np.ndarray:
     """A new float64 array of the rows ``(..., n)`` as contiguous columns ``(n, B)``, the kernels'
     layout (``B`` the leading dimensions flattened)."""
@@ -216,7 +228,7 @@ def batch_theta(model: Model, batch: int) -> np.ndarray:
     cached = model.__dict__.get("_theta_cache")
     if cached is None or cached[0] is not model.params or cached[1] != batch:
         theta = np.asarray(model.kernel_params(), float)
-        theta = np.ascontiguousarray(np.broadcast_to(theta, (batch, theta.shape[-1])).T)
+        theta = aligned(np.broadcast_to(theta, (batch, theta.shape[-1])).T)
         theta.flags.writeable = False
         cached = model.__dict__["_theta_cache"] = (model.params, batch, theta)
     return cached[2]

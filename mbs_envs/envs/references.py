@@ -14,18 +14,18 @@ from __future__ import annotations
 
 import dataclasses
 
+from ..dynamics.compiled import aligned
 from ..dynamics.jit import njit
 from ..dynamics.trig import in_range, sincos, sincos_libm
 import numpy as np
 
 
 @njit(inline="always")
-def _components(t, amplitude, omega, phase, i, k, b, s, c):  # pragma: no cover - compiled
-    """Component ``k`` of coordinate ``i``, member ``b``, given ``s, c = sin, cos(w t + p)``:
-    its terms ``(A sin, A w cos, A sin w^2)`` of ``q_ref, v_ref, -a_ref``."""
-    w = omega[i, k, b]
-    As = amplitude[i, k, b] * s
-    return As, amplitude[i, k, b] * w * c, As * w**2
+def _components(A, w, s, c):  # pragma: no cover - compiled
+    """One component's terms ``(A sin, A w cos, A sin w^2)`` of ``q_ref, v_ref, -a_ref``, given
+    ``s, c = sin, cos(w t + p)``."""
+    As = A * s
+    return As, A * w * c, As * w**2
 
 
 @njit
@@ -44,45 +44,43 @@ def sum_of_sines_columns(t, center, rate, amplitude, omega, phase, q_ref, v_ref,
     q_ref, v_ref, a_ref : ndarray, shape (n, B)
         Outputs [rad], [rad/s], [rad/s^2].
     """
+    if not _sums(t, center, rate, amplitude, omega, phase, q_ref, v_ref, a_ref, False):
+        _sums(t, center, rate, amplitude, omega, phase, q_ref, v_ref, a_ref, True)
+
+
+@njit(inline="always")
+def _sums(t, center, rate, amplitude, omega, phase, q_ref, v_ref, a_ref, exact):  # pragma: no cover - compiled
+    """:func:`sum_of_sines_columns`'s pass: with the SIMD sincos (``exact`` False; returns whether
+    every argument was in its range), or with libm's beyond the range (``exact`` True). A constant
+    ``exact`` at each (inlined) call: each pass is a loop without that branch. Rows are taken as
+    1-d views, whose loops LLVM vectorizes (it did not vectorize the 3-d indexing)."""
     n, K, B = amplitude.shape
     ok = True
     for i in range(n):
+        qi, vi, ai = q_ref[i], v_ref[i], a_ref[i]
         for b in range(B):
-            q_ref[i, b] = 0.0
-            v_ref[i, b] = 0.0
-            a_ref[i, b] = 0.0
+            qi[b] = 0.0
+            vi[b] = 0.0
+            ai[b] = 0.0
         for k in range(K):
+            Ak, wk, pk = amplitude[i, k], omega[i, k], phase[i, k]
             for b in range(B):
-                x = omega[i, k, b] * t[b] + phase[i, k, b]
-                s, c = sincos(x)
-                ok &= in_range(x)
-                dq, dv, da = _components(t, amplitude, omega, phase, i, k, b, s, c)
-                q_ref[i, b] += dq
-                v_ref[i, b] += dv
-                a_ref[i, b] += da
+                x = wk[b] * t[b] + pk[b]
+                if exact:
+                    s, c = sincos(x) if in_range(x) else sincos_libm(x)
+                else:
+                    s, c = sincos(x)
+                    ok &= in_range(x)
+                dq, dv, da = _components(Ak[b], wk[b], s, c)
+                qi[b] += dq
+                vi[b] += dv
+                ai[b] += da
+        ci, ri = center[i], rate[i]
         for b in range(B):
-            q_ref[i, b] = center[i, b] + q_ref[i, b] + rate[i, b] * t[b]
-            v_ref[i, b] = v_ref[i, b] + rate[i, b]
-            a_ref[i, b] = -a_ref[i, b]
-    if ok:
-        return
-    for i in range(n):  # some argument beyond the SIMD range: again, libm's sincos there
-        for b in range(B):
-            q_ref[i, b] = 0.0
-            v_ref[i, b] = 0.0
-            a_ref[i, b] = 0.0
-        for k in range(K):
-            for b in range(B):
-                x = omega[i, k, b] * t[b] + phase[i, k, b]
-                s, c = sincos(x) if in_range(x) else sincos_libm(x)
-                dq, dv, da = _components(t, amplitude, omega, phase, i, k, b, s, c)
-                q_ref[i, b] += dq
-                v_ref[i, b] += dv
-                a_ref[i, b] += da
-        for b in range(B):
-            q_ref[i, b] = center[i, b] + q_ref[i, b] + rate[i, b] * t[b]
-            v_ref[i, b] = v_ref[i, b] + rate[i, b]
-            a_ref[i, b] = -a_ref[i, b]
+            qi[b] = ci[b] + qi[b] + ri[b] * t[b]
+            vi[b] = vi[b] + ri[b]
+            ai[b] = -ai[b]
+    return ok
 
 
 @dataclasses.dataclass(frozen=True)
@@ -141,7 +139,7 @@ class SumOfSines:
 
         def columns(x, tail):
             rows = np.broadcast_to(x, lead + tail).reshape((-1,) + tail)
-            return np.array(np.moveaxis(rows, 0, -1), float, order="C")
+            return aligned(np.moveaxis(rows, 0, -1))  # on a 64-byte boundary: read by SIMD loops every step
 
         return (*(columns(x, (n,)) for x in (self.center, rate)),
                 *(columns(x, (n, K)) for x in (self.amplitude, self.omega, self.phase)))  # fmt: skip

@@ -21,6 +21,7 @@ import dataclasses
 from typing import Any, ClassVar
 
 import gymnasium as gym
+from ..dynamics.compiled import aligned_empty
 from ..dynamics.jit import njit
 import numpy as np
 
@@ -56,8 +57,9 @@ def error_columns(q, q_ref, tracked, e):  # pragma: no cover - compiled
     """
     ok = True
     for j in range(tracked.shape[0]):  # one SIMD pass (exact where ok), then the rest by fmod
+        qj, rj, ej = q[tracked[j]], q_ref[j], e[j]  # rows: LLVM vectorized the 2-d indexing of q[tracked[j], b] not
         for b in range(q.shape[1]):
-            e[j, b], ok_b = wrap_fast(q_ref[j, b] - q[tracked[j], b])
+            ej[b], ok_b = wrap_fast(rj[b] - qj[b])
             ok &= ok_b
     if not ok:
         for j in range(tracked.shape[0]):
@@ -113,14 +115,15 @@ def reward_columns(v, e, v_ref, action, tracked, weights, terms):  # pragma: no 
     B = v.shape[1]
     s_e, s_de, s_u = np.zeros(B), np.zeros(B), np.zeros(B)
     for j in range(tracked.shape[0]):
+        ej, rj, vj = e[j], v_ref[j], v[tracked[j]]  # rows (SIMD; see error_columns)
         for b in range(B):
-            ej = e[j, b]
-            de = v_ref[j, b] - v[tracked[j], b]
-            s_e[b] += ej * ej
+            de = rj[b] - vj[b]
+            s_e[b] += ej[b] * ej[b]
             s_de[b] += de * de
     for k in range(action.shape[0]):
+        ak = action[k]
         for b in range(B):
-            s_u[b] += action[k, b] * action[k, b]
+            s_u[b] += ak[b] * ak[b]
     for b in range(B):
         r_e = -weights[0] * s_e[b]
         r_de = -weights[1] * s_de[b]
@@ -153,9 +156,9 @@ def tracking_task(q, v, t, action, task, obs, info, terminated):  # pragma: no c
     tracked, weights, center, rate, amplitude, omega, phase = task
     B = q.shape[1]
     m = tracked.shape[0]
-    refs = np.empty((3, m, B))
+    refs = aligned_empty(3 * m * B).reshape((3, m, B))
     sum_of_sines_columns(t, center, rate, amplitude, omega, phase, refs[0], refs[1], refs[2])
-    e = np.empty((m, B))
+    e = aligned_empty(m * B).reshape((m, B))
     error_columns(q, refs[0], tracked, e)
     reward_columns(v, e, refs[1], action, tracked, weights, info)
     encode_columns(q, v, e, refs[1], refs[2], obs)
