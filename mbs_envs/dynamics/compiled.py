@@ -104,7 +104,7 @@ def projection_tol(stabilization: Any) -> float:
 _arrays_of = functools.cache(TableauArrays.of)
 
 
-@njit(cache=False)  # takes kernels as arguments: cached inside the module-level bindings that call it
+@njit(cache=False, inline="always")  # takes kernels as arguments: cached inside the module-level bindings that call it
 def rk_columns(acc, after, theta, A_v, A_q, b_v, b_q, needed, q, v, tau, h, substeps, tol, Q, V, K):  # pragma: no cover
     """Advance every column of ``q, v`` (n, B) ``substeps`` steps of size ``h``, in place.
 
@@ -156,14 +156,15 @@ ALIGN = 64
 @njit(inline="always")
 def aligned_empty(size):  # pragma: no cover - compiled
     """An uninitialized float64 array of ``size`` elements whose data starts on an :data:`ALIGN`-byte
-    boundary. numba's ``np.empty`` aligns to less; the SIMD loops of the tile kernels over a
-    misaligned array split their loads across cache lines (measured: ~20 % slower)."""
+    boundary (numba's ``np.empty`` aligns to 32 bytes, numpy's to 16; the SIMD loops of
+    ``SerialChain``'s tile kernels ran ~5 % slower on 32 and ~20 % on 16 or 8). One-dimensional:
+    a ``reshape`` in a kernel compiles numba's error-message machinery (seconds at a cold start)."""
     raw = np.empty(size + ALIGN // 8)
     skip = (ALIGN - raw.ctypes.data % ALIGN) % ALIGN // 8
     return raw[skip : skip + size]
 
 
-@njit(cache=False)  # takes kernels as arguments: cached inside the module-level bindings that call it
+@njit(cache=False, inline="always")  # takes kernels as arguments: cached inside the module-level bindings that call it
 def rk_run(acc, after, theta, stepper, q, v, tau):  # pragma: no cover - compiled
     """:func:`rk_columns` allocating its work arrays; ``acc, after`` are bound by the caller's compilation.
 
@@ -179,8 +180,7 @@ def rk_run(acc, after, theta, stepper, q, v, tau):  # pragma: no cover - compile
     """
     A_v, A_q, b_v, b_q, needed, h, substeps, tol = stepper
     shape = (A_v.shape[0], q.shape[0], q.shape[1])
-    size = shape[0] * shape[1] * shape[2]
-    Q, V, K = aligned_empty(size).reshape(shape), aligned_empty(size).reshape(shape), aligned_empty(size).reshape(shape)
+    Q, V, K = np.empty(shape), np.empty(shape), np.empty(shape)
     rk_columns(acc, after, theta, A_v, A_q, b_v, b_q, needed, q, v, tau, h, substeps, tol, Q, V, K)
 
 

@@ -21,7 +21,6 @@ import dataclasses
 from typing import Any, ClassVar
 
 import gymnasium as gym
-from ..dynamics.compiled import aligned_empty
 from ..dynamics.jit import njit
 import numpy as np
 
@@ -156,9 +155,9 @@ def tracking_task(q, v, t, action, task, obs, info, terminated):  # pragma: no c
     tracked, weights, center, rate, amplitude, omega, phase = task
     B = q.shape[1]
     m = tracked.shape[0]
-    refs = aligned_empty(3 * m * B).reshape((3, m, B))
+    refs = np.empty((3, m, B))
     sum_of_sines_columns(t, center, rate, amplitude, omega, phase, refs[0], refs[1], refs[2])
-    e = aligned_empty(m * B).reshape((m, B))
+    e = np.empty((m, B))
     error_columns(q, refs[0], tracked, e)
     reward_columns(v, e, refs[1], action, tracked, weights, info)
     encode_columns(q, v, e, refs[1], refs[2], obs)

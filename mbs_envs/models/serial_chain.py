@@ -435,7 +435,7 @@ def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
         Written [rad/s^2].
     """
     N, B = q.shape
-    net = aligned_empty(N * B).reshape((N, B))
+    net = np.empty((N, B))
     _net_torque(v, tau, theta, net)
     tiled = B - B % TILE
     scalar = np.ones(B, np.bool_)  # the members the member path takes: the rest of the batch, and
@@ -449,7 +449,9 @@ def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
             for b in range(TILE):
                 scalar[b0 + b] = S[9 * TILE + b] == 0.0
         if not a.flags.c_contiguous:
-            a[:, :tiled] = af.reshape((N, B))[:, :tiled]
+            for i in range(N):
+                for b in range(tiled):
+                    a[i, b] = af[i * B + b]
     work, one = _aba_work(N), np.empty(N)
     for k in range(B):  # one call site: the member path is inlined once
         if scalar[k]:
