@@ -20,6 +20,12 @@ only by rounding: of the models' linear solves (Cramer's rule against Cholesky)
 and of sines and cosines (:func:`mbs_envs.dynamics.trig.sincos` against libm, 1 ulp);
 tested to 1e-12.
 
+Compile time: numba links a callee's code into its caller and optimizes the whole again, so
+every level of calls pays for everything below it. The levels that only forward (:func:`rk_run`,
+:func:`rk_columns`, :func:`mbs_envs.envs.engine.engine_step`) are therefore inlined
+(``inline="always"``, at numba's IR), and kernels take no ``reshape`` (it compiles numba's
+error-message formatting); the cold start this saves is in docs/performance.md.
+
 Constrained models (:mod:`mbs_envs.dynamics.constraints`) bind the same stepper with their
 Schur-complement accelerations and the projection after every step (the ``after``
 kernel of :func:`rk_run`). The numpy path stays the general one (implicit and
