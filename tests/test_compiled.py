@@ -505,3 +505,32 @@ def test_aligned_copies_and_work_arrays_start_on_a_64_byte_boundary():
         y = aligned(x)
         assert (y.ctypes.data % ALIGN == 0 or y.size == 0) and y.flags.c_contiguous and y.dtype == np.float64
         np.testing.assert_array_equal(y, x)
+
+
+def test_chain_acceleration_kernel_writes_any_output_layout():
+    """The chain's acceleration kernel fills its output whatever its layout: contiguous, strided, and
+    typed non-contiguous by numba while contiguous at run time (a slice in compiled code, which
+    numba's ``ravel`` copies); every element is written (the output starts as a sentinel)."""
+    from numba import njit
+
+    from mbs_envs.models import SerialChain
+    from mbs_envs.models import serial_chain as sc
+
+    N, B = 5, 2 * sc.TILE + 6
+    theta = batch_theta(SerialChain(n_links=N), B)
+    rng = np.random.default_rng(7)
+    q, v, tau = rng.normal(size=(N, B)), rng.normal(size=(N, B)), rng.normal(size=(N, B))
+    ref = np.empty((N, B))
+    sc.acceleration_kernel(q, v, tau, theta, ref)
+
+    @njit
+    def through_a_slice(q, v, tau, theta, out):
+        sc.acceleration_kernel(q, v, tau, theta, out[:, 0 : q.shape[1]])
+
+    strided = np.full((N, 2 * B), 7.0)
+    sc.acceleration_kernel(q, v, tau, theta, strided[:, ::2])
+    sliced = np.full((N, B), 7.0)
+    through_a_slice(q, v, tau, theta, sliced)
+    np.testing.assert_array_equal(strided[:, ::2], ref)
+    np.testing.assert_array_equal(strided[:, 1::2], 7.0)
+    np.testing.assert_array_equal(sliced, ref)

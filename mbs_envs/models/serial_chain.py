@@ -443,12 +443,14 @@ def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
         qf, vf, nf = np.ascontiguousarray(q).ravel(), np.ascontiguousarray(v).ravel(), net.ravel()
         pf = np.ascontiguousarray(theta).ravel()
         W, S = aligned_empty(N * _SLOTS * TILE), aligned_empty(10 * TILE)
-        af = a.ravel() if a.flags.c_contiguous else aligned_empty(N * B)  # ravel: a view of a
+        # the tiles write flat columns: a itself when ravel gives a view, else a buffer copied back
+        # (numba's ravel copies an array typed non-contiguous even when it is contiguous at run time)
+        af = a.ravel() if a.flags.c_contiguous else aligned_empty(N * B)
         for b0 in range(0, tiled, TILE):
             _aba_tile(qf, vf, nf, pf, N, B, b0, W, S, af)
             for b in range(TILE):
                 scalar[b0 + b] = S[9 * TILE + b] == 0.0
-        if not a.flags.c_contiguous:
+        if af.ctypes.data != a.ctypes.data:
             for i in range(N):
                 for b in range(tiled):
                     a[i, b] = af[i * B + b]
