@@ -166,7 +166,7 @@ def aligned_empty(size):  # pragma: no cover - compiled
     ``SerialChain``'s tile kernels ran ~5 % slower on 32 and ~20 % on 16 or 8). One-dimensional:
     a ``reshape`` in a kernel compiles numba's error-message machinery (seconds at a cold start)."""
     raw = np.empty(size + ALIGN // 8)
-    skip = (ALIGN - raw.ctypes.data % ALIGN) % ALIGN // 8
+    skip = (-raw.ctypes.data % ALIGN) // 8
     return raw[skip : skip + size]
 
 

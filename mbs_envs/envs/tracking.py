@@ -56,7 +56,7 @@ def error_columns(q, q_ref, tracked, e):  # pragma: no cover - compiled
     """
     ok = True
     for j in range(tracked.shape[0]):  # one SIMD pass (exact where ok), then the rest by fmod
-        qj, rj, ej = q[tracked[j]], q_ref[j], e[j]  # rows: LLVM vectorized the 2-d indexing of q[tracked[j], b] not
+        qj, rj, ej = q[tracked[j]], q_ref[j], e[j]  # 1-d rows: LLVM did not vectorize the 2-d q[tracked[j], b]
         for b in range(q.shape[1]):
             ej[b], ok_b = wrap_fast(rj[b] - qj[b])
             ok &= ok_b
