@@ -172,10 +172,10 @@ def _aba_member(q, w, tau, l, r, m, Ic, arm, g, out, work):  # pragma: no cover 
         s0, s1, s2 = 1.0, P[i, 1], -P[i, 0]
         for k in range(3):
             U[i, k] = IA[i, k, 0] * s0 + IA[i, k, 1] * s1 + IA[i, k, 2] * s2
-        D[i] = s0 * U[i, 0] + s1 * U[i, 1] + s2 * U[i, 2] + arm[i]
+        D[i] = 1.0 / (s0 * U[i, 0] + s1 * U[i, 1] + s2 * U[i, 2] + arm[i])  # the one division: 1 / D_i
         u[i] = tau[i] - (s0 * pA[i, 0] + s1 * pA[i, 1] + s2 * pA[i, 2])
         if i > 0:
-            Dinv = 1.0 / D[i]  # one division, then U_r (U_k / D) (Pinocchio's UDinv)
+            Dinv = D[i]  # U_r (U_k / D) (Pinocchio's UDinv)
             for r_ in range(3):
                 for k in range(3):  # the upper triangle's product in both halves: Ia stays symmetric to the bit
                     Ia[r_, k] = IA[i, r_, k] - U[i, min(r_, k)] * (U[i, max(r_, k)] * Dinv)
@@ -191,7 +191,7 @@ def _aba_member(q, w, tau, l, r, m, Ic, arm, g, out, work):  # pragma: no cover 
         a0 += c[i, 0]
         a1 += c[i, 1]
         a2 += c[i, 2]
-        qdd = (u[i] - (U[i, 0] * a0 + U[i, 1] * a1 + U[i, 2] * a2)) / D[i]
+        qdd = (u[i] - (U[i, 0] * a0 + U[i, 1] * a1 + U[i, 2] * a2)) * D[i]
         out[i] = qdd
         a0 += s0 * qdd
         a1 += s1 * qdd
@@ -365,14 +365,13 @@ def _aba_tile(q, v, tau, theta, N, B, b0, W, S, A):  # pragma: no cover - compil
             U1 = W[_at(o, 5, b)] * 1.0 + W[_at(o, 7, b)] * s1 + W[_at(o, 8, b)] * s2
             U2 = W[_at(o, 6, b)] * 1.0 + W[_at(o, 8, b)] * s1 + W[_at(o, 9, b)] * s2
             W[_at(o, 13, b)], W[_at(o, 14, b)], W[_at(o, 15, b)] = U0, U1, U2
-            W[_at(o, 16, b)] = 1.0 * U0 + s1 * U1 + s2 * U2 + theta[uint64((4 * N + i) * B + b0 + b)]
+            W[_at(o, 16, b)] = 1.0 / (1.0 * U0 + s1 * U1 + s2 * U2 + theta[uint64((4 * N + i) * B + b0 + b)])
             W[_at(o, 17, b)] = tau[uint64(i * B + b0 + b)] - (1.0 * W[_at(o, 10, b)] + s1 * W[_at(o, 11, b)] + s2 * W[_at(o, 12, b)])
         if i > 0:
             p = o - _SLOTS * TILE
             for b in range(TILE):
-                U0, U1, U2, D, u = W[_at(o, 13, b)], W[_at(o, 14, b)], W[_at(o, 15, b)], W[_at(o, 16, b)], W[_at(o, 17, b)]
+                U0, U1, U2, Dinv, u = W[_at(o, 13, b)], W[_at(o, 14, b)], W[_at(o, 15, b)], W[_at(o, 16, b)], W[_at(o, 17, b)]
                 c1, c2 = W[_at(o, 2, b)], W[_at(o, 3, b)]
-                Dinv = 1.0 / D
                 V0, V1, V2 = U0 * Dinv, U1 * Dinv, U2 * Dinv
                 A00 = W[_at(o, 4, b)] - U0 * V0
                 A01 = W[_at(o, 5, b)] - U0 * V1
@@ -410,7 +409,7 @@ def _aba_tile(q, v, tau, theta, N, B, b0, W, S, A):  # pragma: no cover - compil
             a0 = S[6 * TILE + b] + 0.0
             a1 = S[7 * TILE + b] + W[_at(o, 2, b)]
             a2 = S[8 * TILE + b] + W[_at(o, 3, b)]
-            qdd = (W[_at(o, 17, b)] - (W[_at(o, 13, b)] * a0 + W[_at(o, 14, b)] * a1 + W[_at(o, 15, b)] * a2)) / W[_at(o, 16, b)]
+            qdd = (W[_at(o, 17, b)] - (W[_at(o, 13, b)] * a0 + W[_at(o, 14, b)] * a1 + W[_at(o, 15, b)] * a2)) * W[_at(o, 16, b)]
             A[uint64(i * B + b0 + b)] = qdd
             S[6 * TILE + b] = a0 + 1.0 * qdd
             S[7 * TILE + b] = a1 + s1 * qdd
