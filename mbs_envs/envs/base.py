@@ -235,18 +235,19 @@ class MBSEnv(gym.Env):
     def run_step_kernel(
         self, model: Model, q, v, t, task_columns: tuple, action, tab: TableauArrays | None = None, full_info: bool = True
     ) -> tuple:
-        """The compiled control step of a batch of rows (a single env: one row), in place.
+        """The compiled control step of a batch (a single env: one member), in place.
 
         Parameters
         ----------
         model : Model
-            The rows' model (per-member parameters allowed).
-        q, v : ndarray, shape (B, n)
-            Updated in place (a diverged row keeps its state).
+            The members' model (per-member parameters allowed).
+        q, v : ndarray, shape (n, B)
+            The state in C-contiguous columns (:mod:`mbs_envs.dynamics.compiled`), updated in place
+            (a diverged member keeps its state).
         t : ndarray, shape (B,)
             Updated in place.
         task_columns : tuple
-            :meth:`task_columns` of the rows' tasks.
+            :meth:`task_columns` of the members' tasks.
         action : ndarray, shape (B, nu)
             Validated and clipped.
         tab : TableauArrays, optional
@@ -264,7 +265,7 @@ class MBSEnv(gym.Env):
         bad, terminated : ndarray of bool, shape (B,)
             Diverged; ended (diverged or the task's termination).
         """
-        B = q.shape[0]
+        B = q.shape[1]
         tab = self.compiled if tab is None else tab
         u, info = np.empty((B, model.nu)), np.empty((B, self._info_columns()[0]))
         obs = np.empty((B,) + self.observation_space.shape, np.float32)
@@ -293,7 +294,7 @@ class MBSEnv(gym.Env):
             self._task_columns = (self._task, self.task_columns(self._task))
         t = np.array([self._t])
         obs, info_row, u, bad, terminated = self.run_step_kernel(
-            self.model, self._q.reshape(1, -1), self._v.reshape(1, -1), t, self._task_columns[1], a.reshape(1, -1), tab
+            self.model, self._q.reshape(-1, 1), self._v.reshape(-1, 1), t, self._task_columns[1], a.reshape(1, -1), tab
         )
         self._t = float(t[0])
         self._u = u[0]

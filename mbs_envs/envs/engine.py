@@ -22,8 +22,8 @@ Arguments are packed tuples (no long positional lists):
   energy (its ``info`` column NaN), which no step needs;
 - ``task``: the task's own tuple (its static arguments, then its per-member
   columns; see the task's ``task_arguments`` and ``task_columns``);
-- ``state = (q, v, t, action)``: rows ``(B, n)``, ``(B, n)``, ``(B,)`` updated
-  in place, and the validated action ``(B, nu)``;
+- ``state = (q, v, t, action)``: columns ``(n, B)``, ``(n, B)`` (C-contiguous) and ``(B,)``, updated
+  in place, and the validated action in rows ``(B, nu)``;
 - ``out = (u, obs, info, bad, terminated)``: rows written; ``info`` is ``(B, S)``
   float64 with the columns of the env's :meth:`~mbs_envs.envs.base.MBSEnv.info_layout`
   (the task's, starting with the reward, then ``energy``, then for constrained
@@ -61,8 +61,8 @@ def engine_step(advance, energy, constraint_info, singular, task_step, theta, st
     dt, limit, residual_limit, u_max, actuated, nc, full = control
     q, v, t, action = state
     u, obs, info, bad, terminated = out
-    B, n = q.shape
-    qc, vc = np.ascontiguousarray(q.T), np.ascontiguousarray(v.T)
+    n, B = q.shape
+    q0, v0 = q.copy(), v.copy()  # what a diverged member keeps
     ac = np.ascontiguousarray(action.T)
     tau = np.zeros((n, B))
     for k in range(u.shape[1]):
@@ -70,33 +70,33 @@ def engine_step(advance, energy, constraint_info, singular, task_step, theta, st
             uk = ac[k, b] * u_max[k]
             u[b, k] = uk
             tau[actuated[k], b] = uk
-    advance(theta, stepper, qc, vc, tau)
+    advance(theta, stepper, q, v, tau)
     residual, lam = np.empty(B), np.empty((B, nc))
-    constraint_info(qc, vc, tau, theta, residual, lam)
+    constraint_info(q, v, tau, theta, residual, lam)
     flags = np.zeros(B, np.bool_)
-    singular(qc, flags)
+    singular(q, flags)
+    ok = np.ones(B, np.bool_)
+    for k in range(n):  # rows of the columns: SIMD over the members
+        qk, vk = q[k], v[k]
+        for b in range(B):
+            ok[b] &= (abs(qk[b]) <= limit) & (abs(vk[b]) <= limit)
     reverted = False
     for b in range(B):
-        ok = residual[b] <= residual_limit and not flags[b]
-        for k in range(n):
-            ok &= abs(qc[k, b]) <= limit
-            ok &= abs(vc[k, b]) <= limit
-        bad[b] = not ok
-        reverted |= not ok
-        for k in range(n):
-            if ok:
-                q[b, k] = qc[k, b]
-                v[b, k] = vc[k, b]
-            else:  # the member keeps its state
-                qc[k, b] = q[b, k]
-                vc[k, b] = v[b, k]
+        ok[b] &= (residual[b] <= residual_limit) & (not flags[b])
+        bad[b] = not ok[b]
+        reverted |= not ok[b]
         t[b] = t[b] + dt
-    if reverted:  # the info of the states kept
-        constraint_info(qc, vc, tau, theta, residual, lam)
-    task_step(qc, vc, t, ac, task, obs, info, terminated)
+    if reverted:  # diverged members keep their states, and the info is of the states kept
+        for k in range(n):
+            for b in range(B):
+                if not ok[b]:
+                    q[k, b] = q0[k, b]
+                    v[k, b] = v0[k, b]
+        constraint_info(q, v, tau, theta, residual, lam)
+    task_step(q, v, t, ac, task, obs, info, terminated)
     E = np.full(B, np.nan)
     if full:
-        energy(qc, vc, theta, E)
+        energy(q, v, theta, E)
     c = info.shape[1] - 1 - (1 + nc if nc > 0 else 0)
     for b in range(B):
         terminated[b] = terminated[b] or bad[b]

@@ -119,8 +119,9 @@ class MBSVectorEnv(VectorEnv):
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         n = self.num_envs
         self._rngs: list[np.random.Generator] = [seeding.np_random(None)[0] for _ in range(n)]
-        self._q = np.zeros((n, self.model.nq))
-        self._v = np.zeros((n, self.model.nv))
+        # the state in columns (nq, n), the compiled step's layout; _q and _v are their rows views (n, nq)
+        self._qc, self._vc = np.zeros((self.model.nq, n)), np.zeros((self.model.nv, n))
+        self._q, self._v = self._qc.T, self._vc.T
         self._t = np.zeros(n)
         self._u = np.zeros((n, self.model.nu))
         self._elapsed = np.zeros(n, int)
@@ -263,9 +264,10 @@ class MBSVectorEnv(VectorEnv):
 
     def _step_numpy(self, a: np.ndarray) -> tuple:
         """The same step on the numpy path (:meth:`MBSEnv.step_rows`)."""
-        self._q, self._v, self._t, self._u, obs, reward, terminated, bad, values = self.env.step_rows(
+        q, v, self._t, self._u, obs, reward, terminated, bad, values = self.env.step_rows(
             self.model, self._q, self._v, self._t, self._task, a, self.full_info
         )
+        self._q[...], self._v[...] = q, v  # into the columns (see __init__)
         return obs, reward, bad, terminated, values
 
     def _step_compiled(self, a: np.ndarray) -> tuple:
@@ -274,7 +276,7 @@ class MBSVectorEnv(VectorEnv):
         if self._task_columns is None:
             self._task_columns = env.task_columns(self._task)
         obs, values, self._u, bad, terminated = env.run_step_kernel(
-            self.model, self._q, self._v, self._t, self._task_columns, a, full_info=self.full_info
+            self.model, self._qc, self._vc, self._t, self._task_columns, a, full_info=self.full_info
         )
         return obs, values[:, 0].copy(), bad, terminated, env.info_rows(values) if self.full_info else {}
 
