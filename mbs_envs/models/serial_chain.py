@@ -181,8 +181,9 @@ def _aba_member(q, w, tau, l, r, m, Ic, arm, g, out, work):  # pragma: no cover 
                     Ia[r_, k] = IA[i, r_, k] - U[i, min(r_, k)] * (U[i, max(r_, k)] * Dinv)
             for r_ in range(3):
                 pa = pA[i, r_] + (U[i, r_] * Dinv) * u[i]
-                for k in range(3):
+                for k in range(1, 3):  # c_i0 = 0: its term is left out
                     pa += Ia[r_, k] * c[i, k]
+                for k in range(3):
                     IA[i - 1, r_, k] += Ia[r_, k]
                 pA[i - 1, r_] += pa
     a0, a1, a2 = 0.0, 0.0, g  # pass 3: accelerations (gravity as base acceleration)
@@ -380,15 +381,12 @@ def _aba_tile(q, v, tau, theta, N, B, b0, W, S, A):  # pragma: no cover - compil
                 A12 = W[_at(o, 8, b)] - U1 * V2
                 A22 = W[_at(o, 9, b)] - U2 * V2
                 pa0 = W[_at(o, 10, b)] + V0 * u
-                pa0 += A00 * 0.0  # c0 = 0, added as _aba_member adds it (signed zeros alike)
                 pa0 += A01 * c1
                 pa0 += A02 * c2
                 pa1 = W[_at(o, 11, b)] + V1 * u
-                pa1 += A01 * 0.0
                 pa1 += A11 * c1
                 pa1 += A12 * c2
                 pa2 = W[_at(o, 12, b)] + V2 * u
-                pa2 += A02 * 0.0
                 pa2 += A12 * c1
                 pa2 += A22 * c2
                 W[_at(p, 4, b)] += A00
@@ -453,10 +451,11 @@ def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
             for i in range(N):
                 for b in range(tiled):
                     a[i, b] = af[i * B + b]
-    work, one = _aba_work(N), np.empty(N)
-    for k in range(B):  # one call site: the member path is inlined once
-        if scalar[k]:
-            _member_acceleration(q, v, net, theta, a, k, work, one)
+    if scalar.any():  # its work arrays only when some member takes it
+        work, one = _aba_work(N), np.empty(N)
+        for k in range(B):  # one call site: the member path is inlined once
+            if scalar[k]:
+                _member_acceleration(q, v, net, theta, a, k, work, one)
 
 
 @njit
