@@ -31,13 +31,14 @@ def _scalar(x: Any) -> Any:
 
 @njit
 def _clip_unit(a, out):  # pragma: no cover - compiled
-    """``out = clip(a, -1, 1)``; False (``out`` unspecified) if any entry is not finite."""
+    """``out = clip(a, -1, 1)``; False (``out`` unspecified) if any entry is not finite (one pass
+    without an early exit, so that it is SIMD code)."""
+    ok = True
     for i in range(a.shape[0]):
         x = a[i]
-        if not np.isfinite(x):
-            return False
+        ok &= abs(x) < np.inf  # False for NaN and for +-inf
         out[i] = min(max(x, -1.0), 1.0)
-    return True
+    return ok
 
 
 #: dtypes the compiled clip takes as they are (native byte order)
