@@ -24,14 +24,16 @@ Arguments are packed tuples (no long positional lists):
   columns; see the task's ``task_arguments`` and ``task_columns``);
 - ``state = (q, v, t, action)``: columns ``(n, B)``, ``(n, B)`` (C-contiguous) and ``(B,)``, updated
   in place, and the validated action in rows ``(B, nu)``;
-- ``out = (u, obs, info, bad, terminated)``: rows written; ``info`` is ``(B, S)``
-  float64 with the columns of the env's :meth:`~mbs_envs.envs.base.MBSEnv.info_layout`
-  (the task's, starting with the reward, then ``energy``, then for constrained
-  models ``constraint_residual`` and ``multipliers``).
+- ``out = (u, obs, info, bad, terminated)``, written: ``u`` in rows ``(B, nu)``; ``obs``
+  ``(obs_dim, B)`` float32 and ``info`` ``(S, B)`` float64 in columns, one per member (the env
+  returns their transposes), ``info``'s rows those of the env's
+  :meth:`~mbs_envs.envs.base.MBSEnv.info_layout` (the task's, starting with the reward, then
+  ``energy``, then for constrained models ``constraint_residual`` and ``multipliers``);
+  ``bad, terminated`` ``(B,)``.
 
 A task kernel has the signature ``task_step(q, v, t, action, task, obs, info, terminated)``
 with ``q, v`` in columns ``(n, B)``, ``action`` in columns ``(nu, B)``, and writes
-its columns of ``info`` (from 0), ``obs`` and ``terminated``.
+its rows of ``info`` (from 0), ``obs`` and ``terminated``.
 """
 
 from __future__ import annotations
@@ -97,11 +99,11 @@ def engine_step(advance, energy, constraint_info, singular, task_step, theta, st
     E = np.full(B, np.nan)
     if full:
         energy(q, v, theta, E)
-    c = info.shape[1] - 1 - (1 + nc if nc > 0 else 0)
+    c = info.shape[0] - 1 - (1 + nc if nc > 0 else 0)
     for b in range(B):
         terminated[b] = terminated[b] or bad[b]
-        info[b, c] = E[b]
+        info[c, b] = E[b]
         if nc > 0:
-            info[b, c + 1] = residual[b]
+            info[c + 1, b] = residual[b]
             for i in range(nc):
-                info[b, c + 2 + i] = lam[b, i]
+                info[c + 2 + i, b] = lam[b, i]

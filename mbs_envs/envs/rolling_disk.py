@@ -64,9 +64,9 @@ def disk_columns(q, v, h, dh, ddh, spin_ref, action, weights, Wc, lean_limit, ob
         ``(w_h, w_l, w_s, w_u)``.
     Wc, lean_limit : float
         The critical spin [rad/s] and the fall limit [rad].
-    obs : ndarray, shape (B, 8)
+    obs : ndarray, shape (8, B)
         Written (:data:`OBS_FIELDS`).
-    info : ndarray, shape (B, >= 9)
+    info : ndarray, shape (>= 9, B)
         Written: ``(r, r_heading, r_lean, r_speed, r_effort, lean, fell, heading error, spin error)``.
     terminated : ndarray of bool, shape (B,)
         Written: fell.
@@ -79,13 +79,13 @@ def disk_columns(q, v, h, dh, ddh, spin_ref, action, weights, Wc, lean_limit, ob
             effort += action[k, b] * action[k, b]
         r_h, r_l, r_s, r_u = -weights[0] * e_h**2, -weights[1] * q[4, b] ** 2, -weights[2] * e_s**2, -weights[3] * effort
         fell = abs(q[4, b]) > lean_limit
-        info[b, 0] = 1.0 + r_h + r_l + r_s + r_u
-        info[b, 1], info[b, 2], info[b, 3], info[b, 4] = r_h, r_l, r_s, r_u
-        info[b, 5], info[b, 6], info[b, 7], info[b, 8] = q[4, b], fell, e_h, v[5, b] - spin_ref[b]
+        info[0, b] = 1.0 + r_h + r_l + r_s + r_u
+        info[1, b], info[2, b], info[3, b], info[4, b] = r_h, r_l, r_s, r_u
+        info[5, b], info[6, b], info[7, b], info[8, b] = q[4, b], fell, e_h, v[5, b] - spin_ref[b]
         terminated[b] = fell
         fields = (q[4, b], v[4, b], v[3, b], v[5, b], e_h, dh[b], ddh[b], spin_ref[b])
         for i in range(8):
-            obs[b, i] = fields[i]
+            obs[i, b] = fields[i]
 
 
 @njit
@@ -181,9 +181,9 @@ def task_rows(p: DiskTaskParams, q, v, now: tuple, task: DiskTask, action=None) 
     cols = (now[0], now[1], now[2], task.spin_ref)
     lead, (q2, v2, a2, *refs) = _as_columns(q, v, action, *(np.asarray(x, float)[..., None] for x in cols))
     B = q2.shape[1]
-    obs, info, fell = np.empty((B, 8), np.float32), np.empty((B, 9)), np.empty(B, bool)
+    obs, info, fell = np.empty((8, B), np.float32), np.empty((9, B)), np.empty(B, bool)
     disk_columns(q2, v2, refs[0][0], refs[1][0], refs[2][0], refs[3][0], a2, *p.kernel_arguments(), obs, info, fell)
-    return obs.reshape(lead + (8,)), info.reshape(lead + (9,)), fell.reshape(lead)
+    return obs.T.reshape(lead + (8,)), info.T.reshape(lead + (9,)), fell.reshape(lead)
 
 
 def observe(p: DiskTaskParams, q, v, now: tuple, task: DiskTask) -> np.ndarray:

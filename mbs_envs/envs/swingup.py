@@ -45,15 +45,15 @@ Q_DOWN = np.array([-np.pi / 2, 0.0])
 
 @njit
 def observe_columns(q, v, obs):  # pragma: no cover - compiled
-    """``obs = [cos q, sin q, v]`` of a batch: ``q, v`` in columns (2, B), ``obs`` (B, 6) written."""
+    """``obs = [cos q, sin q, v]`` of a batch: ``q, v`` in columns (2, B), ``obs`` (6, B) written (a column per member)."""
     B = q.shape[1]
     s, c = np.empty(B), np.empty(B)
     for i in range(2):
         sincos_columns(q[i], s, c)
         for b in range(B):
-            obs[b, i] = c[b]
-            obs[b, 2 + i] = s[b]
-            obs[b, 4 + i] = v[i, b]
+            obs[i, b] = c[b]
+            obs[2 + i, b] = s[b]
+            obs[4 + i, b] = v[i, b]
 
 
 @njit
@@ -74,7 +74,7 @@ def swingup_columns(q, v, action, weights, u_max, driven, tolerance, info):  # p
         The driven joint.
     tolerance : float
         Upright tolerance per joint [rad].
-    info : ndarray, shape (B, >= 8)
+    info : ndarray, shape (>= 8, B)
         Written: ``(r, r_height, r_upright, r_effort, e1, e2, upright, power)`` in columns 0-7.
     """
     B = q.shape[1]
@@ -87,11 +87,11 @@ def swingup_columns(q, v, action, weights, u_max, driven, tolerance, info):  # p
         h = 0.5 * (s[0, b] + s[0, b] * c[1, b] + c[0, b] * s[1, b])  # sin th1 + sin(th1 + th2), halved
         a = action[0, b]
         r_h, r_e, r_u = weights[0] * h, -weights[1] * (e1 * e1 + e2 * e2), -weights[2] * a * a
-        info[b, 0] = r_h + r_e + r_u
-        info[b, 1], info[b, 2], info[b, 3] = r_h, r_e, r_u
-        info[b, 4], info[b, 5] = e1, e2
-        info[b, 6] = abs(e1) <= tolerance and abs(e2) <= tolerance
-        info[b, 7] = a * u_max[0] * v[driven[0], b]
+        info[0, b] = r_h + r_e + r_u
+        info[1, b], info[2, b], info[3, b] = r_h, r_e, r_u
+        info[4, b], info[5, b] = e1, e2
+        info[6, b] = abs(e1) <= tolerance and abs(e2) <= tolerance
+        info[7, b] = a * u_max[0] * v[driven[0], b]
 
 
 @njit
@@ -127,9 +127,9 @@ class SwingUpObservation:
 def encode_swingup(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     """``[cos q, sin q, v]``, float32, shape ``(..., 6)`` (:func:`observe_columns`, batched)."""
     lead, (q2, v2) = _as_columns(q, v)
-    obs = np.empty((q2.shape[1], 6), np.float32)
+    obs = np.empty((6, q2.shape[1]), np.float32)
     observe_columns(q2, v2, obs)
-    return obs.reshape(lead + (6,))
+    return obs.T.reshape(lead + (6,))
 
 
 def decode_swingup(obs: np.ndarray) -> SwingUpObservation:
@@ -179,9 +179,9 @@ def start(p: SwingUpTaskParams, rng: np.random.Generator) -> tuple[np.ndarray, n
 def task_rows(p: SwingUpTaskParams, q: np.ndarray, v: np.ndarray, action: np.ndarray) -> np.ndarray:
     """:func:`swingup_columns` batched over leading dimensions: shape ``(..., 8)``."""
     lead, (q2, v2, a2) = _as_columns(q, v, action)
-    info = np.empty((q2.shape[1], 8))
+    info = np.empty((8, q2.shape[1]))
     swingup_columns(q2, v2, a2, *p.kernel_arguments(), info)
-    return info.reshape(lead + (8,))
+    return info.T.reshape(lead + (8,))
 
 
 def reward(p: SwingUpTaskParams, q: np.ndarray, v: np.ndarray, action: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:

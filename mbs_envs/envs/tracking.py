@@ -76,8 +76,9 @@ def encode_columns(q, v, e, v_ref, a_ref, obs):  # pragma: no cover - compiled
         Columns (:mod:`mbs_envs.dynamics.compiled`).
     e, v_ref, a_ref : ndarray, shape (m, B)
         The tracking error (:func:`error_columns`) and the reference's rates.
-    obs : ndarray, shape (B, 3 n + 3 m)
-        Written, one row per member (as the env returns it).
+    obs : ndarray, shape (3 n + 3 m, B)
+        Written, one column per member (the env returns its transpose, as Gymnasium's
+        ``CartPoleVectorEnv`` does: stores along the members are SIMD code).
     """
     n, B = q.shape
     m = e.shape[0]
@@ -85,14 +86,14 @@ def encode_columns(q, v, e, v_ref, a_ref, obs):  # pragma: no cover - compiled
     for i in range(n):
         sincos_columns(q[i], s, c)
         for b in range(B):
-            obs[b, i] = c[b]
-            obs[b, n + i] = s[b]
-            obs[b, 2 * n + i] = v[i, b]
+            obs[i, b] = c[b]
+            obs[n + i, b] = s[b]
+            obs[2 * n + i, b] = v[i, b]
     for j in range(m):
         for b in range(B):
-            obs[b, 3 * n + j] = e[j, b]
-            obs[b, 3 * n + m + j] = v_ref[j, b]
-            obs[b, 3 * n + 2 * m + j] = a_ref[j, b]
+            obs[3 * n + j, b] = e[j, b]
+            obs[3 * n + m + j, b] = v_ref[j, b]
+            obs[3 * n + 2 * m + j, b] = a_ref[j, b]
 
 
 @njit
@@ -108,8 +109,8 @@ def reward_columns(v, e, v_ref, action, tracked, weights, terms):  # pragma: no 
     tracked : ndarray of int, shape (m,)
     weights : ndarray, shape (3,)
         ``(w_e, w_de, w_u)``.
-    terms : ndarray, shape (B, >= 4)
-        Written: columns ``(r, r_e, r_de, r_u)``, one row per member.
+    terms : ndarray, shape (>= 4, B)
+        Written: rows ``(r, r_e, r_de, r_u)``, one column per member.
     """
     B = v.shape[1]
     s_e, s_de, s_u = np.zeros(B), np.zeros(B), np.zeros(B)
@@ -127,10 +128,10 @@ def reward_columns(v, e, v_ref, action, tracked, weights, terms):  # pragma: no 
         r_e = -weights[0] * s_e[b]
         r_de = -weights[1] * s_de[b]
         r_u = -weights[2] * s_u[b]
-        terms[b, 0] = r_e + r_de + r_u
-        terms[b, 1] = r_e
-        terms[b, 2] = r_de
-        terms[b, 3] = r_u
+        terms[0, b] = r_e + r_de + r_u
+        terms[1, b] = r_e
+        terms[2, b] = r_de
+        terms[3, b] = r_u
 
 
 def _as_columns(*arrays: np.ndarray) -> tuple[tuple, list[np.ndarray]]:
@@ -161,10 +162,12 @@ def tracking_task(q, v, t, action, task, obs, info, terminated):  # pragma: no c
     error_columns(q, refs[0], tracked, e)
     reward_columns(v, e, refs[1], action, tracked, weights, info)
     encode_columns(q, v, e, refs[1], refs[2], obs)
+    for j in range(m):  # rows: SIMD stores along the members
+        ej, rj, ie, ir = e[j], refs[0, j], info[4 + j], info[4 + m + j]
+        for b in range(B):
+            ie[b] = ej[b]
+            ir[b] = rj[b]
     for b in range(B):
-        for j in range(m):
-            info[b, 4 + j] = e[j, b]
-            info[b, 4 + m + j] = refs[0, j, b]
         terminated[b] = False
 
 
@@ -199,11 +202,11 @@ def encode_tracking(q, v, q_ref, v_ref, a_ref, tracked: tuple[int, ...]) -> np.n
     """
     lead, (q2, v2, q_ref2, v_ref2, a_ref2) = _as_columns(q, v, q_ref, v_ref, a_ref)
     (n, L), m = q2.shape, len(tracked)
-    obs = np.empty((L, 3 * (n + m)), np.float32)
+    obs = np.empty((3 * (n + m), L), np.float32)
     e = np.empty(q_ref2.shape)
     error_columns(q2, q_ref2, np.asarray(tracked, np.int64), e)
     encode_columns(q2, v2, e, v_ref2, a_ref2, obs)
-    return obs.reshape(lead + (3 * (n + m),))
+    return obs.T.reshape(lead + (3 * (n + m),))
 
 
 def decode_tracking(obs: np.ndarray, n: int, tracked: tuple[int, ...] | None = None) -> TrackingObservation:
@@ -301,10 +304,10 @@ def reward(p: TrackingTaskParams, q: np.ndarray, v: np.ndarray, now: tuple, acti
     """The reward ``(...)`` (module docstring) and its terms (:data:`REWARD_TERMS`), by :func:`reward_columns`."""
     lead, (q2, v2, q_ref, v_ref, a2) = _as_columns(q, v, now[0], now[1], action)
     tracked = np.asarray(p.tracked, np.int64)
-    terms, e = np.empty((q2.shape[1], 4)), np.empty(q_ref.shape)
+    terms, e = np.empty((4, q2.shape[1])), np.empty(q_ref.shape)
     error_columns(q2, q_ref, tracked, e)
     reward_columns(v2, e, v_ref, a2, tracked, np.asarray(p.weights, float), terms)
-    terms = terms.reshape(lead + (4,))
+    terms = terms.T.reshape(lead + (4,))
     return terms[..., 0], {k: terms[..., i + 1] for i, k in enumerate(REWARD_TERMS)}
 
 

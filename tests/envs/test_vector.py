@@ -283,3 +283,24 @@ def test_held_policy_decides_every_k_calls_per_member_and_restarts_with_episodes
     assert a0.shape == (1,) and a1 == a0 and a2 != a0
     with pytest.raises(ValueError, match="action_repeat"):
         HeldPolicy(Counter(), 0)
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_the_state_is_one_array_of_columns_on_both_paths_and_observations_are_column_major(compiled):
+    """The vector env keeps its state as columns ``(n, num_envs)`` (the compiled step's layout, advanced
+    in place) with its rows as views of them; the numpy path writes into the same arrays. Both paths
+    return observations column-major (the task kernels write one column per member), as Gymnasium's own
+    ``CartPoleVectorEnv`` does."""
+    venv = gym.make_vec("mbs_envs/Planar2R-v0", num_envs=5, vectorization_mode="vector_entry_point", compiled=compiled)
+    env = venv.unwrapped
+    venv.reset(seed=2)
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        obs, *_ = venv.step(rng.uniform(-1, 1, venv.action_space.shape))
+    for rows, cols in ((env._q, env._qc), (env._v, env._vc)):
+        assert cols.flags.c_contiguous and cols.shape == (2, 5) and np.shares_memory(rows, cols)
+        np.testing.assert_array_equal(rows, cols.T)
+    np.testing.assert_array_equal(env.q, env._qc.T)
+    assert obs.shape == (5, venv.single_observation_space.shape[0]) and obs.dtype == np.float32
+    assert obs.flags.f_contiguous
+    obs[1] = 0.0  # rows of the batch stay writable (autoresets write them)
