@@ -26,6 +26,10 @@ per-member parameters (see :meth:`mbs_envs.models.base.Params.batched`).
 With an adaptive (scipy) integrator the batch is one system with one step
 size, so members differ from single envs within the tolerance; fixed-step
 methods give the single env's numbers (tested to 1e-12).
+
+The first vector env of a process sets glibc's malloc to keep freed memory
+(:mod:`mbs_envs.dynamics.memory`; ``MBS_ENVS_KEEP_FREED_MEMORY=0`` leaves it): otherwise a
+batch of a few thousand members can fault its work arrays in afresh at every step.
 """
 
 from __future__ import annotations
@@ -40,6 +44,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from .. import validation as check
+from ..dynamics.memory import keep_freed_memory
 from .base import MBSEnv, validate_action
 
 
@@ -98,6 +103,7 @@ class MBSVectorEnv(VectorEnv):
         **env_kwargs: Any,
     ):
         num_envs = check.integer(num_envs, "num_envs", 1, 10**7)
+        keep_freed_memory()  # a batched step's work arrays would otherwise go back to the OS after every step
         if max_episode_steps is not None:
             max_episode_steps = check.integer(max_episode_steps, "max_episode_steps", 1, 10**12)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
