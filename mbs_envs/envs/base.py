@@ -265,12 +265,13 @@ class MBSEnv(gym.Env):
         info : ndarray, shape (B, S)
             The columns of :meth:`info_layout` (the reward first), column-major too.
         u : ndarray, shape (B, nu)
+            Column-major as well.
         bad, terminated : ndarray of bool, shape (B,)
             Diverged; ended (diverged or the task's termination).
         """
         B = q.shape[1]
         tab = self.compiled if tab is None else tab
-        u, info = np.empty((B, model.nu)), np.empty((self._info_columns()[0], B))
+        u, info = np.empty((model.nu, B)), np.empty((self._info_columns()[0], B))
         obs = np.empty(self.observation_space.shape + (B,), np.float32)
         bad, terminated = np.empty(B, bool), np.zeros(B, bool)
         stepper = tab.packed(self.dt / self.substeps, self.substeps, projection_tol(self.stabilization))
@@ -280,7 +281,7 @@ class MBSEnv(gym.Env):
             batch_theta(model, B), stepper, control, self.task_arguments() + task_columns,
             (q, v, t, action), (u, obs, info, bad, terminated),
         )
-        return obs.T, info.T, u, bad, terminated
+        return obs.T, info.T, u.T, bad, terminated
 
     def info_rows(self, info: np.ndarray) -> dict[str, np.ndarray]:
         """The named ``info`` entries of :meth:`run_step_kernel`'s array, one row per member

@@ -24,7 +24,7 @@ Arguments are packed tuples (no long positional lists):
   columns; see the task's ``task_arguments`` and ``task_columns``);
 - ``state = (q, v, t, action)``: columns ``(n, B)``, ``(n, B)`` (C-contiguous) and ``(B,)``, updated
   in place, and the validated action in rows ``(B, nu)``;
-- ``out = (u, obs, info, bad, terminated)``, written: ``u`` in rows ``(B, nu)``; ``obs``
+- ``out = (u, obs, info, bad, terminated)``, written: ``u`` ``(nu, B)``, ``obs``
   ``(obs_dim, B)`` float32 and ``info`` ``(S, B)`` float64 in columns, one per member (the env
   returns their transposes), ``info``'s rows those of the env's
   :meth:`~mbs_envs.envs.base.MBSEnv.info_layout` (the task's, starting with the reward, then
@@ -67,18 +67,19 @@ def engine_step(advance, energy, constraint_info, singular, task_step, theta, st
     q0, v0 = q.copy(), v.copy()  # what a diverged member keeps
     ac = np.ascontiguousarray(action.T)
     tau = np.zeros((n, B))
-    for k in range(u.shape[1]):
+    for k in range(u.shape[0]):  # every loop below runs along a row: SIMD over the members
+        ak, uk, tk, m = ac[k], u[k], tau[actuated[k]], u_max[k]
         for b in range(B):
-            uk = ac[k, b] * u_max[k]
-            u[b, k] = uk
-            tau[actuated[k], b] = uk
+            x = ak[b] * m
+            uk[b] = x
+            tk[b] = x
     advance(theta, stepper, q, v, tau)
     residual, lam = np.empty(B), np.empty((B, nc))
     constraint_info(q, v, tau, theta, residual, lam)
     flags = np.zeros(B, np.bool_)
     singular(q, flags)
     ok = np.ones(B, np.bool_)
-    for k in range(n):  # rows of the columns: SIMD over the members
+    for k in range(n):
         qk, vk = q[k], v[k]
         for b in range(B):
             ok[b] &= (abs(qk[b]) <= limit) & (abs(vk[b]) <= limit)
@@ -96,14 +97,20 @@ def engine_step(advance, energy, constraint_info, singular, task_step, theta, st
                     v[k, b] = v0[k, b]
         constraint_info(q, v, tau, theta, residual, lam)
     task_step(q, v, t, ac, task, obs, info, terminated)
-    E = np.full(B, np.nan)
+    c = info.shape[0] - 1 - (1 + nc if nc > 0 else 0)
+    E = info[c]
     if full:
         energy(q, v, theta, E)
-    c = info.shape[0] - 1 - (1 + nc if nc > 0 else 0)
+    else:
+        for b in range(B):
+            E[b] = np.nan
     for b in range(B):
-        terminated[b] = terminated[b] or bad[b]
-        info[c, b] = E[b]
-        if nc > 0:
-            info[c + 1, b] = residual[b]
-            for i in range(nc):
-                info[c + 2 + i, b] = lam[b, i]
+        terminated[b] |= bad[b]
+    if nc > 0:
+        r = info[c + 1]
+        for b in range(B):
+            r[b] = residual[b]
+        for i in range(nc):
+            li = info[c + 2 + i]
+            for b in range(B):
+                li[b] = lam[b, i]
