@@ -230,11 +230,13 @@ def columns_of(x: np.ndarray) -> np.ndarray:
 
 def batch_theta(model: Model, batch: int) -> np.ndarray:
     """``model.kernel_params()`` as contiguous columns ``(P, batch)``, cached on the model
-    for its current parameters (read only)."""
+    for its current parameters (read only). A model whose kernels take one column for every
+    member (``shared_theta = True``) gets ``(P, 1)`` when its parameters are the same for all."""
     cached = model.__dict__.get("_theta_cache")
     if cached is None or cached[0] is not model.params or cached[1] != batch:
         theta = np.asarray(model.kernel_params(), float)
-        theta = aligned(np.broadcast_to(theta, (batch, theta.shape[-1])).T)
+        width = 1 if theta.ndim == 1 and getattr(model, "shared_theta", False) else batch
+        theta = aligned(np.broadcast_to(theta, (width, theta.shape[-1])).T)
         theta.flags.writeable = False
         cached = model.__dict__["_theta_cache"] = (model.params, batch, theta)
     return cached[2]

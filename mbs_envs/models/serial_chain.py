@@ -248,14 +248,22 @@ def _energy_rows(q, w, l, r, m, Ic, arm, g):  # pragma: no cover - compiled
 
 
 # -- the compiled path's kernels (see mbs_envs.dynamics.compiled): columns, parameters theta (7 N + 2, B)
-#    = (l, r, m, I, armature, b, f) per link, then g, v_s (SerialChain.kernel_params)
+#    = (l, r, m, I, armature, b, f) per link, then g, v_s (SerialChain.kernel_params), or (7 N + 2, 1):
+#    the same parameters for every member (batch_theta gives that for this model: one column instead
+#    of B identical ones, 590 kB fewer to read per evaluation at 1024 members)
+
+
+@njit(inline="always")
+def _col(theta, k):  # pragma: no cover - compiled
+    """The column of ``theta`` that holds member ``k``'s parameters (0 when one column serves all)."""
+    return k if theta.shape[1] > 1 else 0
 
 
 @njit(inline="always")
 def _member_acceleration(q, v, tau, theta, a, k, work, net):  # pragma: no cover - compiled
     """Member ``k`` of :func:`acceleration_kernel` by :func:`_aba_member` (scalar code)."""
     N = q.shape[0]
-    th = theta[:, k]
+    th = theta[:, _col(theta, k)]
     for i in range(N):
         net[i] = tau[i, k]
     _aba_member(q[:, k], v[:, k], net, th[0:N], th[N : 2 * N], th[2 * N : 3 * N], th[3 * N : 4 * N],
@@ -270,16 +278,23 @@ def _net_torque(v, tau, theta, net):  # pragma: no cover - compiled
     N, B = v.shape
     coulomb = False
     for i in range(N):
-        for k in range(B):
+        for k in range(theta.shape[1]):
             coulomb |= theta[6 * N + i, k] != 0.0
     if not coulomb:
         vf, tf, pf, nf = np.ascontiguousarray(v).ravel(), np.ascontiguousarray(tau).ravel(), np.ascontiguousarray(theta).ravel(), net.ravel()
+        if theta.shape[1] == 1:
+            for i in range(N):
+                bi = pf[5 * N + i]
+                for k in range(B):
+                    nf[uint64(i * B + k)] = tf[uint64(i * B + k)] - bi * vf[uint64(i * B + k)]
+            return
         for i in range(N):
             for k in range(B):
                 nf[uint64(i * B + k)] = tf[uint64(i * B + k)] - pf[uint64((5 * N + i) * B + k)] * vf[uint64(i * B + k)]
         return
     for k in range(B):
-        b, f, v_s = theta[5 * N : 6 * N, k], theta[6 * N : 7 * N, k], theta[7 * N + 1, k]
+        c = _col(theta, k)
+        b, f, v_s = theta[5 * N : 6 * N, c], theta[6 * N : 7 * N, c], theta[7 * N + 1, c]
         member = False
         for i in range(N):
             member |= f[i] != 0.0
@@ -303,7 +318,7 @@ def _at(o, slot, b):  # pragma: no cover - compiled
 
 
 @njit
-def _aba_tile(q, v, tau, theta, N, B, b0, W, S, A):  # pragma: no cover - compiled
+def _aba_tile(q, v, tau, theta, N, B, b0, W, S, A, tB, tb0):  # pragma: no cover - compiled
     """:func:`_aba_member` of the members ``b0 .. b0 + TILE - 1`` at once, the member loops innermost
     (SIMD), every operation in the same order as :func:`_aba_member` (bit for bit the same result).
 
@@ -311,8 +326,9 @@ def _aba_tile(q, v, tau, theta, N, B, b0, W, S, A):  # pragma: no cover - compil
     ----------
     q, v, tau : ndarray, shape (N B,)
         The batch's columns (N, B) flattened; ``tau`` the net torque (:func:`_net_torque`).
-    theta : ndarray, shape ((7 N + 2) B,)
-        The parameters' columns flattened.
+    theta : ndarray, shape ((7 N + 2) tB,)
+        Parameter columns flattened, rows of ``tB``; the tile's members are columns ``tb0 ..
+        tb0 + TILE - 1`` (:func:`_tile_params`).
     N, B, b0 : int
     W : ndarray, shape (N * 18 * TILE,)
         Work: per link and member the axis ``(s1, s2)``, bias acceleration ``(c1, c2)``, articulated
@@ -323,6 +339,7 @@ def _aba_tile(q, v, tau, theta, N, B, b0, W, S, A):  # pragma: no cover - compil
         :data:`mbs_envs.dynamics.trig.SINCOS_RANGE` (1.0) or not (0.0).
     A : ndarray, shape (N B,)
         Written: the tile's accelerations [rad/s^2] in the flattened columns.
+    tB, tb0 : int
     """
     for b in range(TILE):  # pass 1: kinematics, velocities, bias accelerations, inertias, bias forces
         for j in range(6):
@@ -335,8 +352,8 @@ def _aba_tile(q, v, tau, theta, N, B, b0, W, S, A):  # pragma: no cover - compil
             th = S[b] + q[uint64(i * B + m)]
             S[b] = th
             sn, cs = sincos(th)
-            li, ri = theta[uint64(i * B + m)], theta[uint64((N + i) * B + m)]
-            mi, Ici = theta[uint64((2 * N + i) * B + m)], theta[uint64((3 * N + i) * B + m)]
+            li, ri = theta[uint64(i * tB + tb0 + b)], theta[uint64((N + i) * tB + tb0 + b)]
+            mi, Ici = theta[uint64((2 * N + i) * tB + tb0 + b)], theta[uint64((3 * N + i) * tB + tb0 + b)]
             x, y = S[TILE + b], S[2 * TILE + b]
             cx, cy = x + ri * cs, y + ri * sn
             S[TILE + b] = x + li * cs
@@ -366,7 +383,7 @@ def _aba_tile(q, v, tau, theta, N, B, b0, W, S, A):  # pragma: no cover - compil
             U1 = W[_at(o, 5, b)] * 1.0 + W[_at(o, 7, b)] * s1 + W[_at(o, 8, b)] * s2
             U2 = W[_at(o, 6, b)] * 1.0 + W[_at(o, 8, b)] * s1 + W[_at(o, 9, b)] * s2
             W[_at(o, 13, b)], W[_at(o, 14, b)], W[_at(o, 15, b)] = U0, U1, U2
-            W[_at(o, 16, b)] = 1.0 / (1.0 * U0 + s1 * U1 + s2 * U2 + theta[uint64((4 * N + i) * B + b0 + b)])
+            W[_at(o, 16, b)] = 1.0 / (1.0 * U0 + s1 * U1 + s2 * U2 + theta[uint64((4 * N + i) * tB + tb0 + b)])
             W[_at(o, 17, b)] = tau[uint64(i * B + b0 + b)] - (1.0 * W[_at(o, 10, b)] + s1 * W[_at(o, 11, b)] + s2 * W[_at(o, 12, b)])
         if i > 0:
             p = o - _SLOTS * TILE
@@ -399,7 +416,7 @@ def _aba_tile(q, v, tau, theta, N, B, b0, W, S, A):  # pragma: no cover - compil
                 W[_at(p, 11, b)] += pa1
                 W[_at(p, 12, b)] += pa2
     for b in range(TILE):  # pass 3: accelerations (gravity as base acceleration)
-        S[6 * TILE + b], S[7 * TILE + b], S[8 * TILE + b] = 0.0, 0.0, theta[uint64(7 * N * B + b0 + b)]
+        S[6 * TILE + b], S[7 * TILE + b], S[8 * TILE + b] = 0.0, 0.0, theta[uint64(7 * N * tB + tb0 + b)]
     for i in range(N):
         o = i * _SLOTS * TILE
         for b in range(TILE):
@@ -415,6 +432,22 @@ def _aba_tile(q, v, tau, theta, N, B, b0, W, S, A):  # pragma: no cover - compil
 
 
 @njit
+def _tile_params(theta):  # pragma: no cover - compiled
+    """``(pf, tB, shared)``: the parameters as the tiles read them, rows of ``tB`` in one flat array.
+    One column for every member (``theta`` (P, 1)): that column repeated :data:`TILE` times
+    (``shared``; every tile reads columns ``0 .. TILE - 1``); else ``theta``'s own columns."""
+    P, C = theta.shape
+    if C > 1:
+        return np.ascontiguousarray(theta).ravel(), C, False
+    pf = aligned_empty(P * TILE)
+    for r_ in range(P):
+        x = theta[r_, 0]
+        for b in range(TILE):
+            pf[r_ * TILE + b] = x
+    return pf, TILE, True
+
+
+@njit
 def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
     """Forward dynamics of a batch in columns: ``a = ABA(q, v, tau - F(v))``, ``F`` the
     smoothed friction of :func:`mbs_envs.models.base.smoothed_friction`.
@@ -427,7 +460,8 @@ def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
     Parameters
     ----------
     q, v, tau : ndarray, shape (N, B)
-    theta : ndarray, shape (7 N + 2, B)
+    theta : ndarray, shape (7 N + 2, B) or (7 N + 2, 1)
+        Per member, or one column for all.
     a : ndarray, shape (N, B)
         Written [rad/s^2].
     """
@@ -438,13 +472,13 @@ def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
     scalar = np.ones(B, np.bool_)  # the members the member path takes: the rest of the batch, and
     if tiled > 0:  # those with an angle beyond the SIMD sincos's range (libm's there)
         qf, vf, nf = np.ascontiguousarray(q).ravel(), np.ascontiguousarray(v).ravel(), net.ravel()
-        pf = np.ascontiguousarray(theta).ravel()
+        pf, tB, shared = _tile_params(theta)
         W, S = aligned_empty(N * _SLOTS * TILE), aligned_empty(10 * TILE)
         # the tiles write flat columns: a itself when ravel gives a view, else a buffer copied back
         # (numba's ravel copies an array typed non-contiguous even when it is contiguous at run time)
         af = a.ravel() if a.flags.c_contiguous else aligned_empty(N * B)
         for b0 in range(0, tiled, TILE):
-            _aba_tile(qf, vf, nf, pf, N, B, b0, W, S, af)
+            _aba_tile(qf, vf, nf, pf, N, B, b0, W, S, af, tB, 0 if shared else b0)
             for b in range(TILE):
                 scalar[b0 + b] = S[9 * TILE + b] == 0.0
         if af.ctypes.data != a.ctypes.data:
@@ -459,12 +493,12 @@ def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
 
 
 @njit
-def _energy_tile(q, v, theta, N, B, b0, S):  # pragma: no cover - compiled
+def _energy_tile(q, v, theta, N, B, b0, S, tB, tb0):  # pragma: no cover - compiled
     """:func:`_energy_member` of the members ``b0 .. b0 + TILE - 1`` at once (SIMD over the members,
     the operations in :func:`_energy_member`'s order: the same bits). The link loop's first lines
     are :func:`_aba_tile`'s, written out: through a shared inline function LLVM no longer
     vectorized this loop (168 against 30 ns per member, measured). Arrays flattened as in
-    :func:`_aba_tile`; ``S`` (10 * TILE,) work (slots: absolute angle, unused, joint height, link rate,
+    :func:`_aba_tile` (``theta`` rows of ``tB``, as :func:`_tile_params` gives them); ``S`` (10 * TILE,) work (slots: absolute angle, unused, joint height, link rate,
     joint velocity (2), the sums ``T``, ``V``, unused), whose slots 6, 7 end as ``T``, ``V`` and slot 9
     as whether every absolute angle was inside :data:`mbs_envs.dynamics.trig.SINCOS_RANGE`."""
     for b in range(TILE):
@@ -477,8 +511,8 @@ def _energy_tile(q, v, theta, N, B, b0, S):  # pragma: no cover - compiled
             th = S[b] + q[uint64(i * B + m)]
             S[b] = th
             sn, cs = sincos(th)
-            li, ri = theta[uint64(i * B + m)], theta[uint64((N + i) * B + m)]
-            mi, Ici, arm = theta[uint64((2 * N + i) * B + m)], theta[uint64((3 * N + i) * B + m)], theta[uint64((4 * N + i) * B + m)]
+            li, ri = theta[uint64(i * tB + tb0 + b)], theta[uint64((N + i) * tB + tb0 + b)]
+            mi, Ici, arm = theta[uint64((2 * N + i) * tB + tb0 + b)], theta[uint64((3 * N + i) * tB + tb0 + b)], theta[uint64((4 * N + i) * tB + tb0 + b)]
             w = v[uint64(i * B + m)]
             y = S[2 * TILE + b]
             cy = y + ri * sn
@@ -504,12 +538,13 @@ def energy_kernel(q, v, theta, E):  # pragma: no cover - compiled
     tiled = B - B % TILE
     scalar = np.ones(B, np.bool_)
     if tiled > 0:
-        qf, vf, pf = np.ascontiguousarray(q).ravel(), np.ascontiguousarray(v).ravel(), np.ascontiguousarray(theta).ravel()
+        qf, vf = np.ascontiguousarray(q).ravel(), np.ascontiguousarray(v).ravel()
+        pf, tB, shared = _tile_params(theta)
         S = aligned_empty(10 * TILE)
         for b0 in range(0, tiled, TILE):
-            _energy_tile(qf, vf, pf, N, B, b0, S)
+            _energy_tile(qf, vf, pf, N, B, b0, S, tB, 0 if shared else b0)
             for b in range(TILE):
-                E[b0 + b] = 0.5 * S[6 * TILE + b] + theta[7 * N, b0 + b] * S[7 * TILE + b]
+                E[b0 + b] = 0.5 * S[6 * TILE + b] + theta[7 * N, _col(theta, b0 + b)] * S[7 * TILE + b]
                 scalar[b0 + b] = S[9 * TILE + b] == 0.0
     work = _aba_work(N)
     for k in range(B):
@@ -521,7 +556,7 @@ def energy_kernel(q, v, theta, E):  # pragma: no cover - compiled
 def _energy_one(q, v, theta, E, k, work):  # pragma: no cover - compiled
     """Member ``k`` of :func:`energy_kernel` by :func:`_energy_member` (scalar code)."""
     N = q.shape[0]
-    th = theta[:, k]
+    th = theta[:, _col(theta, k)]
     T, V = _energy_member(q[:, k], v[:, k], th[0:N], th[N : 2 * N], th[2 * N : 3 * N], th[3 * N : 4 * N],
                           th[4 * N : 5 * N], th[7 * N], work)  # fmt: skip
     E[k] = T + V
@@ -770,6 +805,8 @@ class SerialChain(Model):
 
     kernels = (acceleration_kernel, energy_kernel)
     advance_kernel = staticmethod(advance_kernel)
+    #: the kernels take one parameter column for every member (:func:`mbs_envs.dynamics.compiled.batch_theta`)
+    shared_theta = True
 
     def kernel_params(self) -> np.ndarray:
         """``(l, r, m, I, armature, b, f)`` per link, then ``g, v_s``: shape ``(7 N + 2,)``."""
