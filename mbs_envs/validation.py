@@ -173,7 +173,9 @@ class Checked:
     ``dt = Checked(positive)`` in a class body makes ``obj.dt = x`` store
     ``positive(x, "dt")``; reading gives the stored value. So a value set
     after construction (``set_attr`` on a vector env) is checked exactly as
-    the constructor checks it. With ``fixed=True`` the attribute is set once
+    the constructor checks it. Every assignment counts up the object's
+    :func:`settings_version` (what is derived from its settings can be cached
+    against it). With ``fixed=True`` the attribute is set once
     (at construction) and any later assignment is refused: for settings
     that other state was derived from (the observation space, the compiled
     step).
@@ -199,3 +201,14 @@ class Checked:
         if self.fixed and self.slot in obj.__dict__:
             raise ValueError(f"{self.name} is fixed at construction (other settings derive from it); make a new env instead")
         obj.__dict__[self.slot] = self.check(value, self.name)
+        touch(obj)
+
+
+def touch(obj: Any) -> None:
+    """Count up ``obj``'s :func:`settings_version` (a setting changed)."""
+    obj.__dict__["_settings_version"] = obj.__dict__.get("_settings_version", 0) + 1
+
+
+def settings_version(obj: Any) -> int:
+    """How many times ``obj``'s :class:`Checked` settings (and those that call :func:`touch`) were set."""
+    return obj.__dict__.get("_settings_version", 0)

@@ -460,13 +460,23 @@ def test_chain_kernels_take_whole_tiles_by_simd_with_the_member_paths_bits():
     q[0, 3] = 1e7  # beyond SINCOS_RANGE: libm for that member
     q[2, sc.TILE + 1] = np.nan
     v[:, 7], tau[:, 7] = -0.0, -0.0
-    uniform = batch_theta(model, B)
+    shared = batch_theta(model, B)  # one column for every member
+    assert shared.shape == (7 * N + 2, 1)
     a, E = np.empty((N, B)), np.empty(B)
-    sc.acceleration_kernel(q, v, tau, uniform, a)
+    sc.acceleration_kernel(q, v, tau, shared, a)
+    sc.energy_kernel(q, v, shared, E)
     a_np = model.forward_dynamics(q.T, v.T, tau.T)
     ok = np.all(np.isfinite(a_np), axis=-1)
     assert np.max(np.abs(a.T[ok] - a_np[ok]) / (1 + np.abs(a_np[ok]))) < 1e-12
-    theta = uniform.copy()
+    theta = np.repeat(shared, B, axis=1)  # the same, one column per member: the same bits
+    a_cols, E_cols = np.empty((N, B)), np.empty(B)
+    sc.acceleration_kernel(q, v, tau, theta, a_cols)
+    sc.energy_kernel(q, v, theta, E_cols)
+    assert a_cols.tobytes() == a.tobytes() and E_cols.tobytes() == E.tobytes()
+    coulomb = batch_theta(SerialChain(n_links=N, b=0.1, f=0.2), B)  # the shared column through the tanh path
+    sc.acceleration_kernel(q, v, tau, coulomb, a)
+    sc.acceleration_kernel(q, v, tau, np.repeat(coulomb, B, axis=1), a_cols)
+    assert a_cols.tobytes() == a.tobytes()
     theta[2 * N : 3 * N] = rng.uniform(0.1, 2.0, (N, B))  # m
     theta[4 * N : 5 * N] = rng.uniform(0.0, 0.1, (N, B))  # armature
     theta[5 * N : 6 * N] = rng.uniform(0.0, 0.3, (N, B))  # b
@@ -534,3 +544,25 @@ def test_chain_acceleration_kernel_writes_any_output_layout():
     np.testing.assert_array_equal(strided[:, ::2], ref)
     np.testing.assert_array_equal(strided[:, 1::2], 7.0)
     np.testing.assert_array_equal(sliced, ref)
+
+
+@pytest.mark.parametrize("setting, value", [("dt", 0.02), ("substeps", 3), ("u_max", np.array([2.0, 1.0]))])
+def test_a_setting_changed_after_steps_reaches_the_compiled_step(setting, value):
+    """The step kernel's packed arguments are kept between steps (``MBSEnv._step_arguments``) and
+    rebuilt when a setting changes: a changed ``dt``, ``substeps`` or ``u_max`` steps as an env
+    built with it does (the cached arguments would step with the old one)."""
+    changed = gym.make("mbs_envs/Planar2R-v0").unwrapped
+    fresh = gym.make("mbs_envs/Planar2R-v0").unwrapped
+    setattr(fresh, setting, value)
+    a = np.array([0.7, -0.4])
+    changed.reset(seed=4)
+    changed.step(a)
+    q, v, t = changed.q, changed.v, changed._t
+    setattr(changed, setting, value)
+    fresh.reset(seed=4, options={"q": q, "v": v})
+    fresh._t, fresh._task = t, changed._task
+    o1, r1, *_ = changed.step(a)
+    o2, r2, *_ = fresh.step(a)
+    assert changed.compiled is not None
+    np.testing.assert_array_equal(o1, o2)
+    assert r1 == r2

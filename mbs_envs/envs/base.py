@@ -269,19 +269,31 @@ class MBSEnv(gym.Env):
         bad, terminated : ndarray of bool, shape (B,)
             Diverged; ended (diverged or the task's termination).
         """
-        B = q.shape[1]
+        B, nu = q.shape[1], model.nu
         tab = self.compiled if tab is None else tab
-        u, info = np.empty((model.nu, B)), np.empty((self._info_columns()[0], B))
+        stepper, control = self._step_arguments(tab, model.nc, bool(full_info))
+        buf = np.empty((nu + self._info_columns()[0], B))  # u and info: one allocation
+        u, info = buf[:nu], buf[nu:]
         obs = np.empty(self.observation_space.shape + (B,), np.float32)
-        bad, terminated = np.empty(B, bool), np.zeros(B, bool)
-        stepper = tab.packed(self.dt / self.substeps, self.substeps, projection_tol(self.stabilization))
-        control = (float(self.dt), float(self.divergence_limit), float(self.residual_limit), self.u_max, self._actuated, model.nc,
-                   bool(full_info))  # fmt: skip
+        flags = np.zeros((2, B), bool)
+        bad, terminated = flags[0], flags[1]
         self.step_kernel(  # compiled code raises no floating-point warnings
             batch_theta(model, B), stepper, control, self.task_arguments() + task_columns,
             (q, v, t, action), (u, obs, info, bad, terminated),
         )
         return obs.T, info.T, u.T, bad, terminated
+
+    def _step_arguments(self, tab: TableauArrays, nc: int, full_info: bool) -> tuple:
+        """``(stepper, control)`` of the step kernel (:mod:`mbs_envs.envs.engine`), kept until a setting
+        changes (:func:`mbs_envs.validation.settings_version`, the stabilization, ``residual_limit``)."""
+        stab, actuated = self.stabilization, self._actuated
+        key = (check.settings_version(self), self.residual_limit, nc, full_info)
+        c = self.__dict__.get("_step_arguments_cache")
+        if c is None or c[0] is not tab or c[1] is not stab or c[2] is not actuated or c[3] != key:
+            stepper = tab.packed(self.dt / self.substeps, self.substeps, projection_tol(stab))
+            control = (float(self.dt), float(self.divergence_limit), float(self.residual_limit), self.u_max, actuated, nc, full_info)
+            c = self._step_arguments_cache = (tab, stab, actuated, key, (stepper, control))
+        return c[4]
 
     def info_rows(self, info: np.ndarray) -> dict[str, np.ndarray]:
         """The named ``info`` entries of :meth:`run_step_kernel`'s array, one row per member
@@ -325,6 +337,7 @@ class MBSEnv(gym.Env):
     @u_max.setter
     def u_max(self, value: Any) -> None:
         self._u_max = check.vector(value, "torque_limit", self.model.nu, 0.0, low_open=True)
+        check.touch(self)
 
     # -- state ---------------------------------------------------------------
 
