@@ -29,7 +29,7 @@ CASES = [
     ("planar2r_friction", "mbs_envs/Planar2R-v0", {"params": {"f1": 0.3, "b2": 0.2}}, 5),
     ("fourbar", "mbs_envs/FourBar-v0", {}, 3),
     ("disk", "mbs_envs/RollingDisk-v0", {}, 3),
-    ("chain2", "mbs_envs/SerialChain-v0", {}, 3),
+    ("chain2", "mbs_envs/SerialChain-v0", {"n_links": 2}, 3),
     ("chain10", "mbs_envs/SerialChain-v0", {"n_links": 10}, 3),
     ("chain10_friction", "mbs_envs/SerialChain-v0", {"n_links": 10, "params": {"f": 0.01, "b": 0.02}}, 6),
 ]
