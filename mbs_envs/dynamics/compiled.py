@@ -163,8 +163,8 @@ ALIGN = 64
 def aligned_empty(size):  # pragma: no cover - compiled
     """An uninitialized float64 array of ``size`` elements whose data starts on an :data:`ALIGN`-byte
     boundary (numba's ``np.empty`` aligns to 32 bytes, numpy's to 16; the SIMD loops of
-    ``SerialChain``'s tile kernels ran ~5 % slower on 32 and ~20 % on 16 or 8). One-dimensional:
-    a ``reshape`` in a kernel compiles numba's error-message machinery (seconds at a cold start)."""
+    ``SerialChain``'s tile kernels are slower on either, docs/performance.md). One-dimensional:
+    a ``reshape`` in a kernel compiles numba's error-message machinery (docs/performance.md)."""
     raw = np.empty(size + ALIGN // 8)
     skip = (-raw.ctypes.data % ALIGN) // 8
     return raw[skip : skip + size]

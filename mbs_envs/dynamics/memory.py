@@ -6,10 +6,9 @@ observations: megabytes at a few thousand members). glibc serves blocks above it
 threshold* by ``mmap`` and unmaps them when freed, and trims the top of its heap when more than
 its *trim threshold* lies free there. Both thresholds start low (128 kB) and adapt upward only
 when an mmapped block is freed, so whether a step's memory is returned to the OS, and faulted in
-again by the next step, depends on what the process allocated before. Measured here (SerialChain,
-10 links, docs/performance.md): 488 page faults per step at 2048 members and 1,896 at 4096, which
-made the step 2.4x and 3.8x slower per member than at 1024 members; with the thresholds below
-none, and the step as fast per member as at 1024.
+again by the next step, depends on what the process allocated before. At a few thousand members
+that cost hundreds of page faults per step and made the step several times slower per member;
+with the thresholds below, none (figures in docs/performance.md).
 
 :func:`keep_freed_memory` sets the two thresholds to the values glibc's own adaptation stops at
 on 64-bit systems (``DEFAULT_MMAP_THRESHOLD_MAX`` = 32 MiB, and twice that for trimming). It is

@@ -315,7 +315,7 @@ class MBSEnv(gym.Env):
         self._t = float(t[0])
         self._u = u[0]
         row = info_row[0]
-        values = row.tolist()  # one conversion, not one per entry (:meth:`info_rows` costs ~6 us here)
+        values = row.tolist()  # one conversion, not one per entry (:meth:`info_rows` is slower for one member)
         named = {name: (bool(values[c]) if boolean else values[c]) if w is None else row[c : c + w]
                  for name, c, w, boolean in self._info_columns()[1]}  # fmt: skip
         return self._single_step_result(obs, values, terminated, bad, named)

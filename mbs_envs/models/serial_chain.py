@@ -497,7 +497,7 @@ def _energy_tile(q, v, theta, N, B, b0, S, tB, tb0):  # pragma: no cover - compi
     """:func:`_energy_member` of the members ``b0 .. b0 + TILE - 1`` at once (SIMD over the members,
     the operations in :func:`_energy_member`'s order: the same bits). The link loop's first lines
     are :func:`_aba_tile`'s, written out: through a shared inline function LLVM no longer
-    vectorized this loop (168 against 30 ns per member, measured). Arrays flattened as in
+    vectorized this loop (docs/performance.md). Arrays flattened as in
     :func:`_aba_tile` (``theta`` rows of ``tB``, as :func:`_tile_params` gives them); ``S`` (10 * TILE,) work (slots: absolute angle, unused, joint height, link rate,
     joint velocity (2), the sums ``T``, ``V``, unused), whose slots 6, 7 end as ``T``, ``V`` and slot 9
     as whether every absolute angle was inside :data:`mbs_envs.dynamics.trig.SINCOS_RANGE`."""
@@ -632,7 +632,8 @@ class SerialChain(Model):
         :func:`_member_kinematics`'s formulas in numpy over the batch, its running sums in the same
         order (``np.cumsum``), with numpy's ``sin``/``cos`` (within 1 ulp of the kernels' sincos).
         numpy, not a kernel: the env's construction sizes its drives with ``gravity`` and
-        ``mass_matrix``, and a kernel here was compiled in every fresh process (1.2-1.6 s).
+        ``mass_matrix``, and a kernel here was compiled in every fresh process (its cost in
+        docs/performance.md).
 
         Returns
         -------
