@@ -53,11 +53,18 @@ def env_id(env: Any) -> str | None:
     return None if spec is None else spec.id
 
 
+#: a task version -> the version whose plant it shares (a changed reward keeps the plant, so the gains)
+SAME_PLANT = {"mbs_envs/Acrobot-v1": "mbs_envs/Acrobot-v0", "mbs_envs/Pendubot-v1": "mbs_envs/Pendubot-v0"}
+
+
 def tuned_gains(env: Any, controller: str) -> dict[str, Any]:
-    """The default gains of ``controller`` (a display name, e.g. ``"computed torque"``) on ``env``."""
+    """The default gains of ``controller`` (a display name, e.g. ``"computed torque"``) on ``env``
+    (for a task version that only changed the reward, those tuned on its earlier version: :data:`SAME_PLANT`)."""
     if controller not in FALLBACK:
         raise ValueError(f"no tuned gains for controller {controller!r}; known: {sorted(FALLBACK)}")
-    entry = _table().get(env_id(env) or "", {}).get(controller)
+    key = env_id(env) or ""
+    table = _table()
+    entry = table.get(key, table.get(SAME_PLANT.get(key, ""), {})).get(controller)
     return copy.deepcopy(entry if entry is not None else FALLBACK[controller])
 
 

@@ -37,6 +37,10 @@ import time
 
 import numpy as np
 
+#: the peer's label: Gymnasium's Acrobot-v1 (apart from our own mbs_envs/Acrobot-v1, labelled "Acrobot-v1")
+PEER = "gymnasium Acrobot-v1"
+
+
 def scenes() -> dict[str, tuple[str, dict]]:
     """Label -> (id, kwargs) of every configuration timed: each registered scene's ``bench_kwargs``
     (:mod:`mbs_envs.envs.registry`; a checkout without them: its ``kwargs``; one from before the
@@ -97,7 +101,7 @@ def measure(repeats: int, steps: int, num_envs: int, cold: bool) -> dict:
     import mbs_envs
 
     rng = np.random.default_rng(0)
-    singles = {"Acrobot-v1": (gym.make("Acrobot-v1"), [int(a) for a in rng.integers(0, 3, steps)])}
+    singles = {PEER: (gym.make("Acrobot-v1"), [int(a) for a in rng.integers(0, 3, steps)])}
     vectors = {
         "CartPole-v1": (
             gym.make_vec("CartPole-v1", num_envs=num_envs, vectorization_mode="vector_entry_point"),
@@ -128,13 +132,13 @@ def measure(repeats: int, steps: int, num_envs: int, cold: bool) -> dict:
         "python_path": str(pathlib.Path(mbs_envs.__file__).parent.parent),
         "num_envs": num_envs,
         "single_step_us": single,
-        "single_ratio_to_acrobot": {k: v / single["Acrobot-v1"] for k, v in single.items()},
+        "single_ratio_to_acrobot": {k: v / single[PEER] for k, v in single.items()},
         "batched_per_env_step_us": batched,
         "batched_ratio_to_cartpole": {k: v / batched["CartPole-v1"] for k, v in batched.items()},
     }
     if cold:
         root = out["python_path"]
-        starts = {"Acrobot-v1": cold_start("Acrobot-v1", {}, root)}
+        starts = {PEER: cold_start("Acrobot-v1", {}, root)}
         for name, (env_id, kwargs) in tqdm(list(scenes().items()), desc="cold starts", file=sys.stderr):
             starts[name] = cold_start(env_id, kwargs, root)
         out["first_step_s"] = starts
@@ -144,12 +148,12 @@ def measure(repeats: int, steps: int, num_envs: int, cold: bool) -> dict:
 def table(r: dict, title: str) -> str:
     lines = [
         f"### {title}", "",
-        f"| scene | single step [us] | vs Acrobot-v1 ({r['single_step_us']['Acrobot-v1']:.0f} us) "
+        f"| scene | single step [us] | vs Acrobot-v1 ({r['single_step_us'][PEER]:.0f} us) "
         f"| batched per env-step at {r['num_envs']} [us] | vs CartPole-v1 vector ({r['batched_per_env_step_us']['CartPole-v1']:.3f} us) "
         "| first step, fresh process: cold / warm cache [s] |",
         "|---|---|---|---|---|---|",
     ]  # fmt: skip
-    for name in (k for k in r["single_step_us"] if k != "Acrobot-v1"):
+    for name in (k for k in r["single_step_us"] if k != PEER):
         b = r["batched_per_env_step_us"].get(name)
         fs = r.get("first_step_s", {}).get(name)
         lines.append(
@@ -158,7 +162,7 @@ def table(r: dict, title: str) -> str:
             + ("" if fs is None else f" {fs['cold_s']:.1f} / {fs['warm_s']:.2f} |")
         )
     if "first_step_s" in r:
-        a = r["first_step_s"]["Acrobot-v1"]
+        a = r["first_step_s"][PEER]
         lines.append(f"\nAcrobot-v1's first step in a fresh process: {a['cold_s']:.2f} s (no compiled code).")
     return "\n".join(lines) + "\n"
 

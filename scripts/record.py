@@ -1,7 +1,7 @@
 #!/usr/bin/env python
 """Record an episode of a controller or a shipped agent to MP4 and GIF (``mbs_envs.studies.recording``).
 
-    python scripts/record.py --env mbs_envs/Acrobot-v0 --policy swingup --seed 0 --out results/videos
+    python scripts/record.py --env mbs_envs/Acrobot-v1 --policy swingup --seed 0 --out results/videos
     python scripts/record.py --env mbs_envs/RollingDisk-v0 --policy lqr --vs ppo --seed 3 --out results/videos
 
 ``--policy`` (and ``--vs``, for a second panel on the same seed): a controller's short name
@@ -11,6 +11,7 @@ folder. Writes ``<scene>_<policy>[_vs_<policy>]_seed<S>.mp4`` and ``.gif`` (``--
 ``.json`` with what was recorded (steps, return, how the episode ended, run time).
 
     python scripts/record.py --gallery --out docs/gallery     # the README's gallery: every scene, GIF
+    python scripts/record.py --gallery --env mbs_envs/Acrobot-v1 --out docs/gallery   # that scene's GIF again
 
 ``--gallery`` records every scene's best model-based controller beside PPO (training seed 0) on
 test seed 0, small GIFs (200 px panels, 10 frames/s, the first 8 s; 10 s on swing-up scenes; the
@@ -81,8 +82,11 @@ def gallery(args: argparse.Namespace, budget: int = 400_000) -> dict:
     from mbs_envs.envs import registry
     from mbs_envs.studies.recording import gallery_pairs
 
-    records = {}
+    index = args.out / "gallery.json"
+    records = json.loads(index.read_text()) if args.env and index.exists() else {}  # --env: that scene again, the rest kept
     for env_id, controller, agent in gallery_pairs():
+        if args.env and env_id != args.env:
+            continue
         tic = time.perf_counter()
         seconds = 10.0 if registry.scene(env_id).scoring == "swing-up" else 8.0
         recordings = [record_episode(env_id, name, 0, seconds, 10.0) for name in (controller, agent)]
@@ -97,7 +101,7 @@ def gallery(args: argparse.Namespace, budget: int = 400_000) -> dict:
                                       for n, r in zip((controller, agent), recordings)],
                            "run_time_s": time.perf_counter() - tic}  # fmt: skip
         print(f"{path}: {path.stat().st_size / 1e3:.0f} kB, {len(frames)} frames at {fps:g}/s, {records[env_id]['run_time_s']:.1f} s")
-    (args.out / "gallery.json").write_text(json.dumps(records, indent=2))
+    index.write_text(json.dumps({k: v for k, v in records.items() if k in {e for e, _, _ in gallery_pairs()}}, indent=2))
     return records
 
 

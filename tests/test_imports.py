@@ -49,7 +49,10 @@ def test_the_registry_is_the_one_list_of_scenes():
         spec = gym.spec(s.id)
         assert spec.entry_point == s.entry_point and spec.max_episode_steps == s.max_episode_steps
         assert registry.scene(s.name) is registry.scene(s.id) is s
-        assert comparison.SCENES[s.name] == (s.id, dict(s.kwargs), dict(s.controllers))
+        if s.compared:
+            assert comparison.SCENES[s.name] == (s.id, dict(s.kwargs), dict(s.controllers))
+        else:  # an earlier task version, kept registered, not compared
+            assert s.name not in comparison.SCENES
         assert residual_base(s.id) == s.residual_base
     with pytest.raises(ValueError, match="unknown scene 'Pendulum'"):
         registry.scene("Pendulum")

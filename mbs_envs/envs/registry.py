@@ -69,6 +69,9 @@ class Scene:
     singular_cases : str
         ``"module:function"`` returning cases whose true motion ends at a coordinate singularity
         (:func:`mbs_envs.studies.stiff_cases.singular_cases`).
+    compared : bool
+        Whether the comparison, the tuning and the benchmarks run it (False for an earlier
+        version of a task kept registered, e.g. ``Acrobot-v0`` beside ``Acrobot-v1``).
     """
 
     name: str
@@ -86,6 +89,7 @@ class Scene:
     free_motions: str = ""
     stiff_cases: str = ""
     singular_cases: str = ""
+    compared: bool = True
 
 
 SCENES: tuple[Scene, ...] = (
@@ -107,15 +111,15 @@ SCENES: tuple[Scene, ...] = (
         free_motions="mbs_envs.envs.rolling_disk:free_motions", stiff_cases="mbs_envs.envs.rolling_disk:stiff_cases",
         singular_cases="mbs_envs.envs.rolling_disk:singular_cases",
     ),
-    Scene(
-        "Acrobot", "mbs_envs/Acrobot-v0", "mbs_envs.envs.swingup:AcrobotEnv", 1500, controllers=SWING_UP_CONTROLLERS,
-        residual_base="controllers:SwingUpLQR", sizing=False, scoring="swing-up",
-        model="mbs_envs.models.planar2r:Planar2R", edge_parameters=(("m2", {}), ("l1", {})),
-    ),
-    Scene(
-        "Pendubot", "mbs_envs/Pendubot-v0", "mbs_envs.envs.swingup:PendubotEnv", 1500, controllers=SWING_UP_CONTROLLERS,
-        residual_base="controllers:SwingUpLQR", sizing=False, scoring="swing-up",
-        model="mbs_envs.models.planar2r:Planar2R", edge_parameters=(("m2", {}), ("l1", {})),
+    *(
+        Scene(
+            name + suffix, f"mbs_envs/{name}-{version}", f"mbs_envs.envs.swingup:{name}{cls}Env", 1500,
+            controllers=SWING_UP_CONTROLLERS, residual_base="controllers:SwingUpLQR", sizing=False, scoring="swing-up",
+            model="mbs_envs.models.planar2r:Planar2R", edge_parameters=(("m2", {}), ("l1", {})), compared=compared,
+        )
+        # v0 is the compared task until v1's agents are trained; v1 (the hold bonus) registered beside it
+        for version, suffix, cls, compared in (("v0", "", "", True), ("v1", "-v1", "V1", False))
+        for name in ("Acrobot", "Pendubot")
     ),
 )  # fmt: skip
 

@@ -5,12 +5,13 @@ The Planar2R model (docs/physics.md §3) with one driven joint
 acrobot, the shoulder for the pendubot. The task, written once for both:
 
 - upright is ``q_up = (pi/2, 0)``; the error ``e = wrap(q - q_up)`` in ``[-pi, pi)``;
-- reward ``r = w_h h - w_e |e|^2 - w_u |action|^2`` with the height term
+- reward ``r = w_h h - w_e |e|^2 - w_u |action|^2 + w_b 1[upright]`` with the height term
   ``h = (sin th1 + sin(th1 + th2)) / 2`` in ``[-1, 1]`` (the tip's height over the
   arm's reach for equal links; 1 upright, -1 hanging) and default weights
-  ``(w_h, w_e, w_u) = (1, 0.05, 0.01)``;
+  ``(w_h, w_e, w_u) = (1, 0.05, 0.01)``; the hold bonus ``w_b`` is 0 in v0 and 1 in v1
+  (``Acrobot-v1``, ``Pendubot-v1``: a changed reward is a new version, v0 stays registered);
 - observation ``[cos q (2), sin q (2), v (2)]``;
-- ``info``: the reward terms, ``tracking_error = e`` (the distance to upright, which
+- ``info``: the reward terms (``reward_hold`` the bonus), ``tracking_error = e`` (the distance to upright, which
   the evaluation scores), ``upright`` (``|e_i| <= upright_tolerance`` on both joints)
   and ``power = u v_driven`` [W], the motor's mechanical power.
 """
@@ -66,16 +67,16 @@ def swingup_columns(q, v, action, weights, u_max, driven, tolerance, info):  # p
         Joint angles [rad] and rates [rad/s].
     action : ndarray, shape (1, B)
         Normalized input.
-    weights : ndarray, shape (3,)
-        ``(w_h, w_e, w_u)``.
+    weights : ndarray, shape (4,)
+        ``(w_h, w_e, w_u, w_b)``.
     u_max : ndarray, shape (1,)
         Torque limit [N m].
     driven : ndarray of int, shape (1,)
         The driven joint.
     tolerance : float
         Upright tolerance per joint [rad].
-    info : ndarray, shape (>= 8, B)
-        Written: ``(r, r_height, r_upright, r_effort, e1, e2, upright, power)`` in columns 0-7.
+    info : ndarray, shape (>= 9, B)
+        Written: ``(r, r_height, r_upright, r_effort, e1, e2, upright, power, r_hold)`` in rows 0-8.
     """
     B = q.shape[1]
     s, c = np.empty((2, B)), np.empty((2, B))
@@ -87,11 +88,14 @@ def swingup_columns(q, v, action, weights, u_max, driven, tolerance, info):  # p
         h = 0.5 * (s[0, b] + s[0, b] * c[1, b] + c[0, b] * s[1, b])  # sin th1 + sin(th1 + th2), halved
         a = action[0, b]
         r_h, r_e, r_u = weights[0] * h, -weights[1] * (e1 * e1 + e2 * e2), -weights[2] * a * a
-        info[0, b] = r_h + r_e + r_u
+        up = abs(e1) <= tolerance and abs(e2) <= tolerance
+        r_b = weights[3] * up
+        info[0, b] = r_h + r_e + r_u + r_b  # v0: w_b = 0, and x + 0.0 == x (the same bits as before)
         info[1, b], info[2, b], info[3, b] = r_h, r_e, r_u
         info[4, b], info[5, b] = e1, e2
-        info[6, b] = abs(e1) <= tolerance and abs(e2) <= tolerance
+        info[6, b] = up
         info[7, b] = a * u_max[0] * v[driven[0], b]
+        info[8, b] = r_b
 
 
 @njit
@@ -147,8 +151,8 @@ class SwingUpTaskParams:
 
     Attributes
     ----------
-    weights : ndarray, shape (3,)
-        ``(w_h, w_e, w_u)`` of the reward.
+    weights : ndarray, shape (4,)
+        ``(w_h, w_e, w_u, w_b)`` of the reward (``w_b``: the hold bonus; 0 in the v0 task).
     u_max : ndarray, shape (1,)
         Torque limit [N m] (the power in ``info``).
     driven : int
@@ -177,17 +181,18 @@ def start(p: SwingUpTaskParams, rng: np.random.Generator) -> tuple[np.ndarray, n
 
 
 def task_rows(p: SwingUpTaskParams, q: np.ndarray, v: np.ndarray, action: np.ndarray) -> np.ndarray:
-    """:func:`swingup_columns` batched over leading dimensions: shape ``(..., 8)``."""
+    """:func:`swingup_columns` batched over leading dimensions: shape ``(..., 9)``."""
     lead, (q2, v2, a2) = _as_columns(q, v, action)
-    info = np.empty((8, q2.shape[1]))
+    info = np.empty((9, q2.shape[1]))
     swingup_columns(q2, v2, a2, *p.kernel_arguments(), info)
-    return info.T.reshape(lead + (8,))
+    return info.T.reshape(lead + (9,))
 
 
 def reward(p: SwingUpTaskParams, q: np.ndarray, v: np.ndarray, action: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """The reward ``(...)`` (module docstring) and its terms."""
     rows = task_rows(p, q, v, action)
-    return rows[..., 0], {"reward_height": rows[..., 1], "reward_upright": rows[..., 2], "reward_effort": rows[..., 3]}
+    terms = {"reward_height": rows[..., 1], "reward_upright": rows[..., 2], "reward_effort": rows[..., 3], "reward_hold": rows[..., 8]}
+    return rows[..., 0], terms
 
 
 def info(p: SwingUpTaskParams, q: np.ndarray, v: np.ndarray, action: np.ndarray) -> dict[str, np.ndarray]:
@@ -210,9 +215,9 @@ class SwingUpEnv(MBSEnv):
 
     ## Rewards
 
-    ``r = w_h h - w_e |wrap(q - q_up)|^2 - w_u |action|^2``, ``h = (sin th1 + sin(th1 + th2)) / 2``;
-    default ``(1, 0.05, 0.01)``; terms in ``info`` (``reward_height``, ``reward_upright``,
-    ``reward_effort``).
+    ``r = w_h h - w_e |wrap(q - q_up)|^2 - w_u |action|^2 + w_b 1[upright]``,
+    ``h = (sin th1 + sin(th1 + th2)) / 2``; default ``(1, 0.05, 0.01)`` and ``w_b`` 0 (v0) or 1 (v1);
+    terms in ``info`` (``reward_height``, ``reward_upright``, ``reward_effort``, ``reward_hold``).
 
     ## Starting State
 
@@ -231,7 +236,7 @@ class SwingUpEnv(MBSEnv):
     ## Arguments
 
     ``gym.make(id, params=None, torque_limit=..., dt=0.01, integrator="rk4", substeps=2,
-    reward_weights=(1, 0.05, 0.01), start_noise=0.1, upright_tolerance=0.1, compiled=True, ...)``;
+    reward_weights=(1, 0.05, 0.01), hold_bonus=None, start_noise=0.1, upright_tolerance=0.1, compiled=True, ...)``;
     ``params`` overrides :class:`~mbs_envs.models.planar2r.Planar2RParams` (Planar2R-v0's defaults:
     uniform 1 kg, 1 m rods, no friction).
     """
@@ -245,6 +250,9 @@ class SwingUpEnv(MBSEnv):
     reward_weights = check.Checked(lambda x, name: check.vector(x, name, 3, 0.0, broadcast=False))
     start_noise = check.Checked(lambda x, name: check.nonnegative(x, name, 1.0))
     upright_tolerance = check.Checked(lambda x, name: check.positive(x, name, np.pi))
+    hold_bonus = check.Checked(lambda x, name: check.nonnegative(x, name, 1e6))
+    #: the task's default hold bonus ``w_b`` (0 for v0: its reward is unchanged)
+    default_hold_bonus: ClassVar[float] = 0.0
 
     def __init__(
         self,
@@ -254,6 +262,7 @@ class SwingUpEnv(MBSEnv):
         reward_weights: Any = (1.0, 0.05, 0.01),
         start_noise: float = 0.1,
         upright_tolerance: float = 0.1,
+        hold_bonus: Any = None,
         **kwargs: Any,
     ):
         limit = self.default_torque_limit if torque_limit is None else torque_limit
@@ -261,6 +270,7 @@ class SwingUpEnv(MBSEnv):
         self.reward_weights = reward_weights
         self.start_noise = start_noise
         self.upright_tolerance = upright_tolerance
+        self.hold_bonus = self.default_hold_bonus if hold_bonus is None else hold_bonus
         high = np.concatenate([np.ones(4), np.full(2, self.divergence_limit)]).astype(np.float32)
         self.observation_space = gym.spaces.Box(-high, high, dtype=np.float32)
         self._check_start_bound(np.pi / 2 + self.start_noise)
@@ -269,10 +279,11 @@ class SwingUpEnv(MBSEnv):
 
     def _task_cache(self) -> tuple:
         """``(key, task_params, kernel arguments)``, built again only when a setting they hold changes."""
-        key = (self.reward_weights.tobytes(), self.u_max.tobytes(), self.upright_tolerance, self.start_noise)
+        key = (self.reward_weights.tobytes(), self.hold_bonus, self.u_max.tobytes(), self.upright_tolerance, self.start_noise)
         cached = self.__dict__.get("_task_params")
         if cached is None or cached[0] != key:
-            params = SwingUpTaskParams(self.reward_weights, self.u_max, self.driven, self.upright_tolerance, self.start_noise)
+            weights = np.append(self.reward_weights, self.hold_bonus)
+            params = SwingUpTaskParams(weights, self.u_max, self.driven, self.upright_tolerance, self.start_noise)
             cached = self._task_params = (key, params, params.kernel_arguments())
         return cached
 
@@ -305,7 +316,8 @@ class SwingUpEnv(MBSEnv):
 
     def task_layout(self) -> tuple[tuple[str, int | None, bool], ...]:
         names = ("reward", "reward_height", "reward_upright", "reward_effort")
-        return tuple((k, None, False) for k in names) + (("tracking_error", 2, False), ("upright", None, True), ("power", None, False))
+        return tuple((k, None, False) for k in names) + (
+            ("tracking_error", 2, False), ("upright", None, True), ("power", None, False), ("reward_hold", None, False))
 
     # -- drawing ------------------------------------------------------------------
 
@@ -333,3 +345,23 @@ class PendubotEnv(SwingUpEnv):
     step_kernel = staticmethod(step_kernel)
     driven = 0
     default_torque_limit = 5.0
+
+
+class AcrobotV1Env(AcrobotEnv):
+    """``mbs_envs/Acrobot-v1``: Acrobot-v0 with the hold bonus ``w_b = 1``.
+
+    ``r = h - 0.05 |e|^2 - 0.01 a^2 + 1[|e_1| <= tol and |e_2| <= tol]``: holding within the
+    success tolerance earns about twice what hovering just outside it does (v0 paid 0.96 at
+    0.3 rad against 0.999 at 0.1 rad), so the return ranks a policy that stays up above one that
+    swings through. Everything else as v0.
+    """
+
+    step_kernel = staticmethod(step_kernel)
+    default_hold_bonus = 1.0
+
+
+class PendubotV1Env(PendubotEnv):
+    """``mbs_envs/Pendubot-v1``: Pendubot-v0 with the hold bonus ``w_b = 1`` (:class:`AcrobotV1Env`)."""
+
+    step_kernel = staticmethod(step_kernel)
+    default_hold_bonus = 1.0

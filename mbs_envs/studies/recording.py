@@ -170,9 +170,12 @@ def write_video(frames: np.ndarray, path: pathlib.Path, fps: float, colours: int
 
 def gallery_pairs() -> list[tuple[str, str, str]]:
     """``(env id, model-based controller, agent group)`` of the README gallery: each scene's best
-    model-based controller (:attr:`~mbs_envs.envs.registry.Scene.residual_base`) against PPO."""
+    model-based controller (:attr:`~mbs_envs.envs.registry.Scene.residual_base`) against PPO
+    (the compared scenes: an earlier task version kept registered is not shown)."""
     pairs = []
     for s in registry.SCENES:
+        if not s.compared:
+            continue
         display = next(c for c, spec in s.controllers.items() if spec == s.residual_base)
         pairs.append((s.id, _squeeze(display), "ppo"))
     return pairs
