@@ -351,3 +351,28 @@ def test_bench_scenes_times_every_registered_scene():
     assert "SerialChain-v0 (n_links=100)" in names and "Acrobot-v0" in names and "Acrobot-v1" in names  # ours, not the peer
     assert all(np.isfinite(v) and v > 0 for v in r["single_ratio_to_acrobot"].values())
     assert "Pendubot-v0" in script["table"](r, "test")
+
+
+def test_train_continues_an_earlier_versions_agent_on_the_new_reward(tmp_path):
+    script = load_script("train.py")
+    first = ["--env", "mbs_envs/Acrobot-v0", "--algo", "ppo", "--steps", "1024", "--n-envs", "4", "--action-repeat", "4",
+             "--hyper", "n_steps=32", "--eval-seeds", "2"]  # fmt: skip
+    script["run"](script["parse_args"](first + ["--out", str(tmp_path / "v0")]))
+    from mbs_envs.studies.training import ALGOS, TrainConfig, load_agent
+
+    before = ALGOS["ppo"].load(tmp_path / "v0" / "agent.zip").policy.state_dict()
+    records = script["run"](script["parse_args"](["--env", "mbs_envs/Acrobot-v1", "--algo", "ppo", "--steps", "1024", "--n-envs", "4",
+                                                  "--action-repeat", "4", "--eval-seeds", "2", "--init", str(tmp_path / "v{seed}"),
+                                                  "--seed", "0", "--out", str(tmp_path / "v1")]))  # fmt: skip
+    r = records[0]
+    assert r["init"] == {"from": str(tmp_path / "v0"), "env_id": "mbs_envs/Acrobot-v0", "steps": 1024, "init": None}
+    assert r["hyperparameters"]["n_steps"] == 32  # the source's
+    after = ALGOS["ppo"].load(tmp_path / "v1" / "agent.zip").policy.state_dict()
+    assert any(not np.array_equal(before[k].numpy(), after[k].numpy()) for k in before)  # trained on from there
+    assert load_agent(tmp_path / "v1")[1]["env_id"] == "mbs_envs/Acrobot-v1"
+    src = str(tmp_path / "v0")
+    for bad, match in ((dict(algo="sac"), "algo"), (dict(action_repeat=2), "action_repeat"), (dict(hyper={"gamma": 0.9}), "hyper"),
+                       (dict(normalize=True), "normalize"), (dict(init=str(tmp_path)), "no agent")):  # fmt: skip
+        kw = dict(env_id="mbs_envs/Acrobot-v1", algo="ppo", steps=1024, action_repeat=4, init=src) | bad
+        with pytest.raises(ValueError, match=match):
+            TrainConfig(**kw)

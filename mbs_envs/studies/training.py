@@ -29,6 +29,7 @@ import numpy as np
 from stable_baselines3 import PPO, SAC, TD3
 from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback, CallbackList
 from stable_baselines3.common.noise import NormalActionNoise
+from stable_baselines3.common.vec_env import VecNormalize
 from tqdm import tqdm
 
 from . import seeds as seed_ranges
@@ -37,8 +38,29 @@ from .evaluation import ERROR_METRIC, SCORING, default_gains_entry, make_control
 from .residual import ResidualPolicy, check_bound, residual_vec_env
 from ..envs.sb3 import check_action_repeat, make_sb3_vec_env
 from .held import HeldPolicy
+from .normalized import NormalizedPolicy, ObsNormalization
 
 ALGOS = {"ppo": PPO, "sac": SAC, "td3": TD3}
+
+def check_init(config: "TrainConfig") -> dict[str, Any]:
+    """The ``config.json`` of ``config.init``, or a ``ValueError`` naming what does not match."""
+    folder = pathlib.Path(config.init)
+    if not (folder / "agent.zip").exists() or not (folder / "config.json").exists():
+        raise ValueError(f"init: {str(folder)!r} holds no agent saved by train (agent.zip and config.json)")
+    source = json.loads((folder / "config.json").read_text())
+    mine = {"algo": config.algo, "action_repeat": config.action_repeat, "normalize": config.normalize,
+            "residual": (config.residual or None)}  # fmt: skip
+    theirs = {"algo": source["algo"], "action_repeat": source.get("action_repeat", 1), "normalize": source.get("normalize", False),
+              "residual": (source.get("residual") or {}).get("base")}  # fmt: skip
+    for key in mine:
+        if mine[key] != theirs[key]:
+            raise ValueError(f"init: the source agent has {key}={theirs[key]!r}, this run {mine[key]!r}")
+    if config.hyper:
+        raise ValueError("init: a continued run keeps the source's hyperparameters; hyper must be empty")
+    if config.normalize:
+        raise ValueError("init: continuing a normalized run is not supported (only its observation statistics are saved)")
+    return source
+
 
 def residual_base(env_id: str) -> str:
     """The default base controller (``"module:Class"``) of a residual agent on ``env_id``:
@@ -78,6 +100,10 @@ class TrainConfig:
     hyper : dict, optional
         Overrides of the numeric hyperparameters of :func:`hyperparameters`
         (e.g. ``{"gamma": 0.998}``); a key it does not set is a ``ValueError``.
+    normalize : bool
+        Train behind SB3's ``VecNormalize`` (observations and rewards, the rewards with
+        the run's discount); the observation statistics are saved with the agent
+        (:mod:`mbs_envs.studies.normalized`) and applied when it is loaded.
     action_repeat : int
         Control steps each of the agent's actions is held for (``K``; 1: it decides
         every step). The agent trains through the adapter's action repeat
@@ -86,6 +112,13 @@ class TrainConfig:
         (:class:`mbs_envs.studies.held.HeldPolicy`). ``steps`` still counts control
         steps (the simulated time), so a run with ``K = 8`` makes 8 times fewer
         decisions and gradient updates for the same budget.
+    init : str, optional
+        A folder saved by :func:`train` whose agent this run continues (its weights, and its
+        optimizer's state) instead of starting afresh, e.g. an agent of an earlier task version
+        trained on further on the new reward. The algorithm, action repeat, normalization and
+        residual base must be the source's; its hyperparameters are kept (``hyper`` must be empty);
+        not for a normalized run (its reward statistics are not saved).
+        ``config.json`` records the source and its budget.
     """
 
     env_id: str
@@ -101,6 +134,8 @@ class TrainConfig:
     residual_bound: float = 0.25
     hyper: dict = dataclasses.field(default_factory=dict)
     action_repeat: int = 1
+    normalize: bool = False
+    init: str | None = None
 
     def __post_init__(self) -> None:
         if self.algo not in ALGOS:
@@ -117,6 +152,8 @@ class TrainConfig:
         check_action_repeat(self.action_repeat)
         if self.residual and self.action_repeat != 1:
             raise ValueError("action_repeat > 1 is not available for residual agents (their base acts every step)")
+        if self.init is not None:
+            check_init(self)
         defaults = _defaults(self, 1)
         for key, value in self.hyper.items():
             if key not in defaults or not isinstance(defaults[key], (int, float)):
@@ -194,7 +231,8 @@ def _defaults(config: TrainConfig, action_dim: int) -> dict[str, Any]:
               "policy_kwargs": policy_kwargs}  # fmt: skip
     if config.algo == "sac":
         common["learning_rate"] = 3e-4
-        common["target_entropy"] = -4.0 * action_dim
+        # the swing-up rewards are of order 1 per step: SB3's own target (-dim A) there
+        common["target_entropy"] = "auto" if registry.scene(config.env_id).scoring == "swing-up" else -4.0 * action_dim
     return common
 
 
@@ -223,8 +261,9 @@ def evaluate(policy: Any, env_id: str, seeds: list[int], env_kwargs: dict, **rol
 class TrainingLog(BaseCallback):
     """Progress bar, and the deterministic policy's metrics every ``eval_every`` env-steps."""
 
-    def __init__(self, config: TrainConfig, eval_every: int, as_policy: Any = None):
+    def __init__(self, config: TrainConfig, eval_every: int, as_policy: Any = None, csv_path: pathlib.Path | None = None):
         super().__init__()
+        self.csv_path = csv_path
         self.config = config
         self.as_policy = as_policy or (lambda model: model)
         self.eval_every = eval_every
@@ -252,6 +291,8 @@ class TrainingLog(BaseCallback):
         wall = time.perf_counter() - self._t0 - self.eval_time
         self.rows.append({"timesteps": self.env_steps, "train_wall_s": wall, **metrics})
         self._next = self.env_steps + self.eval_every
+        if self.csv_path is not None:  # written as it grows: a long run's curve can be read before it ends
+            write_log(self.csv_path, self.rows)
 
     def _on_step(self) -> bool:
         if self._bar is not None:
@@ -269,6 +310,14 @@ class TrainingLog(BaseCallback):
     @property
     def train_wall_s(self) -> float:
         return time.perf_counter() - self._t0 - self.eval_time
+
+
+def write_log(path: pathlib.Path, rows: list[dict[str, float]]) -> None:
+    """Write the training log's rows (one per evaluation) as CSV."""
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
 
 
 def train(config: TrainConfig, out: pathlib.Path, tensorboard: bool = False, checkpoint_every: int | None = None) -> dict[str, Any]:
@@ -292,33 +341,42 @@ def train(config: TrainConfig, out: pathlib.Path, tensorboard: bool = False, che
     torch.set_num_threads(1)
     members = seed_ranges.training_members(config.seed, config.members)
     venv = make_sb3_vec_env(config.env_id, n_envs=config.members, seed=members[0], action_repeat=config.action_repeat, **config.env_kwargs)
-    as_policy = base_gains = None
-    if config.action_repeat > 1:
-        as_policy = lambda model: HeldPolicy(model, config.action_repeat)  # noqa: E731
+    base = base_gains = None
     if config.residual:
         nominal = gym.make(config.env_id, **config.env_kwargs)
         base_gains = default_gains_entry(config.residual, nominal)  # recorded: a later retune leaves this agent's base alone
         base = make_controller(config.residual, nominal, base_gains)
         venv = residual_vec_env(venv, base, config.residual_bound)
-        as_policy = lambda model: ResidualPolicy(base, model, config.residual_bound)  # noqa: E731
     hyper = hyperparameters(config, venv.action_space.shape[0])
-    model = ALGOS[config.algo](
-        "MlpPolicy", venv, seed=config.seed, device="cpu", verbose=0,
-        tensorboard_log=str(out / "tensorboard") if tensorboard else None, **hyper,
-    )  # fmt: skip
-    log = TrainingLog(config, config.eval_every or max(config.steps // 10, 1), as_policy)
+    normalization = None
+    if config.normalize:  # the agent's own observations (a residual's base sees the plain ones)
+        venv = VecNormalize(venv, norm_obs=True, norm_reward=True, gamma=hyper["gamma"])
+        normalization = lambda: ObsNormalization.of(venv)  # noqa: E731
+    as_policy = lambda model: as_evaluated(model, config.action_repeat, base, config.residual_bound, normalization and normalization())  # noqa: E731
+    source = None
+    if config.init is None:
+        model = ALGOS[config.algo](
+            "MlpPolicy", venv, seed=config.seed, device="cpu", verbose=0,
+            tensorboard_log=str(out / "tensorboard") if tensorboard else None, **hyper,
+        )  # fmt: skip
+    else:
+        source = check_init(config)
+        model = ALGOS[config.algo].load(pathlib.Path(config.init) / "agent.zip", env=venv, device="cpu", verbose=0,
+                                        tensorboard_log=str(out / "tensorboard") if tensorboard else None)  # fmt: skip
+        model.set_random_seed(config.seed)
+        hyper = source["hyperparameters"]
+    log = TrainingLog(config, config.eval_every or max(config.steps // 10, 1), as_policy, out / "training_log.csv")
     callbacks: list[BaseCallback] = [log]
     if checkpoint_every:
         every = checkpoint_every // (config.members * config.action_repeat)
-        callbacks.append(CheckpointCallback(max(every, 1), str(out / "checkpoints"), name_prefix="agent"))
+        callbacks.append(CheckpointCallback(max(every, 1), str(out / "checkpoints"), name_prefix="agent", save_vecnormalize=config.normalize))
     model.learn(config.steps // config.action_repeat, callback=CallbackList(callbacks))
     wall = log.train_wall_s
     model.save(out / "agent.zip")
+    if config.normalize:
+        ObsNormalization.of(venv).save(out)
     venv.close()
-    with open(out / "training_log.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(log.rows[0]))
-        w.writeheader()
-        w.writerows(log.rows)
+    write_log(out / "training_log.csv", log.rows)
     record = {
         "env_id": config.env_id,
         "env_kwargs": config.env_kwargs,
@@ -333,6 +391,9 @@ def train(config: TrainConfig, out: pathlib.Path, tensorboard: bool = False, che
         "hyperparameters": {k: (repr(v) if k == "action_noise" else v) for k, v in hyper.items()},
         "hyper_overrides": config.hyper,
         "action_repeat": config.action_repeat,
+        "normalize": config.normalize,
+        "init": None if source is None else {"from": str(config.init), "env_id": source["env_id"], "steps": source["steps"],
+                                             "init": source.get("init")},
         "command": "python scripts/train.py " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("train.py") else None,
         "train_wall_s": wall,
         "final_evaluation": log.rows[-1],
@@ -355,8 +416,18 @@ def load_agent(folder: pathlib.Path) -> tuple[Any, dict[str, Any]]:
     record = json.loads((folder / "config.json").read_text())
     model = ALGOS[record["algo"]].load(folder / "agent.zip", device="cpu")
     residual = record.get("residual")
+    normalization = ObsNormalization.load(folder) if record.get("normalize") else None
     if residual:
         base = make_controller(residual["base"], gym.make(record["env_id"], **record.get("env_kwargs", {})), residual.get("gains"))
-        return ResidualPolicy(base, model, residual["bound"]), record
-    repeat = record.get("action_repeat", 1)
-    return (HeldPolicy(model, repeat) if repeat > 1 else model), record
+        return as_evaluated(model, 1, base, residual["bound"], normalization), record
+    return as_evaluated(model, record.get("action_repeat", 1), None, 0.0, normalization), record
+
+
+def as_evaluated(model: Any, action_repeat: int, base: Any, bound: float, normalization: ObsNormalization | None) -> Any:
+    """The trained ``model`` as it is evaluated: on normalized observations if it trained on them,
+    as the bounded correction of ``base`` (a residual agent), holding its decisions for
+    ``action_repeat`` steps."""
+    policy = model if normalization is None else NormalizedPolicy(model, normalization)
+    if base is not None:
+        policy = ResidualPolicy(base, policy, bound)
+    return HeldPolicy(policy, action_repeat) if action_repeat > 1 else policy
