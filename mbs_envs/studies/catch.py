@@ -1,0 +1,57 @@
+"""What physics allows on the swing-up scenes: the saturation bound beside the LQR's measured catch.
+
+For each swing-up scene and comparison condition, along each state coordinate about upright
+(the others zero): the largest offset the torque limit allows on that condition's plant
+(:func:`controllers.region.saturation_bound`, on the plant's own linearization, shrunk by the
+input delay), and the largest offset from which the scene's LQR (the balancing part of its
+model-based controller, with its nominal gains) brings that plant back
+(:func:`controllers.region.axis_catch`, by simulation on the control map). Where the second is far
+below the first, a failed catch is the controller's, not physics'.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from controllers.base import linearize
+from controllers.region import PlantCase, axis_catch, saturation_bound
+from controllers.swingup import SwingUpLQR
+from ..envs.swingup import Q_UP
+from .comparison import SCENES, Condition, plant_kwargs
+
+#: the coordinates of the table
+AXES = ("q1 [rad]", "q2 [rad]", "v1 [rad/s]", "v2 [rad/s]")
+
+
+def catch_rows(scene: str, conditions: list[Condition]) -> list[dict[str, Any]]:
+    """One row per condition: ``bound`` and ``lqr_catch`` per coordinate of :data:`AXES` (module docstring)."""
+    env_id = SCENES[scene][0]
+    nominal = gym.make(env_id).unwrapped
+    lqr = SwingUpLQR(nominal)
+    u_max, dt, substeps = float(nominal.u_max[0]), float(nominal.dt), int(nominal.substeps)
+    x_up = np.concatenate([Q_UP, np.zeros(2)])
+    rows = []
+    for cond in conditions:
+        plant = gym.make(env_id, **plant_kwargs(scene, cond)).unwrapped.model
+
+        def f(x, u, plant=plant):
+            return np.concatenate([x[..., 2:], plant.forward_dynamics(x[..., :2], x[..., 2:], u)], axis=-1)
+
+        A, B = linearize(f, x_up, np.zeros(1))
+        bound = saturation_bound(A, B, u_max, cond.delay * dt)
+        case = PlantCase(plant, cond.delay)
+        caught = [axis_catch(case, x_up, lqr.K, u_max, dt, substeps, j, 1.5 * b if np.isfinite(b) else 5.0) for j, b in enumerate(bound)]
+        rows.append({"scene": scene, "condition": cond.name, "bound": [float(b) for b in bound], "lqr_catch": caught})
+    return rows
+
+
+def catch_table(rows: list[dict[str, Any]]) -> str:
+    """A markdown table of :func:`catch_rows`: ``LQR catch / bound`` per coordinate."""
+    lines = ["| scene | condition | " + " | ".join(f"{a}: LQR / bound" for a in AXES) + " |", "|---|---|" + "---|" * len(AXES)]
+    for r in rows:
+        cells = [f"{c:.3f} / {b:.3f}" for c, b in zip(r["lqr_catch"], r["bound"])]
+        lines.append(f"| {r['scene']} | {r['condition']} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)

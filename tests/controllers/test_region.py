@@ -1,0 +1,103 @@
+"""The saturation bound and the LQR's measured catch about upright (controllers/region.py)."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import mbs_envs  # noqa: F401
+from controllers import SwingUpLQR
+from controllers.base import linearize
+from controllers.control_map import rk4_map
+from controllers.region import PlantCase, axis_catch, closed_loop_final, estimate_region, saturation_bound
+from mbs_envs.envs.swingup import Q_UP
+
+
+def test_bound_is_the_closed_form_of_decoupled_modes():
+    # x1' = 2 x1 + 3 u (unstable), x2' = -x2 + u (stable): only x1 is bounded, by 3 u_max / 2
+    A, B = np.diag([2.0, -1.0]), np.array([[3.0], [1.0]])
+    b = saturation_bound(A, B, 0.5)
+    assert b[0] == pytest.approx(0.75, rel=1e-12) and b[1] == np.inf
+    # two unstable modes: each coordinate bounded by its own slab; a delay shrinks each by e^(lambda tau)
+    A2, B2 = np.diag([2.0, 5.0]), np.array([[1.0], [2.0]])
+    np.testing.assert_allclose(saturation_bound(A2, B2, 1.0), [0.5, 0.4], rtol=1e-12)
+    np.testing.assert_allclose(saturation_bound(A2, B2, 1.0, delay=0.1), [0.5 * np.exp(-0.2), 0.4 * np.exp(-0.5)], rtol=1e-12)
+
+
+def test_beyond_the_bound_no_input_recovers_the_scalar_plant():
+    """On x' = lambda x + b u the bound is exact: any |u| <= u_max loses a start beyond it and bang-bang saves one inside."""
+    lam, b, u_max = 3.0, 2.0, 1.5
+    bound = saturation_bound(np.array([[lam]]), np.array([[b]]), u_max)[0]
+    t = np.linspace(0, 3, 3001)
+    for x0, caught in ((0.99 * bound, True), (1.01 * bound, False)):
+        x = x0
+        for _ in t[1:]:
+            x += (lam * x - b * u_max * np.sign(x)) * 1e-3  # the best admissible input pushes straight back
+        assert (abs(x) < abs(x0)) == caught
+
+
+@pytest.fixture(scope="module")
+def acrobot():
+    env = gym.make("mbs_envs/Acrobot-v1")
+    base = env.unwrapped
+    ctrl = SwingUpLQR(env)
+    m = base.model
+
+    def f(x, u):
+        return np.concatenate([x[..., 2:], m.forward_dynamics(x[..., :2], x[..., 2:], u)], axis=-1)
+
+    x_up = np.concatenate([Q_UP, np.zeros(2)])
+    A, B = linearize(f, x_up, np.zeros(1))
+    return m, ctrl, x_up, A, B, float(base.u_max[0])
+
+
+def test_the_lqr_catch_is_inside_the_bound_and_states_inside_it_are_caught(acrobot):
+    m, ctrl, x_up, A, B, u_max = acrobot
+    bound = saturation_bound(A, B, u_max)
+    case = PlantCase(m)
+    for j in range(4):
+        c = axis_catch(case, x_up, ctrl.K, u_max, 0.01, 2, j, 1.5 * bound[j], points=24)
+        assert 0 < c <= bound[j] * 1.05  # the linear bound; 5 % for the nonlinear arm's own reach
+        x0 = np.repeat(x_up[None], 3, 0)
+        x0[:, j] += np.array([0.3, 0.7, -0.7]) * c
+        assert np.all(np.abs(closed_loop_final([case], x0, x_up, ctrl.K, u_max, 0.01, 2, 500)) <= 0.1)
+    # far beyond the bound (twice it along q1): lost, whatever the sign
+    x0 = np.repeat(x_up[None], 2, 0)
+    x0[:, 0] += np.array([2.0, -2.0]) * bound[0]
+    assert not np.any(np.all(np.abs(closed_loop_final([case], x0, x_up, ctrl.K, u_max, 0.01, 2, 500)) <= 0.1, axis=-1))
+
+
+def test_the_region_estimate_holds_on_fresh_samples_and_fails_beyond(acrobot):
+    m, ctrl, x_up, A, B, u_max = acrobot
+    box = np.array([0.4, 0.8, 2.0, 4.0])
+    level, details = estimate_region([PlantCase(m)], x_up, ctrl.K, ctrl.S, u_max, 0.01, 2, box, samples=600)
+    assert not details["bounded_by_box"] and details["converged"] and 0 < level < np.inf
+    rng = np.random.default_rng(11)
+    dx = rng.uniform(-1, 1, (2_000_000, 4)) * box  # fresh: uniform in the box the estimate samples, by rejection
+    cost = np.einsum("bi,ij,bj->b", dx, ctrl.S, dx)
+    lam, W = np.linalg.eig(A.T)
+    W = W[:, lam.real > 0].real  # the unstable modes z = w^T x: beyond |w^T B| u_max / lambda no input returns one
+    reach = np.abs(W.T @ B[:, 0]) * u_max / lam.real[lam.real > 0]
+    inside, outside = dx[cost < 0.5 * level][:64], dx[np.any(np.abs(dx @ W) > 1.5 * reach, axis=-1)][:64]
+    assert len(inside) >= 16 and len(outside) >= 16
+    fallen = np.array([np.pi / 2, np.pi, 20.0, 40.0])  # a run that leaves this has fallen (no count of a loop back to upright)
+    caught = lambda d: np.all(np.abs(closed_loop_final([PlantCase(m)], x_up + d, x_up, ctrl.K, u_max, 0.01, 2, 500, fallen)[0]) <= 0.1, axis=-1)  # noqa: E731
+    assert caught(inside).all()  # fresh samples, not those the level came from
+    assert not caught(outside).any()  # beyond the unstable mode's slab (with 50 % for the nonlinear arm): physics loses them
+    # a plant set can only shrink it
+    heavy = m.with_params(m.params.replace(m2=1.2, l2=1.2, r2=0.6, I2=1.2**3 * m.params.I2))
+    both, _ = estimate_region([PlantCase(m), PlantCase(heavy)], x_up, ctrl.K, ctrl.S, u_max, 0.01, 2, box, samples=600)
+    assert both <= level
+
+
+@pytest.mark.parametrize("env_id", ["mbs_envs/Acrobot-v1", "mbs_envs/Pendubot-v1"])
+def test_the_control_map_is_the_envs_step(env_id):
+    env = gym.make(env_id)
+    base = env.unwrapped
+    env.reset(seed=5)
+    x = np.concatenate([base.q, base.v])
+    for a in (0.3, -1.0, 0.7, 0.0):
+        env.step(np.array([a], np.float32))
+        x = rk4_map(base.model, x, np.array([np.float32(a) * base.u_max[0]]), base.dt, base.substeps)
+        np.testing.assert_allclose(np.concatenate([base.q, base.v]), x, rtol=0, atol=1e-12)
