@@ -1,5 +1,5 @@
 """Swing-up and balance of the 2R arm with one motor: energy pumping through partial
-feedback linearization, switching to LQR about upright (Acrobot-v0, Pendubot-v0).
+feedback linearization, switching to LQR about upright (Acrobot, Pendubot: v0 and v1).
 
 Let ``a`` be the driven joint and ``p`` the passive one. With ``M q'' + h = B u``
 (``h = C v + G + F``; docs/physics.md §3) the passive row gives
@@ -85,7 +85,7 @@ class SwingUpLQR(Controller):
     Parameters
     ----------
     env : gymnasium.Env
-        Acrobot-v0 or Pendubot-v0 (wrapped or not).
+        an Acrobot or Pendubot env, any version (wrapped or not).
     k_q, k_v : float, optional
         PD of the driven joint during swing-up [1/s^2, 1/s]; default the tuned ones.
     k_E : float, optional

@@ -47,6 +47,7 @@ from controllers import tuned
 from mbs_envs import comparison as cmp
 from mbs_envs import seeds as seed_ranges
 from mbs_envs.envs import registry
+from mbs_envs.studies.catch import catch_rows, catch_table
 from mbs_envs.studies.parallel import run_tasks
 from mbs_envs.studies.plotting import pyplot, save
 from mbs_envs.studies.sizing import actuator_sizing
@@ -59,6 +60,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", required=True, type=pathlib.Path, help="folder for the results")
     p.add_argument("--seeds", type=int, default=20, help="test episodes per policy and condition (default 20)")
+    p.add_argument("--swing-up-seeds", type=int, default=100, help="test episodes on the swing-up scenes (default 100)")
     p.add_argument("--quick", action="store_true", help="3 test seeds")
     p.add_argument("--full", action="store_true", help="also +-10 %% and +-30 %% mismatch")
     p.add_argument("--scene", action="append", choices=list(cmp.SCENES), help="scene(s) (default all)")
@@ -77,12 +79,16 @@ def run(args: argparse.Namespace) -> dict:
     conds = cmp.conditions((0.1, 0.2, 0.3) if args.full else (0.2,), 0.01)
     args.out.mkdir(parents=True, exist_ok=True)
     seeds = seed_ranges.test_seeds(n_seeds)
+    n_swing = 3 if args.quick else args.swing_up_seeds
+    if not 1 <= n_swing <= len(seed_ranges.TEST):
+        raise SystemExit(f"--swing-up-seeds must be in [1, {len(seed_ranges.TEST)}]")
     tasks, agents = [], {}
     for scene in scenes:
         agents[scene] = {} if args.no_agents else cmp.find_agents(args.agents, scene)
         policies = {**{k: [v] for k, v in cmp.SCENES[scene][2].items()}, **agents[scene]}
         for c in conds:
-            tasks.append({"scene": scene, "condition": vars(c), "seeds": seeds, "policies": policies})
+            scene_seeds = seed_ranges.test_seeds(n_swing) if scoring_of(scene) == "swing-up" else seeds
+            tasks.append({"scene": scene, "condition": vars(c), "seeds": scene_seeds, "policies": policies})
     print(f"{len(tasks)} cells ({len(scenes)} scenes x {len(conds)} conditions), {n_seeds} test seeds each")
     if args.ray is None and args.workers > 1:
         results = run_tasks(cmp.evaluate_cell, tasks, max_workers=args.workers)
@@ -101,10 +107,11 @@ def run(args: argparse.Namespace) -> dict:
     for scene in scenes:
         plot_scene(scene, summary[scene], args.out / f"comparison_{scene}.png")
     plot_learning_curves(summary, curves, args.out / "learning_curves.png")
-    report = make_report(summary, sizing, agents, curves, seeds, conds)
+    catch = [r for scene in scenes if scoring_of(scene) == "swing-up" for r in catch_rows(scene, conds)]
+    report = make_report(summary, sizing, agents, curves, seeds, conds, n_swing, catch)
     (args.out / "report.md").write_text(report)
     config = {"test_seeds": [seeds[0], seeds[-1]], "conditions": [c.name for c in conds], "agents": agents}
-    (args.out / "summary.json").write_text(json.dumps({"config": config, "summary": summary, "sizing": sizing}, indent=2, default=float))
+    (args.out / "summary.json").write_text(json.dumps({"config": config, "summary": summary, "sizing": sizing, "catch": catch}, indent=2, default=float))
     print(headline(summary))
     print(f"written to {args.out}/report.md, episodes.csv, summary.json, learning_curves.png and comparison_<scene>.png")
     return {"summary": summary, "rows": rows, "sizing": sizing}
@@ -126,13 +133,16 @@ def ci(m: dict, key: str, digits: int = 3) -> str:
     return f"{m[key]:.{digits}g} [{m[key + '_lo']:.{digits}g}, {m[key + '_hi']:.{digits}g}]"
 
 
-def success(m: dict) -> str:
-    return f"{m['success']:.0%}" + ("" if m["success"] == 1 else f" [{m['success_lo']:.0%}, {m['success_hi']:.0%}]")
+def success(m: dict, key: str = "success") -> str:
+    return f"{m[key]:.0%}" + ("" if m[key] == 1 else f" [{m[key + '_lo']:.0%}, {m[key + '_hi']:.0%}]")
 
 
-def beats(m: dict, pd: dict | None) -> bool:
-    """Whether a policy beats PD at one condition: at least its success, and a smaller settled error."""
-    return pd is not None and m["success"] >= pd["success"] and m["rms_error_settled"] < pd["rms_error_settled"]
+def rl_label(name: str, verdict: str) -> str:
+    """An agent's name in the headline with its verdict against PD on both metrics
+    (:func:`mbs_envs.studies.comparison.verdict_against`): bold only where it loses on both."""
+    if verdict.startswith("does not beat"):
+        return f"{name} (**{verdict}**)"
+    return name if verdict == "beats PD" else f"{name} ({verdict})"
 
 
 def pd_of(by_policy: dict) -> dict | None:
@@ -151,8 +161,8 @@ def swing_up_headline(summary: dict) -> str:
     if not scenes:
         return ""
     conds = [c for c in summary[scenes[0]] if c != "nominal"]
-    lines = ["| scene | side | policy | nominal: success | time to swing up [s] | energy used [J] | "
-             + " | ".join(f"{c}: success" for c in conds) + " |", "|---|---|---|---|---|---|" + "---|" * len(conds)]  # fmt: skip
+    lines = ["| scene | side | policy | nominal: success 0.1 rad | success 0.2 rad | near upright [s] | time to swing up [s] | energy used [J] | "
+             + " | ".join(f"{c}" for c in conds) + " |", "|---|---|---|---|---|---|---|---|" + "---|" * len(conds)]  # fmt: skip
     for scene in scenes:
         by_cond = summary[scene]
         nominal = by_cond["nominal"]
@@ -161,10 +171,12 @@ def swing_up_headline(summary: dict) -> str:
                 continue
             name = cmp.best_policy(nominal, kind, scoring="swing-up")
             if name is None:
-                lines.append(f"| {scene} | best {kind} | (none swings up) |" + " |" * (3 + len(conds)))
+                lines.append(f"| {scene} | best {kind} | (none swings up) |" + " |" * (5 + len(conds)))
                 continue
             m = nominal[name]
-            cells = [success(m), ci(m, "time_to_swing_up"), ci(m, "energy_used")] + [success(by_cond[c][name]) for c in conds]
+            cells = [success(m), success(m, "success_wide"), ci(m, "time_near_upright"), ci(m, "time_to_swing_up"), ci(m, "energy_used")]
+            cells += [f"{by_cond[c][name]['success']:.0%} / {by_cond[c][name]['success_wide']:.0%} / {by_cond[c][name]['time_near_upright']:.1f}"
+                      for c in conds]  # fmt: skip
             lines.append(f"| {scene} | best {kind} | {name} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
@@ -191,7 +203,7 @@ def headline(summary: dict) -> str:
                 lines.append(f"| {scene} | best {kind} | (none with >= 95 % success) | | | | | | | | |")
                 continue
             m = nominal[name]
-            label = name if kind == "model-based" or beats(m, pd_of(nominal)) else f"{name} (**does not beat PD**)"
+            label = name if kind == "model-based" else rl_label(name, cmp.verdict_against(m, pd_of(nominal)))
             cells = [f"{ci(m, 'rms_error_settled')} | {success(m)}"]
             for c in ("mismatch -20%", "mismatch +20%"):
                 cells.append(f"{ci(by_cond[c][name], 'rms_error_settled')} | {success(by_cond[c][name])}" if c in by_cond else "- | -")
@@ -325,10 +337,12 @@ def plot_learning_curves(summary: dict, curves: dict, path: pathlib.Path) -> Non
     save(fig, path)
 
 
-def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: list[int], conds: list) -> str:
+def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: list[int], conds: list, n_swing: int | None = None,
+                catch: list | None = None) -> str:
     tuned_record = json.loads(tuned.PATH.read_text()) if tuned.PATH.exists() else {}
     L = ["# RL agents against model-based controllers", ""]
-    L.append(f"**Protocol.** {len(seeds)} test episodes per policy and condition, seeds {seeds[0]}-{seeds[-1]} (the same starts and "
+    swing_seeds = f"; on the swing-up scenes {n_swing}, seeds 0-{n_swing - 1}" if n_swing else ""
+    L.append(f"**Protocol.** {len(seeds)} test episodes per policy and condition, seeds {seeds[0]}-{seeds[-1]}{swing_seeds} (the same starts and "
              "references for every policy). Test seeds are disjoint from every other seed used: training members start from "
              f"{seed_ranges.TRAINING_BASE} + 1000 k + i (run k, member i), learning curves use validation seeds "
              f"{seed_ranges.VALIDATION[0]}-, gain tuning uses seeds {seed_ranges.TUNING[0]}- (`mbs_envs/studies/seeds.py`). "
@@ -344,12 +358,24 @@ def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: 
              "excluded); runs may have shared the machine with other runs, so they bound the cost from above.")  # fmt: skip
     L += ["", "## Headline", "", headline(summary), ""]
     if swing_up_headline(summary):
-        L += ["**Swing-up scenes** (Acrobot-v0, Pendubot-v0: one motor; an episode succeeds when both joints stay within "
-              "0.1 rad of upright for its last 2 s; time to swing up: from when it stays there; energy: the motor's work "
-              "int |u v_driven| dt; time and energy over the successful episodes; best = highest success, then time):", "",
+        L += ["**Swing-up scenes** (Acrobot-v1, Pendubot-v1: one motor; an episode succeeds when both joints stay within "
+              "0.1 rad of upright for its last 2 s, and at 0.2 rad when they stay within 0.2 rad; near upright: the seconds "
+              "with both within 0.3 rad, anywhere in the 15 s; time to swing up: from when it stays within 0.1 rad; energy: "
+              "the motor's work int |u v_driven| dt; time and energy over the successful episodes; best = highest success, "
+              "then time; each perturbed cell: success at 0.1 rad / at 0.2 rad / seconds near upright):", "",
               swing_up_headline(summary), ""]  # fmt: skip
+    if catch:
+        L += ["**What physics allows** (swing-up scenes): along each coordinate about upright (the others zero), the largest "
+              "offset from which the scene's LQR (its nominal gains, the balancing part of swing-up + LQR) brings the "
+              "condition's plant back within 0.1 rad in 5 s, simulated on the control map, beside the bound of the torque "
+              "limit on that plant's linearization (no input brings back an unstable mode w^T x beyond |w^T B| u_max / lambda, "
+              "shrunk by e^(lambda delay) with the input delay; `mbs_envs/studies/catch.py`, `controllers/region.py`). "
+              "An LQR catch far below the bound is the controller's limit, not physics':", "", catch_table(catch), ""]  # fmt: skip
     L += ["**Two metrics.** The error columns are the tracking error after the first second; the agents were trained on the "
-          "reward, whose return also counts the start transient and the effort. The two can disagree:", "", two_metrics(summary), ""]
+          "reward, whose return also counts the start transient and the effort: per step "
+          "`-(w_e |e|^2 + w_de |v_ref - v|^2 + w_u |a|^2)` with `(w_e, w_de, w_u) = (1, 0.1, 1e-3)` on the joint-tracking "
+          "scenes (`a` the normalized action), the disk's heading, lean, spin and effort terms (`mbs_envs/envs/rolling_disk.py`). "
+          "The two can disagree; an agent is marked \"does not beat PD\" only where it loses on both:", "", two_metrics(summary), ""]
     L += ["![learning curves](learning_curves.png)", ""]
     if tuned_record:
         L += ["## Model-based gains: how they were chosen", "", "```", (tuned_record.get("procedure") or "").strip(), "```", "",
@@ -394,7 +420,9 @@ def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: 
                     verdict += (f", though its mean return is higher ({m['return_all']:.0f} against {mb['return_all']:.0f}): "
                                 "the reward pays for height along the way, and the agent gathers it without holding the arm upright")
             else:
-                verdict = "beats PD at the nominal plant" if beats(m, pd) else "**does not beat PD at the nominal plant** (not a \"best RL\" candidate by this rule; see its curve)"
+                verdict = cmp.verdict_against(m, pd) + " at the nominal plant (settled error and return)"
+                if verdict.startswith("does not beat"):
+                    verdict = f"**{verdict}**"
             L.append(f"- {name}: {len(c['runs'])} training seed(s), {verdict}.")
             for r in c["runs"]:
                 L.append(f"  - seed {r['seed']}: `{r['command']}` ({r['steps']:,} env steps, {r['wall']:.0f} s of training)")

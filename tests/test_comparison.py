@@ -175,3 +175,53 @@ def test_controllers_default_to_the_tuned_gains():
             ct = ComputedTorque(env)
             np.testing.assert_allclose(ct.kp, w**2, rtol=1e-15)
             np.testing.assert_allclose(ct.kd, 2 * z * w, rtol=1e-15)
+
+
+def test_the_headline_never_calls_a_policy_beaten_when_it_wins_on_return():
+    from mbs_envs.studies.comparison import verdict_against
+
+    pd = {"success": 1.0, "rms_error_settled": 0.01, "return": -5.0}
+    assert verdict_against({"success": 1.0, "rms_error_settled": 0.03, "return": -0.9}, pd) == "beats PD on return, not on settled error"
+    assert verdict_against({"success": 1.0, "rms_error_settled": 0.005, "return": -9.0}, pd) == "beats PD on settled error, not on return"
+    assert verdict_against({"success": 1.0, "rms_error_settled": 0.005, "return": -1.0}, pd) == "beats PD"
+    assert verdict_against({"success": 1.0, "rms_error_settled": 0.03, "return": -9.0}, pd) == "does not beat PD"
+    # a failed episode never improves a score: lower success loses on both, whatever the numbers
+    assert verdict_against({"success": 0.95, "rms_error_settled": 1e-9, "return": 1e9}, pd) == "does not beat PD"
+    assert verdict_against({"success": 1.0, "rms_error_settled": 0.01, "return": -5.0}, pd) == "does not beat PD"  # ties win nothing
+
+
+def test_obs_normalization_is_vecnormalize_s_and_survives_saving(tmp_path):
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    from mbs_envs.studies.normalized import NormalizedPolicy, ObsNormalization
+
+    venv = VecNormalize(DummyVecEnv([lambda: gym.make("mbs_envs/Acrobot-v1")] * 2), gamma=0.99)
+    venv.reset()
+    for _ in range(50):
+        venv.step(np.random.default_rng(0).uniform(-1, 1, (2, 1)).astype(np.float32))
+    norm = ObsNormalization.of(venv)
+    obs = np.random.default_rng(1).normal(size=(5, 6)).astype(np.float32) * 5
+    np.testing.assert_allclose(norm(obs), venv.normalize_obs(obs), rtol=1e-6, atol=1e-6)
+    norm.save(tmp_path)
+    again = ObsNormalization.load(tmp_path)
+    np.testing.assert_array_equal(again(obs), norm(obs))
+
+    class Echo:
+        def predict(self, observation, state=None, episode_start=None, deterministic=True):
+            return observation, state
+
+    np.testing.assert_array_equal(NormalizedPolicy(Echo(), again).predict(obs)[0], norm(obs))
+
+
+def test_swing_up_agents_also_run_as_rl_plus_lqr_on_the_model_based_plus_rl_side(tmp_path):
+    from mbs_envs.studies.comparison import HAND_OVER, SCENES, find_agents, kind_of
+
+    for scene in ("Acrobot", "Planar2R"):
+        for k in (0, 1):
+            folder = tmp_path / SCENES[scene][0].split("/")[-1] / "ppo" / f"seed{k}"
+            folder.mkdir(parents=True)
+            (folder / "agent.zip").write_bytes(b"")
+    swing, track = find_agents(tmp_path, "Acrobot"), find_agents(tmp_path, "Planar2R")
+    assert sorted(swing) == ["PPO", "PPO + LQR"] and sorted(track) == ["PPO"]
+    assert swing["PPO + LQR"] == [HAND_OVER + p for p in swing["PPO"]] and len(swing["PPO"]) == 2
+    assert (kind_of("PPO"), kind_of("PPO + LQR"), kind_of("residual PPO")) == ("RL", "model-based + RL", "model-based + RL")

@@ -34,7 +34,7 @@ from ..envs import registry
 from .evaluation import ERROR_METRIC, SCORING, make_controller, rollout_batch
 
 #: scene -> (env id, env kwargs, model-based controllers by display name -> "module:class"), from the registry
-SCENES: dict[str, tuple[str, dict, dict[str, str]]] = {s.name: (s.id, dict(s.kwargs), dict(s.controllers)) for s in REGISTRY}
+SCENES: dict[str, tuple[str, dict, dict[str, str]]] = {s.name: (s.id, dict(s.kwargs), dict(s.controllers)) for s in REGISTRY if s.compared}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -88,8 +88,18 @@ def plant_kwargs(scene: str, condition: Condition) -> dict[str, Any]:
     return kw
 
 
+#: the prefix of an agent's spec that makes it an RL + LQR pair (:mod:`mbs_envs.studies.handover`)
+HAND_OVER = "lqr-catch:"
+
+
 def load_policy(spec: str, nominal_env: gym.Env) -> Any:
-    """A controller (``"module:Class"``) built on the nominal env, or an agent (a folder with ``agent.zip``)."""
+    """A controller (``"module:Class"``) built on the nominal env, an agent (a folder with ``agent.zip``),
+    or an agent whose swing-up the scene's LQR catches (``"lqr-catch:" + folder``)."""
+    if spec.startswith(HAND_OVER):
+        from .handover import hand_over
+        from .training import load_agent
+
+        return hand_over(load_agent(pathlib.Path(spec[len(HAND_OVER):]))[0], nominal_env)
     if ":" in spec and not pathlib.Path(spec).exists():
         return make_controller(spec, nominal_env)
     from .training import load_agent
@@ -106,6 +116,8 @@ AGENT_GROUPS = {
     "residual-sac": ("residual SAC", "model-based + RL"),
     "residual-td3": ("residual TD3", "model-based + RL"),
 }
+#: on the swing-up scenes every RL agent also runs as "<name> + LQR" (model-based + RL): :data:`HAND_OVER`
+HAND_OVER_KIND = "model-based + RL"
 
 
 def find_agents(root: pathlib.Path, scene: str) -> dict[str, list[str]]:
@@ -120,8 +132,10 @@ def find_agents(root: pathlib.Path, scene: str) -> dict[str, list[str]]:
     for algo_dir in sorted(p for p in folder.glob("*") if p.is_dir()):
         runs = sorted(p.parent for p in algo_dir.glob("seed*/agent.zip")) or ([algo_dir] if (algo_dir / "agent.zip").exists() else [])
         if runs:
-            name = AGENT_GROUPS.get(algo_dir.name, (algo_dir.name.upper(), "RL"))[0]
+            name, kind = AGENT_GROUPS.get(algo_dir.name, (algo_dir.name.upper(), "RL"))
             out[name] = [str(r) for r in runs]
+            if kind == "RL" and registry.scene(scene).scoring == "swing-up":
+                out[f"{name} + LQR"] = [HAND_OVER + str(r) for r in runs]
     return out
 
 
@@ -130,6 +144,8 @@ def kind_of(name: str) -> str:
     for display, kind in AGENT_GROUPS.values():
         if display == name:
             return kind
+        if name == f"{display} + LQR" and kind == "RL":
+            return HAND_OVER_KIND
     return "model-based"
 
 
@@ -242,6 +258,10 @@ def summarize_policy(rows: list[dict[str, Any]]) -> dict[str, Any]:
     out: dict[str, Any] = {"kind": rows[0]["kind"], "episodes": len(rows), "train_seeds": len(seeds)}
     out["success"], out["success_lo"], out["success_hi"] = hierarchical_bootstrap(success)
     swing_up = "time_to_swing_up" in rows[0]
+    if swing_up:  # the looser success rule and the time near upright, over every episode
+        for m in ("success_wide", "time_near_upright"):
+            groups = [np.array([float(r[m]) for r in by_seed[k]]) for k in seeds]
+            out[m], out[m + "_lo"], out[m + "_hi"] = hierarchical_bootstrap(groups)
     for m in ("rms_error_settled", "max_error", "rms_torque", "peak_torque", "return") + (("time_to_swing_up", "energy_used") if swing_up else ()):
         groups = [np.array([float(r[m]) for r in by_seed[k] if not r["failed"] and np.isfinite(float(r[m]))]) for k in seeds]
         out[m], out[m + "_lo"], out[m + "_hi"] = hierarchical_bootstrap(groups)
@@ -271,3 +291,32 @@ def best_policy(by_policy: dict[str, dict[str, Any]], kind: str, min_success: fl
         return min(names, key=key) if names else None
     names = [n for n, m in by_policy.items() if m["kind"] == kind and m["success"] >= min_success and np.isfinite(m[metric])]
     return min(names, key=lambda n: by_policy[n][metric]) if names else None
+
+
+def verdict_against(m: dict[str, Any], ref: dict[str, Any] | None, ref_name: str = "PD") -> str:
+    """How a policy's summary ``m`` compares with a reference's (PD) at one condition, on **both** metrics:
+    the settled error the report ranks by and the return of the reward the agents were trained on.
+
+    A policy "does not beat" the reference only when it loses on both; where the two metrics
+    disagree the verdict says which one it wins. Winning on a metric needs at least the
+    reference's success rate (a failed episode never improves a score) and a strictly better value:
+    a smaller settled error, a larger return.
+
+    Returns
+    -------
+    str
+        ``"beats PD"``, ``"beats PD on return, not on settled error"``,
+        ``"beats PD on settled error, not on return"`` or ``"does not beat PD"``.
+    """
+    if ref is None:
+        return f"no {ref_name} to compare with"
+    holds = m["success"] >= ref["success"]
+    on_error = holds and m["rms_error_settled"] < ref["rms_error_settled"]
+    on_return = holds and m["return"] > ref["return"]
+    if on_error and on_return:
+        return f"beats {ref_name}"
+    if on_return:
+        return f"beats {ref_name} on return, not on settled error"
+    if on_error:
+        return f"beats {ref_name} on settled error, not on return"
+    return f"does not beat {ref_name}"

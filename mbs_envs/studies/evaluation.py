@@ -148,15 +148,23 @@ def episode_metrics(ep: Episode, settle_time: float = 1.0) -> dict[str, float]:
     }
 
 
+#: the looser success tolerance [rad] and the "near upright" band [rad] a swing-up is also scored at
+WIDE_TOLERANCE, NEAR_UPRIGHT = 0.2, 0.3
+
+
 def swing_up_metrics(ep: Episode, hold: float = 2.0, dt: float | None = None) -> dict[str, float]:
-    """Summary figures of a swing-up episode (Acrobot-v0, Pendubot-v0), with those of :func:`episode_metrics`.
+    """Summary figures of a swing-up episode (Acrobot, Pendubot: v0 and v1), with those of :func:`episode_metrics`.
 
     - ``success``: within the upright tolerance at every step of the last ``hold`` seconds
       of a whole (not terminated) episode;
     - ``time_to_swing_up`` [s]: the time from which the arm stays upright to the end
       (NaN unless successful);
     - ``energy_used`` [J]: ``int |P| dt``, the motor's mechanical work whether it feeds
-      energy in or takes it out (``P = u v_driven``, rectangle rule on the control steps).
+      energy in or takes it out (``P = u v_driven``, rectangle rule on the control steps);
+    - ``success_wide``: as ``success`` with both joints within :data:`WIDE_TOLERANCE` (0.2 rad)
+      of upright (from ``tracking_error``, the distance to upright);
+    - ``time_near_upright`` [s]: the time with both joints within :data:`NEAR_UPRIGHT` (0.3 rad),
+      wherever in the episode (a swing through upright counts its steps there).
 
     Parameters
     ----------
@@ -168,7 +176,7 @@ def swing_up_metrics(ep: Episode, hold: float = 2.0, dt: float | None = None) ->
         Control step [s] (default from ``ep.t``).
     """
     if ep.upright is None or ep.power is None:
-        raise ValueError("a swing-up episode needs info['upright'] and info['power'] (Acrobot-v0, Pendubot-v0)")
+        raise ValueError("a swing-up episode needs info['upright'] and info['power'] (Acrobot, Pendubot: v0 and v1)")
     out = episode_metrics(ep)
     dt = float(ep.t[1] - ep.t[0]) if dt is None and len(ep.t) > 1 else (dt or 0.0)
     last = ep.t >= ep.t[-1] - hold + 0.5 * dt if len(ep.t) else np.zeros(0, bool)
@@ -177,7 +185,10 @@ def swing_up_metrics(ep: Episode, hold: float = 2.0, dt: float | None = None) ->
     if success:
         down = np.flatnonzero(~ep.upright)
         time_up = float(ep.t[down[-1]]) if len(down) else 0.0  # from the step after the last one outside
-    out.update({"success": success, "time_to_swing_up": time_up, "energy_used": float(np.sum(np.abs(ep.power)) * dt)})
+    dist = np.max(np.abs(ep.tracking_error), axis=-1) if len(ep.t) else np.zeros(0)
+    wide = bool(len(ep.t) and not ep.terminated and np.all(dist[last] <= WIDE_TOLERANCE))
+    out.update({"success": success, "time_to_swing_up": time_up, "energy_used": float(np.sum(np.abs(ep.power)) * dt),
+                "success_wide": wide, "time_near_upright": float(np.sum(dist <= NEAR_UPRIGHT) * dt)})
     return out
 
 
