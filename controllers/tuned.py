@@ -14,7 +14,9 @@ and length mismatch). Each entry is keyed by env id and controller name:
   input), ``q_integral``;
 - ``PD steering`` (disk): ``k_dlean, k_lean, k_h, k_r, k_w``;
 - ``swing-up + LQR`` (Acrobot, Pendubot): ``k_q, k_v, k_E, catch`` and optionally ``lqr_r``
-  (the LQR's input weight, 1 if absent).
+  (the LQR's input weight, 1 if absent);
+- ``RL + LQR`` (Acrobot, Pendubot): ``catch, release``, where an RL agent's swing-up hands over to
+  the LQR (written by ``scripts/tune_handover.py``; :mod:`mbs_envs.studies.handover`).
 
 Ids or controllers without an entry get :data:`FALLBACK` (the pre-tuning
 defaults: bandwidth 10 rad/s, critical damping).
@@ -37,6 +39,7 @@ FALLBACK: dict[str, dict[str, Any]] = {
     "LQR": {"Q": [10.0, 10.0, 1.0, 1.0, 0.1], "R": [1.0, 1.0], "q_integral": 1.0},
     "PD steering": {"k_dlean": 0.3, "k_lean": 0.05, "k_h": 0.5, "k_r": 0.0, "k_w": 0.05},
     "swing-up + LQR": {"k_q": 40.0, "k_v": 10.0, "k_E": 4.0, "catch": 100.0},
+    "RL + LQR": {},  # empty: the pair catches at the swing-up + LQR's own level
 }
 
 

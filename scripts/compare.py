@@ -265,7 +265,7 @@ def training_curves(agents: dict[str, list[str]]) -> dict[str, dict]:
                          "rms_error_settled": [float(r["rms_error_settled"]) for r in rows],
                          "failure_rate": [float(r["failure_rate"]) for r in rows],
                          "steps": cfg["steps"], "seed": cfg["seed"], "command": cfg.get("command"), "wall": cfg["train_wall_s"],
-                         "hyperparameters": cfg.get("hyperparameters"), "n_envs": cfg.get("n_envs")})  # fmt: skip
+                         "hyperparameters": cfg.get("hyperparameters"), "n_envs": cfg.get("n_envs"), "init": cfg.get("init")})  # fmt: skip
         if runs:
             curves[name] = {"runs": runs}
     return curves
@@ -425,7 +425,8 @@ def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: 
                     verdict = f"**{verdict}**"
             L.append(f"- {name}: {len(c['runs'])} training seed(s), {verdict}.")
             for r in c["runs"]:
-                L.append(f"  - seed {r['seed']}: `{r['command']}` ({r['steps']:,} env steps, {r['wall']:.0f} s of training)")
+                before = "" if not r.get("init") else f", after {r['init']['steps']:,} on {r['init']['env_id']} (`{r['init']['from']}`)"
+                L.append(f"  - seed {r['seed']}: `{r['command']}` ({r['steps']:,} env steps{before}, {r['wall']:.0f} s of training)")
         if best_mb:
             L.append(f"- Best model-based at the nominal plant: {best_mb}.")
         L.append("")

@@ -110,10 +110,11 @@ def run(args: argparse.Namespace) -> dict:
               + (f"; at the grid's edge in {', '.join(edge)}" if edge else ""))  # fmt: skip
     (args.out / "tuning.json").write_text(json.dumps(record, indent=2))
     plot(results, args.out / "tuning.png")
-    if args.write:  # scenes not tuned in this run keep their stored entries
+    if args.write:  # scenes and controllers not tuned in this run keep their stored entries
         if tuned.PATH.exists():
             for key in ("gains", "scores"):
-                record[key] = {**{k: v for k, v in stored.get(key, {}).items() if k not in record[key]}, **record[key]}
+                old = stored.get(key, {})
+                record[key] = {env: {**old.get(env, {}), **record[key].get(env, {})} for env in {**old, **record[key]}}
         tuned.PATH.write_text(json.dumps(record, indent=2) + "\n")
         tuned.clear_cache()
         print(f"written {tuned.PATH}")

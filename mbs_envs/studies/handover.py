@@ -8,12 +8,16 @@ the LQR from then on; it hands back to the agent only when the state leaves
 agent replaces). The mode and the agent's own state travel in SB3's ``state``, so any rollout
 loop that passes ``state`` back runs it; the pair is reported on the "model-based + RL" side.
 
-Why the tuned level and not the LQR's sampled region of attraction
-(:func:`controllers.region.estimate_region`): alone, under the torque limit, the acrobot's LQR
-holds every sampled start only below ``x^T S x`` of order 1-10, a hundred times under the tuned
-level (1,000) with which the swing-up + LQR succeeds on 95 % of tuning seeds; with that region the
-catch comes too rarely. What the hysteresis loop catches is more than the LQR alone does, because
-a state that leaves the level is handed back and re-caught.
+The catch level of the pair is tuned as the model-based controller's gains are, with the same care
+(:func:`tune_catch`, ``scripts/tune_handover.py``): a grid of levels (and hysteresis factors),
+scored by the success of every shipped agent of the scene on tuning seeds, at the nominal plant
+and +-20 % mismatch; the pick is stored in ``controllers/tuned.json`` as the scene's ``"RL + LQR"``
+entry (without one: the model-based controller's own level). Why a tuned level and not the LQR's
+sampled region of attraction (:func:`controllers.region.estimate_region`): alone, under the torque
+limit, the acrobot's LQR holds every sampled start only below ``x^T S x`` of order 1-10, a hundred
+times under the level (1,000) with which the swing-up + LQR succeeds on 95 % of tuning seeds; with
+that region the catch comes too rarely. The loop catches more than the LQR alone does, because a
+state that leaves ``release * catch`` is handed back and caught again.
 """
 
 from __future__ import annotations
@@ -27,10 +31,61 @@ from ..envs.swingup import Q_UP
 from ..envs.tracking import wrap_angle
 
 
-def hand_over(agent: Any, env: Any) -> "HandOverPolicy":
-    """``agent`` with the scene's upright LQR catching at its tuned level (module docstring)."""
+#: the name of the pair's entry in controllers/tuned.json
+TUNED_NAME = "RL + LQR"
+
+
+def hand_over(agent: Any, env: Any, catch: float | None = None, release: float | None = None) -> "HandOverPolicy":
+    """``agent`` with the scene's upright LQR catching at the pair's tuned level (module docstring),
+    or at ``catch`` / ``release`` where given."""
+    from controllers.tuned import tuned_gains
+
     lqr = SwingUpLQR(env)
-    return HandOverPolicy(agent, lqr, lqr.catch, lqr.release)
+    entry = tuned_gains(env, TUNED_NAME) or {}
+    catch = entry.get("catch", lqr.catch) if catch is None else catch
+    release = entry.get("release", lqr.release) if release is None else release
+    return HandOverPolicy(agent, lqr, catch, release)
+
+
+def tune_catch(scene: str, agents: list[Any], grid: list[dict[str, float]], seeds: list[int]) -> tuple[dict[str, float], list[dict[str, Any]]]:
+    """The catch level and hysteresis of the pair, picked on tuning seeds over the plant set.
+
+    Each entry of ``grid`` (``{"catch": c, "release": r}``) hands every agent of ``agents`` over to the
+    LQR and runs ``seeds`` at each condition of :data:`mbs_envs.studies.tuning.TUNING_CONDITIONS`
+    (nominal, +-20 %). The pick has the highest success over all agents and conditions, then the most
+    time near upright (:func:`mbs_envs.studies.evaluation.swing_up_metrics`).
+
+    Returns
+    -------
+    best : dict
+        The picked grid entry.
+    rows : list of dict
+        One per entry, condition and agent: ``success`` and ``time_near_upright`` (means over seeds).
+    """
+    import gymnasium as gym
+
+    from .comparison import SCENES, plant_kwargs
+    from .evaluation import rollout_batch, swing_up_metrics
+    from .tuning import TUNING_CONDITIONS
+
+    env_id = SCENES[scene][0]
+    nominal = gym.make(env_id)
+    rows = []
+    for cond in TUNING_CONDITIONS:
+        venv = gym.make_vec(env_id, num_envs=len(seeds), vectorization_mode="vector_entry_point", autoreset_mode="Disabled",
+                            **plant_kwargs(scene, cond))  # fmt: skip
+        for entry in grid:
+            for k, agent in enumerate(agents):
+                m = [swing_up_metrics(e) for e in rollout_batch(venv, hand_over(agent, nominal, **entry), seeds)]
+                rows.append({**entry, "condition": cond.name, "agent": k, "success": float(np.mean([x["success"] for x in m])),
+                             "time_near_upright": float(np.mean([x["time_near_upright"] for x in m]))})  # fmt: skip
+        venv.close()
+
+    def key(entry: dict[str, float]) -> tuple[float, float]:
+        mine = [r for r in rows if all(r[k] == v for k, v in entry.items())]
+        return float(np.mean([r["success"] for r in mine])), float(np.mean([r["time_near_upright"] for r in mine]))
+
+    return max(grid, key=key), rows
 
 
 class HandOverPolicy:

@@ -77,3 +77,16 @@ def test_from_inside_the_sampled_region_the_pair_balances_to_the_end(acrobot):
     venv = gym.make_vec("mbs_envs/Acrobot-v1", num_envs=2, vectorization_mode="vector_entry_point", autoreset_mode="Disabled",
                         max_episode_steps=300)  # fmt: skip
     assert not any(swing_up_metrics(e)["success"] for e in rollout_batch(venv, policy, [0, 1]))
+
+
+def test_the_catch_level_is_tuned_on_tuning_seeds_over_the_plant_set():
+    from mbs_envs.studies.handover import tune_catch
+    from mbs_envs.studies.tuning import TUNING_CONDITIONS
+
+    pump = SwingUpLQR(gym.make("mbs_envs/Acrobot-v1"), catch=1e-12)  # the energy pump alone: it never catches by itself
+    grid = [{"catch": 1e-6, "release": 4.0}, {"catch": 1000.0, "release": 4.0}]
+    best, rows = tune_catch("Acrobot", [pump], grid, [20_000, 20_001])
+    assert len(rows) == len(grid) * len(TUNING_CONDITIONS) and {r["condition"] for r in rows} == {c.name for c in TUNING_CONDITIONS}
+    nominal = {r["catch"]: r["success"] for r in rows if r["condition"] == "nominal"}
+    assert nominal[1e-6] == 0.0 and nominal[1000.0] > 0.0  # no catch, no balance; the swing-up + LQR's level catches
+    assert best == grid[1]
