@@ -49,11 +49,16 @@ def test_hands_over_inside_the_region_only_and_keeps_the_agent_state(acrobot):
         HandOverPolicy(Push(), lqr, 0.0)
 
 
-def test_hand_over_uses_the_scenes_tuned_catch():
-    env = gym.make("mbs_envs/Pendubot-v1")
-    pair, lqr = hand_over(Push(), env), SwingUpLQR(env)
-    assert (pair.level, pair.release) == (lqr.catch, lqr.release)
-    np.testing.assert_array_equal(pair.lqr.K, lqr.K)
+def test_hand_over_uses_the_pairs_tuned_catch_else_the_controllers():
+    from controllers.tuned import tuned_gains
+    from mbs_envs.studies.handover import TUNED_NAME
+
+    for env_id in ("mbs_envs/Acrobot-v1", "mbs_envs/Pendubot-v1"):
+        env = gym.make(env_id)
+        pair, lqr, entry = hand_over(Push(), env), SwingUpLQR(env), tuned_gains(env, TUNED_NAME)
+        assert (pair.level, pair.release) == (entry.get("catch", lqr.catch), entry.get("release", lqr.release))
+        np.testing.assert_array_equal(pair.lqr.K, lqr.K)
+        assert hand_over(Push(), env, catch=5.0, release=2.0).level == 5.0
 
 
 def test_from_inside_the_sampled_region_the_pair_balances_to_the_end(acrobot):
