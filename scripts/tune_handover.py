@@ -5,7 +5,7 @@ hysteresis factor) is scored by the success of every agent of the scene (every t
 every algorithm) on tuning seeds, at the nominal plant and +-20 % mismatch, as the model-based
 controllers' gains are (``mbs_envs/studies/handover.py``). Writes ``handover_tuning.csv``,
 ``handover_tuning.json`` and ``handover_tuning.png`` to ``--out``; ``--write`` stores each
-scene's pick in ``controllers/tuned.json`` as its ``"RL + LQR"`` entry, which the comparison's
+scene's pick (where some level made an agent succeed) in ``controllers/tuned.json`` as its ``"RL + LQR"`` entry, which the comparison's
 ``<agent> + LQR`` pairs then use::
 
     python scripts/tune_handover.py --out results/tune-handover --write    # a few minutes per scene
@@ -76,6 +76,9 @@ def run(args: argparse.Namespace) -> dict:
     if args.write:
         stored = json.loads(tuned.PATH.read_text())
         for env_id, pick in record["picks"].items():
+            if pick["success"] == 0:  # nothing to pick from: the pair keeps the swing-up + LQR's level
+                print(f"{env_id}: no level made any agent succeed; not written")
+                continue
             stored["gains"].setdefault(env_id, {})[TUNED_NAME] = pick["entry"]
             stored["scores"].setdefault(env_id, {})[TUNED_NAME] = {"success": pick["success"], "agents": pick["agents"],
                                                                    "wall_s": pick["wall_s"], "command": command}  # fmt: skip
