@@ -263,7 +263,7 @@ def training_curves(agents: dict[str, list[str]]) -> dict[str, dict]:
             cfg = json.loads((pathlib.Path(folder) / "config.json").read_text())
             runs.append({"timesteps": [float(r["timesteps"]) for r in rows], "train_wall_s": [float(r["train_wall_s"]) for r in rows],
                          "rms_error_settled": [float(r["rms_error_settled"]) for r in rows],
-                         "failure_rate": [float(r["failure_rate"]) for r in rows],
+                         "failure_rate": [float(r["failure_rate"]) for r in rows], "return": [float(r["return"]) for r in rows],
                          "steps": cfg["steps"], "seed": cfg["seed"], "command": cfg.get("command"), "wall": cfg["train_wall_s"],
                          "hyperparameters": cfg.get("hyperparameters"), "n_envs": cfg.get("n_envs"), "init": cfg.get("init")})  # fmt: skip
         if runs:
@@ -297,19 +297,23 @@ def plot_scene(scene: str, by_cond: dict, path: pathlib.Path) -> None:
 
 
 def plot_learning_curves(summary: dict, curves: dict, path: pathlib.Path) -> None:
-    """Per scene: validation error of each algorithm (mean, range over training seeds) against env steps and wall time."""
+    """Per scene: validation error of each algorithm (mean, range over training seeds) against env steps and wall time;
+    on the swing-up scenes the validation return (the reward the agents train on; the error is undefined
+    until an episode succeeds)."""
     scenes = [s for s in summary if curves.get(s)]
     if not scenes:
         return
     plt = pyplot()
     fig, axes = plt.subplots(len(scenes), 2, figsize=(12, 3.6 * len(scenes)), squeeze=False)
     for row, scene in zip(axes, scenes):
+        swing_up = scoring_of(scene) == "swing-up"
+        metric = "return" if swing_up else "rms_error_settled"
         for name, c in curves[scene].items():
             runs = c["runs"]
             n = min(len(r["timesteps"]) for r in runs)
             for ax, key in zip(row, ("timesteps", "train_wall_s")):
                 xs = np.mean([r[key][:n] for r in runs], axis=0)
-                ys = np.array([r["rms_error_settled"][:n] for r in runs], float)
+                ys = np.array([r[metric][:n] for r in runs], float)
                 alive = np.isfinite(ys).any(axis=0)  # evaluations where some seed kept an episode
                 mean = np.full(n, np.nan)
                 lo, hi = mean.copy(), mean.copy()
@@ -323,16 +327,18 @@ def plot_learning_curves(summary: dict, curves: dict, path: pathlib.Path) -> Non
                             label=f"{name}: all validation episodes failed")  # fmt: skip
         for ax in row:
             for name, m in summary[scene]["nominal"].items():
-                if m["kind"] == "model-based" and np.isfinite(m["rms_error_settled"]) and name != "no control":
-                    ax.axhline(m["rms_error_settled"], ls="--", lw=1, color="gray")
-                    ax.annotate(f" {name}", (1.0, m["rms_error_settled"]), xycoords=("axes fraction", "data"), fontsize=7, va="center")
-            ax.set_yscale("log")
-            ax.set_ylabel("validation RMS error [rad]")
+                value = m.get("return_all") if swing_up else m["rms_error_settled"]
+                if m["kind"] == "model-based" and value is not None and np.isfinite(value) and name != "no control":
+                    ax.axhline(value, ls="--", lw=1, color="gray")
+                    ax.annotate(f" {name}", (1.0, value), xycoords=("axes fraction", "data"), fontsize=7, va="center")
+            ax.set_yscale("linear" if swing_up else "log")
+            ax.set_ylabel("validation return" if swing_up else "validation RMS error [rad]")
             ax.legend(fontsize=7)
             ax.set_title(scene, loc="left", fontsize=10, fontweight="bold")
         row[0].set_xlabel("env steps")
         row[1].set_xlabel("training wall time [s] (one thread)")
-    fig.suptitle("Learning curves: validation error (mean, band = range over training seeds); dashed: model-based controllers on the test seeds",
+    fig.suptitle("Learning curves: validation error, on the swing-up scenes the return (mean, band = range over training seeds); "
+                 "dashed: model-based controllers on the test seeds",
                  fontsize=10)  # fmt: skip
     save(fig, path)
 
@@ -396,14 +402,17 @@ def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: 
         swing_up = scoring_of(scene) == "swing-up"
         L += [f"## {scene}", "", f"![{scene}](comparison_{scene}.png)", ""]
         if swing_up:
-            L.append("| condition | policy | success | time to swing up [s] | energy used [J] | RMS torque | peak torque | return, all episodes | us/action (noisy) |")
+            L.append("| condition | policy | success | success 0.2 rad | near upright [s] | time to swing up [s] | energy used [J] | RMS torque | "
+                     "peak torque | return, all episodes | us/action (noisy) |")  # fmt: skip
+            L.append("|---|---|---|---|---|---|---|---|---|---|---|")
         else:
             L.append("| condition | policy | success | RMS error t>=1 s | max error | RMS torque | peak torque | return | us/action (noisy) |")
-        L.append("|---|---|---|---|---|---|---|---|---|")
+            L.append("|---|---|---|---|---|---|---|---|---|")
         for cond, by_policy in by_cond.items():
             for name, m in by_policy.items():
                 lat = f"{m['latency_us']:.0f} ({m['latency_noisy_us']:.0f})" if np.isfinite(m["latency_us"]) else ""
-                cells = f"{ci(m, 'time_to_swing_up')} | {ci(m, 'energy_used')}" if swing_up else f"{ci(m, 'rms_error_settled')} | {m['max_error']:.3g}"
+                cells = (f"{success(m, 'success_wide')} | {ci(m, 'time_near_upright')} | {ci(m, 'time_to_swing_up')} | {ci(m, 'energy_used')}"
+                         if swing_up else f"{ci(m, 'rms_error_settled')} | {m['max_error']:.3g}")  # fmt: skip
                 L.append(f"| {cond} | {name} | {success(m)} | {cells} | {m['rms_torque']:.3g} | "
                          f"{m['peak_torque']:.3g} | {ci(m, 'return_all') if swing_up else format(m['return'], '.1f')} | {lat} |")  # fmt: skip
         L.append("")
