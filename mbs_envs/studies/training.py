@@ -431,3 +431,47 @@ def as_evaluated(model: Any, action_repeat: int, base: Any, bound: float, normal
     if base is not None:
         policy = ResidualPolicy(base, policy, bound)
     return HeldPolicy(policy, action_repeat) if action_repeat > 1 else policy
+
+
+#: the files of a trained agent's folder that ship with it (checkpoints and TensorBoard logs stay behind)
+SHIPPED_FILES = ("agent.zip", "config.json", "training_log.csv", "normalization.npz")
+
+
+def ship(src: pathlib.Path, dst: pathlib.Path) -> int:
+    """Copy the agent saved by :func:`train` in ``src`` to ``dst`` without its optimizers' state.
+
+    The network weights (all of them, so SB3 loads the agent as usual), configuration, training
+    log and normalization are kept; the Adam moments of every optimizer are dropped, which is a
+    third to a half of an off-policy agent's file and plays no part in acting. A run continued
+    from a shipped agent (``TrainConfig.init``) starts its optimizers afresh; ``config.json``
+    records ``"shipped_without_optimizer_state": true``.
+
+    Returns
+    -------
+    int
+        The size of the shipped ``agent.zip`` [bytes].
+    """
+    import shutil
+
+    src, dst = pathlib.Path(src), pathlib.Path(dst)
+    record = json.loads((src / "config.json").read_text())
+    model = ALGOS[record["algo"]].load(src / "agent.zip", device="cpu")
+    for name in model._get_torch_save_params()[0]:
+        owner, _, attr = name.rpartition(".")
+        optimizer = getattr(_attr_path(model, owner) if owner else model, attr)
+        if hasattr(optimizer, "state") and hasattr(optimizer, "param_groups"):
+            optimizer.state.clear()
+    dst.mkdir(parents=True, exist_ok=True)
+    model.save(dst / "agent.zip")
+    for name in SHIPPED_FILES[2:]:
+        if (src / name).exists():
+            shutil.copyfile(src / name, dst / name)
+    (dst / "config.json").write_text(json.dumps({**record, "shipped_without_optimizer_state": True}, indent=2, default=str))
+    return (dst / "agent.zip").stat().st_size
+
+
+def _attr_path(obj: Any, dotted: str) -> Any:
+    """``obj.a.b`` for ``dotted = "a.b"``."""
+    for part in dotted.split("."):
+        obj = getattr(obj, part)
+    return obj
