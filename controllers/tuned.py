@@ -67,7 +67,9 @@ def tuned_gains(env: Any, controller: str) -> dict[str, Any]:
         raise ValueError(f"no tuned gains for controller {controller!r}; known: {sorted(FALLBACK)}")
     key = env_id(env) or ""
     table = _table()
-    entry = table.get(key, table.get(SAME_PLANT.get(key, ""), {})).get(controller)
+    entry = table.get(key, {}).get(controller)
+    if entry is None:  # a reward-only version: the gains tuned on the version whose plant it shares
+        entry = table.get(SAME_PLANT.get(key, ""), {}).get(controller)
     return copy.deepcopy(entry if entry is not None else FALLBACK[controller])
 
 

@@ -225,3 +225,11 @@ def test_swing_up_agents_also_run_as_rl_plus_lqr_on_the_model_based_plus_rl_side
     assert sorted(swing) == ["PPO", "PPO + LQR"] and sorted(track) == ["PPO"]
     assert swing["PPO + LQR"] == [HAND_OVER + p for p in swing["PPO"]] and len(swing["PPO"]) == 2
     assert (kind_of("PPO"), kind_of("PPO + LQR"), kind_of("residual PPO")) == ("RL", "model-based + RL", "model-based + RL")
+
+
+def test_a_reward_only_version_takes_its_plants_tuned_gains_even_with_entries_of_its_own():
+    from controllers import tuned
+
+    v0, v1 = gym.make("mbs_envs/Acrobot-v0"), gym.make("mbs_envs/Acrobot-v1")
+    assert tuned.tuned_gains(v1, "swing-up + LQR") == tuned.tuned_gains(v0, "swing-up + LQR") != tuned.FALLBACK["swing-up + LQR"]
+    assert "mbs_envs/Acrobot-v1" in tuned._table()  # it has an entry (the RL + LQR catch), and still falls back per controller
