@@ -117,8 +117,8 @@ SCENES: tuple[Scene, ...] = (
             controllers=SWING_UP_CONTROLLERS, residual_base="controllers:SwingUpLQR", sizing=False, scoring="swing-up",
             model="mbs_envs.models.planar2r:Planar2R", edge_parameters=(("m2", {}), ("l1", {})), compared=compared,
         )
-        # v0 is the compared task until v1's agents are trained; v1 (the hold bonus) registered beside it
-        for version, suffix, cls, compared in (("v0", "", "", True), ("v1", "-v1", "V1", False))
+        # v1 (the hold bonus) is the compared task; v0 stays registered under its own name
+        for version, suffix, cls, compared in (("v1", "", "V1", True), ("v0", "-v0", "", False))
         for name in ("Acrobot", "Pendubot")
     ),
 )  # fmt: skip
