@@ -341,7 +341,7 @@ def plot_learning_curves(summary: dict, curves: dict, path: pathlib.Path) -> Non
     fig.suptitle("Learning curves: validation error, on the swing-up scenes the return (mean, band = range over training seeds); "
                  "dashed: model-based controllers on the test seeds",
                  fontsize=10)  # fmt: skip
-    save(fig, path)
+    save(fig, path, rect=(0, 0, 1, 1 - 0.5 / fig.get_figheight()))  # room for the two-line title
 
 
 def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: list[int], conds: list, n_swing: int | None = None,
