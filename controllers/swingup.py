@@ -68,13 +68,19 @@ def collocated_pfl(model: Any, q: np.ndarray, v: np.ndarray, y: np.ndarray, a: i
     return M[..., a, a] * y + M[..., a, p] * a_p + h[..., a]
 
 
-def upright_lqr(model: Any, Q: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(K, S)`` of ``control.lqr`` on the model linearized about ``(q_up, v = 0, u = 0)``."""
+def upright_linearization(model: Any) -> tuple[np.ndarray, np.ndarray]:
+    """``(A, B)`` of ``dx/dt = A x + B u`` about ``(q_up, v = 0, u = 0)``, ``x = (dq, dv)``: central
+    finite differences of the model's ``forward_dynamics``; shapes ``(4, 4)`` and ``(4, nu)``."""
 
     def f(x, u):
         return np.concatenate([x[..., 2:], model.forward_dynamics(x[..., :2], x[..., 2:], u)], axis=-1)
 
-    A, B = linearize(f, np.concatenate([Q_UP, np.zeros(2)]), np.zeros(model.nu))
+    return linearize(f, np.concatenate([Q_UP, np.zeros(2)]), np.zeros(model.nu))
+
+
+def upright_lqr(model: Any, Q: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(K, S)`` of ``control.lqr`` on the model linearized about ``(q_up, v = 0, u = 0)``."""
+    A, B = upright_linearization(model)
     K, S, _ = control.lqr(A, B, Q, R)
     return np.asarray(K), np.asarray(S)
 
@@ -126,16 +132,39 @@ class SwingUpLQR(Controller):
         y = -self.k_q * wrap_angle(q[..., a] - Q_UP[a]) - self.k_v * v[..., a] + pump
         return collocated_pfl(self.model, q, v, y, a)
 
-    def control(self, obs: Any, state: Any, episode_start: Any) -> tuple[np.ndarray, Any]:
-        q, v = obs.q, obs.v
+    def balance(self, q: np.ndarray, v: np.ndarray, balancing: Any, episode_start: Any, catch: float | None = None,
+                release: float | None = None) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+        """The switching rule (module docstring) and the LQR's input.
+
+        Parameters
+        ----------
+        q, v : ndarray, shape (..., 2)
+        balancing : array_like of bool, shape (...), or None
+            The mode so far (None: nobody balancing yet); reset where ``episode_start``.
+        catch, release : float, optional
+            The level and hysteresis; default the controller's own.
+
+        Returns
+        -------
+        balancing : ndarray of bool, shape (...)
+            Whether the LQR holds each member now.
+        u_lqr : ndarray, shape (...)
+            ``-K x`` [N m], ``x = (wrap(q - q_up), v)``.
+        """
+        catch = self.catch if catch is None else catch
+        release = self.release if release is None else release
         x = np.concatenate([wrap_angle(q - Q_UP), v], axis=-1)
         cost = np.einsum("...i,ij,...j->...", x, self.S, x)
         lead = cost.shape
-        balancing = np.zeros(lead, bool) if state is None else np.array(state, bool).reshape(lead)
+        balancing = np.zeros(lead, bool) if balancing is None else np.array(balancing, bool).reshape(lead)
         if episode_start is not None:
             balancing = np.where(np.asarray(episode_start, bool).reshape(lead), False, balancing)
-        balancing = np.where(balancing, cost <= self.release * self.catch, cost < self.catch)
-        u = np.where(balancing, -(x @ self.K.T)[..., 0], self.swing_up(q, v))
+        balancing = np.where(balancing, cost <= release * catch, cost < catch)
+        return balancing, -(x @ self.K.T)[..., 0]
+
+    def control(self, obs: Any, state: Any, episode_start: Any) -> tuple[np.ndarray, Any]:
+        balancing, u_lqr = self.balance(obs.q, obs.v, state, episode_start)
+        u = np.where(balancing, u_lqr, self.swing_up(obs.q, obs.v))
         return u[..., None], balancing
 
     def input(self, obs: Any) -> np.ndarray:

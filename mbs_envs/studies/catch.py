@@ -16,9 +16,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from controllers.base import linearize
 from controllers.region import PlantCase, axis_catch, saturation_bound
-from controllers.swingup import SwingUpLQR
+from controllers.swingup import SwingUpLQR, upright_linearization
 from ..envs.swingup import Q_UP
 from .comparison import SCENES, Condition, plant_kwargs
 
@@ -36,11 +35,7 @@ def catch_rows(scene: str, conditions: list[Condition]) -> list[dict[str, Any]]:
     rows = []
     for cond in conditions:
         plant = gym.make(env_id, **plant_kwargs(scene, cond)).unwrapped.model
-
-        def f(x, u, plant=plant):
-            return np.concatenate([x[..., 2:], plant.forward_dynamics(x[..., :2], x[..., 2:], u)], axis=-1)
-
-        A, B = linearize(f, x_up, np.zeros(1))
+        A, B = upright_linearization(plant)
         bound = saturation_bound(A, B, u_max, cond.delay * dt)
         case = PlantCase(plant, cond.delay)
         caught = [axis_catch(case, x_up, lqr.K, u_max, dt, substeps, j, 1.5 * b if np.isfinite(b) else 5.0) for j, b in enumerate(bound)]
