@@ -42,6 +42,7 @@ from .normalized import NormalizedPolicy, ObsNormalization
 
 ALGOS = {"ppo": PPO, "sac": SAC, "td3": TD3}
 
+
 def check_init(config: "TrainConfig") -> dict[str, Any]:
     """The ``config.json`` of ``config.init``, or a ``ValueError`` naming what does not match."""
     folder = pathlib.Path(config.init)
@@ -375,8 +376,7 @@ def train(config: TrainConfig, out: pathlib.Path, tensorboard: bool = False, che
     model.save(out / "agent.zip")
     if config.normalize:
         ObsNormalization.of(venv).save(out)
-    venv.close()
-    write_log(out / "training_log.csv", log.rows)
+    venv.close()  # training_log.csv: written by the log at each evaluation, the last at the end of training
     record = {
         "env_id": config.env_id,
         "env_kwargs": config.env_kwargs,
@@ -453,14 +453,16 @@ def ship(src: pathlib.Path, dst: pathlib.Path) -> int:
     """
     import shutil
 
+    import torch
+    from stable_baselines3.common.save_util import recursive_getattr
+
     src, dst = pathlib.Path(src), pathlib.Path(dst)
     record = json.loads((src / "config.json").read_text())
     model = ALGOS[record["algo"]].load(src / "agent.zip", device="cpu")
-    for name in model._get_torch_save_params()[0]:
-        owner, _, attr = name.rpartition(".")
-        optimizer = getattr(_attr_path(model, owner) if owner else model, attr)
-        if hasattr(optimizer, "state") and hasattr(optimizer, "param_groups"):
-            optimizer.state.clear()
+    for name in model._get_torch_save_params()[0]:  # the state dicts SB3 saves: "policy", "<net>.optimizer", ...
+        module = recursive_getattr(model, name)
+        if isinstance(module, torch.optim.Optimizer):
+            module.state.clear()
     dst.mkdir(parents=True, exist_ok=True)
     model.save(dst / "agent.zip")
     for name in SHIPPED_FILES[2:]:
@@ -469,9 +471,3 @@ def ship(src: pathlib.Path, dst: pathlib.Path) -> int:
     (dst / "config.json").write_text(json.dumps({**record, "shipped_without_optimizer_state": True}, indent=2, default=str))
     return (dst / "agent.zip").stat().st_size
 
-
-def _attr_path(obj: Any, dotted: str) -> Any:
-    """``obj.a.b`` for ``dotted = "a.b"``."""
-    for part in dotted.split("."):
-        obj = getattr(obj, part)
-    return obj
