@@ -18,9 +18,8 @@ Two figures for a 2R arm with one motor about upright, both on the linearization
   the estimate is the largest level ``c*`` of the LQR's cost-to-go ``x^T S x`` below which no
   sample failed. It is a sampled estimate, not a certificate: the tests check that fresh states
   inside it are caught and that states well outside the saturation bound are not.
-  (Sampling uniformly on the shells of ``S`` instead is far too pessimistic here: ``S`` of the
-  acrobot's LQR has eigenvalues from 0.08 to 1.2e7, so its shells reach rates no swing-up
-  produces, and the level came out ~2,600 times smaller.)
+  (The box, not the shells of ``S``, is sampled: ``S`` of the acrobot's LQR has eigenvalues from
+  0.08 to 1.2e7, so its sublevel sets reach far out along the rates, to states no swing-up produces.)
   - :func:`axis_catch` -- the same, along one coordinate: the largest offset caught.
 """
 

@@ -90,7 +90,7 @@ def run(args: argparse.Namespace) -> dict:
         for c in conds:
             scene_seeds = seed_ranges.test_seeds(n_swing) if scoring_of(scene) == "swing-up" else seeds
             tasks.append({"scene": scene, "condition": vars(c), "seeds": scene_seeds, "policies": policies})
-    print(f"{len(tasks)} cells ({len(scenes)} scenes x {len(conds)} conditions), {n_seeds} test seeds each")
+    print(f"{len(tasks)} cells ({len(scenes)} scenes x {len(conds)} conditions), {n_seeds} test seeds each ({n_swing} on swing-up scenes)")
     if args.ray is None and args.workers > 1:
         results = run_tasks(cmp.evaluate_cell, tasks, max_workers=args.workers)
     elif args.ray is None:
