@@ -78,6 +78,8 @@ class Controller(abc.ABC):
         self.model = base.model
         self.u_max = np.asarray(base.u_max, float)
         self.decode_observation = base.decode_observation
+        space = base.observation_space
+        self._obs_low, self._obs_high = np.asarray(space.low, float), np.asarray(space.high, float)
 
     @abc.abstractmethod
     def input(self, obs: Any) -> np.ndarray:
@@ -100,8 +102,19 @@ class Controller(abc.ABC):
         episode_start: Any = None,
         deterministic: bool = True,
     ) -> tuple[np.ndarray, Any]:
-        """Action for an observation (or a batch), and the controller's state (see :meth:`control`)."""
-        u, state = self.control(self.decode_observation(observation), state, episode_start)
+        """Action for an observation (or a batch), and the controller's state (see :meth:`control`).
+
+        The observation must be real numbers and finite (``ValueError`` naming the members that are
+        not: a NaN observation has no action); finite entries beyond the env's observation space are
+        clipped into it (the env never observes beyond it), so every finite observation gives a finite action."""
+        obs = check.reals(observation, "observation")
+        finite = np.isfinite(obs)
+        if not finite.all():
+            where = "" if obs.ndim < 2 else f" (members {np.flatnonzero(~finite.reshape(-1, obs.shape[-1]).all(axis=-1)).tolist()})"
+            raise ValueError(f"observation must be finite{where}")
+        if obs.shape[-1:] == self._obs_low.shape:
+            obs = np.clip(obs, self._obs_low, self._obs_high)
+        u, state = self.control(self.decode_observation(obs), state, episode_start)
         action = np.clip(u / self.u_max, -1.0, 1.0).astype(np.float32)
         return action, state
 

@@ -99,18 +99,93 @@ def reals(value: Any, name: str, *, bools: bool = False) -> np.ndarray:
 
     Any real dtype and byte order converts (float16, big-endian, integers;
     booleans only with ``bools``); strings, bytes, complex numbers, dates,
-    ``None``, ragged or other objects raise ``ValueError`` naming ``name``.
-    Finiteness and range are the caller's business.
+    ``None``, mappings, ragged or other objects, masked arrays with a masked entry and
+    objects numpy cannot read (a torch tensor that requires grad) raise ``ValueError``
+    naming ``name``. Finiteness and range are the caller's business.
     """
     try:
+        if isinstance(value, (Mapping, set, frozenset)):
+            raise TypeError
+        if isinstance(value, np.ma.MaskedArray):
+            if np.ma.getmaskarray(value).any():
+                raise ValueError(f"{name} must be real numbers, got a masked array with masked entries") from None
+            value = value.data
         raw = np.asarray(value, dtype=object) if isinstance(value, (str, bytes)) else np.asarray(value)
         kinds = "biuf" if bools else "iuf"
         element = (lambda x: _is_number(x) or (bools and isinstance(x, (bool, np.bool_))))
         if raw.dtype.kind not in kinds and not (raw.dtype.kind == "O" and raw.size and all(element(x) for x in raw.reshape(-1))):
             raise TypeError
         return raw.astype(float)
-    except (TypeError, ValueError, OverflowError):
-        raise ValueError(f"{name} must be real numbers, got {value!r}") from None
+    except ValueError as e:
+        if str(e).startswith(name):
+            raise
+        raise ValueError(f"{name} must be real numbers, got {_shown(value)}") from None
+    except Exception:  # numpy's TypeError/OverflowError, a tensor's RuntimeError, ...: all the same refusal
+        raise ValueError(f"{name} must be real numbers, got {_shown(value)}") from None
+
+
+def _shown(value: Any) -> str:
+    """``repr`` of a refused value, cut to 200 characters (and never raising)."""
+    try:
+        text = repr(value)
+    except Exception:
+        text = f"<{type(value).__name__}>"
+    return text if len(text) <= 200 else text[:200] + "..."
+
+
+def boolean(value: Any, name: str) -> bool:
+    """A bool (Python or numpy), not a string, number or ``None``: ``compiled="False"`` is refused, not read as True."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name} must be True or False, got {_shown(value)} ({type(value).__name__})")
+    return bool(value)
+
+
+def mask(value: Any, name: str, n: int) -> np.ndarray:
+    """A boolean mask of shape ``(n,)``: bools, or integers 0 and 1; strings, floats (NaN) and others refused."""
+    try:
+        raw = np.asarray(value)
+    except Exception:
+        raw = np.asarray(None, dtype=object)
+    if raw.dtype.kind == "O" and raw.ndim and all(isinstance(x, (bool, np.bool_)) for x in raw.reshape(-1)):
+        raw = raw.astype(bool)
+    if raw.dtype.kind in "iu" and np.all((raw == 0) | (raw == 1)):
+        raw = raw.astype(bool)
+    if raw.dtype.kind != "b":
+        raise ValueError(f"{name} must be booleans of shape ({n},), got {_shown(value)}")
+    if raw.shape != (n,):
+        raise ValueError(f"{name} must have shape ({n},), got shape {raw.shape}")
+    return raw.copy()
+
+
+#: the largest seed (numpy's ``SeedSequence`` takes any non-negative integer; Gymnasium's seeding the same)
+SEED_MAX = 2**128 - 1
+
+
+def seed(value: Any, name: str = "seed") -> int | None:
+    """A seed: ``None`` or an integer in ``[0, 2^128)`` (Python or numpy int; not bool, float or str).
+
+    The one seed rule of the single env, the vector env (per member) and the SB3 adapter."""
+    if value is None:
+        return None
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (numbers.Integral, np.integer)) or not 0 <= int(value) <= SEED_MAX:
+        raise ValueError(f"{name} must be None or an integer >= 0 (below 2^128), got {_shown(value)} ({type(value).__name__})")
+    return int(value)
+
+
+def seeds(value: Any, n: int, name: str = "seed") -> list[int | None] | None:
+    """A vector env's seeds: ``None``; an int ``s`` (member ``i`` gets ``s + i``); or a sequence of ``n``
+    seeds or ``None`` each (:func:`seed`). All checked before any is used."""
+    if value is None:
+        return None
+    if isinstance(value, (numbers.Integral, np.integer)) and not isinstance(value, (bool, np.bool_)):
+        first = seed(value, name)
+        return [seed(first + i, name) for i in range(n)]
+    if isinstance(value, (str, bytes, Mapping)) or not hasattr(value, "__len__"):
+        raise ValueError(f"{name} must be None, an int, or a sequence of {n} ints or None, got {_shown(value)}")
+    items = list(value)
+    if len(items) != n:
+        raise ValueError(f"{name} must be an int or a sequence of {n} seeds, got {len(items)}: {_shown(value)}")
+    return [seed(s, f"{name}[{i}]") for i, s in enumerate(items)]
 
 
 def vector(
@@ -200,8 +275,17 @@ class Checked:
     def __set__(self, obj: Any, value: Any) -> None:
         if self.fixed and self.slot in obj.__dict__:
             raise ValueError(f"{self.name} is fixed at construction (other settings derive from it); make a new env instead")
-        obj.__dict__[self.slot] = self.check(value, self.name)
+        obj.__dict__[self.slot] = frozen(self.check(value, self.name))
         touch(obj)
+
+
+def frozen(value: Any) -> Any:
+    """An array setting as a read-only copy (``env.u_max[:] = -40`` raises instead of bypassing the
+    check); other values unchanged. Readers that hand it to compiled code take a writable copy."""
+    if isinstance(value, np.ndarray):
+        value = value.copy()
+        value.setflags(write=False)
+    return value
 
 
 def touch(obj: Any) -> None:

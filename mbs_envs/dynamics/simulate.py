@@ -166,6 +166,11 @@ def advance(
     return q, v
 
 
+#: The most state values (output samples x members x (nq + nv)) :func:`simulate` stores: 2^28 float64
+#: entries, 2 GiB (a 2R over 1e7 steps of one member is 4e7, the studies' largest runs far less).
+MAX_STORED_VALUES = 2**28
+
+
 def simulate(
     model: Model,
     q0: np.ndarray,
@@ -236,6 +241,13 @@ def simulate(
         raise ValueError(
             f"the initial state is beyond divergence_limit = {divergence_limit:g} or singular "
             f"(members {np.flatnonzero(start_bad.reshape(-1)).tolist()} of the batch)"
+        )
+    values = (t_final / dt + 2.0) * max(1, int(np.prod(batch))) * (model.nq + model.nv)
+    if not values <= MAX_STORED_VALUES:  # also refuses t_final / dt = inf (1e300 / 1e-300)
+        raise ValueError(
+            f"t_final / dt = {t_final:g} / {dt:g} steps of {int(np.prod(batch))} member(s) would store {values:.3g} state "
+            f"values, above the budget of {MAX_STORED_VALUES:.3g} ({MAX_STORED_VALUES * 8 / 2**30:g} GiB; "
+            "mbs_envs.dynamics.simulate.MAX_STORED_VALUES): a larger dt, a shorter t_final or a smaller batch"
         )
     stepper = integrators.get(integrator, **integrator_options)
     stab = model.stabilization(stabilization)

@@ -10,9 +10,11 @@ drawing; see :class:`mbs_envs.envs.tracking.JointTrackingEnv`.
 
 from __future__ import annotations
 
+import copy
 from typing import Any, ClassVar
 
 import gymnasium as gym
+from gymnasium.utils import seeding
 from ..dynamics.jit import njit
 import numpy as np
 
@@ -87,6 +89,55 @@ def validate_action(action: Any, nu: int, num_envs: int | None = None) -> np.nda
     return np.clip(a, -1.0, 1.0)
 
 
+#: The work budget of one member's control step, in equation-of-motion evaluations times degrees
+#: of freedom (:func:`step_work`). 2e6 is about a second of the numpy path (~5 us per 2-dof evaluation)
+#: and well above every setting the studies use (the largest: RK4 x 40 substeps on the 2R, 320;
+#: a 500-link chain under RK4, 2,000); SDIRK3 with 1e5 substeps on the 2R (1.4e7) took minutes per step.
+STEP_WORK_BUDGET = 2e6
+#: The work budget of one batched step (members x :func:`step_work`): 1e6 members of the 2R under RK4.
+BATCH_WORK_BUDGET = 2e8
+#: The most members a batched env holds: each keeps its own generator (~1 kB) besides its state.
+MAX_MEMBERS = 2**20
+
+
+def step_work(integrator: Any, substeps: int, nv: int) -> float:
+    """Equation-of-motion evaluations per control step times ``nv`` (the work of one member's step).
+
+    Explicit Runge-Kutta: ``substeps x stages``; implicit (SDIRK, implicit Euler): each stage counts
+    its Newton iterations (``max_iter``) times the ``1 + nv`` evaluations of a finite-difference
+    Jacobian; the joint-implicit Euler 8 iterations of ``1 + nv``; the adaptive scipy methods choose
+    their own steps (counted as one evaluation per substep: their cost is the tolerance's business).
+    """
+    tableau = getattr(integrator, "tableau", None)
+    stages = len(tableau.c) if tableau is not None else 1
+    iterations = getattr(integrator, "max_iter", None)
+    if iterations is not None:
+        stages *= iterations * (1 + nv)
+    elif isinstance(integrator, integrators.JointImplicitEuler):
+        stages = 8 * (1 + nv)
+    return float(substeps) * stages * nv
+
+
+def check_work_budget(env: Any, num_envs: int = 1) -> None:
+    """Refuse settings whose control step would exceed :data:`STEP_WORK_BUDGET` (one member) or, for
+    ``num_envs`` members, :data:`BATCH_WORK_BUDGET` or :data:`MAX_MEMBERS`: a ``ValueError`` stating
+    the budget and the settings that break it."""
+    work = step_work(env.integrator, env.substeps, env.model.nv)
+    if work > STEP_WORK_BUDGET:
+        raise ValueError(
+            f"substeps = {env.substeps} with integrator {type(env.integrator).__name__} on {env.model.nv} dof is "
+            f"{work:.3g} evaluations x dof per control step, above the work budget of {STEP_WORK_BUDGET:.0e} "
+            f"(mbs_envs.envs.base.STEP_WORK_BUDGET); use fewer substeps or a cheaper integrator"
+        )
+    if num_envs > MAX_MEMBERS:
+        raise ValueError(f"num_envs = {num_envs} is above the budget of {MAX_MEMBERS} members (mbs_envs.envs.base.MAX_MEMBERS)")
+    if num_envs * work > BATCH_WORK_BUDGET:
+        raise ValueError(
+            f"num_envs = {num_envs} members x {work:.3g} evaluations x dof per step is {num_envs * work:.3g}, above the "
+            f"batch work budget of {BATCH_WORK_BUDGET:.0e} (mbs_envs.envs.base.BATCH_WORK_BUDGET); use fewer members or substeps"
+        )
+
+
 class MBSEnv(gym.Env):
     """Base of all mbs_envs environments (see the module docstring).
 
@@ -120,9 +171,10 @@ class MBSEnv(gym.Env):
 
     # settings validated on every assignment (constructor, ``set_attr``, ``env.dt = ...``)
     dt = check.Checked(lambda x, name: check.positive(x, name, 1e3))
-    substeps = check.Checked(lambda x, name: check.integer(x, name, 1, 100_000))
     divergence_limit = check.Checked(lambda x, name: check.real(x, name, 0.0, 1e30, low_open=True), fixed=True)
     integrator = check.Checked(lambda x, name: x if isinstance(x, integrators.Stepper) else integrators.get(x), fixed=True)
+    # the equations: the compiled kernels, the spaces and the state's shapes derive from them
+    model = check.Checked(lambda x, name: x, fixed=True)
 
     def __init__(
         self,
@@ -145,13 +197,14 @@ class MBSEnv(gym.Env):
                 f"got {render_mode!r}"
             )
         options = {k: v for k, v in (("rtol", rtol), ("atol", atol)) if v is not None}
+        self._want_compiled = check.boolean(compiled, "compiled")
         self.model = model
         self.integrator = integrators.get(integrator, **options)
         if isinstance(self.integrator, integrators.JointImplicitEuler):
             self.integrator.check_model(model)  # a clear ValueError at make, not at the first step
-        self.stabilization = model.stabilization(stabilization)
+        self.stabilization = stabilization
         self.dt = dt
-        self.substeps = substeps
+        self._substeps = check.integer(substeps, "substeps", 1, 100_000)
         self.u_max = u_max
         self.divergence_limit = divergence_limit
         self.render_mode = render_mode
@@ -165,7 +218,8 @@ class MBSEnv(gym.Env):
         self._task: Any = None
         self._task_columns: tuple | None = None  # (task, its columns) for the compiled step
         self._renderer: PlanarRenderer | None = None
-        self._want_compiled = bool(compiled)
+        self._started = False  # reset() not called yet: step and render refuse (gym.error.ResetNeeded)
+        check_work_budget(self)
 
     # -- the compiled step (see mbs_envs.envs.engine) ------------------------------
 
@@ -291,7 +345,7 @@ class MBSEnv(gym.Env):
         c = self.__dict__.get("_step_arguments_cache")
         if c is None or c[0] is not tab or c[1] is not stab or c[2] is not actuated or c[3] != key:
             stepper = tab.packed(self.dt / self.substeps, self.substeps, projection_tol(stab))
-            control = (float(self.dt), float(self.divergence_limit), float(self.residual_limit), self.u_max, actuated, nc, full_info)
+            control = (float(self.dt), float(self.divergence_limit), float(self.residual_limit), np.array(self.u_max), actuated, nc, full_info)  # writable copies: compiled code takes one array type
             c = self._step_arguments_cache = (tab, stab, actuated, key, (stepper, control))
         return c[4]
 
@@ -336,8 +390,62 @@ class MBSEnv(gym.Env):
 
     @u_max.setter
     def u_max(self, value: Any) -> None:
-        self._u_max = check.vector(value, "torque_limit", self.model.nu, 0.0, low_open=True)
+        self._u_max = check.frozen(check.vector(value, "torque_limit", self.model.nu, 0.0, low_open=True))
         check.touch(self)
+
+    @property
+    def substeps(self) -> int:
+        """Fixed-step integrator steps per control step, in ``[1, 100000]`` and within the work budget
+        (:func:`check_work_budget`)."""
+        return self._substeps
+
+    @substeps.setter
+    def substeps(self, value: Any) -> None:
+        value = check.integer(value, "substeps", 1, 100_000)
+        before = self.__dict__.get("_substeps")
+        self._substeps = value
+        try:
+            check_work_budget(self, self.__dict__.get("_budget_members", 1))
+        except ValueError:
+            self._substeps = before
+            raise
+        check.touch(self)
+
+    @property
+    def stabilization(self) -> Any:
+        """The constraint stabilization (:meth:`Model.stabilization`; None on unconstrained models)."""
+        return self._stabilization
+
+    @stabilization.setter
+    def stabilization(self, value: Any) -> None:
+        self._stabilization = self.model.stabilization(value)  # ValueError naming what it takes
+        check.touch(self)
+
+    @classmethod
+    def settings(cls) -> tuple[str, ...]:
+        """The names ``set_attr`` may change after construction: the validated settings that are not
+        fixed (:class:`mbs_envs.validation.Checked`) and the properties with a validating setter."""
+        names = set()
+        for klass in cls.__mro__:
+            for name, attr in vars(klass).items():
+                if name.startswith("_"):
+                    continue
+                if (isinstance(attr, check.Checked) and not attr.fixed) or (isinstance(attr, property) and attr.fset is not None):
+                    names.add(name)
+        return tuple(sorted(names))
+
+    def set_setting(self, name: Any, value: Any) -> None:
+        """``setattr(self, name, value)`` for a name in :meth:`settings` (validated by its setter); any other
+        name -- fixed at construction, read-only, unknown or misspelt -- is refused with ``ValueError``
+        before anything changes. The path of ``set_attr`` on the vector and SB3 adapters."""
+        if not isinstance(name, str):
+            raise ValueError(f"attribute name must be a str, got {name!r}")
+        allowed = self.settings()
+        if name not in allowed:
+            fixed = isinstance(getattr(type(self), name, None), check.Checked)
+            why = "is fixed at construction (make a new env)" if fixed else "is not a setting of this env"
+            raise ValueError(f"{name!r} {why}; the settings set_attr may change: {list(allowed)}")
+        setattr(self, name, value)
 
     # -- state ---------------------------------------------------------------
 
@@ -448,18 +556,31 @@ class MBSEnv(gym.Env):
 
         ``options={"q": q0, "v": v0}`` starts from an exact state (``v``
         defaults to zero when only ``q`` is given); otherwise the task's start
-        distribution is sampled.
+        distribution is sampled. ``seed``: None or an int ``>= 0``
+        (:func:`mbs_envs.validation.seed`). A refused reset (``ValueError``) changes nothing: the start
+        is drawn from a copy of the generator (or the new seed's), which replaces this env's only
+        once the start is accepted.
         """
+        seed = check.seed(seed)
         options = self.check_reset_options(options)
-        super().reset(seed=seed)
-        task, q0, v0 = self.sample_start(options)  # may refuse the start: nothing has changed yet
+        if seed is None:
+            rng, rng_seed = copy.deepcopy(self.np_random), self.np_random_seed
+        else:
+            rng, rng_seed = seeding.np_random(seed)
+        task, q0, v0 = self.sample_start(options, rng)  # may refuse the start: nothing has changed yet
+        self._np_random, self._np_random_seed = rng, rng_seed  # what Env.reset(seed=...) sets
         self._t = 0.0
         self._u = np.zeros(self.model.nu)
         self._task = task
         self._q, self._v = np.array(q0, float), np.array(v0, float)  # private: steps may update them in place
+        self._started = True
         if self.render_mode == "human":
             self.render()
         return self._observation(), self._info(diverged=False)
+
+    def _require_reset(self, what: str) -> None:
+        if not self.__dict__.get("_started", True):
+            raise gym.error.ResetNeeded(f"call reset() before {what}() (the env has no state yet)")
 
     def check_reset_options(self, options: dict | None) -> dict:
         """Validate reset options (unknown keys, ``q``/``v`` shape and finiteness) before any change."""
@@ -538,6 +659,7 @@ class MBSEnv(gym.Env):
     consistency_tol: ClassVar[float] = 1e-9
 
     def step(self, action: Any):
+        self._require_reset("step")
         tab = self.compiled
         if tab is not None:
             return self._step_compiled(action, tab)
@@ -605,6 +727,7 @@ class MBSEnv(gym.Env):
                 'Set render_mode at initialization, e.g. gym.make(id, render_mode="rgb_array")'
             )
             return None
+        self._require_reset("render")
         return self.render_state(self._q, self._t, self._task, self._v, self._u, self.trail())
 
     def trail(self) -> np.ndarray | None:

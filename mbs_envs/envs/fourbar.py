@@ -90,6 +90,8 @@ class FourBarEnv(JointTrackingEnv):
     """
 
     step_kernel = staticmethod(step_kernel)
+    #: validated on every assignment: 10x the start's consistency tolerance (1e-9 m) to 1 m
+    residual_limit = check.Checked(lambda x, name: check.real(x, name, 1e-8, 1.0))
 
     center_low = np.array([-np.pi])
     center_high = np.array([np.pi])
@@ -109,7 +111,7 @@ class FourBarEnv(JointTrackingEnv):
     ):
         self.branch = check.one_of(branch, "branch", (1, -1))
         # above the residual a start state may keep (consistency_tol): a lower limit would end every episode at once
-        self.residual_limit = check.real(residual_limit, "residual_limit", 10 * self.consistency_tol, 1.0)
+        self.residual_limit = residual_limit
         model = FourBar(params)
         if model.grashof not in self.turning_classes:
             p = model.params

@@ -283,9 +283,14 @@ class RollingDiskEnv(MBSEnv):
         **kwargs: Any,
     ):
         model = RollingDisk(params)
-        self.lean_limit = check.real(lean_limit, "lean_limit", 0.0, model.flat_lean, low_open=True, high_open=True)
-        super().__init__(model, torque_limit, stabilization=stabilization, **kwargs)
         Wc = model.critical_spin
+        if not (np.isfinite(Wc) and Wc > 0):  # g <= 0: the task's speeds, in units of W_c, are undefined
+            raise ValueError(
+                f"params: g = {model.params.g:g} gives the critical spin W_c = {Wc:g} rad/s; this task's spin "
+                "references and speed error are in units of W_c, so it needs gravity g > 0"
+            )
+        super().__init__(model, torque_limit, stabilization=stabilization, **kwargs)
+        self.lean_limit = lean_limit
         w_max = self.heading_omega[1]
         high = np.array(
             [np.pi / 2, self.divergence_limit, self.divergence_limit, self.divergence_limit, np.pi,
@@ -297,6 +302,16 @@ class RollingDiskEnv(MBSEnv):
         # centre's speed r times it, lean and heading rates below 1 rad/s
         W_top = self.spin_range[1] * Wc
         self._check_start_bound(max(np.pi + self.heading_amplitude + 0.1, model.params.r, W_top * max(1.0, model.params.r) + 1.0))
+
+    @property
+    def lean_limit(self) -> float:
+        """The fall limit on ``|lean|`` [rad], in ``(0, flat_lean)``: validated on every assignment."""
+        return self._lean_limit
+
+    @lean_limit.setter
+    def lean_limit(self, value: Any) -> None:
+        self._lean_limit = check.real(value, "lean_limit", 0.0, self.model.flat_lean, low_open=True, high_open=True)
+        check.touch(self)
 
     # -- the task: the module's functions with this env's parameters -----------------
 

@@ -102,7 +102,16 @@ class SB3VecEnv(VecEnv):
         return [value for _ in self._get_indices(indices)]
 
     def set_attr(self, attr_name: str, value: Any, indices: Any = None) -> None:
-        setattr(self.venv.env, attr_name, value)
+        """A setting of the shared task env (:meth:`MBSVectorEnv.set_attr`: validated; unknown, fixed or
+        misspelt names raise ``ValueError``); ``indices`` must cover every member, since they share it."""
+        if indices is not None and sorted(set(self._get_indices(indices))) != list(range(self.num_envs)):
+            raise ValueError(f"set_attr({attr_name!r}, indices={indices!r}): the members share one task env; set it for all")
+        self.venv.set_attr(attr_name, value)
+
+    def seed(self, seed: int | None = None) -> Any:
+        """SB3's ``seed``: member ``i`` gets ``seed + i`` at the next reset; ``seed`` None or an int >= 0
+        (:func:`mbs_envs.validation.seed`, the rule of every env here), checked now."""
+        return super().seed(check.seed(seed))
 
     def env_method(self, method_name: str, *method_args: Any, indices: Any = None, **method_kwargs: Any) -> list[Any]:
         method = getattr(self.venv.env, method_name)

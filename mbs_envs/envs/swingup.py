@@ -171,7 +171,7 @@ class SwingUpTaskParams:
 
     def kernel_arguments(self) -> tuple:
         """``(weights, u_max, driven, tolerance)`` as :func:`swingup_columns` takes them."""
-        return (np.asarray(self.weights, float), np.asarray(self.u_max, float), np.array([self.driven], np.int64), float(self.tolerance))
+        return (np.array(self.weights, float), np.array(self.u_max, float), np.array([self.driven], np.int64), float(self.tolerance))
 
 
 def start(p: SwingUpTaskParams, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:

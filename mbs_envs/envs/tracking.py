@@ -380,7 +380,10 @@ class JointTrackingEnv(MBSEnv):
     # -- the compiled step (see mbs_envs.envs.engine) ----------------------------
 
     def task_arguments(self) -> tuple:
-        return (self._tracked, self.reward_weights)
+        c = self.__dict__.get("_task_arguments_cache")  # a writable copy of the (read-only) weights, per settings version
+        if c is None or c[0] != check.settings_version(self):
+            c = self._task_arguments_cache = (check.settings_version(self), (self._tracked, np.array(self.reward_weights)))
+        return c[1]
 
     def task_columns(self, task: SumOfSines) -> tuple:
         return task.columns()

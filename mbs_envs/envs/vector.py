@@ -34,6 +34,7 @@ batch of a few thousand members can fault its work arrays in afresh at every ste
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 from typing import Any
 
@@ -45,7 +46,15 @@ from gymnasium.vector.utils import batch_space
 
 from .. import validation as check
 from ..dynamics.memory import keep_freed_memory
-from .base import MBSEnv, validate_action
+from .base import MBSEnv, check_work_budget, validate_action
+
+
+def _same(a: Any, b: Any) -> bool:
+    """Whether two attribute values are equal (arrays elementwise, same shape)."""
+    try:
+        return bool(np.array_equal(np.asarray(a), np.asarray(b))) if isinstance(a, np.ndarray) or isinstance(b, np.ndarray) else bool(a == b)
+    except Exception:
+        return a is b
 
 
 def tree_stack(items: list[Any]) -> Any:
@@ -102,7 +111,7 @@ class MBSVectorEnv(VectorEnv):
         render_mode: str | None = None,
         **env_kwargs: Any,
     ):
-        num_envs = check.integer(num_envs, "num_envs", 1, 10**7)
+        num_envs = check.integer(num_envs, "num_envs", 1, 10**12)
         keep_freed_memory()  # a batched step's work arrays would otherwise go back to the OS after every step
         if max_episode_steps is not None:
             max_episode_steps = check.integer(max_episode_steps, "max_episode_steps", 1, 10**12)
@@ -111,8 +120,10 @@ class MBSVectorEnv(VectorEnv):
         self.autoreset_mode = AutoresetMode(autoreset_mode)
         self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
         self.env = env_cls(**env_kwargs)  # the task's code and configuration
+        check_work_budget(self.env, num_envs)  # before any per-member allocation
+        self.env._budget_members = num_envs  # a later set_attr("substeps", ...) is checked for the whole batch
         self.nominal_model = self.env.model
-        self.model = self.nominal_model  # the batch's (per-member parameters when randomized)
+        self._model = self.nominal_model  # the batch's (per-member parameters when randomized)
         self.nominal_params = self.model.params
         self.randomize = self._checked_randomize(randomize)
         self.num_envs = int(num_envs)
@@ -125,9 +136,9 @@ class MBSVectorEnv(VectorEnv):
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         n = self.num_envs
         self._rngs: list[np.random.Generator] = [seeding.np_random(None)[0] for _ in range(n)]
-        # the state in columns (nq, n), the compiled step's layout; _q and _v are their rows views (n, nq)
+        # the state in columns (nq, n), the compiled step's layout; _q and _v are their rows views (n, nq),
+        # made on access so that copies and pickles (which copy arrays one by one) cannot split them
         self._qc, self._vc = np.zeros((self.model.nq, n)), np.zeros((self.model.nv, n))
-        self._q, self._v = self._qc.T, self._vc.T
         self._t = np.zeros(n)
         self._u = np.zeros((n, self.model.nu))
         self._elapsed = np.zeros(n, int)
@@ -136,6 +147,45 @@ class MBSVectorEnv(VectorEnv):
         self._scales: dict[str, np.ndarray] = {k: np.ones(n) for k in self.randomize}
         self._autoreset = np.zeros(n, bool)
         self._started = False
+
+    @property
+    def _q(self) -> np.ndarray:
+        """Rows view ``(num_envs, nq)`` of the column state."""
+        return self._qc.T
+
+    @property
+    def _v(self) -> np.ndarray:
+        """Rows view ``(num_envs, nv)`` of the column state."""
+        return self._vc.T
+
+    @property
+    def model(self) -> Any:
+        """The batch's model (per-member parameters when randomized); fixed by the constructor's arguments."""
+        return self._model
+
+    @model.setter
+    def model(self, value: Any) -> None:
+        raise ValueError("model is fixed at construction (the compiled step and the state's shapes derive from it); "
+                         "make a new env, with params= or randomize=")  # fmt: skip
+
+    # -- attributes: the task env's settings, shared by every member ----------------
+
+    def get_attr(self, name: str) -> tuple:
+        """The task env's attribute ``name``, once per member (they share it)."""
+        value = getattr(self.env, name)
+        return tuple(value for _ in range(self.num_envs))
+
+    def set_attr(self, name: str, values: Any) -> None:
+        """Set a setting of the task env (:meth:`MBSEnv.settings`, validated); the members share it, so
+        ``values`` is one value, or a list/tuple of ``num_envs`` equal ones. Anything else --
+        unknown or fixed names, differing per-member values -- raises ``ValueError`` before any change."""
+        if isinstance(values, (list, tuple)) and len(values) == self.num_envs and self.num_envs > 1:
+            first = values[0]
+            if any(not _same(first, x) for x in values[1:]):
+                raise ValueError(f"set_attr({name!r}): the members share one task env, so every value must be equal "
+                                 "(per-member parameters: randomize=)")  # fmt: skip
+            values = first
+        self.env.set_setting(name, values)
 
     # -- domain randomization --------------------------------------------------
 
@@ -154,36 +204,42 @@ class MBSVectorEnv(VectorEnv):
         if not self.randomize:
             return
         values = {k: getattr(self.nominal_params, k) * self._scales[k] for k in self.randomize}
-        self.model = self.nominal_model.with_params(self.nominal_params.batched(**values))
+        self._model = self.nominal_model.with_params(self.nominal_params.batched(**values))
 
     # -- resets ----------------------------------------------------------------
 
-    def _seed_members(self, seed: int | list | None) -> None:
-        if seed is None:
-            return
-        seeds = [seed + i for i in range(self.num_envs)] if isinstance(seed, (int, np.integer)) else list(seed)
-        if len(seeds) != self.num_envs:
-            raise ValueError(f"seed must be an int or a list of {self.num_envs} seeds, got {seed!r}")
-        for i, s in enumerate(seeds):
-            if s is not None:
-                self._rngs[i] = seeding.np_random(int(s))[0]
+    def _member_generators(self, seed: Any) -> list[np.random.Generator] | None:
+        """Every member's generator after ``reset(seed=seed)``: new ones for the seeds given
+        (:func:`mbs_envs.validation.seeds`: all parsed first), the current ones elsewhere; None without a
+        seed. Nothing of the env changes."""
+        seeds = check.seeds(seed, self.num_envs)
+        if seeds is None:
+            return None
+        return [g if s is None else seeding.np_random(s)[0] for g, s in zip(self._rngs, seeds)]
 
-    def _reset_members(self, idx: np.ndarray, options: dict) -> None:
-        """Draw task and start state of members ``idx`` with the task's code, each from its own generator."""
+    def _reset_members(self, idx: np.ndarray, options: dict, rngs: list[np.random.Generator] | None = None) -> None:
+        """Draw task and start state of members ``idx`` with the task's code, each from its own generator
+        (``rngs``: every member's generator to draw from and keep; default the current ones).
+        Every start is drawn before any is assigned: a refused one (``ValueError``) leaves the batch as it was."""
         env = self.env
+        rngs = self._rngs if rngs is None else rngs
+        saved = [rngs[i].bit_generator.state for i in idx]  # restored if a start is refused
         scales = {k: s.copy() for k, s in self._scales.items()}
         drawn = []
-        try:  # draw every member's start first: a refused one leaves the batch as it was
+        try:
             for i in idx:
                 model = self.nominal_model
                 if self.randomize:  # the member's parameters first: start states may depend on them
                     for k, s in self.randomize.items():
-                        self._scales[k][i] = self._rngs[i].uniform(1 - s, 1 + s)
-                    model = self._member_model(i)
-                drawn.append(env.sample_start(options, self._rngs[i], model))
+                        scales[k][i] = rngs[i].uniform(1 - s, 1 + s)
+                    model = self._member_model(i, scales)
+                drawn.append(env.sample_start(options, rngs[i], model))
         except ValueError:
-            self._scales = scales
+            for i, state in zip(idx, saved):
+                rngs[i].bit_generator.state = state
             raise
+        self._rngs = list(rngs)
+        self._scales = scales
         for i, (task, q0, v0) in zip(idx, drawn):
             if self._task is None:
                 self._task = tree_stack([task] * self.num_envs)
@@ -197,9 +253,10 @@ class MBSVectorEnv(VectorEnv):
         self._elapsed[idx] = 0
         self._apply_scales()
 
-    def _member_model(self, i: int):
-        """The model with member ``i``'s current parameters (for start states that use the model)."""
-        values = {k: getattr(self.nominal_params, k) * self._scales[k][i] for k in self.randomize}
+    def _member_model(self, i: int, scales: dict[str, np.ndarray] | None = None):
+        """The model with member ``i``'s parameters (``scales``, default the current ones; for start states that use the model)."""
+        scales = self._scales if scales is None else scales
+        values = {k: getattr(self.nominal_params, k) * scales[k][i] for k in self.randomize}
         return self.nominal_model.with_params(self.nominal_params.replace(**values))
 
     def reset(self, *, seed: int | list | None = None, options: dict | None = None):
@@ -211,17 +268,15 @@ class MBSVectorEnv(VectorEnv):
         options = check.mapping(options, "options")
         mask = options.pop("reset_mask", None)
         options = self.env.check_reset_options(options)
-        self._seed_members(seed)
+        rngs = self._member_generators(seed)  # seeds parsed, nothing changed yet
         if mask is None:
             idx = np.arange(self.num_envs)
         else:
-            mask = np.asarray(mask, bool)
-            if mask.shape != (self.num_envs,):
-                raise ValueError(f"options['reset_mask'] must have shape ({self.num_envs},), got {mask.shape}")
+            mask = check.mask(mask, "options['reset_mask']", self.num_envs)
             if not self._started and not mask.all():
                 raise ValueError("the first reset must reset every member")
             idx = np.flatnonzero(mask)
-        self._reset_members(idx, options)
+        self._reset_members(idx, options, rngs)
         self._autoreset[idx] = False
         self._started = True
         now = self.env.task_now(self._t, self._task)
@@ -233,6 +288,14 @@ class MBSVectorEnv(VectorEnv):
         if not self._started:
             raise gym.error.ResetNeeded("call reset() before step()")
         env = self.env
+        pending = self.autoreset_mode == AutoresetMode.NEXT_STEP and self._autoreset.any()
+        if pending:  # the members being reset ignore their action: any real number will do, NaN included
+            a = check.reals(actions, "actions", bools=True)
+            if self.model.nu == 1 and a.shape == (self.num_envs,):
+                a = a[:, None]
+            if a.shape == (self.num_envs, self.model.nu):
+                a[self._autoreset] = 0.0
+            actions = a
         a = validate_action(actions, self.model.nu, self.num_envs)
         if getattr(env, "compiled", None) is not None:
             obs, reward, bad, terminated, values = self._step_compiled(a)
@@ -248,13 +311,13 @@ class MBSVectorEnv(VectorEnv):
             truncated = np.zeros(self.num_envs, bool)
         else:
             truncated = self._elapsed >= self.max_episode_steps
-        if self.autoreset_mode == AutoresetMode.NEXT_STEP and self._autoreset.any():
+        if pending:
             idx = np.flatnonzero(self._autoreset)
             obs[idx] = self._restart(idx)
             reward[idx] = 0.0
             terminated[idx] = False
             truncated[idx] = False
-            info["diverged"][idx] = False
+            self._restarted_info(info, idx)
         done = terminated | truncated
         if self.autoreset_mode == AutoresetMode.SAME_STEP and done.any():
             idx = np.flatnonzero(done)
@@ -265,6 +328,7 @@ class MBSVectorEnv(VectorEnv):
             info["final_info"] = {k: np.copy(x) for k, x in info.items() if not k.startswith(("_", "final"))}
             info["_final_info"] = done.copy()
             obs[idx] = self._restart(idx)
+            self._restarted_info(info, idx)
         self._autoreset = done if self.autoreset_mode == AutoresetMode.NEXT_STEP else np.zeros(self.num_envs, bool)
         return obs, np.asarray(reward, float), terminated, truncated, info
 
@@ -285,6 +349,21 @@ class MBSVectorEnv(VectorEnv):
             self.model, self._qc, self._vc, self._t, self._task_columns, a, full_info=self.full_info
         )
         return obs, values[:, 0].copy(), bad, terminated, env.info_rows(values) if self.full_info else {}
+
+    def _restarted_info(self, info: dict[str, Any], idx: np.ndarray) -> None:
+        """Members ``idx`` were reset in this step (next-step autoreset): their ``info`` rows become their
+        reset's, as ``SyncVectorEnv`` gives them (``t = 0``, the new state's energy and task quantities,
+        ``u = 0``); entries a reset does not have (the reward terms) are zero there, with their
+        ``info["_key"]`` mask False."""
+        fresh = self._info(self.env.task_now(self._t, self._task), np.zeros(self.num_envs, bool))
+        for key in [k for k in info if not k.startswith(("_", "final"))]:
+            if key in fresh:
+                info[key][idx] = fresh[key][idx]
+            else:
+                info[key][idx] = 0
+                mask = np.ones(self.num_envs, bool)
+                mask[idx] = False
+                info["_" + key] = mask
 
     def _restart(self, idx: np.ndarray) -> np.ndarray:
         """Reset members ``idx`` (autoreset) and return their first observations."""

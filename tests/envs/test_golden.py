@@ -24,7 +24,15 @@ def test_episodes_equal_the_recorded_version(case, kind):
     now = run(env_id, kwargs, seed)
     for key in ("reward", "energy"):
         old = RECORDED[f"{label}/{kind}/{key}"]
-        np.testing.assert_allclose(now[key], old, rtol=0, atol=1e-12 * max(1.0, float(np.max(np.abs(old)))), err_msg=key)
+        new = now[key]
+        if kind == "vector" and key == "energy":
+            # on the step that resets a member (next-step autoreset, after its episode ended) the recorded
+            # version reported the discarded step's energy; it is now the reset state's, as SyncVectorEnv
+            # gives it (issue 34, class 5; tests/envs/test_reliability3.py checks those rows)
+            ended = RECORDED[f"{label}/{kind}/terminated"]
+            reset_rows = np.concatenate([np.zeros_like(ended[:1]), ended[:-1]])
+            old, new = np.where(reset_rows, 0.0, old), np.where(reset_rows, 0.0, new)
+        np.testing.assert_allclose(new, old, rtol=0, atol=1e-12 * max(1.0, float(np.max(np.abs(old)))), err_msg=key)
     np.testing.assert_array_equal(now["terminated"], RECORDED[f"{label}/{kind}/terminated"])
     old = RECORDED[f"{label}/{kind}/obs"]
     assert now["obs"].shape == old.shape and now["obs"].dtype == old.dtype == np.float32
