@@ -427,6 +427,8 @@ class MBSEnv(gym.Env):
         fixed (:class:`mbs_envs.validation.Checked`) and the properties with a validating setter."""
         names = set()
         for klass in cls.__mro__:
+            if not issubclass(klass, MBSEnv):  # gym.Env's np_random is state, not a setting
+                continue
             for name, attr in vars(klass).items():
                 if name.startswith("_"):
                     continue

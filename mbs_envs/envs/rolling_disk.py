@@ -209,6 +209,11 @@ def info(p: DiskTaskParams, q, v, now: tuple, task: DiskTask) -> dict[str, np.nd
     return {"lean": rows[..., 5], "fell": rows[..., 6].astype(bool), "tracking_error": rows[..., 7:8], "spin_error": rows[..., 8]}
 
 
+#: the smallest critical spin [rad/s] the task takes: its speed error is in units of W_c, so a disk
+#: without gravity (W_c = 0) has a reward of -inf and one with g = 1e-300 of -1e263
+MIN_CRITICAL_SPIN = 1e-3
+
+
 class RollingDiskEnv(MBSEnv):
     """A thin disk rolling without slipping: stay upright, follow a heading, hold a speed.
 
@@ -284,10 +289,10 @@ class RollingDiskEnv(MBSEnv):
     ):
         model = RollingDisk(params)
         Wc = model.critical_spin
-        if not (np.isfinite(Wc) and Wc > 0):  # g <= 0: the task's speeds, in units of W_c, are undefined
+        if not (np.isfinite(Wc) and Wc >= MIN_CRITICAL_SPIN):  # g <= 0 (or ~0): the task's speeds, in units of W_c, are undefined
             raise ValueError(
                 f"params: g = {model.params.g:g} gives the critical spin W_c = {Wc:g} rad/s; this task's spin "
-                "references and speed error are in units of W_c, so it needs gravity g > 0"
+                f"references and speed error are in units of W_c, so it needs gravity g > 0 and W_c >= {MIN_CRITICAL_SPIN:g} rad/s"
             )
         super().__init__(model, torque_limit, stabilization=stabilization, **kwargs)
         self.lean_limit = lean_limit
