@@ -14,6 +14,11 @@
    random-action episodes, then runaway episodes (1e200 N m torque limit):
    non-finite outputs, exceptions, hangs (a single step over 60 s), divergences
    flagged, and the worst wall time of a diverging step.
+6. Adversarial sequences on every id's batched env beside a twin
+   (:func:`mbs_envs.studies.reliability.adversarial_soak`, issue 34): steps with NaN actions for
+   the members being reset, copies and pickles mid-episode, ``set_attr`` of every setting with bad
+   values and of names that are not settings, refused resets, seeds, masks and actions: refusals
+   accepted, state changed by a refusal, disagreements with the twin, exceptions other than ``ValueError``.
 
 Writes ``soak.json``, ``soak.md`` and ``soak.png`` to ``--out``.
 
@@ -40,7 +45,7 @@ from mbs_envs.studies.plotting import pyplot, save
 
 
 def run(out: pathlib.Path, episodes: int, quick: bool = False, ids: list[str] | None = None, processes: bool = True,
-        integrator_episodes: int | None = None, integrator_envs: int = 16) -> dict:  # fmt: skip
+        integrator_episodes: int | None = None, integrator_envs: int = 16, adversarial_rounds: int | None = None) -> dict:  # fmt: skip
     """All parts of the soak; ``integrator_episodes`` (default 8 with ``quick``, else 32) random episodes
     per integrator and id on ``integrator_envs`` members."""
     out.mkdir(parents=True, exist_ok=True)
@@ -53,8 +58,9 @@ def run(out: pathlib.Path, episodes: int, quick: bool = False, ids: list[str] | 
     pairs = [(i, name) for name in integrators.available() for i in ids if integrators.applies(name, models[i])]
     n_int = integrator_episodes or (8 if quick else 32)
     per_integrator = [rl.integrator_soak(i, name, episodes=n_int, num_envs=integrator_envs) for i, name in tqdm(pairs, desc="integrators")]
+    adversarial = [rl.adversarial_soak(i, rounds=adversarial_rounds or (100 if quick else 2000)) for i in tqdm(ids, desc="adversarial sequences")]
     result = {"episodes_per_id": episodes, "soak": soak, "determinism": det, "long_runs": long, "edges": edges,
-              "integrators": per_integrator}  # fmt: skip
+              "integrators": per_integrator, "adversarial": adversarial}  # fmt: skip
     (out / "soak.json").write_text(json.dumps(result, indent=2, default=float))
     text = report(result)
     (out / "soak.md").write_text(text)
@@ -93,6 +99,15 @@ def report(r: dict) -> str:
                  f"{1e3 * x.get('runaway_worst_step_s', float('nan')):.1f} |")  # fmt: skip
         for e in x["errors"]:
             L.append(f"|  | error: {e} | | | | | | | | | |")
+    if r.get("adversarial"):
+        L += ["", "## Adversarial sequences (batched env beside a twin; issue 34)", "",
+              "| id | rounds | copies | refused calls | refusals accepted | state changed by a refusal | disagreements with the twin | other exceptions |",
+              "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+        for x in r["adversarial"]:
+            L.append(f"| {x['env_id'].split('/')[-1]} | {x['rounds']} | {x['counts'].get('copy', 0)} | {x['refused']} | {x['accepted_bad']} | "
+                     f"{x['changed_by_refusal']} | {x['disagreements']} | {x['other_exceptions']} |")  # fmt: skip
+            for e in x["errors"]:
+                L.append(f"|  | error: {e} | | | | | | |")
     L += ["", "## Parameters at the edges", "", "| model | parameter | value | outcome | detail |", "|---|---|---|---|---|"]
     for e in r["edges"]:
         detail = e.get("message") or f"finite: {e['all_finite']}, relative energy drift {e['relative_energy_drift']:.1e}"

@@ -320,13 +320,16 @@ def test_soak_tiny_configuration(tmp_path):
     """Random episodes with no non-finite output, long runs and the parameter edges (processes: slow test)."""
     script = load_script("soak.py")
     result = script["run"](tmp_path, episodes=20, quick=True, ids=["mbs_envs/Planar2R-v0", "mbs_envs/RollingDisk-v0"], processes=False,
-                           integrator_episodes=4, integrator_envs=4)  # fmt: skip
+                           integrator_episodes=4, integrator_envs=4, adversarial_rounds=30)  # fmt: skip
+    for x in result["adversarial"]:
+        assert x["rounds"] == 30 and x["accepted_bad"] == x["changed_by_refusal"] == x["disagreements"] == x["other_exceptions"] == 0
     for s in result["soak"]:
         assert s["episodes"] >= 20 and s["nonfinite_observations"] == 0 and s["nonfinite_rewards"] == 0
     refused = [e for e in result["edges"] if e["value"] != e["value"] or e["value"] <= 0]  # NaN, 0, -1
     assert refused and all(e["outcome"].startswith("ValueError") and e["parameter"] in e["message"] for e in refused)
     assert all(e.get("all_finite", True) for e in result["edges"])
     assert "100 steps on 4 batched members" in (tmp_path / "soak.md").read_text()
+    assert "Adversarial sequences" in (tmp_path / "soak.md").read_text()
     for name in ("soak.json", "soak.md", "soak.png"):
         assert (tmp_path / name).stat().st_size > 0
 

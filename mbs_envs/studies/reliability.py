@@ -241,3 +241,114 @@ def parameter_edges() -> list[dict]:
                          "all_finite": finite, "relative_energy_drift": float(np.max(np.abs(E - E[0]))) / scale})  # fmt: skip
     return rows
 
+
+
+#: the calls :func:`adversarial_soak` makes that must be refused with ``ValueError`` and change nothing
+REFUSED_CALLS = ("reset options q", "reset options type", "reset seed", "reset seed list", "reset mask", "action", "set_attr value",
+                 "set_attr name", "model")  # fmt: skip
+#: values a user may pass by mistake (``set_attr`` of every setting is tried with each)
+BAD_VALUES = (float("nan"), float("inf"), -1.0, "0.01", None, True, 1j, [float("nan")] * 9, {"a": 1}, -(10**30))
+
+
+def adversarial_soak(env_id: str, rounds: int = 500, num_envs: int = 4, seed: int = 0, **kwargs: Any) -> dict:
+    """Random sequences of the calls issue 34's classes were found with, on the batched env beside a twin.
+
+    Each round is one of: a step (random actions; NaN for members being reset, whose action is ignored),
+    a seeded reset, a deepcopy or pickle round trip of the env mid-episode, a valid ``set_attr`` of
+    ``dt`` (given to both), or a refused call (:data:`REFUSED_CALLS`: bad options, seeds, masks, actions,
+    ``set_attr`` of every setting with :data:`BAD_VALUES` and of names that are not settings, a model
+    swap). The twin gets only the calls that must act, so after every round the two must agree bit for
+    bit, and a refused call must leave the state, the generators and every setting as they were.
+
+    Returns
+    -------
+    dict
+        ``env_id``, ``rounds``, counts per kind of call (``counts``), ``refused`` calls in all,
+        ``accepted_bad`` (a refused call that was accepted), ``changed_by_refusal``, ``disagreements``
+        with the twin, ``other_exceptions`` (not ``ValueError``) and their first messages (``errors``).
+    """
+    import collections
+    import copy
+    import pickle
+
+    rng = np.random.default_rng(seed)
+    kwargs = {"max_episode_steps": 8, **kwargs}
+
+    def make():
+        return gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", **kwargs).unwrapped
+
+    env, twin = make(), make()
+    env.reset(seed=seed)
+    twin.reset(seed=seed)
+    nu, nq = env.model.nu, env.model.nq
+    names = env.env.settings()
+    counts: collections.Counter = collections.Counter()
+    out = {"accepted_bad": 0, "changed_by_refusal": 0, "disagreements": 0, "other_exceptions": 0, "errors": []}
+
+    def state(e):
+        return (e._qc.copy(), e._vc.copy(), e._t.copy(), repr([g.bit_generator.state for g in e._rngs]),
+                repr({k: getattr(e.env, k) for k in names}))  # fmt: skip
+
+    def same(a, b):
+        return all(np.array_equal(x, y) if isinstance(x, np.ndarray) else x == y for x, y in zip(a, b))
+
+    for _ in range(rounds):
+        kind = rng.choice(["step", "step", "step", "reset", "copy", "set dt", "refused", "refused"])
+        counts[kind] += 1
+        try:
+            if kind == "step":
+                a = rng.uniform(-2, 2, (num_envs, nu))
+                mine = a.copy()
+                mine[env._autoreset] = np.nan
+                o1, r1 = env.step(mine)[:2]
+                o2, r2 = twin.step(a)[:2]
+                if not (np.array_equal(o1, o2) and np.array_equal(r1, r2)):
+                    out["disagreements"] += 1
+            elif kind == "reset":
+                s = int(rng.integers(0, 2**31))
+                if not np.array_equal(env.reset(seed=s)[0], twin.reset(seed=s)[0]):
+                    out["disagreements"] += 1
+            elif kind == "copy":
+                env = copy.deepcopy(env) if rng.random() < 0.5 else pickle.loads(pickle.dumps(env))
+            elif kind == "set dt":
+                dt = float(rng.choice([0.005, 0.01, 0.02]))
+                env.set_attr("dt", dt)
+                twin.set_attr("dt", dt)
+            else:
+                call = str(rng.choice(REFUSED_CALLS))
+                counts["refused: " + call] += 1
+                name, value = str(rng.choice(names)), BAD_VALUES[int(rng.integers(len(BAD_VALUES)))]
+                calls = {
+                    "reset options q": lambda: env.reset(options={"q": np.full(nq, 1e9)}),
+                    "reset options type": lambda: env.reset(options={"q": ["1"] * nq}),
+                    "reset seed": lambda: env.reset(seed=value if value is not None else -1),
+                    "reset seed list": lambda: env.reset(seed=[0] * (num_envs - 1) + [-1]),
+                    "reset mask": lambda: env.reset(options={"reset_mask": [value] * num_envs if value is not True else "yes"}),
+                    "action": lambda: env.step(np.where(env._autoreset[:, None], 0.0, np.nan) * np.ones((num_envs, nu))
+                                               if not env._autoreset.all() else "x"),  # fmt: skip
+                    "set_attr value": lambda: env.set_attr(name, value),
+                    "set_attr name": lambda: env.set_attr(str(rng.choice(["model", "max_episode_steps", "n_links", "dtt", "np_random"])), 1),
+                    "model": lambda: setattr(env, "model", None),
+                }
+                before = state(env)
+                try:
+                    calls[call]()
+                except ValueError:
+                    if not same(state(env), before):
+                        out["changed_by_refusal"] += 1
+                else:
+                    if call == "set_attr value":  # a value valid for that setting (e.g. 1j is not, -1.0 may be): restore
+                        setattr(env.env, name, getattr(twin.env, name))
+                    else:
+                        out["accepted_bad"] += 1
+        except Exception as e:  # anything but a ValueError from a refused call is a defect
+            out["other_exceptions"] += 1
+            if len(out["errors"]) < 5:
+                out["errors"].append(f"{kind}: {type(e).__name__}: {str(e)[:160]}")
+        if not np.array_equal(env._qc, twin._qc):
+            out["disagreements"] += 1
+            env, twin = make(), make()  # start over: one divergence would count every later round
+            env.reset(seed=seed)
+            twin.reset(seed=seed)
+    out.update(env_id=env_id, rounds=rounds, counts=dict(counts), refused=sum(v for k, v in counts.items() if k.startswith("refused:")))
+    return out

@@ -445,3 +445,27 @@ def test_10_a_batch_beyond_the_budget_is_refused_before_allocating():
     with pytest.raises(ValueError, match="budget"):
         v.unwrapped.set_attr("substeps", 100_000)  # 1e5 members x 8e5: beyond the batch budget
     assert v.unwrapped.env.substeps == before
+
+
+# -- the soak's adversarial part finds these classes ----------------------------------------------
+
+
+def test_the_adversarial_soak_is_clean_now_and_finds_a_refusal_that_reseeds(monkeypatch):
+    from mbs_envs.envs.vector import MBSVectorEnv
+    from mbs_envs.studies.reliability import adversarial_soak
+
+    clean = adversarial_soak("mbs_envs/Planar2R-v0", rounds=80, seed=1)
+    assert clean["refused"] > 10
+    assert clean["accepted_bad"] == clean["changed_by_refusal"] == clean["disagreements"] == clean["other_exceptions"] == 0
+    original = MBSVectorEnv._member_generators
+
+    def reseeds_first(self, seed):  # class 3 as it was: members reseeded before the seeds were all checked
+        try:
+            return original(self, seed)
+        except ValueError:
+            self._rngs[0] = np.random.default_rng(0)
+            raise
+
+    monkeypatch.setattr(MBSVectorEnv, "_member_generators", reseeds_first)
+    broken = adversarial_soak("mbs_envs/Planar2R-v0", rounds=80, seed=1)
+    assert broken["changed_by_refusal"] > 0
