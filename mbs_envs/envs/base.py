@@ -601,6 +601,20 @@ class MBSEnv(gym.Env):
     ) -> tuple[Any, np.ndarray, np.ndarray]:
         """Draw ``(task, q0, v0)`` from ``rng`` (default this env's ``np_random``) for ``model``
         (default this env's); checked ``options`` may fix the state. Nothing of the env changes."""
+        task, q0, v0 = self.draw_start(options, rng, model)
+        self._check_start(q0, v0, task, given=self.start_given(options))
+        return task, q0, v0
+
+    @staticmethod
+    def start_given(options: dict) -> bool:
+        """Whether checked reset ``options`` fix the start state (for the refusal's message)."""
+        return options.get("q") is not None or options.get("v") is not None
+
+    def draw_start(
+        self, options: dict, rng: np.random.Generator | None = None, model: Model | None = None
+    ) -> tuple[Any, np.ndarray, np.ndarray]:
+        """:meth:`sample_start` without the check (:meth:`_check_start`, which the vector env makes
+        once for all the members it resets)."""
         rng = self.np_random if rng is None else rng
         model = self.model if model is None else model
         task = self._reset_task(options, rng)
@@ -612,7 +626,6 @@ class MBSEnv(gym.Env):
         elif v0 is None:
             v0 = np.zeros(model.nv)
         q0, v0 = model.make_consistent(q0, v0, self.consistency_tol)  # constrained scenes project (or refuse)
-        self._check_start(q0, v0, task, given=options.get("q") is not None or options.get("v") is not None)
         return task, q0, v0
 
     def _check_start_bound(self, bound: float) -> None:
@@ -627,6 +640,8 @@ class MBSEnv(gym.Env):
     def _check_start(self, q0: np.ndarray, v0: np.ndarray, task: Any, given: bool) -> None:
         """Refuse a start state the episode cannot begin from: non-finite, beyond
         ``divergence_limit``, singular, or whose observation leaves ``observation_space``.
+        Batched: ``q0 (..., nq)``, ``v0 (..., nv)`` with ``task`` stacked alike (the vector env's
+        members checked at once; the message names the first refused).
 
         Raises
         ------
@@ -634,18 +649,24 @@ class MBSEnv(gym.Env):
             Naming the state (given in ``options`` or sampled) and the limit.
         """
         source = "the start state given in options" if given else "a sampled start state"
-        if bool(self.state_diverged(q0, v0)):
+        q0, v0 = np.asarray(q0), np.asarray(v0)
+        bad = np.asarray(self.state_diverged(q0, v0), bool)
+        if bad.any():
+            i = np.unravel_index(np.argmax(bad), bad.shape) if bad.ndim else ()
             raise ValueError(
-                f"{source} (q = {np.asarray(q0).tolist()}, v = {np.asarray(v0).tolist()}) is not finite, "
+                f"{source} (q = {q0[i].tolist()}, v = {v0[i].tolist()}) is not finite, "
                 f"singular, or beyond divergence_limit = {self.divergence_limit:g}"
                 + ("" if given else "; raise divergence_limit")
             )
         with np.errstate(all="ignore"):
-            obs = self.observe(q0, v0, self.task_now(np.asarray(0.0), task), task)
-        if not (np.all(np.isfinite(obs)) and self.observation_space.contains(obs)):
+            obs = self.observe(q0, v0, self.task_now(np.zeros(q0.shape[:-1]), task), task)
+        space = self.observation_space
+        inside = np.all(np.isfinite(obs) & (obs >= space.low) & (obs <= space.high), axis=-1)  # Box.contains, per member
+        if not np.all(inside):
+            i = np.unravel_index(np.argmin(inside), inside.shape) if np.ndim(inside) else ()
             raise ValueError(
-                f"{source} (q = {np.asarray(q0).tolist()}, v = {np.asarray(v0).tolist()}) gives an observation "
-                f"outside observation_space: {np.asarray(obs).tolist()}"
+                f"{source} (q = {q0[i].tolist()}, v = {v0[i].tolist()}) gives an observation "
+                f"outside observation_space: {np.asarray(obs)[i].tolist()}"
             )
 
     @staticmethod

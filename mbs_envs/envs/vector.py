@@ -233,7 +233,10 @@ class MBSVectorEnv(VectorEnv):
                     for k, s in self.randomize.items():
                         scales[k][i] = rngs[i].uniform(1 - s, 1 + s)
                     model = self._member_model(i, scales)
-                drawn.append(env.sample_start(options, rngs[i], model))
+                drawn.append(env.draw_start(options, rngs[i], model))
+            if drawn:  # every drawn start checked at once (the single env's rule, batched)
+                env._check_start(np.stack([d[1] for d in drawn]), np.stack([d[2] for d in drawn]), tree_stack([d[0] for d in drawn]),
+                                 env.start_given(options))  # fmt: skip
         except ValueError:
             for i, state in zip(idx, saved):
                 rngs[i].bit_generator.state = state
@@ -351,19 +354,33 @@ class MBSVectorEnv(VectorEnv):
         return obs, values[:, 0].copy(), bad, terminated, env.info_rows(values) if self.full_info else {}
 
     def _restarted_info(self, info: dict[str, Any], idx: np.ndarray) -> None:
-        """Members ``idx`` were reset in this step (next-step autoreset): their ``info`` rows become their
-        reset's, as ``SyncVectorEnv`` gives them (``t = 0``, the new state's energy and task quantities,
-        ``u = 0``); entries a reset does not have (the reward terms) are zero there, with their
-        ``info["_key"]`` mask False."""
-        fresh = self._info(self.env.task_now(self._t, self._task), np.zeros(self.num_envs, bool))
+        """Members ``idx`` were reset in this step (autoreset): their ``info`` rows become their reset's,
+        as ``SyncVectorEnv`` gives them (``t = 0``, the new state's energy and task quantities, ``u = 0``);
+        entries a reset does not have (the reward terms) are zero there, with their ``info["_key"]`` mask
+        False. Computed for those members only."""
+        fresh = self._member_info(idx)
         for key in [k for k in info if not k.startswith(("_", "final"))]:
             if key in fresh:
-                info[key][idx] = fresh[key][idx]
+                info[key][idx] = fresh[key]
             else:
                 info[key][idx] = 0
                 mask = np.ones(self.num_envs, bool)
                 mask[idx] = False
                 info["_" + key] = mask
+
+    def _member_info(self, idx: np.ndarray) -> dict[str, Any]:
+        """The reset ``info`` entries (:meth:`_info`) of members ``idx``, one row each."""
+        out: dict[str, Any] = {"t": self._t[idx], "diverged": np.zeros(len(idx), bool)}
+        if self.full_info:
+            q, v, u, task = self._q[idx], self._v[idx], self._u[idx], self._pick(self._task, idx)
+            model = self.model
+            if self.randomize:  # the members' own parameters
+                model = self.nominal_model.with_params(
+                    self.nominal_params.batched(**{k: getattr(self.nominal_params, k) * self._scales[k][idx] for k in self.randomize}))
+            out["energy"] = model.energy(q, v)
+            out["u"] = u
+            out.update(self.env.task_info(q, v, self.env.task_now(self._t[idx], task), task, u))
+        return out
 
     def _restart(self, idx: np.ndarray) -> np.ndarray:
         """Reset members ``idx`` (autoreset) and return their first observations."""
