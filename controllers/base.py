@@ -105,16 +105,20 @@ class Controller(abc.ABC):
         """Action for an observation (or a batch), and the controller's state (see :meth:`control`).
 
         The observation must be real numbers and finite (``ValueError`` naming the members that are
-        not: a NaN observation has no action); finite entries beyond the env's observation space are
-        clipped into it (the env never observes beyond it), so every finite observation gives a finite action."""
+        not: a NaN observation has no action). Where a finite observation far beyond the env's observation
+        space overflows the computation (the disk LQR's feedforward at 1e30), the input is computed again from
+        the observation clipped into the space (the env never observes beyond it): every finite observation
+        gives a finite action, and every other one the same action as before."""
         obs = check.reals(observation, "observation")
         finite = np.isfinite(obs)
         if not finite.all():
             where = "" if obs.ndim < 2 else f" (members {np.flatnonzero(~finite.reshape(-1, obs.shape[-1]).all(axis=-1)).tolist()})"
             raise ValueError(f"observation must be finite{where}")
-        if obs.shape[-1:] == self._obs_low.shape:
-            obs = np.clip(obs, self._obs_low, self._obs_high)
-        u, state = self.control(self.decode_observation(obs), state, episode_start)
+        with np.errstate(over="ignore", invalid="ignore"):  # an overflow is caught below, from the result
+            u, new_state = self.control(self.decode_observation(obs), state, episode_start)
+        if not np.all(np.isfinite(u)) and obs.shape[-1:] == self._obs_low.shape:  # overflow from a finite observation
+            u, new_state = self.control(self.decode_observation(np.clip(obs, self._obs_low, self._obs_high)), state, episode_start)
+        state = new_state
         action = np.clip(u / self.u_max, -1.0, 1.0).astype(np.float32)
         return action, state
 
