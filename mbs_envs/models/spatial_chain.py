@@ -1,0 +1,492 @@
+"""The N-link serial chain in space: revolute joints about arbitrary axes, spatial-vector O(N) algorithms.
+
+The lecture motivates O(N) algorithms with proteins, 100 to 500 rigid bodies in a chain in three
+dimensions. Link ``i`` (``i = 0 .. N-1``) hangs from joint ``i``, a revolute about the unit axis
+``a_i`` (in the parent link's frame, which is also the child's: a rotation keeps its own axis); the
+joint sits at ``offset_i`` in the parent's frame (``offset_0`` in the world). Link ``i``: mass
+``m_i``, centre of mass ``com_i`` and inertia tensor ``inertia_i`` about it (3 x 3, link frame),
+joint damping ``b_i`` and the drive's armature (reflected rotor inertia, added to ``M``'s diagonal).
+Gravity is the vector ``g_vec`` (default ``(0, 0, -9.81)``).
+
+Kinematics: ``R_i = R_{i-1} Rot(a_i, q_i)``, ``p_i = p_{i-1} + R_{i-1} offset_i`` (``R_{-1} = 1``,
+``p_{-1} = 0``), the world axis ``z_i = R_i a_i``, the centre of mass ``c_i = p_i + R_i com_i``.
+
+**Spatial vectors** (Featherstone, *Rigid Body Dynamics Algorithms*, 2008, Plücker coordinates)
+expressed in the **fixed world frame** (the book's "absolute" formulation, ch. 2 and §§ 5.3, 6.2,
+7.3): motion ``V = (w, v_O)``, angular part first, ``v_O`` the velocity of the body point at the
+world origin; force ``F = (n_O, f)``, the moment about the origin first. A revolute joint's motion
+subspace is ``S_i = (z_i, p_i x z_i)``; a body's spatial inertia about the origin
+``I_i = [[Ic + m [c]x [c]x^T, m [c]x], [m [c]x^T, m 1]]`` (``Ic = R_i inertia_i R_i^T``). In this
+frame ``dS_i/dt = V_i x S_i`` and no coordinate transforms are needed between links:
+
+- **RNEA** (inverse dynamics): ``V_i = V_{i-1} + S_i v_i``, ``A_i = A_{i-1} + S_i a_i + V_i x S_i v_i``
+  with ``A_{-1} = (0, -g_vec)``; ``F_i = I_i A_i + V_i x* I_i V_i``; backwards
+  ``tau_i = S_i^T F_i``, ``F_{i-1} += F_i``; plus ``armature_i a_i``. O(N).
+- **CRBA** (mass matrix): composite inertias ``Ic_i = I_i + Ic_{i+1}``, ``M_ij = S_i^T Ic_j S_j`` for
+  ``i <= j``; plus ``diag(armature)``. O(N^2) (the matrix).
+- **ABA** (forward dynamics): articulated inertias ``IA_i``, bias forces ``pA_i``;
+  ``U_i = IA_i S_i``, ``D_i = S_i^T U_i + armature_i``, ``u_i = tau_i - S_i^T pA_i``, passed to the
+  parent as ``IA - U U^T / D`` and ``pA + (IA - U U^T / D) c_i + U u_i / D`` with
+  ``c_i = V_i x S_i v_i``; forwards ``a_i = (u_i - U_i^T (A_{i-1} + c_i)) / D_i``. O(N).
+
+Everything runs in numba kernels, one member at a time over a flattened batch. With all axes
+parallel to z, offsets and centres along the links' x axes and gravity along -y it is the planar
+:class:`~mbs_envs.models.serial_chain.SerialChain` (the fast special case; tested to 1e-12).
+``tests/models/test_spatial_chain.py`` checks it against Pinocchio (``pin``) and a SymPy Lagrangian.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+
+from .. import validation as check
+from ..dynamics.jit import njit
+from .base import Model, Params, as_vector, param, smoothed_friction
+from .serial_chain import link_count
+
+#: the longest spatial chain the model takes (the lecture's proteins: up to 500 bodies)
+MAX_SPATIAL_LINKS = 10_000
+
+
+# ---------------------------------------------------------------------------------------------
+# kernels (one member; spatial vectors as length-6 arrays, angular part first)
+
+
+@njit
+def _rot(a, angle):  # pragma: no cover - compiled
+    """Rodrigues: the rotation by ``angle`` about the unit axis ``a``."""
+    c, s = np.cos(angle), np.sin(angle)
+    x, y, z = a[0], a[1], a[2]
+    C = 1.0 - c
+    R = np.empty((3, 3))
+    R[0, 0], R[0, 1], R[0, 2] = c + x * x * C, x * y * C - z * s, x * z * C + y * s
+    R[1, 0], R[1, 1], R[1, 2] = y * x * C + z * s, c + y * y * C, y * z * C - x * s
+    R[2, 0], R[2, 1], R[2, 2] = z * x * C - y * s, z * y * C + x * s, c + z * z * C
+    return R
+
+
+@njit
+def _cross(a, b):  # pragma: no cover - compiled
+    out = np.empty(3)
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+    return out
+
+
+@njit
+def _cross_motion(V, M):  # pragma: no cover - compiled
+    """``V x M`` of two motion vectors: ``(w x m_w, w x m_v + v x m_w)``."""
+    out = np.empty(6)
+    out[:3] = _cross(V[:3], M[:3])
+    out[3:] = _cross(V[:3], M[3:]) + _cross(V[3:], M[:3])
+    return out
+
+
+@njit
+def _cross_force(V, F):  # pragma: no cover - compiled
+    """``V x* F`` of a motion and a force vector: ``(w x n + v x f, w x f)``."""
+    out = np.empty(6)
+    out[:3] = _cross(V[:3], F[:3]) + _cross(V[3:], F[3:])
+    out[3:] = _cross(V[:3], F[3:])
+    return out
+
+
+@njit
+def kinematics_member(q, axis, offset, com, inertia, m):  # pragma: no cover - compiled
+    """World rotations ``R (N, 3, 3)``, joint positions ``p (N, 3)``, axes ``z (N, 3)``, centres of mass
+    ``c (N, 3)``, motion subspaces ``S (N, 6)`` and spatial inertias about the origin ``I (N, 6, 6)``."""
+    N = q.shape[0]
+    R = np.empty((N, 3, 3))
+    p = np.empty((N, 3))
+    z = np.empty((N, 3))
+    c = np.empty((N, 3))
+    S = np.empty((N, 6))
+    I = np.empty((N, 6, 6))  # noqa: E741
+    Rp = np.eye(3)
+    pp = np.zeros(3)
+    for i in range(N):
+        p[i] = pp + Rp @ offset[i]
+        R[i] = Rp @ _rot(axis[i], q[i])
+        z[i] = R[i] @ axis[i]
+        c[i] = p[i] + R[i] @ com[i]
+        S[i, :3] = z[i]
+        S[i, 3:] = _cross(p[i], z[i])
+        Ic = R[i] @ inertia[i] @ R[i].T
+        cx = np.zeros((3, 3))
+        cx[0, 1], cx[0, 2], cx[1, 2] = -c[i, 2], c[i, 1], -c[i, 0]
+        cx[1, 0], cx[2, 0], cx[2, 1] = c[i, 2], -c[i, 1], c[i, 0]
+        I[i, :3, :3] = Ic + m[i] * (cx @ cx.T)
+        I[i, :3, 3:] = m[i] * cx
+        I[i, 3:, :3] = m[i] * cx.T
+        I[i, 3:, 3:] = m[i] * np.eye(3)
+        Rp, pp = R[i], p[i]
+    return R, p, z, c, S, I
+
+
+@njit
+def rnea_member(q, v, a, axis, offset, com, inertia, m, armature, g_vec, gravity):  # pragma: no cover - compiled
+    """``tau = M a + C v (+ G)`` by the RNEA (module docstring), shape ``(N,)``; ``gravity`` False leaves ``G`` out."""
+    N = q.shape[0]
+    _, _, _, _, S, I = kinematics_member(q, axis, offset, com, inertia, m)
+    V = np.zeros(6)
+    A = np.zeros(6)
+    if gravity:
+        A[3:] = -g_vec
+    F = np.empty((N, 6))
+    for i in range(N):
+        Sv = S[i] * v[i]
+        V = V + Sv
+        A = A + S[i] * a[i] + _cross_motion(V, Sv)
+        F[i] = I[i] @ A + _cross_force(V, I[i] @ V)
+    tau = np.empty(N)
+    for i in range(N - 1, -1, -1):
+        tau[i] = S[i] @ F[i] + armature[i] * a[i]
+        if i > 0:
+            F[i - 1] += F[i]
+    return tau
+
+
+@njit
+def crba_member(q, axis, offset, com, inertia, m, armature):  # pragma: no cover - compiled
+    """``M(q)`` by the CRBA (module docstring), shape ``(N, N)``."""
+    N = q.shape[0]
+    _, _, _, _, S, I = kinematics_member(q, axis, offset, com, inertia, m)
+    M = np.empty((N, N))
+    Ic = np.zeros((6, 6))
+    for j in range(N - 1, -1, -1):
+        Ic = Ic + I[j]
+        F = Ic @ S[j]
+        for i in range(j + 1):
+            M[i, j] = S[i] @ F
+            M[j, i] = M[i, j]
+        M[j, j] += armature[j]
+    return M
+
+
+@njit
+def aba_member(q, v, tau, axis, offset, com, inertia, m, armature, g_vec):  # pragma: no cover - compiled
+    """Accelerations ``(M)^-1 (tau - C v - G)`` by the ABA (module docstring), shape ``(N,)``."""
+    N = q.shape[0]
+    _, _, _, _, S, I = kinematics_member(q, axis, offset, com, inertia, m)
+    IA = I.copy()
+    pA = np.empty((N, 6))
+    cb = np.empty((N, 6))
+    V = np.zeros(6)
+    for i in range(N):
+        Sv = S[i] * v[i]
+        V = V + Sv
+        cb[i] = _cross_motion(V, Sv)
+        pA[i] = _cross_force(V, I[i] @ V)
+    U = np.empty((N, 6))
+    D = np.empty(N)
+    u = np.empty(N)
+    for i in range(N - 1, -1, -1):
+        U[i] = IA[i] @ S[i]
+        D[i] = S[i] @ U[i] + armature[i]
+        u[i] = tau[i] - S[i] @ pA[i]
+        if i > 0:
+            Ia = IA[i] - np.outer(U[i], U[i]) / D[i]
+            IA[i - 1] += Ia
+            pA[i - 1] += pA[i] + Ia @ cb[i] + U[i] * (u[i] / D[i])
+    acc = np.empty(N)
+    A = np.zeros(6)
+    A[3:] = -g_vec
+    for i in range(N):
+        Ap = A + cb[i]
+        acc[i] = (u[i] - U[i] @ Ap) / D[i]
+        A = Ap + S[i] * acc[i]
+    return acc
+
+
+@njit
+def energy_member(q, v, axis, offset, com, inertia, m, armature, g_vec):  # pragma: no cover - compiled
+    """``(T, V)`` [J]: ``T = sum_i V_i^T I_i V_i / 2 + armature_i v_i^2 / 2``, ``V = -sum_i m_i g_vec . c_i``."""
+    N = q.shape[0]
+    _, _, _, c, S, I = kinematics_member(q, axis, offset, com, inertia, m)
+    Vel = np.zeros(6)
+    T = 0.0
+    U = 0.0
+    for i in range(N):
+        Vel = Vel + S[i] * v[i]
+        T += 0.5 * (Vel @ (I[i] @ Vel)) + 0.5 * armature[i] * v[i] * v[i]
+        U -= m[i] * (g_vec @ c[i])
+    return T, U
+
+
+@njit
+def _rows_rnea(q, v, a, axis, offset, com, inertia, m, armature, g_vec, gravity):  # pragma: no cover - compiled
+    out = np.empty(q.shape)
+    for b in range(q.shape[0]):
+        out[b] = rnea_member(q[b], v[b], a[b], axis, offset, com, inertia, m, armature, g_vec, gravity)
+    return out
+
+
+@njit
+def _rows_crba(q, axis, offset, com, inertia, m, armature):  # pragma: no cover - compiled
+    out = np.empty((q.shape[0], q.shape[1], q.shape[1]))
+    for b in range(q.shape[0]):
+        out[b] = crba_member(q[b], axis, offset, com, inertia, m, armature)
+    return out
+
+
+@njit
+def _rows_aba(q, v, tau, axis, offset, com, inertia, m, armature, g_vec):  # pragma: no cover - compiled
+    out = np.empty(q.shape)
+    for b in range(q.shape[0]):
+        out[b] = aba_member(q[b], v[b], tau[b], axis, offset, com, inertia, m, armature, g_vec)
+    return out
+
+
+@njit
+def _rows_energy(q, v, axis, offset, com, inertia, m, armature, g_vec):  # pragma: no cover - compiled
+    T, U = np.empty(q.shape[0]), np.empty(q.shape[0])
+    for b in range(q.shape[0]):
+        T[b], U[b] = energy_member(q[b], v[b], axis, offset, com, inertia, m, armature, g_vec)
+    return T, U
+
+
+@njit
+def _rows_kinematics(q, axis, offset, com, inertia, m):  # pragma: no cover - compiled
+    B, N = q.shape
+    p, c, z, R = np.empty((B, N, 3)), np.empty((B, N, 3)), np.empty((B, N, 3)), np.empty((B, N, 3, 3))
+    for b in range(B):
+        R[b], p[b], z[b], c[b], _, _ = kinematics_member(q[b], axis, offset, com, inertia, m)
+    return R, p, z, c
+
+
+# ---------------------------------------------------------------------------------------------
+# parameters and model
+
+
+def alternating_axes(n: int) -> np.ndarray:
+    """The default joint axes: z, y, z, y, ... (a backbone of alternating bends), shape ``(n, 3)``."""
+    a = np.zeros((n, 3))
+    a[0::2, 2] = 1.0
+    a[1::2, 1] = 1.0
+    return a
+
+
+def rod_inertia(m: np.ndarray, l: np.ndarray, radius: np.ndarray) -> np.ndarray:  # noqa: E741
+    """A solid cylinder of mass ``m``, length ``l`` and ``radius`` along its x axis, about its centre:
+    ``diag(m rho^2 / 2, m l^2 / 12 + m rho^2 / 4, same)``, shape ``(n, 3, 3)``."""
+    out = np.zeros((len(m), 3, 3))
+    out[:, 0, 0] = m * radius**2 / 2
+    out[:, 1, 1] = out[:, 2, 2] = m * l**2 / 12 + m * radius**2 / 4
+    return out
+
+
+def _per_link(value: Any, n: int, tail: tuple, name: str) -> np.ndarray:
+    """``value`` as a float array ``(n,) + tail`` (one entry of shape ``tail`` broadcast to every link)."""
+    x = check.reals(value, f"parameter '{name}'")
+    if x.shape == tail:
+        x = np.broadcast_to(x, (n,) + tail)
+    if x.shape != (n,) + tail:
+        raise ValueError(f"parameter '{name}' must have shape {(n,) + tail} or {tail}, got {x.shape}")
+    if not np.all(np.isfinite(x)) or np.any(np.abs(x) > check.PARAM_MAX):
+        raise ValueError(f"parameter '{name}' must be finite and at most {check.PARAM_MAX:g} in magnitude")
+    return np.ascontiguousarray(x, dtype=float)
+
+
+@dataclasses.dataclass(frozen=True)
+class SpatialChainParams(Params):
+    """Parameters of :class:`SpatialChain`, per link (a single value broadcast to every link).
+
+    Defaults: a 1 kg, 1 m chain of equal solid cylinders (radius 5 % of their length) along each
+    link's x axis, joints about z, y, z, y, ... (:func:`alternating_axes`), gravity along -z.
+    """
+
+    n_links: int = param(2, "positive", "", "number of links")
+    m: Any = param(None, "positive", "kg", "link masses (n,)")
+    l: Any = param(None, "positive", "m", "link lengths (n,): joint i+1 at (l_i, 0, 0) in link i's frame")  # noqa: E741
+    axis: Any = param(None, "finite", "", "joint axes (n, 3), unit, in the parent's frame")
+    offset: Any = param(None, "finite", "m", "joint positions (n, 3) in the parent's frame (default (0, l_{i-1}) along x)")
+    com: Any = param(None, "finite", "m", "centres of mass (n, 3) in the link frame (default (l_i / 2, 0, 0))")
+    inertia: Any = param(None, "finite", "kg m^2", "inertia tensors about the centres of mass (n, 3, 3), link frame")
+    g_vec: Any = param((0.0, 0.0, -9.81), "finite", "m/s^2", "gravity (3,)")
+    armature: Any = param(0.0, "nonnegative", "kg m^2", "reflected rotor inertia at each joint (n,)")
+    b: Any = param(0.0, "nonnegative", "N m s/rad", "viscous joint damping (n,)")
+
+    def __post_init__(self) -> None:
+        n = link_count(self.n_links, MAX_SPATIAL_LINKS, "parameter 'n_links'")
+        object.__setattr__(self, "n_links", n)
+        m = _per_link(1.0 / n if self.m is None else self.m, n, (), "m")
+        l = _per_link(1.0 / n if self.l is None else self.l, n, (), "l")  # noqa: E741
+        if np.any(m <= 0) or np.any(l <= 0):
+            raise ValueError("parameters 'm' and 'l' must be > 0")
+        axis = _per_link(alternating_axes(n) if self.axis is None else self.axis, n, (3,), "axis")
+        norm = np.linalg.norm(axis, axis=1)
+        if np.any(norm < 1e-12):
+            raise ValueError(f"parameter 'axis': joint {int(np.argmin(norm))} has a zero axis")
+        axis = axis / norm[:, None]
+        if self.offset is None:
+            offset = np.zeros((n, 3))
+            offset[1:, 0] = l[:-1]
+        else:
+            offset = _per_link(self.offset, n, (3,), "offset")
+        com = np.stack([l / 2, np.zeros(n), np.zeros(n)], axis=1) if self.com is None else _per_link(self.com, n, (3,), "com")
+        inertia = rod_inertia(m, l, 0.05 * l) if self.inertia is None else _per_link(self.inertia, n, (3, 3), "inertia")
+        if not np.allclose(inertia, np.swapaxes(inertia, 1, 2), rtol=0, atol=1e-12 * max(1.0, float(np.abs(inertia).max()))):
+            raise ValueError("parameter 'inertia': every tensor must be symmetric")
+        inertia = 0.5 * (inertia + np.swapaxes(inertia, 1, 2))
+        if np.any(np.linalg.eigvalsh(inertia)[:, 0] < -1e-12 * max(1.0, float(np.abs(inertia).max()))):
+            raise ValueError("parameter 'inertia': every tensor must be positive semidefinite")
+        g_vec = _per_link(self.g_vec, 1, (3,), "g_vec")[0] if np.shape(self.g_vec) == (3,) else None
+        if g_vec is None:
+            raise ValueError(f"parameter 'g_vec' must have shape (3,), got {np.shape(self.g_vec)}")
+        armature = _per_link(self.armature, n, (), "armature")
+        b = _per_link(self.b, n, (), "b")
+        if np.any(armature < 0) or np.any(b < 0):
+            raise ValueError("parameters 'armature' and 'b' must be >= 0")
+        # every link must have inertia about its own joint axis (else M is singular at some state)
+        d = com
+        about_joint = inertia + m[:, None, None] * (np.einsum("i,jk->ijk", np.sum(d * d, axis=1), np.eye(3)) - np.einsum("ij,ik->ijk", d, d))
+        own = np.einsum("ij,ijk,ik->i", axis, about_joint, axis) + armature
+        if np.any(own <= 0):
+            raise ValueError(f"parameters: link {int(np.argmin(own))} has no inertia about its joint axis")
+        for name, value in (("m", m), ("l", l), ("axis", axis), ("offset", offset), ("com", com), ("inertia", inertia),
+                            ("g_vec", g_vec), ("armature", armature), ("b", b)):  # fmt: skip
+            value = np.ascontiguousarray(value)
+            value.setflags(write=False)
+            object.__setattr__(self, name, value)
+
+    def replace(self, **overrides: Any) -> "SpatialChainParams":
+        """A validated copy; with a new ``n_links`` the per-link parameters not given go back to their defaults."""
+        if "n_links" in overrides:
+            per_link = ("m", "l", "axis", "offset", "com", "inertia", "armature", "b")
+            overrides = {**{k: None for k in per_link if k not in ("armature", "b")}, "armature": 0.0, "b": 0.0, **overrides}
+        return super().replace(**overrides)
+
+    def kernel_args(self) -> tuple:
+        """``(axis, offset, com, inertia, m)`` as the kernels take them."""
+        return (self.axis, self.offset, self.com, self.inertia, self.m)
+
+
+class SpatialChain(Model):
+    """N rigid links in space, each on a revolute joint about its own axis; every joint driven.
+
+    See the module docstring for the coordinates, conventions and algorithms.
+    ``SpatialChain(n_links=N, axis=..., offset=..., com=..., inertia=..., m=..., g_vec=..., armature=..., b=...)``.
+    """
+
+    Params = SpatialChainParams
+    nq = nv = nu = 2  # replaced per instance in __init__
+
+    def __init__(self, params=None, **overrides):
+        super().__init__(params, **overrides)
+        self.nq = self.nv = self.nu = self.params.n_links
+
+    @property
+    def n_links(self) -> int:
+        return self.params.n_links
+
+    @property
+    def actuation(self) -> np.ndarray:
+        return np.eye(self.n_links)
+
+    def __eq__(self, other: object) -> bool:
+        return type(other) is type(self) and all(
+            np.array_equal(getattr(self.params, k), getattr(other.params, k)) for k in self.Params.names())  # fmt: skip
+
+    def __hash__(self) -> int:
+        return hash((type(self), self.n_links))
+
+    # -- the batch: leading dimensions flattened to rows for the kernels --------------------
+
+    def _rows(self, *arrays: np.ndarray) -> tuple[tuple, list[np.ndarray]]:
+        n = self.n_links
+        arrays = [as_vector(x, n, name) for x, name in arrays]
+        shape = np.broadcast_shapes(*(x.shape for x in arrays))
+        return shape, [np.ascontiguousarray(np.broadcast_to(x, shape).reshape(-1, n), dtype=float) for x in arrays]
+
+    def kinematics(self, q: np.ndarray) -> dict[str, np.ndarray]:
+        """World rotations ``R (..., N, 3, 3)``, joint positions ``p``, axes ``z`` and centres of mass ``c`` (``(..., N, 3)``)."""
+        shape, (qr,) = self._rows((q, "q"))
+        R, p, z, c = _rows_kinematics(qr, *self.params.kernel_args())
+        lead = shape[:-1]
+        return {"R": R.reshape(lead + R.shape[1:]), "p": p.reshape(lead + p.shape[1:]), "z": z.reshape(lead + z.shape[1:]),
+                "c": c.reshape(lead + c.shape[1:])}  # fmt: skip
+
+    def joint_positions(self, q: np.ndarray) -> np.ndarray:
+        """Joints and the last link's tip (``(l_N, 0, 0)`` in its frame) [m], shape ``(..., N + 1, 3)``."""
+        k = self.kinematics(q)
+        tip = k["p"][..., -1, :] + np.einsum("...ij,j->...i", k["R"][..., -1, :, :], np.array([self.params.l[-1], 0.0, 0.0]))
+        return np.concatenate([k["p"], tip[..., None, :]], axis=-2)
+
+    def rnea(self, q: np.ndarray, v: np.ndarray, a: np.ndarray, gravity: bool = True) -> np.ndarray:
+        """``M a + C v (+ G)`` by the recursive Newton-Euler algorithm, O(N) per member; shape ``(..., N)``."""
+        p = self.params
+        shape, (qr, vr, ar) = self._rows((q, "q"), (v, "v"), (a, "a"))
+        out = _rows_rnea(qr, vr, ar, *p.kernel_args(), p.armature, p.g_vec, bool(gravity))
+        return out.reshape(shape)
+
+    def mass_matrix(self, q: np.ndarray) -> np.ndarray:
+        """``M(q)`` by the composite-rigid-body algorithm, shape ``(..., N, N)``."""
+        p = self.params
+        shape, (qr,) = self._rows((q, "q"))
+        return _rows_crba(qr, *p.kernel_args(), p.armature).reshape(shape + (self.n_links,))
+
+    def coriolis(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``C(q, v) v`` (RNEA at zero acceleration, without gravity)."""
+        v = as_vector(v, self.n_links, "v")
+        return self.rnea(q, v, np.zeros(v.shape), gravity=False)
+
+    def gravity(self, q: np.ndarray) -> np.ndarray:
+        """``G(q)`` (RNEA at rest)."""
+        q = as_vector(q, self.n_links, "q")
+        z = np.zeros(q.shape)
+        return self.rnea(q, z, z)
+
+    def bias(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``C v + G + F`` in one RNEA pass."""
+        v = as_vector(v, self.n_links, "v")
+        return self.rnea(q, v, np.zeros(v.shape)) + self.friction(v)
+
+    def friction(self, v: np.ndarray) -> np.ndarray:
+        """Viscous joint damping ``b v``."""
+        v = as_vector(v, self.n_links, "v")
+        return smoothed_friction(v, self.params.b, np.zeros(self.n_links), 0.01)
+
+    def inverse_dynamics(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
+        """Joint torques for accelerations ``a``: RNEA plus damping, O(N)."""
+        v = as_vector(v, self.n_links, "v")
+        return self.rnea(q, v, a) + self.friction(v)
+
+    def aba(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """Accelerations for joint torques ``tau`` (damping not included) by the articulated-body algorithm, O(N)."""
+        p = self.params
+        shape, (qr, vr, tr) = self._rows((q, "q"), (v, "v"), (tau, "tau"))
+        return _rows_aba(qr, vr, tr, *p.kernel_args(), p.armature, p.g_vec).reshape(shape)
+
+    def forward_dynamics(self, q: np.ndarray, v: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
+        """Accelerations by the ABA, O(N); damping included."""
+        v = as_vector(v, self.n_links, "v")
+        tau = -self.friction(v) if u is None else as_vector(u, self.n_links, "u") - self.friction(v)
+        return self.aba(q, v, tau)
+
+    def forward_dynamics_crba(self, q: np.ndarray, v: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
+        """The cross-check path: ``M^-1 (u - h)`` with ``M`` by CRBA and a Cholesky solve, O(N^3)."""
+        return Model.forward_dynamics(self, q, v, u)
+
+    def _energies(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        p = self.params
+        shape, (qr, vr) = self._rows((q, "q"), (v, "v"))
+        T, U = _rows_energy(qr, vr, *p.kernel_args(), p.armature, p.g_vec)
+        return T.reshape(shape[:-1]), U.reshape(shape[:-1])
+
+    def kinetic_energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``sum_i V_i^T I_i V_i / 2 + armature_i v_i^2 / 2`` [J] from the links' spatial velocities (not via ``M``)."""
+        return self._energies(q, v)[0]
+
+    def potential_energy(self, q: np.ndarray) -> np.ndarray:
+        """``-sum_i m_i g_vec . c_i`` [J]."""
+        q = as_vector(q, self.n_links, "q")
+        return self._energies(q, np.zeros(q.shape))[1]
+
+    def energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``T + V`` [J]."""
+        T, U = self._energies(q, v)
+        return T + U
