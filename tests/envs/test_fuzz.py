@@ -178,7 +178,8 @@ def vector_machine_for(env_id: str):
                 "seed float": lambda: env.reset(seed=1.5),
                 "seed list": lambda: env.reset(seed=[0, -1, 2]),
                 "reset_mask": lambda: env.reset(options={"reset_mask": [np.nan] * n}),
-                "action nan": lambda: env.step(np.where(env._autoreset[:, None], 0.0, np.nan) * np.ones((n, nu))),
+                "action nan": lambda: env.step(np.where(env._autoreset[:, None], 0.0, np.nan) * np.ones((n, nu))
+                                               if not env._autoreset.all() else "x"),  # every member resetting: NaN would be ignored  # fmt: skip
                 "set_attr bad value": lambda: env.set_attr(name, value),
                 "set_attr not a setting": lambda: env.set_attr("max_episode_steps", 3),
                 "model": lambda: setattr(env, "model", None),
