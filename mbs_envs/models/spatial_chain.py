@@ -56,49 +56,61 @@ MAX_SPATIAL_LINKS = 10_000
 
 
 @njit
-def _rot(a, angle):  # pragma: no cover - compiled
-    """Rodrigues: the rotation by ``angle`` about the unit axis ``a``."""
+def _rot_into(a, angle, R):  # pragma: no cover - compiled
+    """Rodrigues, written into ``R (3, 3)``: the rotation by ``angle`` about the unit axis ``a``."""
     c, s = np.cos(angle), np.sin(angle)
     x, y, z = a[0], a[1], a[2]
     C = 1.0 - c
-    R = np.empty((3, 3))
     R[0, 0], R[0, 1], R[0, 2] = c + x * x * C, x * y * C - z * s, x * z * C + y * s
     R[1, 0], R[1, 1], R[1, 2] = y * x * C + z * s, c + y * y * C, y * z * C - x * s
     R[2, 0], R[2, 1], R[2, 2] = z * x * C - y * s, z * y * C + x * s, c + z * z * C
-    return R
 
 
 @njit
-def _cross(a, b):  # pragma: no cover - compiled
-    out = np.empty(3)
-    out[0] = a[1] * b[2] - a[2] * b[1]
-    out[1] = a[2] * b[0] - a[0] * b[2]
-    out[2] = a[0] * b[1] - a[1] * b[0]
-    return out
+def _cross_motion_into(V, M, out):  # pragma: no cover - compiled
+    """``out = V x M`` of two motion vectors: ``(w x m_w, w x m_v + v x m_w)``."""
+    w0, w1, w2, v0, v1, v2 = V[0], V[1], V[2], V[3], V[4], V[5]
+    a0, a1, a2, b0, b1, b2 = M[0], M[1], M[2], M[3], M[4], M[5]
+    out[0] = w1 * a2 - w2 * a1
+    out[1] = w2 * a0 - w0 * a2
+    out[2] = w0 * a1 - w1 * a0
+    out[3] = w1 * b2 - w2 * b1 + v1 * a2 - v2 * a1
+    out[4] = w2 * b0 - w0 * b2 + v2 * a0 - v0 * a2
+    out[5] = w0 * b1 - w1 * b0 + v0 * a1 - v1 * a0
 
 
 @njit
-def _cross_motion(V, M):  # pragma: no cover - compiled
-    """``V x M`` of two motion vectors: ``(w x m_w, w x m_v + v x m_w)``."""
-    out = np.empty(6)
-    out[:3] = _cross(V[:3], M[:3])
-    out[3:] = _cross(V[:3], M[3:]) + _cross(V[3:], M[:3])
-    return out
+def _cross_force_into(V, F, out):  # pragma: no cover - compiled
+    """``out = V x* F`` of a motion and a force vector: ``(w x n + v x f, w x f)``."""
+    w0, w1, w2, v0, v1, v2 = V[0], V[1], V[2], V[3], V[4], V[5]
+    n0, n1, n2, f0, f1, f2 = F[0], F[1], F[2], F[3], F[4], F[5]
+    out[0] = w1 * n2 - w2 * n1 + v1 * f2 - v2 * f1
+    out[1] = w2 * n0 - w0 * n2 + v2 * f0 - v0 * f2
+    out[2] = w0 * n1 - w1 * n0 + v0 * f1 - v1 * f0
+    out[3] = w1 * f2 - w2 * f1
+    out[4] = w2 * f0 - w0 * f2
+    out[5] = w0 * f1 - w1 * f0
 
 
 @njit
-def _cross_force(V, F):  # pragma: no cover - compiled
-    """``V x* F`` of a motion and a force vector: ``(w x n + v x f, w x f)``."""
-    out = np.empty(6)
-    out[:3] = _cross(V[:3], F[:3]) + _cross(V[3:], F[3:])
-    out[3:] = _cross(V[:3], F[3:])
-    return out
+def _matvec6(I, x, out):  # pragma: no cover - compiled
+    for r in range(6):
+        acc = 0.0
+        for k in range(6):
+            acc += I[r, k] * x[k]
+        out[r] = acc
+
+
+@njit
+def _dot6(a, b):  # pragma: no cover - compiled
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] + a[4] * b[4] + a[5] * b[5]
 
 
 @njit
 def kinematics_member(q, axis, offset, com, inertia, m):  # pragma: no cover - compiled
     """World rotations ``R (N, 3, 3)``, joint positions ``p (N, 3)``, axes ``z (N, 3)``, centres of mass
-    ``c (N, 3)``, motion subspaces ``S (N, 6)`` and spatial inertias about the origin ``I (N, 6, 6)``."""
+    ``c (N, 3)``, motion subspaces ``S (N, 6)`` and spatial inertias about the origin ``I (N, 6, 6)``
+    (one allocation per array, none per link)."""
     N = q.shape[0]
     R = np.empty((N, 3, 3))
     p = np.empty((N, 3))
@@ -106,24 +118,48 @@ def kinematics_member(q, axis, offset, com, inertia, m):  # pragma: no cover - c
     c = np.empty((N, 3))
     S = np.empty((N, 6))
     I = np.empty((N, 6, 6))  # noqa: E741
-    Rp = np.eye(3)
-    pp = np.zeros(3)
+    J = np.empty((3, 3))
+    Ic = np.empty((3, 3))
     for i in range(N):
-        p[i] = pp + Rp @ offset[i]
-        R[i] = Rp @ _rot(axis[i], q[i])
-        z[i] = R[i] @ axis[i]
-        c[i] = p[i] + R[i] @ com[i]
-        S[i, :3] = z[i]
-        S[i, 3:] = _cross(p[i], z[i])
-        Ic = R[i] @ inertia[i] @ R[i].T
-        cx = np.zeros((3, 3))
-        cx[0, 1], cx[0, 2], cx[1, 2] = -c[i, 2], c[i, 1], -c[i, 0]
-        cx[1, 0], cx[2, 0], cx[2, 1] = c[i, 2], -c[i, 1], c[i, 0]
-        I[i, :3, :3] = Ic + m[i] * (cx @ cx.T)
-        I[i, :3, 3:] = m[i] * cx
-        I[i, 3:, :3] = m[i] * cx.T
-        I[i, 3:, 3:] = m[i] * np.eye(3)
-        Rp, pp = R[i], p[i]
+        _rot_into(axis[i], q[i], J)
+        for r in range(3):
+            if i == 0:
+                p[i, r] = offset[i, r]
+                for k in range(3):
+                    R[i, r, k] = J[r, k]
+            else:
+                p[i, r] = p[i - 1, r] + R[i - 1, r, 0] * offset[i, 0] + R[i - 1, r, 1] * offset[i, 1] + R[i - 1, r, 2] * offset[i, 2]
+                for k in range(3):
+                    R[i, r, k] = R[i - 1, r, 0] * J[0, k] + R[i - 1, r, 1] * J[1, k] + R[i - 1, r, 2] * J[2, k]
+        for r in range(3):
+            z[i, r] = R[i, r, 0] * axis[i, 0] + R[i, r, 1] * axis[i, 1] + R[i, r, 2] * axis[i, 2]
+            c[i, r] = p[i, r] + R[i, r, 0] * com[i, 0] + R[i, r, 1] * com[i, 1] + R[i, r, 2] * com[i, 2]
+        S[i, 0], S[i, 1], S[i, 2] = z[i, 0], z[i, 1], z[i, 2]
+        S[i, 3] = p[i, 1] * z[i, 2] - p[i, 2] * z[i, 1]
+        S[i, 4] = p[i, 2] * z[i, 0] - p[i, 0] * z[i, 2]
+        S[i, 5] = p[i, 0] * z[i, 1] - p[i, 1] * z[i, 0]
+        for r in range(3):  # Ic = R inertia R^T
+            for k in range(3):
+                acc = 0.0
+                for s_ in range(3):
+                    for t in range(3):
+                        acc += R[i, r, s_] * inertia[i, s_, t] * R[i, k, t]
+                Ic[r, k] = acc
+        mi = m[i]
+        cx, cy, cz = c[i, 0], c[i, 1], c[i, 2]
+        cc = cx * cx + cy * cy + cz * cz
+        cv = (cx, cy, cz)
+        for r in range(3):  # Ic + m [c]x [c]x^T = Ic + m (|c|^2 1 - c c^T)
+            for k in range(3):
+                I[i, r, k] = Ic[r, k] + mi * ((cc if r == k else 0.0) - cv[r] * cv[k])
+                I[i, 3 + r, 3 + k] = mi if r == k else 0.0
+        # m [c]x and its transpose
+        I[i, 0, 3], I[i, 0, 4], I[i, 0, 5] = 0.0, -mi * cz, mi * cy
+        I[i, 1, 3], I[i, 1, 4], I[i, 1, 5] = mi * cz, 0.0, -mi * cx
+        I[i, 2, 3], I[i, 2, 4], I[i, 2, 5] = -mi * cy, mi * cx, 0.0
+        for r in range(3):
+            for k in range(3):
+                I[i, 3 + k, r] = I[i, r, 3 + k]
     return R, p, z, c, S, I
 
 
@@ -135,18 +171,27 @@ def rnea_member(q, v, a, axis, offset, com, inertia, m, armature, g_vec, gravity
     V = np.zeros(6)
     A = np.zeros(6)
     if gravity:
-        A[3:] = -g_vec
+        A[3], A[4], A[5] = -g_vec[0], -g_vec[1], -g_vec[2]
     F = np.empty((N, 6))
+    Sv, tmp, IV = np.empty(6), np.empty(6), np.empty(6)
     for i in range(N):
-        Sv = S[i] * v[i]
-        V = V + Sv
-        A = A + S[i] * a[i] + _cross_motion(V, Sv)
-        F[i] = I[i] @ A + _cross_force(V, I[i] @ V)
+        for k in range(6):
+            Sv[k] = S[i, k] * v[i]
+            V[k] += Sv[k]
+        _cross_motion_into(V, Sv, tmp)
+        for k in range(6):
+            A[k] += S[i, k] * a[i] + tmp[k]
+        _matvec6(I[i], A, F[i])
+        _matvec6(I[i], V, IV)
+        _cross_force_into(V, IV, tmp)
+        for k in range(6):
+            F[i, k] += tmp[k]
     tau = np.empty(N)
     for i in range(N - 1, -1, -1):
-        tau[i] = S[i] @ F[i] + armature[i] * a[i]
+        tau[i] = _dot6(S[i], F[i]) + armature[i] * a[i]
         if i > 0:
-            F[i - 1] += F[i]
+            for k in range(6):
+                F[i - 1, k] += F[i, k]
     return tau
 
 
@@ -157,11 +202,14 @@ def crba_member(q, axis, offset, com, inertia, m, armature):  # pragma: no cover
     _, _, _, _, S, I = kinematics_member(q, axis, offset, com, inertia, m)
     M = np.empty((N, N))
     Ic = np.zeros((6, 6))
+    F = np.empty(6)
     for j in range(N - 1, -1, -1):
-        Ic = Ic + I[j]
-        F = Ic @ S[j]
+        for r in range(6):
+            for k in range(6):
+                Ic[r, k] += I[j, r, k]
+        _matvec6(Ic, S[j], F)
         for i in range(j + 1):
-            M[i, j] = S[i] @ F
+            M[i, j] = _dot6(S[i], F)
             M[j, i] = M[i, j]
         M[j, j] += armature[j]
     return M
@@ -171,34 +219,45 @@ def crba_member(q, axis, offset, com, inertia, m, armature):  # pragma: no cover
 def aba_member(q, v, tau, axis, offset, com, inertia, m, armature, g_vec):  # pragma: no cover - compiled
     """Accelerations ``(M)^-1 (tau - C v - G)`` by the ABA (module docstring), shape ``(N,)``."""
     N = q.shape[0]
-    _, _, _, _, S, I = kinematics_member(q, axis, offset, com, inertia, m)
-    IA = I.copy()
+    _, _, _, _, S, IA = kinematics_member(q, axis, offset, com, inertia, m)  # IA starts as the links' own inertias
     pA = np.empty((N, 6))
     cb = np.empty((N, 6))
     V = np.zeros(6)
+    Sv, IV = np.empty(6), np.empty(6)
     for i in range(N):
-        Sv = S[i] * v[i]
-        V = V + Sv
-        cb[i] = _cross_motion(V, Sv)
-        pA[i] = _cross_force(V, I[i] @ V)
+        for k in range(6):
+            Sv[k] = S[i, k] * v[i]
+            V[k] += Sv[k]
+        _cross_motion_into(V, Sv, cb[i])
+        _matvec6(IA[i], V, IV)
+        _cross_force_into(V, IV, pA[i])
     U = np.empty((N, 6))
     D = np.empty(N)
     u = np.empty(N)
+    Iac = np.empty(6)
     for i in range(N - 1, -1, -1):
-        U[i] = IA[i] @ S[i]
-        D[i] = S[i] @ U[i] + armature[i]
-        u[i] = tau[i] - S[i] @ pA[i]
+        _matvec6(IA[i], S[i], U[i])
+        D[i] = _dot6(S[i], U[i]) + armature[i]
+        u[i] = tau[i] - _dot6(S[i], pA[i])
         if i > 0:
-            Ia = IA[i] - np.outer(U[i], U[i]) / D[i]
-            IA[i - 1] += Ia
-            pA[i - 1] += pA[i] + Ia @ cb[i] + U[i] * (u[i] / D[i])
+            inv = 1.0 / D[i]
+            for r in range(6):  # Ia = IA - U U^T / D, added to the parent
+                for k in range(6):
+                    IA[i, r, k] -= U[i, r] * U[i, k] * inv
+                    IA[i - 1, r, k] += IA[i, r, k]
+            _matvec6(IA[i], cb[i], Iac)
+            w = u[i] * inv
+            for k in range(6):
+                pA[i - 1, k] += pA[i, k] + Iac[k] + U[i, k] * w
     acc = np.empty(N)
     A = np.zeros(6)
-    A[3:] = -g_vec
+    A[3], A[4], A[5] = -g_vec[0], -g_vec[1], -g_vec[2]
     for i in range(N):
-        Ap = A + cb[i]
-        acc[i] = (u[i] - U[i] @ Ap) / D[i]
-        A = Ap + S[i] * acc[i]
+        for k in range(6):
+            A[k] += cb[i, k]
+        acc[i] = (u[i] - _dot6(U[i], A)) / D[i]
+        for k in range(6):
+            A[k] += S[i, k] * acc[i]
     return acc
 
 
@@ -208,12 +267,15 @@ def energy_member(q, v, axis, offset, com, inertia, m, armature, g_vec):  # prag
     N = q.shape[0]
     _, _, _, c, S, I = kinematics_member(q, axis, offset, com, inertia, m)
     Vel = np.zeros(6)
+    IV = np.empty(6)
     T = 0.0
     U = 0.0
     for i in range(N):
-        Vel = Vel + S[i] * v[i]
-        T += 0.5 * (Vel @ (I[i] @ Vel)) + 0.5 * armature[i] * v[i] * v[i]
-        U -= m[i] * (g_vec @ c[i])
+        for k in range(6):
+            Vel[k] += S[i, k] * v[i]
+        _matvec6(I[i], Vel, IV)
+        T += 0.5 * _dot6(Vel, IV) + 0.5 * armature[i] * v[i] * v[i]
+        U -= m[i] * (g_vec[0] * c[i, 0] + g_vec[1] * c[i, 1] + g_vec[2] * c[i, 2])
     return T, U
 
 
