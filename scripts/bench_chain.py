@@ -1,11 +1,18 @@
 #!/usr/bin/env python
-"""SerialChain algorithms against N, and against Pinocchio when it is installed.
+"""Chain algorithms against N, and against Pinocchio when it is installed.
 
-Times RNEA, ABA and CRBA + Cholesky for N = 2 ... 500, single call and per
-environment in a batch of 256, fits log-log slopes (target ~1 for RNEA and
-ABA), and times Pinocchio's ``rnea``/``aba`` on the same chain in the same run
-when the ``pin`` package is importable (``pip install pin``, optional). Medians
-over repeats; prints ratios; writes ``bench_chain.json`` and ``bench_chain.png``.
+Two chains, both timed for N = 2 ... 500, single call and per member of a batch of 256, with
+log-log slopes (target ~1 for RNEA and ABA):
+
+- **the planar special case** (:class:`SerialChain`: z-revolutes in the plane, whose Newton-Euler
+  collapses to prefix sums): RNEA, ABA, CRBA + Cholesky; Pinocchio on the same chain of RZ joints;
+- **the spatial chain** (:class:`SpatialChain`: revolute joints about alternating axes, full 3-D
+  spatial-vector algorithms, the general case): ABA, RNEA, CRBA; Pinocchio's ``aba``, ``rnea``,
+  ``crba`` on the same model (``JointModelRevoluteUnaligned``), single and member by member over the
+  same batch, with the agreement of each.
+
+Pinocchio runs in the same process when the ``pin`` package is importable (``pip install pin``,
+optional). Medians over repeats; prints ratios; writes ``bench_chain.json`` and ``bench_chain.png``.
 
     python scripts/bench_chain.py --out results/chain
 """
@@ -21,7 +28,8 @@ import numpy as np
 from tqdm import tqdm
 
 from mbs_envs.models import SerialChain
-from mbs_envs.studies.benchmarking import median_time, pinocchio_chain
+from mbs_envs.models.spatial_chain import SpatialChain
+from mbs_envs.studies.benchmarking import median_time, pinocchio_chain, pinocchio_spatial_chain
 from mbs_envs.studies.plotting import pyplot, save
 
 SIZES = [2, 5, 10, 20, 50, 100, 200, 500]
@@ -53,12 +61,13 @@ def run(out: pathlib.Path, sizes: list[int]) -> dict:
             row["pin_aba_single"] = median_time(lambda: pin.aba(model, data, q, v, u))
             a_pin = np.array(pin.aba(model, data, q, v, u))
             row["aba_agreement_rel"] = float(np.max(np.abs(chain.aba(q, v, u) - a_pin)) / np.max(np.abs(a_pin)))
+        row.update(spatial_row(n, q, v, u, Q, V, U))
         rows.append(row)
     ns = np.array([r["n"] for r in rows], float)
     big = ns >= 20  # slopes on the asymptotic part (fixed per-call overheads dominate small N)
     slopes = {}
     for key in rows[0]:
-        if key in ("n", "aba_agreement_rel"):
+        if key == "n" or key.endswith("agreement_rel"):
             continue
         y = np.array([r.get(key, np.nan) for r in rows])
         sel = big & np.isfinite(y)
@@ -77,9 +86,50 @@ def run(out: pathlib.Path, sizes: list[int]) -> dict:
             f"{r['n']:5d} {r['rnea_single'] * 1e6:9.1f} {r['aba_single'] * 1e6:9.1f} "
             f"{r['crba_cholesky_single'] * 1e6:10.1f} {r['aba_batch_per_env'] * 1e6:12.2f} {pin_t} {ratio} {ratio_b}"
         )
+    print("\nthe spatial chain (alternating axes; per call, and per member of a batch of 256) [us]")
+    print(f"{'N':>5} {'ABA':>9} {'pin':>9} {'ratio':>6} {'RNEA':>9} {'pin':>9} {'ratio':>6} {'CRBA':>9} {'pin':>9} {'ABA@256':>9} {'pin@256':>9} {'ratio':>6}")
+    for r in rows:
+        def cell(key, width=9):
+            x = r.get(key)
+            return f"{x * 1e6:{width}.1f}" if x is not None else " " * (width - 1) + "-"
+
+        def ratio(a, b):
+            return f"{r[a] / r[b]:6.2f}" if r.get(b) else "     -"
+
+        print(f"{r['n']:5d} {cell('spatial_aba_single')} {cell('pin_spatial_aba_single')} {ratio('spatial_aba_single', 'pin_spatial_aba_single')} "
+              f"{cell('spatial_rnea_single')} {cell('pin_spatial_rnea_single')} {ratio('spatial_rnea_single', 'pin_spatial_rnea_single')} "
+              f"{cell('spatial_crba_single')} {cell('pin_spatial_crba_single')} {cell('spatial_aba_batch_per_env')} "
+              f"{cell('pin_spatial_aba_batch_per_env')} {ratio('spatial_aba_batch_per_env', 'pin_spatial_aba_batch_per_env')}")  # fmt: skip
     print("log-log slopes (N >= 20):", {k: round(s, 2) for k, s in slopes.items()})
     print(f"written to {out}/bench_chain.json and bench_chain.png")
     return result
+
+
+def spatial_row(n: int, q, v, u, Q, V, U) -> dict:
+    """The spatial chain's timings at ``N = n`` (and Pinocchio's on the same model, where installed)."""
+    chain = SpatialChain(n_links=n)
+    row = {
+        "spatial_aba_single": median_time(lambda: chain.aba(q, v, u)),
+        "spatial_rnea_single": median_time(lambda: chain.rnea(q, v, u)),
+        "spatial_crba_single": median_time(lambda: chain.mass_matrix(q)),
+        "spatial_aba_batch_per_env": median_time(lambda: chain.aba(Q, V, U)) / BATCH,
+        "spatial_rnea_batch_per_env": median_time(lambda: chain.rnea(Q, V, U)) / BATCH,
+    }
+    peer = pinocchio_spatial_chain(chain)
+    if peer is not None:
+        pin, model, data = peer
+        row["pin_spatial_aba_single"] = median_time(lambda: pin.aba(model, data, q, v, u))
+        row["pin_spatial_rnea_single"] = median_time(lambda: pin.rnea(model, data, q, v, u))
+        row["pin_spatial_crba_single"] = median_time(lambda: pin.crba(model, data, q))
+
+        def pin_batch(f):
+            return lambda: [f(model, data, Q[b], V[b], U[b]) for b in range(BATCH)]
+
+        row["pin_spatial_aba_batch_per_env"] = median_time(pin_batch(pin.aba), repeats=3) / BATCH
+        row["pin_spatial_rnea_batch_per_env"] = median_time(pin_batch(pin.rnea), repeats=3) / BATCH
+        a_pin = np.array(pin.aba(model, data, q, v, u))
+        row["spatial_aba_agreement_rel"] = float(np.max(np.abs(chain.aba(q, v, u) - a_pin)) / max(1.0, np.max(np.abs(a_pin))))
+    return row
 
 
 def plot(rows: list[dict], path: pathlib.Path) -> None:
@@ -89,10 +139,12 @@ def plot(rows: list[dict], path: pathlib.Path) -> None:
     for key, style in [
         ("rnea_single", "o-"), ("aba_single", "s-"), ("crba_cholesky_single", "^-"),
         ("aba_batch_per_env", "s--"), ("pin_rnea_single", "o:"), ("pin_aba_single", "s:"),
+        ("spatial_aba_single", "D-"), ("spatial_rnea_single", "v-"), ("spatial_aba_batch_per_env", "D--"),
+        ("pin_spatial_aba_single", "D:"), ("pin_spatial_rnea_single", "v:"), ("pin_spatial_aba_batch_per_env", "x:"),
     ]:  # fmt: skip
         ys = [r.get(key, np.nan) * 1e6 for r in rows]
         if np.any(np.isfinite(ys)):
-            ax.loglog(ns, ys, style, label=key)
+            ax.loglog(ns, ys, style, label=key.replace("aba", "ABA").replace("rnea", "RNEA") + ("" if "spatial" in key else " (planar)"))
     ax.set_xlabel("links N")
     ax.set_ylabel("time per call (or per env in a batch of 256) [us]")
     ax.legend()

@@ -210,7 +210,8 @@ def test_disk_report_runs(tmp_path):
 def test_bench_chain_runs(tmp_path):
     script = load_script("bench_chain.py")
     result = script["run"](tmp_path, sizes=[2, 20, 40])
-    assert "aba_single" in result["loglog_slopes_n_ge_20"]
+    assert "aba_single" in result["loglog_slopes_n_ge_20"] and "spatial_aba_single" in result["loglog_slopes_n_ge_20"]
+    assert all(r.get("spatial_aba_agreement_rel", 0.0) < 1e-11 for r in result["rows"])  # Pinocchio, where installed
     assert (tmp_path / "bench_chain.json").exists() and (tmp_path / "bench_chain.png").exists()
 
 

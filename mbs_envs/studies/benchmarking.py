@@ -53,6 +53,30 @@ def time_steps(env: Any, actions: list, reset_every: int) -> float:
     return total / len(actions)
 
 
+def pinocchio_spatial_chain(chain: Any):
+    """The same :class:`~mbs_envs.models.spatial_chain.SpatialChain` as a Pinocchio model
+    (``JointModelRevoluteUnaligned`` about each axis, the same placements, inertias, gravity and
+    armature), or None without ``pin``.
+
+    Returns
+    -------
+    (pinocchio module, model, data) or None
+    """
+    try:
+        import pinocchio as pin
+    except ImportError:
+        return None
+    p = chain.params
+    model = pin.Model()
+    parent = 0
+    for i in range(chain.n_links):
+        parent = model.addJoint(parent, pin.JointModelRevoluteUnaligned(p.axis[i]), pin.SE3(np.eye(3), p.offset[i]), f"joint{i + 1}")
+        model.appendBodyToJoint(parent, pin.Inertia(p.m[i], p.com[i], p.inertia[i]), pin.SE3.Identity())
+    model.gravity.linear[:] = p.g_vec
+    model.armature[:] = p.armature
+    return pin, model, model.createData()
+
+
 def pinocchio_chain(chain: SerialChain):
     """The same planar chain as a Pinocchio model (revolute-z joints), or None without ``pin``.
 

@@ -20,6 +20,7 @@ import sympy as sp
 from mbs_envs.dynamics.simulate import simulate
 from mbs_envs.models.serial_chain import SerialChain
 from mbs_envs.models.spatial_chain import SpatialChain
+from mbs_envs.studies.benchmarking import pinocchio_spatial_chain
 
 
 def random_chain(n: int, rng: np.random.Generator, armature: bool = True) -> SpatialChain:
@@ -39,17 +40,8 @@ def rel(x: np.ndarray, y: np.ndarray) -> float:
 
 
 def pinocchio_model(chain: SpatialChain):
-    pin = pytest.importorskip("pinocchio", reason="Pinocchio (pip package 'pin', the bench extra) is not installed")
-    p = chain.params
-    model = pin.Model()
-    parent = 0
-    for i in range(chain.n_links):
-        jid = model.addJoint(parent, pin.JointModelRevoluteUnaligned(p.axis[i]), pin.SE3(np.eye(3), p.offset[i]), f"joint{i}")
-        model.appendBodyToJoint(jid, pin.Inertia(p.m[i], p.com[i], p.inertia[i]), pin.SE3.Identity())
-        parent = jid
-    model.gravity.linear = np.array(p.g_vec)
-    model.armature = np.array(p.armature)
-    return pin, model, model.createData()
+    pytest.importorskip("pinocchio", reason="Pinocchio (pip package 'pin', the bench extra) is not installed")
+    return pinocchio_spatial_chain(chain)
 
 
 @pytest.mark.parametrize("n", [1, 2, 7, 50, 500])
