@@ -189,3 +189,21 @@ def test_free_motion_conserves_energy_at_rk4s_order():
 def test_bad_parameters_are_refused_by_name(kwargs, match):
     with pytest.raises(ValueError, match=match):
         SpatialChain(**{"n_links": 2, **kwargs})
+
+
+@pytest.mark.slow
+def test_aba_and_rnea_scale_linearly():
+    """O(N): t(500) / t(50) <= 12 for ABA and RNEA, single call and per member of a batch (medians; slow set,
+    since timings on a loaded machine are noisy -- scripts/bench_chain.py gives the figures)."""
+    from mbs_envs.studies.benchmarking import median_time
+
+    rng = np.random.default_rng(0)
+    times = {}
+    for n in (50, 500):
+        chain = SpatialChain(n_links=n)
+        q, v, a = rng.normal(size=(3, n))
+        Q, V, A = rng.normal(size=(3, 64, n))
+        times[n] = [median_time(lambda: chain.aba(q, v, a), repeats=9), median_time(lambda: chain.rnea(q, v, a), repeats=9),
+                    median_time(lambda: chain.aba(Q, V, A), repeats=5), median_time(lambda: chain.rnea(Q, V, A), repeats=5)]  # fmt: skip
+    ratios = np.array(times[500]) / np.array(times[50])
+    assert np.all(ratios <= 12), ratios
