@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import pathlib
+import warnings
 from typing import Any
 
 
@@ -17,7 +18,19 @@ def pyplot() -> Any:
 
 
 def save(fig: Any, path: pathlib.Path, dpi: int = 110, rect: tuple | None = None) -> None:
-    """Lay out (within ``rect`` of the figure, leaving room for a figure legend), write and close a figure."""
-    fig.tight_layout(rect=rect)
-    fig.savefig(path, dpi=dpi)
+    """Lay out (within ``rect`` of the figure, leaving room for a figure legend), write and close a figure.
+
+    Where matplotlib's tight layout cannot fit the decorations (a small figure with a two-line title: its
+    "Tight layout not applied" warning), the figure is saved with ``bbox_inches="tight"`` instead, which
+    grows the canvas to hold them; no warning reaches the user. Other warnings pass through."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        fig.tight_layout(rect=rect)
+    fits = True
+    for w in caught:
+        if "Tight layout not applied" in str(w.message):
+            fits = False
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    fig.savefig(path, dpi=dpi, bbox_inches=None if fits else "tight")
     pyplot().close(fig)
