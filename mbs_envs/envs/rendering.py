@@ -168,7 +168,9 @@ class PlanarRenderer:
         self.fps = fps
         self.size = screen_size
         self.ground = ground
-        pygame.init()
+        # no pygame.init(): it would also open the audio device, which on a machine without a sound card
+        # prints ALSA errors ("cannot find card") and an XDG_RUNTIME_DIR complaint though no sound is
+        # made; drawing needs the display (human mode) and, lazily, the font module (:meth:`_text`)
         if render_mode == "human":
             pygame.display.init()
             self.screen = pygame.display.set_mode((screen_size, screen_size))

@@ -163,3 +163,19 @@ def test_human_mode_draws_each_step_in_a_window(env_id):
         env.step(np.zeros(env.action_space.shape, np.float32))
     assert env.render() is None and env.unwrapped._renderer.fps == round(1 / env.unwrapped.dt)  # the control rate
     env.close()
+
+
+def test_rendering_without_display_or_sound_card_prints_nothing_alarming():
+    """issue 37: pygame.init() opened the audio device (ALSA "cannot find card", XDG_RUNTIME_DIR errors on
+    a headless machine); drawing an rgb_array frame needs neither."""
+    import os
+    import subprocess
+    import sys
+
+    pytest.importorskip("pygame", reason="pygame (the render extra) is not installed")
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "SDL_VIDEODRIVER", "SDL_AUDIODRIVER", "XDG_RUNTIME_DIR")}
+    code = ("import gymnasium as gym, mbs_envs\n"
+            "e = gym.make('mbs_envs/Planar2R-v0', render_mode='rgb_array'); e.reset(seed=0); print(e.render().shape)")  # fmt: skip
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
+    assert r.returncode == 0 and "(500, 500, 3)" in r.stdout, r.stderr
+    assert "ALSA" not in r.stderr and "XDG_RUNTIME_DIR" not in r.stderr, r.stderr
