@@ -92,7 +92,7 @@ def run(args: argparse.Namespace) -> dict:
             tasks.append({"scene": scene, "condition": vars(c), "seeds": scene_seeds, "policies": policies})
     print(f"{len(tasks)} cells ({len(scenes)} scenes x {len(conds)} conditions), {n_seeds} test seeds each ({n_swing} on swing-up scenes)")
     if args.ray is None and args.workers > 1:
-        results = run_tasks(cmp.evaluate_cell, tasks, max_workers=args.workers)
+        results = run_tasks(cmp.evaluate_cell, tasks, max_workers=args.workers, progress="cells")
     elif args.ray is None:
         results = [cmp.evaluate_cell(t) for t in tqdm(tasks, desc="cells")]
     else:
@@ -114,6 +114,10 @@ def run(args: argparse.Namespace) -> dict:
     config = {"test_seeds": [seeds[0], seeds[-1]], "conditions": [c.name for c in conds], "agents": agents}
     (args.out / "summary.json").write_text(json.dumps({"config": config, "summary": summary, "sizing": sizing, "catch": catch}, indent=2, default=float))
     print(headline(summary))
+    swing = swing_up_headline(summary)
+    if swing:
+        print("\nswing-up scenes (success within 0.1 / 0.2 rad for the last 2 s; per condition: success 0.1 / 0.2 rad / time near upright [s])")
+        print(swing)
     print(f"written to {args.out}/report.md, episodes.csv, summary.json, learning_curves.png and comparison_<scene>.png")
     return {"summary": summary, "rows": rows, "sizing": sizing}
 

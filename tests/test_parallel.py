@@ -61,3 +61,15 @@ def _running(pid: int) -> bool:
         return False
     with open(f"/proc/{pid}/stat") as f:  # a zombie has ended
         return f.read().split(")")[-1].split()[0] != "Z"
+
+
+def _square(x):
+    return x * x
+
+
+def test_local_tasks_show_progress_and_keep_their_order(capsys):
+    """issue 37: the parallel path counts cells as they finish (a tqdm bar on stderr)."""
+    from mbs_envs.studies.parallel import run_tasks
+
+    assert run_tasks(_square, list(range(6)), max_workers=2, progress="cells") == [x * x for x in range(6)]
+    assert "cells" in capsys.readouterr().err

@@ -18,12 +18,14 @@ import os
 import threading
 import time
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Any
 
 
-def run_tasks(fn: Callable[[Any], Any], tasks: list[Any], ray_address: str | None = None, max_workers: int | None = None) -> list[Any]:
-    """``[fn(t) for t in tasks]``, in parallel (see the module docstring)."""
+def run_tasks(fn: Callable[[Any], Any], tasks: list[Any], ray_address: str | None = None, max_workers: int | None = None,
+              progress: str | None = None) -> list[Any]:  # fmt: skip
+    """``[fn(t) for t in tasks]``, in parallel (see the module docstring); with ``progress`` (a label) a tqdm
+    bar counts the local tasks as they finish (in any order; the results keep the order of ``tasks``)."""
     if ray_address is not None:
         return _run_ray(fn, tasks, ray_address)
     if len(tasks) <= 1:
@@ -31,7 +33,25 @@ def run_tasks(fn: Callable[[Any], Any], tasks: list[Any], ray_address: str | Non
     workers = max_workers or min(len(tasks), multiprocessing.cpu_count())
     context = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(workers, mp_context=context, initializer=_exit_with_parent, initargs=(os.getpid(),)) as pool:
-        return list(pool.map(fn, tasks))
+        futures = [pool.submit(fn, t) for t in tasks]
+        bar = _bar(len(tasks), progress)
+        for _ in as_completed(futures):
+            if bar is not None:
+                bar.update(1)
+        if bar is not None:
+            bar.close()
+        return [f.result() for f in futures]
+
+
+def _bar(total: int, label: str | None) -> Any:
+    """A tqdm bar (the plots extra), or None without a label or without tqdm."""
+    if label is None:
+        return None
+    try:
+        from tqdm import tqdm
+    except ImportError:
+        return None
+    return tqdm(total=total, desc=label)
 
 
 def _exit_with_parent(parent: int, period: float = 0.5) -> None:
