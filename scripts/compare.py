@@ -37,6 +37,7 @@ import csv
 import json
 import pathlib
 import sys
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -111,7 +112,7 @@ def run(args: argparse.Namespace) -> dict:
     catch = [r for scene in scenes if scoring_of(scene) == "swing-up" for r in catch_rows(scene, conds)]
     report = make_report(summary, sizing, agents, curves, seeds, conds, n_swing, catch)
     (args.out / "report.md").write_text(report)
-    config = {"test_seeds": [seeds[0], seeds[-1]], "conditions": [c.name for c in conds], "agents": agents}
+    config = {"test_seeds": [seeds[0], seeds[-1]], "conditions": [c.name for c in conds], "agents": portable(agents)}
     (args.out / "summary.json").write_text(json.dumps({"config": config, "summary": summary, "sizing": sizing, "catch": catch}, indent=2, default=float))
     print(headline(summary))
     swing = swing_up_headline(summary)
@@ -120,6 +121,18 @@ def run(args: argparse.Namespace) -> dict:
         print(swing)
     print(f"written to {args.out}/report.md, episodes.csv, summary.json, learning_curves.png and comparison_<scene>.png")
     return {"summary": summary, "rows": rows, "sizing": sizing}
+
+
+def portable(obj: Any) -> Any:
+    """``obj`` with every string path inside this repository made relative to its root (``agents/...``), so a
+    committed ``summary.json`` holds no path of the machine that made it (issue 37); other strings unchanged."""
+    if isinstance(obj, dict):
+        return {k: portable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [portable(v) for v in obj]
+    if isinstance(obj, str):
+        return obj.replace(str(ROOT) + "/", "")
+    return obj
 
 
 def summarize(rows: list[dict]) -> dict:

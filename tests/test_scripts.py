@@ -395,3 +395,11 @@ def test_a_shipped_agent_acts_as_trained_without_its_optimizer_state(tmp_path):
     assert cfg_b == {**cfg_a, "shipped_without_optimizer_state": True}
     obs = np.random.default_rng(0).normal(size=(20,) + gym.make("mbs_envs/Planar2R-v0").observation_space.shape).astype(np.float32)
     np.testing.assert_array_equal(a.predict(obs, deterministic=True)[0], b.predict(obs, deterministic=True)[0])  # normalization kept
+
+
+def test_compare_records_repository_paths_relative_to_its_root():
+    """issue 37: summary.json held the absolute paths of the machine that made it."""
+    script = load_script("compare.py")
+    root = str(script["ROOT"])
+    got = script["portable"]({"Acrobot": {"PPO": [f"{root}/agents/Acrobot-v1/ppo/seed0", f"lqr-catch:{root}/agents/x"]}, "n": 3})
+    assert got == {"Acrobot": {"PPO": ["agents/Acrobot-v1/ppo/seed0", "lqr-catch:agents/x"]}, "n": 3}
