@@ -601,14 +601,12 @@ def _suffix_sum(x: np.ndarray, axis: int = -1) -> np.ndarray:
     return np.flip(np.cumsum(np.flip(x, axis), axis), axis)
 
 
-class SerialChain(Model):
-    """Planar N-link chain, every joint driven; see the module docstring.
+class RecursiveChain(Model):
+    """What every chain with O(N) recursions shares, written once: ``N`` driven revolute joints (``B = I``),
+    and ``C v``, ``G``, ``h``, inverse and forward dynamics and the energies from the subclass's
+    :meth:`rnea`, :meth:`aba`, :meth:`friction` and :meth:`_energies` (the planar :class:`SerialChain`
+    and :class:`~mbs_envs.models.spatial_chain.SpatialChain`)."""
 
-    Construct with ``SerialChain(n_links=N, m=..., l=..., r=..., I=..., g=...,
-    b=..., f=..., v_s=...)``, per-link arrays or scalars.
-    """
-
-    Params = SerialChainParams
     nu = nv = nq = 2  # replaced per instance in __init__
 
     def __init__(self, params=None, **overrides):
@@ -623,6 +621,68 @@ class SerialChain(Model):
     @property
     def actuation(self) -> np.ndarray:
         return np.eye(self.n_links)
+
+    def rnea(self, q: np.ndarray, v: np.ndarray, a: np.ndarray, gravity: bool = True) -> np.ndarray:
+        """``M a + C v (+ G)`` by the recursive Newton-Euler algorithm (the subclass's)."""
+        raise NotImplementedError
+
+    def aba(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """Accelerations for joint torques ``tau`` (friction not included) by the articulated-body algorithm."""
+        raise NotImplementedError
+
+    def _energies(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(T, V)`` [J], shape ``(...)``, from the links' velocities and positions (the subclass's)."""
+        raise NotImplementedError
+
+    def coriolis(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``C(q, v) v`` from RNEA with zero acceleration and no gravity."""
+        v = as_vector(v, self.n_links, "v")
+        return self.rnea(q, v, np.zeros_like(v), gravity=False)
+
+    def gravity(self, q: np.ndarray) -> np.ndarray:
+        """``G(q)`` from RNEA at rest."""
+        q = as_vector(q, self.n_links, "q")
+        z = np.zeros(q.shape)
+        return self.rnea(q, z, z)
+
+    def bias(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``C v + G + F`` in one RNEA pass."""
+        v = as_vector(v, self.n_links, "v")
+        return self.rnea(q, v, np.zeros_like(v)) + self.friction(v)
+
+    def inverse_dynamics(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
+        """Joint torques for accelerations ``a``: RNEA plus friction, O(N)."""
+        v = as_vector(v, self.n_links, "v")
+        return self.rnea(q, v, a) + self.friction(v)
+
+    def forward_dynamics(self, q: np.ndarray, v: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
+        """Accelerations by the articulated-body algorithm, O(N); friction included."""
+        v = as_vector(v, self.n_links, "v")
+        tau = -self.friction(v) if u is None else as_vector(u, self.n_links, "u") - self.friction(v)
+        return self.aba(q, v, tau)
+
+    def forward_dynamics_crba(self, q: np.ndarray, v: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
+        """The cross-check path: ``M^-1 (u - h)`` with ``M`` by CRBA and a Cholesky solve, O(N^3)."""
+        return Model.forward_dynamics(self, q, v, u)
+
+    def kinetic_energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Kinetic energy of the links and the drives' armature [J] from the link velocities (O(N), not via ``M``)."""
+        return self._energies(q, v)[0]
+
+    def potential_energy(self, q: np.ndarray) -> np.ndarray:
+        """Potential energy of gravity [J]."""
+        q = as_vector(q, self.n_links, "q")
+        return self._energies(q, np.zeros(q.shape[-1:]))[1]
+
+
+class SerialChain(RecursiveChain):
+    """Planar N-link chain, every joint driven; see the module docstring.
+
+    Construct with ``SerialChain(n_links=N, m=..., l=..., r=..., I=..., g=...,
+    b=..., f=..., v_s=...)``, per-link arrays or scalars.
+    """
+
+    Params = SerialChainParams
 
     # -- kinematics ---------------------------------------------------------
 
@@ -711,31 +771,10 @@ class SerialChain(Model):
         cross = np.einsum("...ijd,...id->...ij", S1J, p) + np.einsum("...ijd,...jd->...ij", S1J, p)
         return S0[..., J] - cross + S2[J] * pp + np.diag(p_.armature)
 
-    def coriolis(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """``C(q, v) v`` from RNEA with zero acceleration and no gravity."""
-        v = as_vector(v, self.n_links, "v")
-        return self.rnea(q, v, np.zeros_like(v), gravity=False)
-
-    def gravity(self, q: np.ndarray) -> np.ndarray:
-        """``G(q)`` from RNEA at rest."""
-        q = as_vector(q, self.n_links, "q")
-        z = np.zeros(q.shape)
-        return self.rnea(q, z, z)
-
-    def bias(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """``C v + G + F`` in one RNEA pass."""
-        v = as_vector(v, self.n_links, "v")
-        return self.rnea(q, v, np.zeros_like(v)) + self.friction(v)
-
     def friction(self, v: np.ndarray) -> np.ndarray:
         p_ = self.params
         v = as_vector(v, self.n_links, "v")
         return smoothed_friction(v, p_.b, p_.f, p_.v_s)
-
-    def inverse_dynamics(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
-        """Joint torques for accelerations ``a``: RNEA plus friction, O(N)."""
-        v = as_vector(v, self.n_links, "v")
-        return self.rnea(q, v, a) + self.friction(v)
 
     def aba(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """Accelerations for joint torques ``tau`` (friction not included), O(N).
@@ -760,16 +799,6 @@ class SerialChain(Model):
         out = _aba_kernel(flat(q), flat(v), p_.l, p_.r, flat(p_.m), flat(p_.I), flat(p_.armature + d), flat(tau), float(p_.g))
         return out.reshape(shape)
 
-    def forward_dynamics(self, q: np.ndarray, v: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
-        """Accelerations by the articulated-body algorithm, O(N); friction included."""
-        v = as_vector(v, self.n_links, "v")
-        tau = -self.friction(v) if u is None else as_vector(u, self.n_links, "u") - self.friction(v)
-        return self.aba(q, v, tau)
-
-    def forward_dynamics_crba(self, q: np.ndarray, v: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
-        """The cross-check path: ``M^-1 (u - h)`` with ``M`` by CRBA and a Cholesky solve, O(N^3)."""
-        return Model.forward_dynamics(self, q, v, u)
-
     def _energies(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(T, V)`` [J], shape ``(...)``, by the compiled :func:`_energy_member` over the flattened batch."""
         p_ = self.params
@@ -780,16 +809,6 @@ class SerialChain(Model):
         flat = lambda x: np.ascontiguousarray(np.broadcast_to(x, shape).reshape(-1, n), dtype=float)  # noqa: E731
         T, V = _energy_rows(flat(q), flat(v), p_.l, p_.r, p_.m, p_.I, p_.armature, float(p_.g))
         return T.reshape(shape[:-1]), V.reshape(shape[:-1])
-
-    def kinetic_energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """``sum_i m_i |v_Ci|^2 / 2 + I_i w_i^2 / 2 + armature_i v_i^2 / 2`` from the link velocities
-        (O(N), not via M; :func:`_energy_member`)."""
-        return self._energies(q, v)[0]
-
-    def potential_energy(self, q: np.ndarray) -> np.ndarray:
-        """``V = g sum_i m_i y_Ci`` [J] (:func:`_energy_member`)."""
-        q = as_vector(q, self.n_links, "q")
-        return self._energies(q, np.zeros(q.shape[-1:]))[1]
 
     def energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """``T + V`` [J], one pass: :func:`energy_kernel`, the compiled step's own (the same bits as

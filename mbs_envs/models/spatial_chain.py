@@ -44,8 +44,8 @@ import numpy as np
 
 from .. import validation as check
 from ..dynamics.jit import njit
-from .base import Model, Params, as_vector, param, smoothed_friction
-from .serial_chain import link_count
+from .base import Params, as_vector, param
+from .serial_chain import RecursiveChain, link_count
 
 #: the longest spatial chain the model takes (the lecture's proteins: up to 500 bodies)
 MAX_SPATIAL_LINKS = 10_000
@@ -427,7 +427,7 @@ class SpatialChainParams(Params):
         return (self.axis, self.offset, self.com, self.inertia, self.m)
 
 
-class SpatialChain(Model):
+class SpatialChain(RecursiveChain):
     """N rigid links in space, each on a revolute joint about its own axis; every joint driven.
 
     See the module docstring for the coordinates, conventions and algorithms.
@@ -435,26 +435,6 @@ class SpatialChain(Model):
     """
 
     Params = SpatialChainParams
-    nq = nv = nu = 2  # replaced per instance in __init__
-
-    def __init__(self, params=None, **overrides):
-        super().__init__(params, **overrides)
-        self.nq = self.nv = self.nu = self.params.n_links
-
-    @property
-    def n_links(self) -> int:
-        return self.params.n_links
-
-    @property
-    def actuation(self) -> np.ndarray:
-        return np.eye(self.n_links)
-
-    def __eq__(self, other: object) -> bool:
-        return type(other) is type(self) and all(
-            np.array_equal(getattr(self.params, k), getattr(other.params, k)) for k in self.Params.names())  # fmt: skip
-
-    def __hash__(self) -> int:
-        return hash((type(self), self.n_links))
 
     # -- the batch: leading dimensions flattened to rows for the kernels --------------------
 
@@ -491,31 +471,9 @@ class SpatialChain(Model):
         shape, (qr,) = self._rows((q, "q"))
         return _rows_crba(qr, *p.kernel_args(), p.armature).reshape(shape + (self.n_links,))
 
-    def coriolis(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """``C(q, v) v`` (RNEA at zero acceleration, without gravity)."""
-        v = as_vector(v, self.n_links, "v")
-        return self.rnea(q, v, np.zeros(v.shape), gravity=False)
-
-    def gravity(self, q: np.ndarray) -> np.ndarray:
-        """``G(q)`` (RNEA at rest)."""
-        q = as_vector(q, self.n_links, "q")
-        z = np.zeros(q.shape)
-        return self.rnea(q, z, z)
-
-    def bias(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """``C v + G + F`` in one RNEA pass."""
-        v = as_vector(v, self.n_links, "v")
-        return self.rnea(q, v, np.zeros(v.shape)) + self.friction(v)
-
     def friction(self, v: np.ndarray) -> np.ndarray:
         """Viscous joint damping ``b v``."""
-        v = as_vector(v, self.n_links, "v")
-        return smoothed_friction(v, self.params.b, np.zeros(self.n_links), 0.01)
-
-    def inverse_dynamics(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
-        """Joint torques for accelerations ``a``: RNEA plus damping, O(N)."""
-        v = as_vector(v, self.n_links, "v")
-        return self.rnea(q, v, a) + self.friction(v)
+        return self.params.b * as_vector(v, self.n_links, "v")
 
     def aba(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """Accelerations for joint torques ``tau`` (damping not included) by the articulated-body algorithm, O(N)."""
@@ -523,30 +481,11 @@ class SpatialChain(Model):
         shape, (qr, vr, tr) = self._rows((q, "q"), (v, "v"), (tau, "tau"))
         return _rows_aba(qr, vr, tr, *p.kernel_args(), p.armature, p.g_vec).reshape(shape)
 
-    def forward_dynamics(self, q: np.ndarray, v: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
-        """Accelerations by the ABA, O(N); damping included."""
-        v = as_vector(v, self.n_links, "v")
-        tau = -self.friction(v) if u is None else as_vector(u, self.n_links, "u") - self.friction(v)
-        return self.aba(q, v, tau)
-
-    def forward_dynamics_crba(self, q: np.ndarray, v: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
-        """The cross-check path: ``M^-1 (u - h)`` with ``M`` by CRBA and a Cholesky solve, O(N^3)."""
-        return Model.forward_dynamics(self, q, v, u)
-
     def _energies(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         p = self.params
         shape, (qr, vr) = self._rows((q, "q"), (v, "v"))
         T, U = _rows_energy(qr, vr, *p.kernel_args(), p.armature, p.g_vec)
         return T.reshape(shape[:-1]), U.reshape(shape[:-1])
-
-    def kinetic_energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """``sum_i V_i^T I_i V_i / 2 + armature_i v_i^2 / 2`` [J] from the links' spatial velocities (not via ``M``)."""
-        return self._energies(q, v)[0]
-
-    def potential_energy(self, q: np.ndarray) -> np.ndarray:
-        """``-sum_i m_i g_vec . c_i`` [J]."""
-        q = as_vector(q, self.n_links, "q")
-        return self._energies(q, np.zeros(q.shape))[1]
 
     def energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """``T + V`` [J]."""

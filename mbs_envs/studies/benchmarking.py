@@ -53,49 +53,43 @@ def time_steps(env: Any, actions: list, reset_every: int) -> float:
     return total / len(actions)
 
 
+def _pinocchio_serial(joint: Callable[[Any, int], Any], offset: np.ndarray, m: np.ndarray, com: np.ndarray, inertia: np.ndarray,
+                      g_vec: Any, armature: np.ndarray):  # fmt: skip
+    """A serial chain as a Pinocchio model: joint ``i`` is ``joint(pin, i)``, placed at ``offset[i]`` in its
+    parent's frame, carrying mass ``m[i]`` at ``com[i]`` with ``inertia[i]`` about it; or None without ``pin``.
+
+    Returns
+    -------
+    (pinocchio module, model, data) or None
+    """
+    try:
+        import pinocchio as pin
+    except ImportError:
+        return None
+    model = pin.Model()
+    parent = 0
+    for i in range(len(m)):
+        parent = model.addJoint(parent, joint(pin, i), pin.SE3(np.eye(3), np.asarray(offset[i], float)), f"joint{i + 1}")
+        model.appendBodyToJoint(parent, pin.Inertia(m[i], np.asarray(com[i], float), np.asarray(inertia[i], float)), pin.SE3.Identity())
+    model.gravity.linear[:] = g_vec
+    model.armature[:] = armature
+    return pin, model, model.createData()
+
+
 def pinocchio_spatial_chain(chain: Any):
     """The same :class:`~mbs_envs.models.spatial_chain.SpatialChain` as a Pinocchio model
     (``JointModelRevoluteUnaligned`` about each axis, the same placements, inertias, gravity and
-    armature), or None without ``pin``.
-
-    Returns
-    -------
-    (pinocchio module, model, data) or None
-    """
-    try:
-        import pinocchio as pin
-    except ImportError:
-        return None
+    armature), or None without ``pin`` (:func:`_pinocchio_serial`)."""
     p = chain.params
-    model = pin.Model()
-    parent = 0
-    for i in range(chain.n_links):
-        parent = model.addJoint(parent, pin.JointModelRevoluteUnaligned(p.axis[i]), pin.SE3(np.eye(3), p.offset[i]), f"joint{i + 1}")
-        model.appendBodyToJoint(parent, pin.Inertia(p.m[i], p.com[i], p.inertia[i]), pin.SE3.Identity())
-    model.gravity.linear[:] = p.g_vec
-    model.armature[:] = p.armature
-    return pin, model, model.createData()
+    return _pinocchio_serial(lambda pin, i: pin.JointModelRevoluteUnaligned(p.axis[i]), p.offset, p.m, p.com, p.inertia, p.g_vec, p.armature)
 
 
 def pinocchio_chain(chain: SerialChain):
-    """The same planar chain as a Pinocchio model (revolute-z joints), or None without ``pin``.
-
-    Returns
-    -------
-    (pinocchio module, model, data) or None
-    """
-    try:
-        import pinocchio as pin
-    except ImportError:
-        return None
+    """The same planar chain as a Pinocchio model (revolute-z joints), or None without ``pin`` (:func:`_pinocchio_serial`)."""
     p = chain.params
-    model = pin.Model()
-    parent = 0
-    for i in range(chain.n_links):
-        placement = pin.SE3(np.eye(3), np.array([p.l[i - 1] if i else 0.0, 0.0, 0.0]))
-        parent = model.addJoint(parent, pin.JointModelRZ(), placement, f"joint{i + 1}")
-        inertia = pin.Inertia(p.m[i], np.array([p.r[i], 0.0, 0.0]), np.diag([p.I[i]] * 3))
-        model.appendBodyToJoint(parent, inertia, pin.SE3.Identity())
-    model.gravity.linear[:] = [0.0, -p.g, 0.0]
-    model.armature[:] = p.armature
-    return pin, model, model.createData()
+    n = chain.n_links
+    offset = np.zeros((n, 3))
+    offset[1:, 0] = p.l[:-1]
+    com = np.zeros((n, 3))
+    com[:, 0] = p.r
+    return _pinocchio_serial(lambda pin, i: pin.JointModelRZ(), offset, p.m, com, [np.diag([I] * 3) for I in p.I], [0.0, -p.g, 0.0], p.armature)
