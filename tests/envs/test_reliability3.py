@@ -60,6 +60,17 @@ def make_vec(env_id: str, n: int = 3, **kw):
     return gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **{**KW.get(env_id, {}), **kw})
 
 
+def three_routes(env_id: str) -> tuple:
+    """The single env (unwrapped), the batched vector env and the SB3 adapter of ``env_id``, each reset."""
+    single = make(env_id).unwrapped
+    single.reset(seed=0)
+    venv = make_vec(env_id)
+    venv.reset(seed=0)
+    sb3 = make_sb3_vec_env(env_id, n_envs=2, seed=0, **KW.get(env_id, {}))
+    sb3.reset()
+    return single, venv, sb3
+
+
 def snapshot(env) -> tuple:
     """Everything a refused call must leave as it was: state, time, and the generators' states."""
     u = env.unwrapped
@@ -78,12 +89,7 @@ OTHER_MODELS = [Planar2R(), SerialChain(n_links=2), SerialChain(n_links=4), Seri
 
 @pytest.mark.parametrize("env_id", IDS)
 def test_1_the_model_cannot_be_swapped_by_any_route(env_id):
-    single = make(env_id).unwrapped
-    single.reset(seed=0)
-    venv = make_vec(env_id)
-    venv.reset(seed=0)
-    sb3 = make_sb3_vec_env(env_id, n_envs=2, seed=0, **KW.get(env_id, {}))
-    sb3.reset()
+    single, venv, sb3 = three_routes(env_id)
     for other in OTHER_MODELS + [single.model]:
         for route in ("single", "vector attribute", "vector set_attr", "sb3 set_attr"):
             CASES["1 model swap"] += 1
@@ -278,12 +284,7 @@ WILD = [np.nan, np.inf, -1.0, 0.0, "0.01", None, True, 1j, [1.0, 2.0, 3.0, 4.0, 
 
 @pytest.mark.parametrize("env_id", IDS)
 def test_7_every_setting_is_validated_by_every_route(env_id):
-    single = make(env_id).unwrapped
-    single.reset(seed=0)
-    venv = make_vec(env_id)
-    venv.reset(seed=0)
-    sb3 = make_sb3_vec_env(env_id, n_envs=2, seed=0, **KW.get(env_id, {}))
-    sb3.reset()
+    single, venv, sb3 = three_routes(env_id)
     names = single.settings()
     assert {"dt", "substeps", "u_max"} <= set(names)
     for name in names:
