@@ -34,7 +34,6 @@ batch of a few thousand members can fault its work arrays in afresh at every ste
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 from typing import Any
 
