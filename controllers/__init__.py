@@ -9,6 +9,7 @@ scores an RL agent.
 from .base import Controller
 from .disk import LQR, NoControl, SteeringPD
 from .joint import PD, ComputedTorque, PDGravity
+from .adaptive_swingup import AdaptiveSwingUpLQR
 from .swingup import SwingUpLQR
 
-__all__ = ["Controller", "PD", "PDGravity", "ComputedTorque", "LQR", "SteeringPD", "NoControl", "SwingUpLQR"]
+__all__ = ["Controller", "PD", "PDGravity", "ComputedTorque", "LQR", "SteeringPD", "NoControl", "SwingUpLQR", "AdaptiveSwingUpLQR"]

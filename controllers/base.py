@@ -31,22 +31,75 @@ def linearize(f: Any, x0: np.ndarray, u0: np.ndarray, eps: float = 1e-6) -> tupl
     Parameters
     ----------
     f : callable ``f(x, u) -> dx/dt``, batched over leading dimensions
-    x0 : ndarray, shape (n,)
-    u0 : ndarray, shape (m,)
+    x0 : ndarray, shape (..., n)
+    u0 : ndarray, shape (..., m)
+        Leading dimensions (a batch of points, e.g. one per member of a model with per-member
+        parameters) broadcast; ``f`` is called once with a leading axis of ``2 n`` (``2 m``) prepended.
 
     Returns
     -------
-    A : ndarray, shape (n, n)
-    B : ndarray, shape (n, m)
+    A : ndarray, shape (..., n, n)
+    B : ndarray, shape (..., n, m)
     """
-    n, m = len(x0), len(u0)
-    dX = np.concatenate([np.eye(n), -np.eye(n)]) * eps
-    dU = np.concatenate([np.eye(m), -np.eye(m)]) * eps
-    fx = f(x0 + dX, np.broadcast_to(u0, (2 * n, m)))  # one batched call for all columns
-    fu = f(np.broadcast_to(x0, (2 * m, n)), u0 + dU)
-    A = (fx[:n] - fx[n:]).T / (2 * eps)
-    B = (fu[:m] - fu[m:]).T / (2 * eps)
+    x0, u0 = np.asarray(x0, float), np.asarray(u0, float)
+    n, m = x0.shape[-1], u0.shape[-1]
+    lead = np.broadcast_shapes(x0.shape[:-1], u0.shape[:-1])
+    pad = (1,) * len(lead)
+    dX = (np.concatenate([np.eye(n), -np.eye(n)]) * eps).reshape((2 * n,) + pad + (n,))
+    dU = (np.concatenate([np.eye(m), -np.eye(m)]) * eps).reshape((2 * m,) + pad + (m,))
+    fx = f(np.broadcast_to(x0, lead + (n,)) + dX, np.broadcast_to(u0, (2 * n,) + lead + (m,)))  # one batched call
+    fu = f(np.broadcast_to(x0, (2 * m,) + lead + (n,)), np.broadcast_to(u0, lead + (m,)) + dU)
+    A = np.moveaxis(fx[:n] - fx[n:], 0, -1) / (2 * eps)
+    B = np.moveaxis(fu[:m] - fu[m:], 0, -1) / (2 * eps)
     return A, B
+
+
+def care(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, newton: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """The LQR gain ``K = R^-1 B^T S`` and the stabilizing solution ``S`` of the continuous
+    algebraic Riccati equation ``A^T S + S A - S B R^-1 B^T S + Q = 0``, batched.
+
+    ``S`` from the stable invariant subspace of the Hamiltonian ``[[A, -B R^-1 B^T], [-Q, -A^T]]``
+    (eigenvectors ``[X1; X2]`` of its ``n`` eigenvalues with negative real part, ``S = X2 X1^-1``),
+    refined by ``newton`` Newton--Kleinman steps (each a Lyapunov equation
+    ``Acl^T S + S Acl = -(Q + K^T R K)``, ``Acl = A - B K``, solved through its Kronecker form): the
+    same answer as ``control.lqr`` (``scipy.linalg.solve_continuous_are``) for one system, for a
+    batch in one call. ``(A, B)`` must be stabilizable.
+
+    Parameters
+    ----------
+    A : ndarray, shape (..., n, n)
+    B : ndarray, shape (..., n, m)
+    Q : ndarray, shape (n, n), symmetric positive semidefinite
+    R : ndarray, shape (m, m), symmetric positive definite
+
+    Returns
+    -------
+    K : ndarray, shape (..., m, n)
+    S : ndarray, shape (..., n, n)
+    """
+    A, B = np.asarray(A, float), np.asarray(B, float)
+    n = A.shape[-1]
+    Rinv = np.linalg.inv(R)
+    lead = np.broadcast_shapes(A.shape[:-2], B.shape[:-2])
+    A, B = np.broadcast_to(A, lead + A.shape[-2:]), np.broadcast_to(B, lead + B.shape[-2:])
+    BT = np.swapaxes(B, -1, -2)
+    H = np.concatenate([np.concatenate([A, -B @ Rinv @ BT], -1),
+                        np.concatenate([np.broadcast_to(-Q, lead + (n, n)), -np.swapaxes(A, -1, -2)], -1)], -2)  # fmt: skip
+    w, V = np.linalg.eig(H)
+    stable = np.argsort(w.real, axis=-1)[..., :n]
+    V = np.take_along_axis(V, stable[..., None, :], axis=-1)
+    S = np.real(np.linalg.solve(np.swapaxes(V[..., :n, :], -1, -2), np.swapaxes(V[..., n:, :], -1, -2)))
+    S = 0.5 * (S + np.swapaxes(S, -1, -2))  # X2 X1^-1 = (X1^-T X2^T)^T, symmetric up to round-off
+    eye = np.eye(n)
+    for _ in range(newton):
+        K = Rinv @ BT @ S
+        Acl = A - B @ K
+        AclT = np.swapaxes(Acl, -1, -2)
+        L = np.einsum("...ij,kl->...ikjl", AclT, eye) + np.einsum("ij,...kl->...ikjl", eye, AclT)  # vec(Acl^T S + S Acl)
+        rhs = -(Q + np.swapaxes(K, -1, -2) @ R @ K)
+        S = np.linalg.solve(L.reshape(lead + (n * n, n * n)), rhs.reshape(lead + (n * n,))[..., None]).reshape(lead + (n, n))
+        S = 0.5 * (S + np.swapaxes(S, -1, -2))
+    return Rinv @ BT @ S, S
 
 
 class Controller(abc.ABC):

@@ -68,14 +68,15 @@ def collocated_pfl(model: Any, q: np.ndarray, v: np.ndarray, y: np.ndarray, a: i
     return M[..., a, a] * y + M[..., a, p] * a_p + h[..., a]
 
 
-def upright_linearization(model: Any) -> tuple[np.ndarray, np.ndarray]:
+def upright_linearization(model: Any, lead: tuple[int, ...] = ()) -> tuple[np.ndarray, np.ndarray]:
     """``(A, B)`` of ``dx/dt = A x + B u`` about ``(q_up, v = 0, u = 0)``, ``x = (dq, dv)``: central
-    finite differences of the model's ``forward_dynamics``; shapes ``(4, 4)`` and ``(4, nu)``."""
+    finite differences of the model's ``forward_dynamics``; shapes ``lead + (4, 4)`` and ``lead + (4, nu)``
+    (``lead = (B,)`` for a model with per-member parameters of shape ``(B,)``)."""
 
     def f(x, u):
         return np.concatenate([x[..., 2:], model.forward_dynamics(x[..., :2], x[..., 2:], u)], axis=-1)
 
-    return linearize(f, np.concatenate([Q_UP, np.zeros(2)]), np.zeros(model.nu))
+    return linearize(f, np.broadcast_to(np.concatenate([Q_UP, np.zeros(2)]), lead + (4,)), np.zeros(lead + (model.nu,)))
 
 
 def upright_lqr(model: Any, Q: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -124,16 +125,18 @@ class SwingUpLQR(Controller):
         self.E_up = float(self.model.potential_energy(Q_UP))
         self.K, self.S = upright_lqr(self.model, self.Q, self.R)
 
-    def swing_up(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """The swing-up input ``u`` [N m], shape ``(...)``."""
+    def swing_up(self, q: np.ndarray, v: np.ndarray, model: Any = None) -> np.ndarray:
+        """The swing-up input ``u`` [N m], shape ``(...)``, computed on ``model`` (default the
+        controller's own; one with per-member parameters gives each member its own)."""
+        model = self.model if model is None else model
         a = self.driven
-        E_err = self.model.energy(q, v) - self.E_up
+        E_err = model.energy(q, v) - model.potential_energy(np.broadcast_to(Q_UP, q.shape))
         pump = self.k_E * E_err * v[..., 0] * (1.0 if a == 1 else -1.0)
         y = -self.k_q * wrap_angle(q[..., a] - Q_UP[a]) - self.k_v * v[..., a] + pump
-        return collocated_pfl(self.model, q, v, y, a)
+        return collocated_pfl(model, q, v, y, a)
 
     def balance(self, q: np.ndarray, v: np.ndarray, balancing: Any, episode_start: Any, catch: float | None = None,
-                release: float | None = None) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+                release: float | None = None, K: Any = None, S: Any = None) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
         """The switching rule (module docstring) and the LQR's input.
 
         Parameters
@@ -143,6 +146,8 @@ class SwingUpLQR(Controller):
             The mode so far (None: nobody balancing yet); reset where ``episode_start``.
         catch, release : float, optional
             The level and hysteresis; default the controller's own.
+        K, S : ndarray, shapes (..., 1, 4) and (..., 4, 4), optional
+            The LQR's gain and Riccati solution; default the controller's own (per member if batched).
 
         Returns
         -------
@@ -153,14 +158,16 @@ class SwingUpLQR(Controller):
         """
         catch = self.catch if catch is None else catch
         release = self.release if release is None else release
+        K = self.K if K is None else K
+        S = self.S if S is None else S
         x = np.concatenate([wrap_angle(q - Q_UP), v], axis=-1)
-        cost = np.einsum("...i,ij,...j->...", x, self.S, x)
+        cost = np.einsum("...i,...ij,...j->...", x, S, x)
         lead = cost.shape
         balancing = np.zeros(lead, bool) if balancing is None else np.array(balancing, bool).reshape(lead)
         if episode_start is not None:
             balancing = np.where(np.asarray(episode_start, bool).reshape(lead), False, balancing)
         balancing = np.where(balancing, cost <= release * catch, cost < catch)
-        return balancing, -(x @ self.K.T)[..., 0]
+        return balancing, -np.einsum("...ij,...j->...i", K, x)[..., 0]
 
     def control(self, obs: Any, state: Any, episode_start: Any) -> tuple[np.ndarray, Any]:
         balancing, u_lqr = self.balance(obs.q, obs.v, state, episode_start)

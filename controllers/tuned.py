@@ -15,6 +15,8 @@ and length mismatch). Each entry is keyed by env id and controller name:
 - ``PD steering`` (disk): ``k_dlean, k_lean, k_h, k_r, k_w``;
 - ``swing-up + LQR`` (Acrobot, Pendubot): ``k_q, k_v, k_E, catch`` and optionally ``lqr_r``
   (the LQR's input weight, 1 if absent);
+- ``adaptive swing-up + LQR`` (Acrobot, Pendubot): as ``swing-up + LQR``; without an entry of its
+  own it takes the ``swing-up + LQR`` entry (:data:`SAME_LAWS`);
 - ``RL + LQR`` (Acrobot, Pendubot): ``catch, release``, where an RL agent's swing-up hands over to
   the LQR (written by ``scripts/tune_handover.py``; :mod:`mbs_envs.studies.handover`).
 
@@ -39,6 +41,7 @@ FALLBACK: dict[str, dict[str, Any]] = {
     "LQR": {"Q": [10.0, 10.0, 1.0, 1.0, 0.1], "R": [1.0, 1.0], "q_integral": 1.0},
     "PD steering": {"k_dlean": 0.3, "k_lean": 0.05, "k_h": 0.5, "k_r": 0.0, "k_w": 0.05},
     "swing-up + LQR": {"k_q": 40.0, "k_v": 10.0, "k_E": 4.0, "catch": 100.0},
+    "adaptive swing-up + LQR": {"k_q": 40.0, "k_v": 10.0, "k_E": 4.0, "catch": 100.0},
     "RL + LQR": {},  # empty: the pair catches at the swing-up + LQR's own level
 }
 
@@ -60,17 +63,25 @@ def env_id(env: Any) -> str | None:
 SAME_PLANT = {"mbs_envs/Acrobot-v1": "mbs_envs/Acrobot-v0", "mbs_envs/Pendubot-v1": "mbs_envs/Pendubot-v0"}
 
 
+#: a controller -> the controller whose tuned entry it takes while it has none of its own (the same laws and gains)
+SAME_LAWS = {"adaptive swing-up + LQR": "swing-up + LQR"}
+
+
 def tuned_gains(env: Any, controller: str) -> dict[str, Any]:
     """The default gains of ``controller`` (a display name, e.g. ``"computed torque"``) on ``env``
-    (for a task version that only changed the reward, those tuned on its earlier version: :data:`SAME_PLANT`)."""
+    (for a task version that only changed the reward, those tuned on its earlier version: :data:`SAME_PLANT`;
+    for a controller without an entry, those of the controller whose laws it shares: :data:`SAME_LAWS`)."""
     if controller not in FALLBACK:
         raise ValueError(f"no tuned gains for controller {controller!r}; known: {sorted(FALLBACK)}")
     key = env_id(env) or ""
     table = _table()
-    entry = table.get(key, {}).get(controller)
-    if entry is None:  # a reward-only version: the gains tuned on the version whose plant it shares
-        entry = table.get(SAME_PLANT.get(key, ""), {}).get(controller)
-    return copy.deepcopy(entry if entry is not None else FALLBACK[controller])
+    for name in (controller, SAME_LAWS.get(controller)):
+        entry = table.get(key, {}).get(name)
+        if entry is None:  # a reward-only version: the gains tuned on the version whose plant it shares
+            entry = table.get(SAME_PLANT.get(key, ""), {}).get(name)
+        if entry is not None:
+            return copy.deepcopy(entry)
+    return copy.deepcopy(FALLBACK[controller])
 
 
 def clear_cache() -> None:

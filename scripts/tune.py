@@ -45,6 +45,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--out", required=True, type=pathlib.Path, help="folder for the results")
     p.add_argument("--seeds", type=int, default=10, help="tuning seeds per condition (default 10)")
     p.add_argument("--scene", action="append", choices=list(SCENES), help="scene(s) (default all)")
+    p.add_argument("--controller", action="append", help="controller(s) by display name, e.g. 'adaptive swing-up + LQR' (default all)")
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--write", action="store_true", help="store the chosen gains in controllers/tuned.json")
     p.add_argument("--refine-only", action="store_true",
@@ -66,7 +67,10 @@ def tune_one(task: dict) -> dict:
 
 def run(args: argparse.Namespace) -> dict:
     scenes = args.scene or list(SCENES)
-    tasks = [{"scene": s, "controller": c, "seeds": args.seeds} for s in scenes for c in SCENES[s][2] if c in tuning.GRIDS]
+    tasks = [{"scene": s, "controller": c, "seeds": args.seeds} for s in scenes for c in SCENES[s][2]
+             if c in tuning.GRIDS and (not args.controller or c in args.controller)]  # fmt: skip
+    if not tasks:
+        raise SystemExit(f"tune.py: no tunable controller {args.controller} in {scenes}")
     stored = json.loads(tuned.PATH.read_text()) if tuned.PATH.exists() else {"gains": {}, "scores": {}}
     if args.refine_only:  # the stored first stage's pick is where the second stage starts
         tasks = [dict(t, start=stored["gains"][SCENES[t["scene"]][0]][t["controller"]]) for t in tasks if t["controller"] in tuning.REFINE]

@@ -24,7 +24,8 @@ JOINT_CONTROLLERS = MappingProxyType(
 )
 
 #: the swing-up scenes' model-based controller (underactuated: no joint tracking controller applies)
-SWING_UP_CONTROLLERS = MappingProxyType({"swing-up + LQR": "controllers:SwingUpLQR"})
+SWING_UP_CONTROLLERS = MappingProxyType({"swing-up + LQR": "controllers:SwingUpLQR",
+                                         "adaptive swing-up + LQR": "controllers:AdaptiveSwingUpLQR"})
 
 
 @dataclasses.dataclass(frozen=True)

@@ -107,7 +107,8 @@ def swing_up_refine_grid(best: dict[str, Any]) -> list[dict[str, Any]]:
 
 
 #: controller display name -> the grid of a second stage around the first stage's pick
-REFINE: dict[str, Callable[[dict[str, Any]], list[dict[str, Any]]]] = {"swing-up + LQR": swing_up_refine_grid}
+REFINE: dict[str, Callable[[dict[str, Any]], list[dict[str, Any]]]] = {"swing-up + LQR": swing_up_refine_grid,
+                                                                     "adaptive swing-up + LQR": swing_up_refine_grid}
 
 #: controller display name -> its grid
 GRIDS: dict[str, Callable[[], list[dict[str, Any]]]] = {
@@ -117,6 +118,7 @@ GRIDS: dict[str, Callable[[], list[dict[str, Any]]]] = {
     "LQR": lqr_grid,
     "PD steering": steering_grid,
     "swing-up + LQR": swing_up_grid,
+    "adaptive swing-up + LQR": swing_up_grid,
 }
 
 
