@@ -51,6 +51,7 @@ from mbs_envs.envs import registry
 from mbs_envs.studies.catch import catch_rows, catch_table
 from mbs_envs.studies.handover import TUNED_NAME as HAND_OVER_NAME
 from mbs_envs.studies.parallel import run_tasks
+from mbs_envs.studies import provenance
 from mbs_envs.studies.plotting import pyplot, save
 from mbs_envs.studies.sizing import actuator_sizing
 
@@ -112,7 +113,8 @@ def run(args: argparse.Namespace) -> dict:
     catch = [r for scene in scenes if scoring_of(scene) == "swing-up" for r in catch_rows(scene, conds)]
     report = make_report(summary, sizing, agents, curves, seeds, conds, n_swing, catch)
     (args.out / "report.md").write_text(report)
-    config = {"test_seeds": [seeds[0], seeds[-1]], "conditions": [c.name for c in conds], "agents": portable(agents)}
+    config = {"test_seeds": [seeds[0], seeds[-1]], "conditions": [c.name for c in conds], "agents": portable(agents),
+              "provenance": provenance.record()}  # fmt: skip
     (args.out / "summary.json").write_text(json.dumps({"config": config, "summary": summary, "sizing": sizing, "catch": catch}, indent=2, default=float))
     print(headline(summary))
     swing = swing_up_headline(summary)
@@ -380,6 +382,8 @@ def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: 
              "Compute per action: one `predict` on one observation, one thread, median of 200; in brackets with a fresh noisy "
              "observation at every call. Training wall times are as each run recorded them (one torch thread, evaluation "
              "excluded); runs may have shared the machine with other runs, so they bound the cost from above.")  # fmt: skip
+    L += ["", f"Run on: {provenance.summary_line(provenance.record())} (`mbs_envs/studies/provenance.py`: what the numbers "
+          "depend on besides the code; the same stack reproduces every non-timing value).", ""]  # fmt: skip
     L += ["", "## Headline", "", headline(summary), ""]
     if swing_up_headline(summary):
         L += ["**Swing-up scenes** (Acrobot-v1, Pendubot-v1: one motor; an episode succeeds when both joints stay within "

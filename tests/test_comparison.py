@@ -233,3 +233,14 @@ def test_a_reward_only_version_takes_its_plants_tuned_gains_even_with_entries_of
     v0, v1 = gym.make("mbs_envs/Acrobot-v0"), gym.make("mbs_envs/Acrobot-v1")
     assert tuned.tuned_gains(v1, "swing-up + LQR") == tuned.tuned_gains(v0, "swing-up + LQR") != tuned.FALLBACK["swing-up + LQR"]
     assert "mbs_envs/Acrobot-v1" in tuned._table()  # it has an entry (the RL + LQR catch), and still falls back per controller
+
+
+def test_the_run_records_what_its_numbers_depend_on():
+    from mbs_envs.studies import provenance
+
+    rec = provenance.record()
+    assert set(rec) == {"python", "platform", "cpu", "libraries"} and set(rec["libraries"]) == set(provenance.LIBRARIES)
+    import numpy
+
+    assert rec["libraries"]["numpy"] == numpy.__version__ and f"numpy {numpy.__version__}" in provenance.summary_line(rec)
+    assert set(rec["cpu"]["flags"]) <= set(provenance.CPU_FLAGS)
