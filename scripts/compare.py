@@ -175,8 +175,8 @@ def scoring_of(scene: str) -> str:
 
 
 def swing_up_headline(summary: dict) -> str:
-    """Best policy per side on the swing-up scenes: success (upright for the last 2 s), time to swing up,
-    energy, at nominal and under each perturbation."""
+    """Best policy per side on the swing-up scenes (and every model-based controller): success (upright for
+    the last 2 s), time to swing up, energy, at nominal and under each perturbation."""
     scenes = [s for s in summary if scoring_of(s) == "swing-up"]
     if not scenes:
         return ""
@@ -193,11 +193,14 @@ def swing_up_headline(summary: dict) -> str:
             if name is None:
                 lines.append(f"| {scene} | best {kind} | (none swings up) |" + " |" * (5 + len(conds)))
                 continue
-            m = nominal[name]
-            cells = [success(m), success(m, "success_wide"), ci(m, "time_near_upright"), ci(m, "time_to_swing_up"), ci(m, "energy_used")]
-            cells += [f"{by_cond[c][name]['success']:.0%} / {by_cond[c][name]['success_wide']:.0%} / {by_cond[c][name]['time_near_upright']:.1f}"
-                      for c in conds]  # fmt: skip
-            lines.append(f"| {scene} | best {kind} | {name} | " + " | ".join(cells) + " |")
+            # the model-based side shows every controller (the simple baseline beside the stronger ones), best first
+            others = [n for n, m in nominal.items() if m["kind"] == kind and n != name] if kind == "model-based" else []
+            for label, shown in [(f"best {kind}", name)] + [(kind, n) for n in others]:
+                m = nominal[shown]
+                cells = [success(m), success(m, "success_wide"), ci(m, "time_near_upright"), ci(m, "time_to_swing_up"), ci(m, "energy_used")]
+                cells += [f"{by_cond[c][shown]['success']:.0%} / {by_cond[c][shown]['success_wide']:.0%} / "
+                          f"{by_cond[c][shown]['time_near_upright']:.1f}" for c in conds]  # fmt: skip
+                lines.append(f"| {scene} | {label} | {shown} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
