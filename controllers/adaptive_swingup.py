@@ -4,31 +4,31 @@
 LQR about upright, the catch by the LQR's cost-to-go) computed on the arm's base parameters as
 identified online from its energy balance (:mod:`controllers.identification`), per member of the
 batch, instead of on the nominal model: the upright energy the pumping aims at, the partial feedback
-linearization, and the LQR's gain and cost-to-go (re-solved every step from the current estimate,
-:func:`controllers.base.care`). A plant whose masses and lengths differ from the nominal ones is then
-swung to its own upright energy and balanced with gains for its own linearization.
+linearization, and the LQR's gain and cost-to-go (solved again, :func:`controllers.base.care`, whenever
+the estimate changes). A plant whose masses and lengths differ from the nominal ones is then swung to
+its own upright energy and balanced with gains for its own linearization.
 
 **Memory** (SB3's ``state``, reset where ``episode_start``; one row of :data:`STATE_SIZE` floats per
 member): the balancing mode, the normal equations of the identification, the open window (its start
-regressor, its input work so far, its length), the driven joint's last angle and the last input, and
-the last estimate that was physically consistent (used while a newer one is not, e.g. before the
-motion has excited every parameter) with the LQR's gain and cost-to-go for it (solved again only when
-the estimate changes).
+regressor, its input work so far, its length), the driven joint's last angle and the last input, the
+last estimate that was physically consistent (used while a newer one is not, e.g. before the motion has
+excited every parameter) with the LQR's gain and cost-to-go for it, and the filter's estimate and
+covariance.
 
 **Noisy observations** (:mod:`controllers.estimator`): with ``obs_noise > 0`` an extended Kalman filter
 on the identified model's control map estimates the state from the observations, and everything above
-(the identification, the swing-up, the catch and the LQR) acts on the estimate. (Identifying from the raw
-observations instead, the filter predicting with that model, held 8 % (38 %) of the noisy acrobot episodes
-against 17 % (65 %): the filtered states identify better under noise. Without noise the filter's lag
-biases the estimate slightly: up to 6 % in one of four test cases at 4 s, against 0.1 % unfiltered.) Its process noise is
+(the identification, the swing-up, the catch and the LQR) acts on the estimate. Its process noise is
 small while balancing (the linearization is accurate there: 1e-4 rad and 1e-2 rad/s per step) and larger
-while swinging (3e-4 rad, 3e-2 rad/s), where the first estimates of the model are crude and a
-confident filter would follow the wrong model. These were picked on tuning seeds 20000-20039 from four
-settings (swinging 1e-2/1 down to 1e-4/1e-2, the same in both modes): on the acrobot, filtering
-throughout with the balancing setting held 20 % within 0.1 rad (72 % within 0.2 rad) of the noisy
-episodes, against 0 % (5 %) without a filter, but only 10 % of the noise-free -20 % plant's episodes,
-against 62 % without; this setting: 17 % (68 %) noisy, 48 % at -20 %. The gains (``k_q ... lqr_r``)
-were tuned without the filter.
+while swinging (3e-4 rad, 3e-2 rad/s), where the first estimates of the model are crude and a confident
+filter would follow the wrong model. Picked on tuning seeds 20000-20039 (acrobot) from four settings of
+the swinging noise (1e-2/1 down to 1e-4/1e-2, the last the same in both modes), scored on the noisy and
+the -20 % plant: filtering throughout with the balancing setting held 20 % of the noisy episodes within
+0.1 rad (72 % within 0.2 rad), against 0 % (5 %) without a filter, but only 10 % of the noise-free
+-20 % plant's, against 62 % without; the setting taken: 17 % (68 %) noisy, 48 % at -20 %. Identifying
+from the raw observations instead of the filtered ones held 8 % (38 %) of the noisy episodes: the
+filtered states identify better under noise (without noise the filter's lag biases the estimate a
+little: up to 6 % at 4 s in one of four test cases, against 0.1 % unfiltered). The gains
+(``k_q ... lqr_r``) were tuned without the filter.
 
 The input work uses the input this controller commanded; with an input delay the plant applied an
 earlier one, and the estimate is biased accordingly (the comparison's delay condition measures it).
