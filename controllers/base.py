@@ -54,6 +54,23 @@ def linearize(f: Any, x0: np.ndarray, u0: np.ndarray, eps: float = 1e-6) -> tupl
     return A, B
 
 
+def solve_rows(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.linalg.solve`` over a batch, NaN (instead of an exception for the whole batch) for the members
+    whose matrix is singular. Shapes as ``np.linalg.solve``'s: ``(..., n, n)``, ``(..., n, k)``."""
+    try:
+        return np.linalg.solve(A, b)
+    except np.linalg.LinAlgError:
+        lead = np.broadcast_shapes(A.shape[:-2], b.shape[:-2])
+        A, b = np.broadcast_to(A, lead + A.shape[-2:]), np.broadcast_to(b, lead + b.shape[-2:])
+        out = np.full(lead + b.shape[-2:], np.nan, dtype=np.result_type(A, b))
+        for idx in np.ndindex(out.shape[:-2]):
+            try:
+                out[idx] = np.linalg.solve(A[idx], b[idx])
+            except np.linalg.LinAlgError:
+                pass
+        return out
+
+
 def care(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, newton: int = 3) -> tuple[np.ndarray, np.ndarray]:
     """The LQR gain ``K = R^-1 B^T S`` and the stabilizing solution ``S`` of the continuous
     algebraic Riccati equation ``A^T S + S A - S B R^-1 B^T S + Q = 0``, batched.
@@ -63,7 +80,9 @@ def care(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, newton: int
     refined by ``newton`` Newton--Kleinman steps (each a Lyapunov equation
     ``Acl^T S + S Acl = -(Q + K^T R K)``, ``Acl = A - B K``, solved through its Kronecker form): the
     same answer as ``control.lqr`` (``scipy.linalg.solve_continuous_are``) for one system, for a
-    batch in one call. ``(A, B)`` must be stabilizable.
+    batch in one call. Where ``(A, B)`` is not stabilizable (or so close to it that a step's linear
+    system is singular, or the result does not stabilize it) that member's ``K`` and ``S`` are NaN; the
+    others are unaffected.
 
     Parameters
     ----------
@@ -88,7 +107,7 @@ def care(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, newton: int
     w, V = np.linalg.eig(H)
     stable = np.argsort(w.real, axis=-1)[..., :n]
     V = np.take_along_axis(V, stable[..., None, :], axis=-1)
-    S = np.real(np.linalg.solve(np.swapaxes(V[..., :n, :], -1, -2), np.swapaxes(V[..., n:, :], -1, -2)))
+    S = np.real(solve_rows(np.swapaxes(V[..., :n, :], -1, -2), np.swapaxes(V[..., n:, :], -1, -2)))
     S = 0.5 * (S + np.swapaxes(S, -1, -2))  # X2 X1^-1 = (X1^-T X2^T)^T, symmetric up to round-off
     eye = np.eye(n)
     for _ in range(newton):
@@ -97,9 +116,12 @@ def care(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, newton: int
         AclT = np.swapaxes(Acl, -1, -2)
         L = np.einsum("...ij,kl->...ikjl", AclT, eye) + np.einsum("ij,...kl->...ikjl", eye, AclT)  # vec(Acl^T S + S Acl)
         rhs = -(Q + np.swapaxes(K, -1, -2) @ R @ K)
-        S = np.linalg.solve(L.reshape(lead + (n * n, n * n)), rhs.reshape(lead + (n * n,))[..., None]).reshape(lead + (n, n))
+        S = solve_rows(L.reshape(lead + (n * n, n * n)), rhs.reshape(lead + (n * n,))[..., None]).reshape(lead + (n, n))
         S = 0.5 * (S + np.swapaxes(S, -1, -2))
-    return Rinv @ BT @ S, S
+    K = Rinv @ BT @ S
+    with np.errstate(invalid="ignore"):
+        bad = ~np.isfinite(S).all(axis=(-1, -2)) | (np.linalg.eigvals(A - B @ np.nan_to_num(K)).real.max(axis=-1) >= 0)  # or not stabilizing
+    return np.where(bad[..., None, None], np.nan, K), np.where(bad[..., None, None], np.nan, S)
 
 
 class Controller(abc.ABC):

@@ -53,6 +53,17 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     return p.parse_args(argv)
 
 
+def first_stage_of(stored: dict, env_id: str, controller: str) -> tuple[str, str]:
+    """``(env id, controller)`` of the stored first-stage pick ``controller``'s second stage on ``env_id`` starts
+    from: its own, or that of the controller whose laws it shares (:data:`controllers.tuned.SAME_LAWS`), on
+    ``env_id`` or on the version whose plant it shares (:data:`controllers.tuned.SAME_PLANT`)."""
+    for env in (env_id, tuned.SAME_PLANT.get(env_id)):
+        for name in (controller, tuned.SAME_LAWS.get(controller)):
+            if name in stored["gains"].get(env, {}):
+                return env, name
+    raise SystemExit(f"tune.py: --refine-only: no stored first stage for {controller!r} on {env_id}")
+
+
 def tune_one(task: dict) -> dict:
     """Tune one controller of one scene; also score its pre-tuning default."""
     import torch
@@ -72,8 +83,10 @@ def run(args: argparse.Namespace) -> dict:
     if not tasks:
         raise SystemExit(f"tune.py: no tunable controller {args.controller} in {scenes}")
     stored = json.loads(tuned.PATH.read_text()) if tuned.PATH.exists() else {"gains": {}, "scores": {}}
-    if args.refine_only:  # the stored first stage's pick is where the second stage starts
-        tasks = [dict(t, start=stored["gains"][SCENES[t["scene"]][0]][t["controller"]]) for t in tasks if t["controller"] in tuning.REFINE]
+    if args.refine_only:  # the stored first stage's pick is where the second stage starts (for a controller without
+        # an entry of its own, the pick of the controller whose laws it shares: controllers.tuned.SAME_LAWS)
+        tasks = [dict(t, start=stored["gains"][env][name]) for t in tasks if t["controller"] in tuning.REFINE
+                 for env, name in [first_stage_of(stored, SCENES[t["scene"]][0], t["controller"])]]  # fmt: skip
         if not tasks:
             raise SystemExit("tune.py: --refine-only: none of these controllers has a second stage")
     args.out.mkdir(parents=True, exist_ok=True)
@@ -105,9 +118,10 @@ def run(args: argparse.Namespace) -> dict:
         score = {"tuned": {"failure_rate": chosen["failure_rate"], "error": chosen["error"]},
                  "pre_tuning": r["pre_tuning"], "at_grid_edge": edge, "wall_s": r["wall_s"], "command": command}  # fmt: skip
         if r.get("start") is not None:  # the first stage is the stored one
-            first = stored["scores"][env_id][r["controller"]]
-            score.update(first_stage={"entry": r["start"], "command": first["command"], "wall_s": first["wall_s"],
-                                      "tuned": first["tuned"]}, wall_s=first["wall_s"] + r["wall_s"])  # fmt: skip
+            env, source = first_stage_of(stored, env_id, r["controller"])
+            first = stored["scores"][env][source]
+            score.update(first_stage={"entry": r["start"], "env": env, "controller": source, "command": first["command"],
+                                      "wall_s": first["wall_s"], "tuned": first["tuned"]}, wall_s=first["wall_s"] + r["wall_s"])  # fmt: skip
         record["scores"].setdefault(env_id, {})[r["controller"]] = score
         print(f"{r['scene']:12s} {r['controller']:16s} tuned {r['best']}: failures {chosen['failure_rate']:.0%}, "
               f"error {chosen['error']:.3g} (pre-tuning: {r['pre_tuning']['failure_rate']:.0%}, {r['pre_tuning']['error']:.3g})"

@@ -403,3 +403,13 @@ def test_compare_records_repository_paths_relative_to_its_root():
     root = str(script["ROOT"])
     got = script["portable"]({"Acrobot": {"PPO": [f"{root}/agents/Acrobot-v1/ppo/seed0", f"lqr-catch:{root}/agents/x"]}, "n": 3})
     assert got == {"Acrobot": {"PPO": ["agents/Acrobot-v1/ppo/seed0", "lqr-catch:agents/x"]}, "n": 3}
+
+
+def test_tune_refine_only_starts_a_controller_without_a_pick_from_the_one_whose_laws_it_shares():
+    script = load_script("tune.py")
+    stored = {"gains": {"mbs_envs/Acrobot-v0": {"swing-up + LQR": {"k_q": 2.0}}}}
+    assert script["first_stage_of"](stored, "mbs_envs/Acrobot-v1", "adaptive swing-up + LQR") == ("mbs_envs/Acrobot-v0", "swing-up + LQR")
+    stored["gains"]["mbs_envs/Acrobot-v1"] = {"adaptive swing-up + LQR": {"k_q": 5.0}}
+    assert script["first_stage_of"](stored, "mbs_envs/Acrobot-v1", "adaptive swing-up + LQR") == ("mbs_envs/Acrobot-v1", "adaptive swing-up + LQR")
+    with pytest.raises(SystemExit, match="no stored first stage"):
+        script["first_stage_of"](stored, "mbs_envs/Pendubot-v1", "adaptive swing-up + LQR")

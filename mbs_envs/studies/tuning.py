@@ -36,6 +36,10 @@ between themselves, are ranked by the error over the conditions they do win
   {1, 3, 10, 30, ..., 1e8} (``x^T S x`` grows with ``R``): 128 candidates, among them the first
   pick (runs of this stage with ``R`` up to 1e3, then 1e4, picked the largest on the pendubot,
   so it was widened).
+- adaptive swing-up + LQR: the same two grids. The shipped entry ran the second stage only, from
+  swing-up + LQR's first-stage pick (``scripts/tune.py --refine-only``; a first stage for it, at about
+  an hour per scene on one core, did not finish in the session that built it): its pumping gains are
+  those tuned for the nominal-model controller, its LQR weight and catch level its own.
 
 A pick at the edge of its grid is reported as such by ``scripts/tune.py``
 (the grid should then be widened).

@@ -278,3 +278,14 @@ def test_it_balances_from_near_upright_on_every_plant_of_the_tuning_set(scale):
         obs, *_, info = env.step(action)
         err.append(np.max(np.abs(info["tracking_error"])))
     assert state[0] > 0.5 and info["upright"] and max(err[-100:]) < 5e-3 and max(err[-100:]) < 0.5 * max(err[100:200])
+
+
+def test_riccati_of_an_unstabilizable_member_is_nan_and_leaves_the_others():
+    A_ok, B = upright_linearization(Planar2R(driven=(1,)))
+    A_bad = np.diag([1.0, -1.0, -2.0, -3.0])  # its unstable mode is not reached by B
+    B_bad = np.array([[0.0], [1.0], [1.0], [1.0]])
+    Q, R = np.diag([10.0, 10.0, 1.0, 1.0]), np.array([[1.0]])
+    K, S = care(np.stack([A_ok, A_bad, A_ok]), np.stack([B, B_bad, B]), Q, R)
+    assert np.isnan(K[1]).all() and np.isnan(S[1]).all()
+    K0, S0 = care(A_ok, B, Q, R)
+    assert np.array_equal(K[0], K0) and np.array_equal(K[2], K0) and np.isfinite(K0).all()
