@@ -46,6 +46,7 @@ from mbs_envs.envs.tracking import wrap_angle
 
 from . import identification as ident
 from .base import care
+from .control_map import state_error
 from .estimator import ekf_step
 from .swingup import SwingUpLQR, upright_linearization
 
@@ -54,6 +55,8 @@ N = ident.N_BASE
 MODE, A_, B_, PHI0, WORK, QA, U, COUNT, THETA, K_, S_, XH, P_ = (
     0, slice(1, 26), slice(26, 31), slice(31, 36), 36, 37, 38, 39, slice(40, 45), slice(45, 49), slice(49, 65), slice(65, 69), slice(69, 85))
 STATE_SIZE = 85
+#: the filter restarts from the observation where its estimate is this many noise deviations off it
+RESTART_SIGMAS = 50.0
 
 
 class AdaptiveSwingUpLQR(SwingUpLQR):
@@ -123,7 +126,14 @@ class AdaptiveSwingUpLQR(SwingUpLQR):
         n = len(state)
         model = ident.identified_model(state[:, THETA], self.model)
         Q_w = np.where((state[:, MODE] > 0.5)[:, None, None], self.Q_w[0], self.Q_w[1])
-        x, P = ekf_step(model, state[:, XH], state[:, P_].reshape(n, 4, 4), state[:, U][:, None], y, self.dt, self.substeps, Q_w, self.R_n)
+        with np.errstate(all="ignore"):  # a diverging member is caught below
+            x, P = ekf_step(model, state[:, XH], state[:, P_].reshape(n, 4, 4), state[:, U][:, None], y, self.dt, self.substeps,
+                            Q_w, self.R_n)  # fmt: skip
+        # an estimate that is not finite or has left the observation by more than RESTART_SIGMAS noise deviations
+        # (the model's prediction lost: a plant far off the identified model, a fall) restarts from the observation
+        lost = ~(np.isfinite(x).all(axis=1) & np.isfinite(P).all(axis=(1, 2)))
+        lost |= np.abs(state_error(np.where(lost[:, None], y, x), y)).max(axis=1) > RESTART_SIGMAS * self.obs_noise
+        x[lost], P[lost] = y[lost], self.R_n
         state[:, XH], state[:, P_] = x, P.reshape(n, 16)
         return state
 

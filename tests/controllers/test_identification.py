@@ -289,3 +289,22 @@ def test_riccati_of_an_unstabilizable_member_is_nan_and_leaves_the_others():
     assert np.isnan(K[1]).all() and np.isnan(S[1]).all()
     K0, S0 = care(A_ok, B, Q, R)
     assert np.array_equal(K[0], K0) and np.array_equal(K[2], K0) and np.isfinite(K0).all()
+
+
+def test_a_lost_filter_restarts_from_the_observation():
+    """A non-finite or far-off estimate in the memory (e.g. a plant far from the identified model) is replaced
+    by the observation, and the input stays finite."""
+    env_id = "mbs_envs/Acrobot-v1"
+    policy = AdaptiveSwingUpLQR(gym.make(env_id))
+    venv = gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point", autoreset_mode="Disabled")
+    obs, _ = venv.reset(seed=[0, 1, 2])
+    _, state = policy.predict(obs, episode_start=np.ones(3, bool))
+    from controllers.adaptive_swingup import XH
+
+    state[0, XH] = np.nan
+    state[1, XH] = state[1, XH] + [3.0, 0.0, 50.0, 0.0]
+    action, new = policy.predict(obs, state=state, episode_start=np.zeros(3, bool))
+    decoded = policy.decode_observation(obs)
+    y = np.concatenate([decoded.q, decoded.v], 1)
+    assert np.isfinite(action).all() and np.array_equal(new[:2, XH], y[:2])
+    assert np.abs(new[2, XH] - y[2]).max() < 0.05
