@@ -37,8 +37,8 @@ between themselves, are ranked by the error over the conditions they do win
   pick (runs of this stage with ``R`` up to 1e3, then 1e4, picked the largest on the pendubot,
   so it was widened).
 - adaptive swing-up + LQR: the same two grids. The shipped entry ran the second stage only, from
-  swing-up + LQR's first-stage pick (``scripts/tune.py --refine-only``; a first stage for it, at about
-  an hour per scene on one core, did not finish in the session that built it): its pumping gains are
+  swing-up + LQR's first-stage pick (``scripts/tune.py --refine-only``; a first stage for it, about an
+  hour per scene on one core, crashed on a singular Riccati step, since fixed, and was not repeated): its pumping gains are
   those tuned for the nominal-model controller, its LQR weight and catch level its own.
 
 A pick at the edge of its grid is reported as such by ``scripts/tune.py``
