@@ -130,7 +130,8 @@ class SwingUpLQR(Controller):
         controller's own; one with per-member parameters gives each member its own)."""
         model = self.model if model is None else model
         a = self.driven
-        E_err = model.energy(q, v) - model.potential_energy(np.broadcast_to(Q_UP, q.shape))
+        E_up = self.E_up if model is self.model else model.potential_energy(np.broadcast_to(Q_UP, q.shape))
+        E_err = model.energy(q, v) - E_up
         pump = self.k_E * E_err * v[..., 0] * (1.0 if a == 1 else -1.0)
         y = -self.k_q * wrap_angle(q[..., a] - Q_UP[a]) - self.k_v * v[..., a] + pump
         return collocated_pfl(model, q, v, y, a)

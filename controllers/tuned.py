@@ -41,7 +41,6 @@ FALLBACK: dict[str, dict[str, Any]] = {
     "LQR": {"Q": [10.0, 10.0, 1.0, 1.0, 0.1], "R": [1.0, 1.0], "q_integral": 1.0},
     "PD steering": {"k_dlean": 0.3, "k_lean": 0.05, "k_h": 0.5, "k_r": 0.0, "k_w": 0.05},
     "swing-up + LQR": {"k_q": 40.0, "k_v": 10.0, "k_E": 4.0, "catch": 100.0},
-    "adaptive swing-up + LQR": {"k_q": 40.0, "k_v": 10.0, "k_E": 4.0, "catch": 100.0},
     "RL + LQR": {},  # empty: the pair catches at the swing-up + LQR's own level
 }
 
@@ -65,6 +64,7 @@ SAME_PLANT = {"mbs_envs/Acrobot-v1": "mbs_envs/Acrobot-v0", "mbs_envs/Pendubot-v
 
 #: a controller -> the controller whose tuned entry it takes while it has none of its own (the same laws and gains)
 SAME_LAWS = {"adaptive swing-up + LQR": "swing-up + LQR"}
+FALLBACK.update({name: FALLBACK[same] for name, same in SAME_LAWS.items()})
 
 
 def tuned_gains(env: Any, controller: str) -> dict[str, Any]:

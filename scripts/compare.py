@@ -386,7 +386,7 @@ def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: 
              "observation at every call. Training wall times are as each run recorded them (one torch thread, evaluation "
              "excluded); runs may have shared the machine with other runs, so they bound the cost from above.")  # fmt: skip
     L += ["", f"Run on: {provenance.summary_line(provenance.record())} (`mbs_envs/studies/provenance.py`: what the numbers "
-          "depend on besides the code; the same stack reproduces every non-timing value).", ""]  # fmt: skip
+          "depend on besides the code; a re-run on the same stack reproduced every non-timing value, measured on 2026-11-24).", ""]  # fmt: skip
     L += ["", "## Headline", "", headline(summary), ""]
     if swing_up_headline(summary):
         L += ["**Swing-up scenes** (Acrobot-v1, Pendubot-v1: one motor; an episode succeeds when both joints stay within "

@@ -252,19 +252,24 @@ def test_the_filter_follows_the_nonlinear_arm_through_a_swing_up():
 
 
 def test_without_the_filter_the_observation_is_the_state():
+    """With ``obs_noise = 0`` the filter's memory does not enter the action; with the filter it does."""
     env_id = "mbs_envs/Acrobot-v1"
-    policy = AdaptiveSwingUpLQR(gym.make(env_id), obs_noise=0.0)
-    venv = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", autoreset_mode="Disabled")
-    obs, _ = venv.reset(seed=[0, 1])
-    a, state = policy.predict(obs, episode_start=np.ones(2, bool))
-    obs, *_ = venv.step(a)
-    _, state = policy.predict(obs, state=state, episode_start=np.zeros(2, bool))
     from controllers.adaptive_swingup import XH
 
-    decoded = policy.decode_observation(obs)
-    assert np.array_equal(state[:, XH], np.concatenate([decoded.q, decoded.v], 1)[[0, 1]] * 0 + state[:, XH])  # untouched rows
-    assert np.allclose(state[:, XH], policy.initial_state(np.array(policy.decode_observation(venv.reset(seed=[0, 1])[0]).q),
-                                                          np.array(policy.decode_observation(venv.reset(seed=[0, 1])[0]).v))[:, XH])
+    for obs_noise, enters in ((0.0, False), (0.01, True)):
+        policy = AdaptiveSwingUpLQR(gym.make(env_id), obs_noise=obs_noise)
+        venv = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", autoreset_mode="Disabled")
+        obs, _ = venv.reset(seed=[0, 1])
+        state, start = None, np.ones(2, bool)
+        for _ in range(5):  # early in the swing-up, where the input is not saturated
+            action, state = policy.predict(obs, state=state, episode_start=start)
+            start[:] = False
+            obs, *_ = venv.step(action)
+        moved = state.copy()
+        moved[:, XH] += [0.05, -0.05, 0.5, -0.5]
+        a0, _ = policy.predict(obs, state=state, episode_start=start)
+        a1, _ = policy.predict(obs, state=moved, episode_start=start)
+        assert np.abs(a0).max() < 1.0 and (not np.array_equal(a0, a1)) == enters
 
 
 @pytest.mark.parametrize("scale", [0.8, 1.0, 1.2])
