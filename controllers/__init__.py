@@ -10,6 +10,7 @@ from .base import Controller
 from .disk import LQR, NoControl, SteeringPD
 from .joint import PD, ComputedTorque, PDGravity
 from .adaptive_swingup import AdaptiveSwingUpLQR
+from .planned_swingup import PlannedSwingUp
 from .swingup import SwingUpLQR
 
-__all__ = ["Controller", "PD", "PDGravity", "ComputedTorque", "LQR", "SteeringPD", "NoControl", "SwingUpLQR", "AdaptiveSwingUpLQR"]
+__all__ = ["Controller", "PD", "PDGravity", "ComputedTorque", "LQR", "SteeringPD", "NoControl", "SwingUpLQR", "AdaptiveSwingUpLQR", "PlannedSwingUp"]

@@ -174,10 +174,13 @@ class AdaptiveSwingUpLQR(SwingUpLQR):
         A, B = upright_linearization(model, (n,))
         return care(A, B, self.Q, self.R)
 
-    def control(self, obs: Any, state: Any, episode_start: Any) -> tuple[np.ndarray, Any]:
-        single = obs.q.ndim == 1
+    def observe(self, obs: Any, state: Any, episode_start: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The memory after an observation: the filter's step (with ``obs_noise > 0``) and the identification's,
+        fresh rows where an episode starts. Returns ``(state (n, STATE_SIZE), q (n, 2), v (n, 2), start (n,))``,
+        ``(q, v)`` the state the laws act on (the filter's estimate, or the observation)."""
         q, v = np.atleast_2d(obs.q), np.atleast_2d(obs.v)
         n = len(q)
+        start = np.ones(n, bool)
         if state is None:
             state = self.initial_state(q, v)
         else:
@@ -191,6 +194,12 @@ class AdaptiveSwingUpLQR(SwingUpLQR):
             if start.any():  # fresh memory (built only for these members) from the observation
                 state[start] = self.initial_state(y[start, :2], y[start, 2:])
                 q, v = np.where(start[:, None], y[:, :2], q), np.where(start[:, None], y[:, 2:], v)
+        return state, q, v, start
+
+    def control(self, obs: Any, state: Any, episode_start: Any) -> tuple[np.ndarray, Any]:
+        single = obs.q.ndim == 1
+        state, q, v, _ = self.observe(obs, state, episode_start)
+        n = len(q)
         model = ident.identified_model(state[:, THETA], self.model)
         K, S = state[:, K_].reshape(n, 1, 4), state[:, S_].reshape(n, 4, 4)
         balancing, u_lqr = self.balance(q, v, state[:, MODE] > 0.5, None, K=K, S=S)

@@ -63,8 +63,9 @@ SAME_PLANT = {"mbs_envs/Acrobot-v1": "mbs_envs/Acrobot-v0", "mbs_envs/Pendubot-v
 
 
 #: a controller -> the controller whose tuned entry it takes while it has none of its own (the same laws and gains)
-SAME_LAWS = {"adaptive swing-up + LQR": "swing-up + LQR"}
-FALLBACK.update({name: FALLBACK[same] for name, same in SAME_LAWS.items()})
+SAME_LAWS = {"adaptive swing-up + LQR": "swing-up + LQR", "identified iLQR + TVLQR": "adaptive swing-up + LQR"}
+for _name, _same in SAME_LAWS.items():  # in order: a chain's earlier link is in FALLBACK before a later one needs it
+    FALLBACK[_name] = FALLBACK[_same]
 
 
 def tuned_gains(env: Any, controller: str) -> dict[str, Any]:
@@ -75,12 +76,14 @@ def tuned_gains(env: Any, controller: str) -> dict[str, Any]:
         raise ValueError(f"no tuned gains for controller {controller!r}; known: {sorted(FALLBACK)}")
     key = env_id(env) or ""
     table = _table()
-    for name in (controller, SAME_LAWS.get(controller)):
+    name = controller
+    while name is not None:  # its own entry, else along the chain of controllers whose laws it shares
         entry = table.get(key, {}).get(name)
         if entry is None:  # a reward-only version: the gains tuned on the version whose plant it shares
             entry = table.get(SAME_PLANT.get(key, ""), {}).get(name)
         if entry is not None:
             return copy.deepcopy(entry)
+        name = SAME_LAWS.get(name)
     return copy.deepcopy(FALLBACK[controller])
 
 

@@ -25,7 +25,8 @@ JOINT_CONTROLLERS = MappingProxyType(
 
 #: the swing-up scenes' model-based controller (underactuated: no joint tracking controller applies)
 SWING_UP_CONTROLLERS = MappingProxyType({"swing-up + LQR": "controllers:SwingUpLQR",
-                                         "adaptive swing-up + LQR": "controllers:AdaptiveSwingUpLQR"})
+                                         "adaptive swing-up + LQR": "controllers:AdaptiveSwingUpLQR",
+                                         "identified iLQR + TVLQR": "controllers:PlannedSwingUp"})
 
 
 @dataclasses.dataclass(frozen=True)

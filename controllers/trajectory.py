@@ -1,0 +1,334 @@
+"""A swing-up trajectory optimized under the torque limit, and the time-varying LQR along it (compiled).
+
+For the 2R arm with one motor (Acrobot, Pendubot), per member, on a model given by its kernel
+parameter column ``theta`` (:meth:`mbs_envs.models.planar2r.Planar2R.kernel_params`, e.g. an identified
+one), from a state ``x0 = (q, v)``:
+
+1. **Initial guess** (a shooting search over a family of feedback laws): the energy-pumping law of
+   :mod:`controllers.swingup` (collocated partial feedback linearization, the driven joint's PD
+   ``k_q, k_v``, the pumping gain ``k_E``) is rolled out for every row of a grid of gains; the guess is
+   the rollout, and the step, that come closest to upright by the LQR's cost-to-go ``dx^T S dx``.
+2. **Optimization**: control-limited iLQR (Tassa, Mansard & Todorov 2014; for one input the box QP of
+   the backward pass is a clamp, and a clamped input has no feedback) on
+
+       min_u  sum_k (w_u / 2) u_k^2 dt + (w_T / 2) dx_H^T S dx_H,     |u_k| <= u_max,
+
+   with the horizon ``H`` the guess's arrival step plus a tail, ``dx = x - x_up`` with wrapped angles,
+   ``S`` the upright LQR's cost-to-go and ``w_T`` large: a minimum-effort path that ends where the LQR
+   holds. The dynamics are the discrete map the environments integrate (``substeps`` classical RK4 steps
+   of the model's forward dynamics with the input held; :func:`controllers.control_map.rk4_map` is its
+   numpy twin, equal to round-off, which the tests check).
+3. **Stabilization**: time-varying LQR along ``(X, U)``: the discrete Riccati recursion on the map's
+   Jacobians (forward differences) with stage cost ``(dx^T Q dx + R du^2) dt`` and terminal ``S``, so the
+   gains join the upright LQR's at the end.
+
+Everything is scalar numba code per member; members are independent.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mbs_envs.dynamics.jit import njit
+from mbs_envs.models.planar2r import _acceleration, _energy, _friction
+
+#: line-search step lengths of the iLQR
+ALPHAS = np.array([1.0, 0.5, 0.25, 0.1, 0.03])
+
+
+@njit
+def rate(x0, x1, x2, x3, u, driven, theta):  # pragma: no cover - compiled
+    """``dx/dt`` of the 2R arm at ``x = (q1, q2, v1, v2)`` (scalars), torque ``u`` [N m] on joint ``driven``:
+    a tuple of 4 (no arrays: the loops below allocate nothing per call)."""
+    s1, c1, s2, c2 = np.sin(x0), np.cos(x0), np.sin(x1), np.cos(x1)
+    F1 = _friction(x2, theta[9, 0], theta[11, 0], theta[13, 0], theta[14, 0], theta[16, 0])
+    F2 = _friction(x3, theta[10, 0], theta[12, 0], theta[13, 0], theta[15, 0], theta[16, 0])
+    t1 = u if driven == 0 else 0.0
+    t2 = u if driven == 1 else 0.0
+    a1, a2 = _acceleration(s1, c1, s2, c2, x2, x3, F1, F2, t1, t2, theta, 0)
+    return x2, x3, a1, a2
+
+
+@njit
+def step4(x0, x1, x2, x3, u, driven, theta, dt, substeps):  # pragma: no cover - compiled
+    """:func:`step_map` on scalars: a tuple of 4."""
+    h = dt / substeps
+    for _ in range(substeps):
+        a0, a1, a2, a3 = rate(x0, x1, x2, x3, u, driven, theta)
+        b0, b1, b2, b3 = rate(x0 + 0.5 * h * a0, x1 + 0.5 * h * a1, x2 + 0.5 * h * a2, x3 + 0.5 * h * a3, u, driven, theta)
+        c0, c1, c2, c3 = rate(x0 + 0.5 * h * b0, x1 + 0.5 * h * b1, x2 + 0.5 * h * b2, x3 + 0.5 * h * b3, u, driven, theta)
+        d0, d1, d2, d3 = rate(x0 + h * c0, x1 + h * c1, x2 + h * c2, x3 + h * c3, u, driven, theta)
+        x0 = x0 + (h / 6.0) * (a0 + 2.0 * b0 + 2.0 * c0 + d0)
+        x1 = x1 + (h / 6.0) * (a1 + 2.0 * b1 + 2.0 * c1 + d1)
+        x2 = x2 + (h / 6.0) * (a2 + 2.0 * b2 + 2.0 * c2 + d2)
+        x3 = x3 + (h / 6.0) * (a3 + 2.0 * b3 + 2.0 * c3 + d3)
+    return x0, x1, x2, x3
+
+
+@njit
+def step_map(x, u, driven, theta, dt, substeps):  # pragma: no cover - compiled
+    """``F(x, u)``: ``substeps`` classical RK4 steps of ``dt / substeps`` [s] with ``u`` held; ``x`` (4,), shape (4,)."""
+    out = np.empty(4)
+    out[0], out[1], out[2], out[3] = step4(x[0], x[1], x[2], x[3], u, driven, theta, dt, substeps)
+    return out
+
+
+@njit
+def wrapped(x, goal):  # pragma: no cover - compiled
+    """``x - goal`` with the angles (entries 0, 1) wrapped to ``[-pi, pi)``; shape (4,)."""
+    d = x - goal
+    for i in range(2):
+        d[i] = (d[i] + np.pi) % (2.0 * np.pi) - np.pi
+    return d
+
+
+@njit
+def energy(x, theta):  # pragma: no cover - compiled
+    """Mechanical energy [J] of the state ``x`` (4,)."""
+    return _energy(np.sin(x[0]), np.cos(x[0]), np.sin(x[1]), np.cos(x[1]), x[2], x[3], theta, 0)
+
+
+@njit
+def pumping_input(x, k_q, k_v, k_E, E_up, driven, theta, u_max):  # pragma: no cover - compiled
+    """The energy-pumping law of :class:`controllers.swingup.SwingUpLQR` (its module docstring), clipped to
+    ``u_max``. The driven joint's acceleration is affine in ``u``, so the partial feedback linearization's
+    input is ``(y - a(0)) / (a(1) - a(0))``, from two forward-dynamics calls (no mass matrix needed)."""
+    E_err = energy(x, theta) - E_up
+    if driven == 1:  # acrobot
+        y = -k_q * ((x[1] + np.pi) % (2.0 * np.pi) - np.pi) - k_v * x[3] + k_E * E_err * x[2]
+    else:  # pendubot
+        y = -k_q * ((x[0] - 0.5 * np.pi + np.pi) % (2.0 * np.pi) - np.pi) - k_v * x[2] - k_E * E_err * x[2]
+    r0 = rate(x[0], x[1], x[2], x[3], 0.0, driven, theta)
+    r1 = rate(x[0], x[1], x[2], x[3], 1.0, driven, theta)
+    a0, a1 = (r0[3], r1[3]) if driven == 1 else (r0[2], r1[2])
+    return min(max((y - a0) / (a1 - a0), -u_max), u_max)
+
+
+@njit
+def pumping_search(x0, gains, E_up, goal, S, u_max, driven, theta, dt, substeps, steps, patience):  # pragma: no cover - compiled
+    """Step 1 (module docstring): the row of ``gains`` (G, 3: ``k_q, k_v, k_E``) whose rollout from ``x0``
+    comes closest to upright within ``steps`` control steps, by the cost-to-go ``dx^T S dx`` weighted by
+    ``exp(k / patience)`` at step ``k`` (an approach ``e`` times as far is as good ``patience`` steps sooner).
+    Returns ``(row, step, weighted cost)``: the chosen state is reached after ``step + 1`` inputs."""
+    best_row, best_step, best = 0, 0, np.inf
+    for g in range(gains.shape[0]):
+        x = x0.copy()
+        d = np.empty(4)
+        for k in range(steps):
+            u = pumping_input(x, gains[g, 0], gains[g, 1], gains[g, 2], E_up, driven, theta, u_max)
+            x[0], x[1], x[2], x[3] = step4(x[0], x[1], x[2], x[3], u, driven, theta, dt, substeps)
+            if not np.all(np.isfinite(x)):
+                break
+            for i in range(4):
+                d[i] = x[i] - goal[i]
+            for i in range(2):
+                d[i] = (d[i] + np.pi) % (2.0 * np.pi) - np.pi
+            c = 0.0
+            for i in range(4):
+                for j in range(4):
+                    c += d[i] * S[i, j] * d[j]
+            c *= np.exp(k / patience)
+            if c < best:
+                best_row, best_step, best = g, k, c
+    return best_row, best_step, best
+
+
+@njit
+def pumping_rollout(x0, k_q, k_v, k_E, E_up, u_max, driven, theta, dt, substeps, U):  # pragma: no cover - compiled
+    """The pumping law's inputs ``U`` (H,) from ``x0``, written in place."""
+    x = x0.copy()
+    for k in range(U.shape[0]):
+        U[k] = pumping_input(x, k_q, k_v, k_E, E_up, driven, theta, u_max)
+        x = step_map(x, U[k], driven, theta, dt, substeps)
+
+
+@njit
+def _cost(X, U, goal, w_u, W, S_T, dt):  # pragma: no cover - compiled
+    J = 0.5 * w_u * dt * np.sum(U * U)
+    for k in range(U.shape[0]):
+        d = wrapped(X[k], goal)
+        J += 0.5 * dt * (d @ W @ d)
+    d = wrapped(X[U.shape[0]], goal)
+    return J + 0.5 * (d @ S_T @ d)
+
+
+@njit
+def _rollout(x0, U, Xref, kff, K, alpha, u_max, driven, theta, dt, substeps, X, Un):  # pragma: no cover - compiled
+    """``u_k = clip(U_k + alpha kff_k + K_k (x_k - Xref_k))`` from ``x0``; writes ``X`` (H+1, 4), ``Un`` (H,).
+    False if the state stops being finite."""
+    X[0] = x0
+    for k in range(U.shape[0]):
+        u = U[k] + alpha * kff[k] + K[k] @ wrapped(X[k], Xref[k])
+        Un[k] = min(max(u, -u_max), u_max)
+        X[k + 1, 0], X[k + 1, 1], X[k + 1, 2], X[k + 1, 3] = step4(X[k, 0], X[k, 1], X[k, 2], X[k, 3], Un[k], driven, theta, dt, substeps)
+        if not (np.isfinite(X[k + 1, 0]) and np.isfinite(X[k + 1, 1]) and np.isfinite(X[k + 1, 2]) and np.isfinite(X[k + 1, 3])):
+            return False
+    return True
+
+
+@njit
+def jacobians(X, U, driven, theta, dt, substeps, A, b):  # pragma: no cover - compiled
+    """``A_k = dF/dx`` and ``b_k = dF/du`` along ``(X, U)`` by forward differences (step 1e-7, from the stored
+    ``X_{k+1} = F(X_k, U_k)``: five map calls per step), written into ``A`` (>= H, 4, 4) and ``b`` (>= H, 4)."""
+    eps = 1e-7
+    for k in range(U.shape[0]):
+        x0, x1, x2, x3, u = X[k, 0], X[k, 1], X[k, 2], X[k, 3], U[k]
+        for j in range(5):
+            p = step4(x0 + (eps if j == 0 else 0.0), x1 + (eps if j == 1 else 0.0), x2 + (eps if j == 2 else 0.0),
+                      x3 + (eps if j == 3 else 0.0), u + (eps if j == 4 else 0.0), driven, theta, dt, substeps)  # fmt: skip
+            for i in range(4):
+                d = (p[i] - X[k + 1, i]) / eps
+                if j < 4:
+                    A[k, i, j] = d
+                else:
+                    b[k, i] = d
+
+
+@njit
+def _backward(X, U, goal, w_u, W, S_T, u_max, mu, A, b, dt, kff, K):  # pragma: no cover - compiled
+    """The control-limited backward pass (module docstring, step 2); writes ``kff`` (H,) and ``K`` (H, 4).
+    Explicit loops over the 4 x 4 blocks: nothing is allocated per step."""
+    H = U.shape[0]
+    d = wrapped(X[H], goal)
+    Vx = S_T @ d
+    Vxx = S_T.copy()
+    r = w_u * dt
+    Vb, Qx, Qux, gain, VA = np.empty(4), np.empty(4), np.empty(4), np.empty(4), np.empty((4, 4))
+    for k in range(H - 1, -1, -1):
+        Ak, bk = A[k], b[k]
+        for i in range(4):
+            Vb[i] = Vxx[i, 0] * bk[0] + Vxx[i, 1] * bk[1] + Vxx[i, 2] * bk[2] + Vxx[i, 3] * bk[3]
+        Qu = r * U[k] + bk[0] * Vx[0] + bk[1] * Vx[1] + bk[2] * Vx[2] + bk[3] * Vx[3]
+        Quu = r + bk[0] * Vb[0] + bk[1] * Vb[1] + bk[2] * Vb[2] + bk[3] * Vb[3] + mu
+        dk = wrapped(X[k], goal)
+        for i in range(4):
+            Qx[i] = Ak[0, i] * Vx[0] + Ak[1, i] * Vx[1] + Ak[2, i] * Vx[2] + Ak[3, i] * Vx[3]
+            Qx[i] += dt * (W[i, 0] * dk[0] + W[i, 1] * dk[1] + W[i, 2] * dk[2] + W[i, 3] * dk[3])
+            Qux[i] = Ak[0, i] * Vb[0] + Ak[1, i] * Vb[1] + Ak[2, i] * Vb[2] + Ak[3, i] * Vb[3]
+        step = -Qu / Quu
+        clamped = abs(U[k] + step) > u_max  # the box QP in one dimension: clamp, no feedback on a clamped input
+        if clamped:
+            step = np.sign(U[k] + step) * u_max - U[k]
+        for i in range(4):
+            gain[i] = 0.0 if clamped else -Qux[i] / Quu
+        kff[k] = step
+        K[k] = gain
+        for i in range(4):
+            Vx[i] = Qx[i] + gain[i] * (Quu * step) + gain[i] * Qu + Qux[i] * step
+        for i in range(4):  # VA = Vxx A
+            for j in range(4):
+                VA[i, j] = Vxx[i, 0] * Ak[0, j] + Vxx[i, 1] * Ak[1, j] + Vxx[i, 2] * Ak[2, j] + Vxx[i, 3] * Ak[3, j]
+        for i in range(4):  # Vxx = A^T Vxx A + Quu g g^T + g Qux^T + Qux g^T (symmetric)
+            for j in range(i, 4):
+                v = Ak[0, i] * VA[0, j] + Ak[1, i] * VA[1, j] + Ak[2, i] * VA[2, j] + Ak[3, i] * VA[3, j]
+                v += Quu * gain[i] * gain[j] + gain[i] * Qux[j] + Qux[i] * gain[j] + dt * W[i, j]
+                Vxx[i, j] = v
+        for i in range(4):
+            for j in range(i):
+                Vxx[i, j] = Vxx[j, i]
+
+
+@njit
+def ilqr(x0, U, X_ref, K_ref, goal, w_u, W, S_T, u_max, driven, theta, dt, substeps, iterations, alphas):  # pragma: no cover - compiled
+    """Step 2 (module docstring): improve the inputs ``U`` (H,) from ``x0`` in place, starting from the rollout
+    of ``u_k = U_k + K_ref_k (x_k - X_ref_k)`` (``K_ref = 0``: open loop; a plan's own gains and states: the
+    closed-loop rollout, a far better start from a state off the plan). Returns ``(X, J)``, the states
+    (H+1, 4) along the result and its cost (inf if its rollout was not finite)."""
+    H = U.shape[0]
+    X = np.empty((H + 1, 4))
+    Xn = np.empty((H + 1, 4))
+    Un = np.empty(H)
+    kff = np.zeros(H)
+    K = np.zeros((H, 4))
+    if not _rollout(x0, U, X_ref, kff, K_ref, 0.0, u_max, driven, theta, dt, substeps, X, Un):
+        return X, np.inf
+    U[:] = Un
+    J = _cost(X, U, goal, w_u, W, S_T, dt)
+    mu = 1e-6
+    A = np.empty((H, 4, 4))
+    b = np.empty((H, 4))
+    for _ in range(iterations):
+        jacobians(X, U, driven, theta, dt, substeps, A, b)
+        _backward(X, U, goal, w_u, W, S_T, u_max, mu, A, b, dt, kff, K)
+        improved = False
+        for a in alphas:
+            if _rollout(x0, U, X, kff, K, a, u_max, driven, theta, dt, substeps, Xn, Un):
+                Jn = _cost(Xn, Un, goal, w_u, W, S_T, dt)
+                if Jn < J:
+                    J = Jn
+                    X[:] = Xn
+                    U[:] = Un
+                    improved = True
+                    break
+        mu = max(mu / 4.0, 1e-9) if improved else mu * 10.0
+    return X, J
+
+
+@njit
+def tvlqr(X, U, Q, R, S_T, driven, theta, dt, substeps):  # pragma: no cover - compiled
+    """Step 3 (module docstring): the gains ``K`` (H, 4) of ``u_k = U_k + K_k (x_k - X_k)``."""
+    H = U.shape[0]
+    A = np.empty((H, 4, 4))
+    b = np.empty((H, 4))
+    jacobians(X, U, driven, theta, dt, substeps, A, b)
+    K = np.empty((H, 4))
+    P = S_T.copy()
+    Qd = Q * dt
+    for k in range(H - 1, -1, -1):
+        Pb = P @ b[k]
+        quu = R * dt + b[k] @ Pb
+        qux = A[k].T @ Pb
+        K[k] = -qux / quu
+        P = Qd + A[k].T @ P @ A[k] - np.outer(qux, qux) / quu
+        P = 0.5 * (P + P.T)
+    return K
+
+
+@njit
+def plan(x0, gains, E_up, goal, S, w_u, W, P_T, Q, R, u_max, u_plan, driven, theta, dt, substeps, steps, tail, patience, iterations,
+         alphas, U_out, X_out, K_out):  # pragma: no cover - compiled  # fmt: skip
+    """Steps 1-3 (module docstring) from ``x0`` within ``steps`` control steps, the plan's inputs within
+    ``u_plan`` (<= ``u_max``, the feedback's margin), its gains' within ``u_max``: writes the inputs
+    ``U_out[:H]``, states ``X_out[:H + 1]`` and gains ``K_out[:H]`` and returns ``(H, the largest entry of the
+    wrapped terminal error |x_H - x_up|)``; ``H = 0`` where no finite plan was found."""
+    row, step, _ = pumping_search(x0, gains, E_up, goal, S, u_plan, driven, theta, dt, substeps, steps - tail, patience)
+    H = min(step + 1 + tail, steps)
+    U = np.empty(H)
+    pumping_rollout(x0, gains[row, 0], gains[row, 1], gains[row, 2], E_up, u_plan, driven, theta, dt, substeps, U)
+    return refine(x0, U, np.zeros((H + 1, 4)), np.zeros((H, 4)), goal, S, w_u, W, P_T, Q, R, u_plan, driven, theta, dt, substeps,
+                  iterations, alphas, U_out, X_out, K_out)  # fmt: skip
+
+
+@njit
+def refine(x0, U, X_ref, K_ref, goal, S, w_u, W, P_T, Q, R, u_plan, driven, theta, dt, substeps, iterations, alphas, U_out, X_out,
+           K_out):  # pragma: no cover - compiled  # fmt: skip
+    """Steps 2-3 (module docstring) from the guess ``U`` (H,) with feedback ``K_ref`` about ``X_ref`` (:func:`ilqr`):
+    as :func:`plan`, whose return it gives."""
+    H = U.shape[0]
+    X, J = ilqr(x0, U, X_ref, K_ref, goal, w_u, W, P_T, u_plan, driven, theta, dt, substeps, iterations, alphas)
+    if not np.isfinite(J):
+        return 0, np.inf
+    U_out[:H] = U
+    X_out[: H + 1] = X
+    K_out[:H] = tvlqr(X, U, Q, R, S, driven, theta, dt, substeps)
+    return H, np.abs(wrapped(X[H], goal)).max()
+
+
+@njit
+def lqr_catches(x0, K, goal, u_max, driven, theta, dt, substeps, steps, tol):  # pragma: no cover - compiled
+    """Whether the saturated LQR ``u = clip(-K dx)`` brings ``x0`` within ``tol`` of upright (largest wrapped entry
+    [rad, rad/s]) and keeps it there for the last tenth of ``steps`` control steps, simulated on the map: one point of
+    the LQR's region of attraction under the torque limit, by simulation."""
+    x0_, x1, x2, x3 = x0[0], x0[1], x0[2], x0[3]
+    hold = max(1, steps // 10)
+    for k in range(steps):
+        d0 = (x0_ - goal[0] + np.pi) % (2.0 * np.pi) - np.pi
+        d1 = (x1 - goal[1] + np.pi) % (2.0 * np.pi) - np.pi
+        d2, d3 = x2 - goal[2], x3 - goal[3]
+        if k >= steps - hold and max(abs(d0), abs(d1), abs(d2), abs(d3)) > tol:
+            return False
+        u = min(max(-(K[0] * d0 + K[1] * d1 + K[2] * d2 + K[3] * d3), -u_max), u_max)
+        x0_, x1, x2, x3 = step4(x0_, x1, x2, x3, u, driven, theta, dt, substeps)
+        if not (np.isfinite(x0_) and np.isfinite(x1) and np.isfinite(x2) and np.isfinite(x3)):
+            return False
+    return True

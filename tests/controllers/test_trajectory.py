@@ -1,0 +1,163 @@
+"""The optimized swing-up trajectory and its time-varying LQR (controllers/trajectory.py), and the controller that
+identifies, plans and tracks (controllers/planned_swingup.py)."""
+
+import copy
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import scipy.linalg
+
+import mbs_envs  # noqa: F401
+from controllers import PlannedSwingUp
+from controllers import trajectory as traj
+from controllers.control_map import rk4_map
+from controllers.planned_swingup import CLOCK, PHASE, PUMPING_GRID, SINCE
+from mbs_envs.envs.swingup import Q_UP
+
+GOAL = np.concatenate([Q_UP, np.zeros(2)])
+
+
+def theta_of(model):
+    return np.ascontiguousarray(np.asarray(model.kernel_params(), float)[:, None])
+
+
+@pytest.mark.parametrize("env_id", ["mbs_envs/Acrobot-v1", "mbs_envs/Pendubot-v1"])
+def test_compiled_map_is_the_envs_map(env_id):
+    """The planner's map equals the numpy control map (which tests/controllers/test_region.py ties to env.step)."""
+    env = gym.make(env_id, params={"b1": 0.05, "b2": 0.02})
+    model = env.unwrapped.model
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        x, u = rng.uniform(-4, 4, 4), rng.uniform(-10, 10)
+        want = rk4_map(model, x, np.array([u]), 0.01, 2)
+        assert np.allclose(traj.step_map(x, u, int(model.driven[0]), theta_of(model), 0.01, 2), want, rtol=0, atol=1e-12)
+
+
+def test_jacobians_are_those_of_the_map():
+    """Forward differences against central differences of the numpy map (truncation error ~1e-7)."""
+    model = gym.make("mbs_envs/Acrobot-v1").unwrapped.model
+    rng = np.random.default_rng(1)
+    H = 5
+    U = rng.uniform(-5, 5, H)
+    X = np.empty((H + 1, 4))
+    X[0] = rng.uniform(-2, 2, 4)
+    for k in range(H):
+        X[k + 1] = traj.step_map(X[k], U[k], 1, theta_of(model), 0.01, 2)
+    A, b = np.empty((H, 4, 4)), np.empty((H, 4))
+    traj.jacobians(X, U, 1, theta_of(model), 0.01, 2, A, b)
+    e = 1e-5
+    for k in range(H):
+        for j in range(4):
+            d = np.zeros(4)
+            d[j] = e
+            col = (rk4_map(model, X[k] + d, U[k : k + 1], 0.01, 2) - rk4_map(model, X[k] - d, U[k : k + 1], 0.01, 2)) / (2 * e)
+            assert np.allclose(A[k, :, j], col, atol=2e-6 * max(1.0, np.abs(col).max()))
+        col = (rk4_map(model, X[k], U[k : k + 1] + e, 0.01, 2) - rk4_map(model, X[k], U[k : k + 1] - e, 0.01, 2)) / (2 * e)
+        assert np.allclose(b[k], col, atol=2e-6)
+
+
+def test_time_varying_lqr_at_rest_upright_is_the_discrete_lqr():
+    """Along the upright equilibrium held for a long horizon, the first gain is the stationary discrete LQR's
+    (scipy's DARE on the exact discretization of the same map's Jacobians)."""
+    model = gym.make("mbs_envs/Acrobot-v1").unwrapped.model
+    H, dt = 2000, 0.01
+    X, U = np.tile(GOAL, (H + 1, 1)), np.zeros(H)
+    Q, R = np.diag([10.0, 10.0, 1.0, 1.0]), 3.0
+    K = traj.tvlqr(X, U, Q, R, np.eye(4), 1, theta_of(model), dt, 2)
+    A, b = np.empty((1, 4, 4)), np.empty((1, 4))
+    traj.jacobians(X[:2], U[:1], 1, theta_of(model), dt, 2, A, b)
+    P = scipy.linalg.solve_discrete_are(A[0], b[0][:, None], Q * dt, np.array([[R * dt]]))
+    K_dare = -(b[0] @ P @ A[0]) / (R * dt + b[0] @ P @ b[0])
+    assert np.allclose(K[0], K_dare, rtol=1e-9, atol=0)
+
+
+@pytest.mark.parametrize("env_id", ["mbs_envs/Acrobot-v1", "mbs_envs/Pendubot-v1"])
+def test_the_plan_swings_up_within_its_torque_share(env_id):
+    """From where the controller first plans (after pumping for ``plan_time``) the optimized plan ends upright on the
+    model, its inputs within the plan's share of the torque limit, and its states are the map's steps."""
+    env = gym.make(env_id)
+    ctrl = PlannedSwingUp(env)
+    obs, _ = env.reset(seed=20000)
+    state = None
+    for k in range(ctrl.plan_steps):
+        action, state = ctrl.predict(obs, state=state, episode_start=k == 0)
+        obs, *_ = env.step(action)
+    assert state[0][PHASE] == 0.0
+    th, model = theta_of(env.unwrapped.model), env.unwrapped.model
+    u_plan = ctrl.margin * float(env.unwrapped.u_max[0])
+    n = ctrl.max_steps
+    U, X, K = np.zeros(n), np.zeros((n + 1, 4)), np.zeros((n, 4))
+    x0 = np.concatenate([env.unwrapped.q, env.unwrapped.v])
+    H, err = traj.plan(x0, PUMPING_GRID, traj.energy(GOAL, th), GOAL, ctrl.S, ctrl.w_u, ctrl.W, ctrl.P_T, ctrl.Q,
+                       ctrl.track_r, float(env.unwrapped.u_max[0]), u_plan, int(model.driven[0]), th, ctrl.dt, ctrl.substeps, n,
+                       ctrl.tail, ctrl.patience, ctrl.iterations, traj.ALPHAS, U, X, K)  # fmt: skip
+    assert 0 < H <= n and err < ctrl.accept
+    assert np.abs(U[:H]).max() <= u_plan + 1e-12
+    # every step of the plan is a step of the env's map with the plan's input (a whole rollout of ~900 steps of
+    # the chaotic arm only agrees to round-off amplified, ~1e-6)
+    step = rk4_map(model, X[:H], U[:H, None], ctrl.dt, ctrl.substeps)
+    assert np.allclose(step, X[1 : H + 1], rtol=0, atol=1e-12) and np.array_equal(X[0], x0)
+    assert np.abs(traj.wrapped(X[H], GOAL)).max() == pytest.approx(err)
+
+
+@pytest.mark.parametrize("x0, inside", [((0.005, 0.0, 0.0, 0.0), True), ((-0.004, 0.01, 0.02, -0.05), True),
+                                         ((0.02, -0.03, 0.05, 0.0), False), ((0.1, 0.0, 0.0, 0.0), False)])
+def test_the_lqr_takes_over_exactly_where_its_simulated_region_says(x0, inside):
+    """Within its region (the saturated LQR simulated on the model ends upright) a member balances at once and
+    holds; outside it the LQR is not handed the arm. ``predict`` never writes into the state it is given."""
+    env = gym.make("mbs_envs/Acrobot-v1", start_noise=0.0)
+    ctrl = PlannedSwingUp(env, plan_time=10.0)
+    x = GOAL + np.array(x0)
+    assert traj.lqr_catches(x, ctrl.K[0], GOAL, 10.0, 1, theta_of(env.unwrapped.model), 0.01, 2, ctrl.catch_steps, ctrl.catch_tol) == inside
+    obs, _ = env.reset(options={"q": x[:2], "v": x[2:]})
+    state, start = None, True
+    for k in range(200 if inside else 1):
+        before = copy.deepcopy(state)
+        action, new = ctrl.predict(obs, state=state, episode_start=start)
+        if before is not None:
+            assert all(np.array_equal(a, b) for a, b in zip(before, state))
+        state, start = new, False
+        assert (state[0][PHASE] == 2.0) == inside
+        obs, _, _, _, info = env.step(action)
+    if inside:
+        assert info["upright"] and np.abs(info["tracking_error"]).max() < 0.01
+
+
+def test_a_batch_acts_as_each_member_alone():
+    env_id = "mbs_envs/Pendubot-v1"
+    ctrl = PlannedSwingUp(gym.make(env_id), plan_time=0.5)
+    venv = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", autoreset_mode="Disabled")
+    obs, _ = venv.reset(seed=[4, 5])
+    state, states, start = None, [None, None], np.ones(2, bool)
+    for k in range(80):
+        action, state = ctrl.predict(obs, state=state, episode_start=start)
+        for i in range(2):
+            a_i, states[i] = ctrl.predict(obs[i], state=states[i], episode_start=bool(start[i]))
+            assert np.array_equal(a_i, action[i])
+            assert np.array_equal(states[i][0], state[0][i]) and np.array_equal(states[i][1], state[1][i])
+        start[:] = False
+        obs, *_ = venv.step(action)
+    assert (state[0][:, SINCE] < state[0][:, CLOCK]).all()  # both tried to plan (at 0.5 s), each alike alone
+
+
+@pytest.mark.parametrize("kwargs", [{"plan_time": -1.0}, {"horizon": 0.0}, {"iterations": 1.5}, {"w_u": 0.0}, {"w_T": -1.0},
+                                    {"margin": 0.0}, {"margin": 1.5}, {"accept": 0.0}, {"funnel": np.nan}, {"drop": -0.3},
+                                    {"track_r": 0.0}, {"w_x": -1.0}, {"retry": np.inf}])
+def test_bad_settings_are_refused_by_name(kwargs):
+    with pytest.raises(ValueError, match=next(iter(kwargs))):
+        PlannedSwingUp(gym.make("mbs_envs/Acrobot-v1"), **kwargs)
+
+
+def test_swing_up_and_hold_on_the_nominal_acrobot():
+    """One whole episode from hanging: swung up by the plan and held for the last 2 s."""
+    env = gym.make("mbs_envs/Acrobot-v1")
+    ctrl = PlannedSwingUp(env)
+    obs, _ = env.reset(seed=20000)
+    state, start, held = None, True, []
+    for k in range(1500):
+        action, state = ctrl.predict(obs, state=state, episode_start=start)
+        start = False
+        obs, _, _, _, info = env.step(action)
+        held.append(info["upright"])
+    assert all(held[-200:])
