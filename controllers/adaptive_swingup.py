@@ -46,7 +46,7 @@ from mbs_envs.envs.tracking import wrap_angle
 
 from . import identification as ident
 from .base import care
-from .control_map import state_error
+from .control_map import rk4_map, state_error
 from .estimator import ekf_step
 from .swingup import SwingUpLQR, upright_linearization
 
@@ -54,7 +54,13 @@ N = ident.N_BASE
 #: columns of a member's state row
 MODE, A_, B_, PHI0, WORK, QA, U, COUNT, THETA, K_, S_, XH, P_ = (
     0, slice(1, 26), slice(26, 31), slice(31, 36), 36, 37, 38, 39, slice(40, 45), slice(45, 49), slice(49, 65), slice(65, 69), slice(69, 85))
-STATE_SIZE = 85
+#: the second input hypothesis (the plant applies the input chosen one step earlier): its normal equations, its
+#: window's work, the input before the last, and both hypotheses' sums of squared energy-balance residuals
+#: (each with its sum of squared work, ``SW``)
+A1_, B1_, WORK1, U_PREV, SW0, SW1 = slice(85, 110), slice(110, 115), 115, 116, 117, 118
+STATE_SIZE = 119
+#: the late-input hypothesis is taken where its residuals are below this share of the other's
+DELAY_EVIDENCE = 0.5
 #: the filter restarts from the observation where its estimate is this many noise deviations off it
 RESTART_SIGMAS = 50.0
 
@@ -108,8 +114,8 @@ class AdaptiveSwingUpLQR(SwingUpLQR):
         """Fresh memory rows for members at ``(q, v)`` (shape ``(n, 2)`` each): shape ``(n, STATE_SIZE)``."""
         n = len(q)
         state = np.zeros((n, STATE_SIZE))
-        state[:, A_] = self.A0.ravel()
-        state[:, B_] = self.b0
+        state[:, A_] = state[:, A1_] = self.A0.ravel()
+        state[:, B_] = state[:, B1_] = self.b0
         state[:, PHI0] = ident.energy_regressor(q, v)
         state[:, QA] = q[:, self.driven]
         state[:, THETA] = self.theta0
@@ -127,8 +133,8 @@ class AdaptiveSwingUpLQR(SwingUpLQR):
         model = ident.identified_model(state[:, THETA], self.model)
         Q_w = np.where((state[:, MODE] > 0.5)[:, None, None], self.Q_w[0], self.Q_w[1])
         with np.errstate(all="ignore"):  # a diverging member is caught below
-            x, P = ekf_step(model, state[:, XH], state[:, P_].reshape(n, 4, 4), state[:, U][:, None], y, self.dt, self.substeps,
-                            Q_w, self.R_n)  # fmt: skip
+            x, P = ekf_step(model, state[:, XH], state[:, P_].reshape(n, 4, 4), self.applied(state)[:, None], y, self.dt,
+                            self.substeps, Q_w, self.R_n)  # fmt: skip
         # an estimate that is not finite or has left the observation by more than RESTART_SIGMAS noise deviations
         # (the model's prediction lost: a plant far off the identified model, a fall) restarts from the observation
         lost = ~(np.isfinite(x).all(axis=1) & np.isfinite(P).all(axis=(1, 2)))
@@ -143,20 +149,28 @@ class AdaptiveSwingUpLQR(SwingUpLQR):
         (with the LQR for it) replaced where the new one is physically consistent. Returns a new array."""
         state = state.copy()
         a = self.driven
-        state[:, WORK] += state[:, U] * wrap_angle(q[:, a] - state[:, QA])
+        step = wrap_angle(q[:, a] - state[:, QA])
+        state[:, WORK] += state[:, U] * step  # the input applied over the last step, if the plant applies it at once
+        state[:, WORK1] += state[:, U_PREV] * step  # ... if it applies it one step late
         state[:, QA] = q[:, a]
         state[:, COUNT] += 1
         phi = ident.energy_regressor(q, v)
         close = state[:, COUNT] >= self.window
         if close.any():
             d = phi[close] - state[close, PHI0]
-            A = state[close, A_].reshape(-1, N, N) + d[:, :, None] * d[:, None, :]
-            state[close, A_] = A.reshape(-1, N * N)
-            state[close, B_] += d * state[close, WORK][:, None]
+            estimates = []
+            for A_h, B_h, W_h, SW_h in ((A_, B_, WORK, SW0), (A1_, B1_, WORK1, SW1)):
+                A = state[close, A_h].reshape(-1, N, N)
+                # the window's residual under the estimate so far (a prediction error: it does not fit itself)
+                state[close, SW_h] += (state[close, W_h] - np.einsum("bi,bi->b", d, ident.estimate(A, state[close, B_h]))) ** 2
+                A = A + d[:, :, None] * d[:, None, :]
+                state[close, A_h] = A.reshape(-1, N * N)
+                state[close, B_h] += d * state[close, W_h][:, None]
+                state[close, W_h] = 0.0
+                estimates.append(ident.estimate(A, state[close, B_h]))
             state[close, PHI0] = phi[close]
-            state[close, WORK] = 0.0
             state[close, COUNT] = 0.0
-            theta = ident.estimate(A, state[close, B_])
+            theta = np.where(self.delayed(state[close])[:, None], estimates[1], estimates[0])
             usable = ~np.isnan(ident.gauge(theta, self.model.params.g))
             rows = np.flatnonzero(close)[usable]
             if len(rows):
@@ -168,6 +182,35 @@ class AdaptiveSwingUpLQR(SwingUpLQR):
                 state[rows, K_] = K.reshape(len(rows), -1)
                 state[rows, S_] = S.reshape(len(rows), -1)
         return state
+
+    @staticmethod
+    def delayed(state: np.ndarray) -> np.ndarray:
+        """Per member: whether its energy balance fits clearly better with the input applied one step late (a sum
+        of squared prediction residuals, :meth:`identify`, below :data:`DELAY_EVIDENCE` times the other's), shape ``(n,)``."""
+        return state[:, SW1] < DELAY_EVIDENCE * state[:, SW0]
+
+    def applied(self, state: np.ndarray) -> np.ndarray:
+        """The input [N m] the plant applied over the last step, per member (the last one chosen, or the one
+        before where :meth:`delayed`), shape ``(n,)``."""
+        return np.where(self.delayed(state), state[:, U_PREV], state[:, U])
+
+    def ahead(self, state: np.ndarray, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The state the next input will act on: ``(q, v)`` itself, or where :meth:`delayed` the identified model's
+        prediction one step ahead under the input already on its way (a Smith predictor)."""
+        late = self.delayed(state)
+        if not late.any():
+            return q, v
+        model = ident.identified_model(state[late, THETA], self.model)
+        x = rk4_map(model, np.concatenate([q[late], v[late]], axis=1), state[late, U][:, None], self.dt, self.substeps)
+        q, v = q.copy(), v.copy()
+        q[late], v[late] = wrap_angle(x[:, :2]), x[:, 2:]
+        return q, v
+
+    @staticmethod
+    def commit(state: np.ndarray, u: np.ndarray) -> None:
+        """Record the input ``u`` just chosen (the last one becomes the one before), in place."""
+        state[:, U_PREV] = state[:, U]
+        state[:, U] = u
 
     def gains(self, model: Any, n: int) -> tuple[np.ndarray, np.ndarray]:
         """The LQR's ``(K, S)`` for each member of ``model`` (per-member parameters of shape ``(n,)``)."""
@@ -194,6 +237,7 @@ class AdaptiveSwingUpLQR(SwingUpLQR):
             if start.any():  # fresh memory (built only for these members) from the observation
                 state[start] = self.initial_state(y[start, :2], y[start, 2:])
                 q, v = np.where(start[:, None], y[:, :2], q), np.where(start[:, None], y[:, 2:], v)
+        q, v = self.ahead(state, q, v)
         return state, q, v, start
 
     def control(self, obs: Any, state: Any, episode_start: Any) -> tuple[np.ndarray, Any]:
@@ -206,5 +250,5 @@ class AdaptiveSwingUpLQR(SwingUpLQR):
         u = np.where(balancing, u_lqr, self.swing_up(q, v, model))
         u = np.clip(u, -self.u_max[0], self.u_max[0])
         state[:, MODE] = balancing
-        state[:, U] = u
+        self.commit(state, u)
         return (u[0, None] if single else u[:, None]), (state[0] if single else state)

@@ -32,7 +32,7 @@ from mbs_envs.envs.swingup import Q_UP
 from . import identification as ident
 from . import trajectory as traj
 from .control_map import state_error
-from .adaptive_swingup import K_, MODE, S_, STATE_SIZE, THETA, U, AdaptiveSwingUpLQR
+from .adaptive_swingup import K_, MODE, S_, STATE_SIZE, THETA, AdaptiveSwingUpLQR
 
 #: columns after the adaptive controller's: phase (0 pump, 1 track, 2 balance), step in the plan, plan length,
 #: steps since the episode started, steps since the last plan (or attempt)
@@ -87,7 +87,7 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
     tuned_name = "identified iLQR + TVLQR"
 
     def __init__(self, env: Any, k_q: Any = None, k_v: Any = None, k_E: Any = None, lqr_r: Any = None, window: int = 10,
-                 prior: float = 1.0, obs_noise: float = 0.01, process_noise: Any = ((1e-4, 1e-2), (3e-4, 3e-2)),
+                 prior: float = 0.1, obs_noise: float = 0.01, process_noise: Any = ((1e-4, 1e-2), (3e-4, 3e-2)),
                  plan_time: float = 3.0, horizon: float = 10.0, tail: float = 0.5, iterations: int = 100, refine_iterations: int = 10,
                  w_u: float = 0.1, w_T: float = 1e4, margin: float = 0.85, accept: float = 0.05, retry: float = 1.0,
                  refine_every: float = 0.5, funnel: float = 0.5, drop: float = 0.3, patience: float = 1e3, track_r: float = 1.0, w_x: float = 0.0, catch_time: float = 3.0,
@@ -212,6 +212,6 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
         u = np.clip(np.where(phase == 1.0, u_track, np.where(phase == 2.0, u_lqr, u_pump)), -self.u_max[0], self.u_max[0])
         row[phase == 1.0, STEP] += 1.0
         row[:, MODE] = phase == 2.0
-        row[:, U] = u
+        self.commit(row, u)
         state = (row[0], plan[0]) if single else (row, plan)
         return (u[0, None] if single else u[:, None]), state
