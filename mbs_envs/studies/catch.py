@@ -6,7 +6,10 @@ For each swing-up scene and comparison condition, along each state coordinate ab
 input delay), and the largest offset from which the scene's LQR (the balancing part of its
 model-based controller, with its nominal gains) brings that plant back
 (:func:`controllers.region.axis_catch`, by simulation on the control map). Where the second is far
-below the first, a failed catch is the controller's, not physics'.
+below the first, a failed catch is the controller's, not physics'. Under observation noise also the
+smallest stationary spread of each angle about upright that any controller achieves
+(:func:`controllers.region.noise_floor`): a success tolerance of a few such deviations is out of reach
+whatever the controller.
 """
 
 from __future__ import annotations
@@ -16,7 +19,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from controllers.region import PlantCase, axis_catch, saturation_bound
+from controllers.region import PlantCase, axis_catch, noise_floor, saturation_bound
 from controllers.swingup import SwingUpLQR, upright_linearization
 from ..envs.swingup import Q_UP
 from .comparison import SCENES, Condition, plant_kwargs
@@ -39,14 +42,18 @@ def catch_rows(scene: str, conditions: list[Condition]) -> list[dict[str, Any]]:
         bound = saturation_bound(A, B, u_max, cond.delay * dt)
         case = PlantCase(plant, cond.delay)
         caught = [axis_catch(case, x_up, lqr.K, u_max, dt, substeps, j, 1.5 * b if np.isfinite(b) else 5.0) for j, b in enumerate(bound)]
-        rows.append({"scene": scene, "condition": cond.name, "bound": [float(b) for b in bound], "lqr_catch": caught})
+        floor = noise_floor(A, B, dt, cond.obs_noise)[:2].tolist() if cond.obs_noise > 0 else None
+        rows.append({"scene": scene, "condition": cond.name, "bound": [float(b) for b in bound], "lqr_catch": caught, "noise_floor": floor})
     return rows
 
 
 def catch_table(rows: list[dict[str, Any]]) -> str:
     """A markdown table of :func:`catch_rows`: ``LQR catch / bound`` per coordinate."""
-    lines = ["| scene | condition | " + " | ".join(f"{a}: LQR / bound" for a in AXES) + " |", "|---|---|" + "---|" * len(AXES)]
+    lines = ["| scene | condition | " + " | ".join(f"{a}: LQR / bound" for a in AXES) + " | noise floor: std q1 / q2 [rad] |",
+             "|---|---|" + "---|" * (len(AXES) + 1)]  # fmt: skip
     for r in rows:
         cells = [f"{c:.3f} / {b:.3f}" for c, b in zip(r["lqr_catch"], r["bound"])]
+        floor = r.get("noise_floor")
+        cells.append(f"{floor[0]:.4f} / {floor[1]:.4f}" if floor else "")
         lines.append(f"| {r['scene']} | {r['condition']} | " + " | ".join(cells) + " |")
     return "\n".join(lines)

@@ -101,3 +101,46 @@ def test_the_control_map_is_the_envs_step(env_id):
         env.step(np.array([a], np.float32))
         x = rk4_map(base.model, x, np.array([np.float32(a) * base.u_max[0]]), base.dt, base.substeps)
         np.testing.assert_allclose(np.concatenate([base.q, base.v]), x, rtol=0, atol=1e-12)
+
+
+def test_the_noise_floor_is_what_the_lqg_achieves_in_simulation_and_no_lqr_beats_it():
+    """The floor (an LQG optimum) against a Monte-Carlo run of that LQG on the linear plant, and against every LQR of a
+    grid with the same filter (none holds q2 tighter)."""
+    import scipy.linalg
+
+    from controllers.region import discretize, lqg_stationary, noise_floor
+    from controllers.swingup import upright_linearization
+
+    model = gym.make("mbs_envs/Acrobot-v1").unwrapped.model
+    A, B = upright_linearization(model)
+    dt, sigma = 0.01, 0.01
+    floor = noise_floor(A, B, dt, sigma, rho=1e-6)
+    A_d, B_d = discretize(A, B, dt)
+    R_n = sigma**2 * np.eye(4)
+    P_prior = scipy.linalg.solve_discrete_are(A_d.T, np.eye(4), 1e-12 * np.eye(4), R_n)
+    L = P_prior @ np.linalg.inv(P_prior + R_n)
+    P_post = P_prior - L @ P_prior
+    Q = 1e-12 * np.eye(4)
+    Q[1, 1] = 1.0
+    P = scipy.linalg.solve_discrete_are(A_d, B_d, Q, np.array([[1e-6]]))
+    K = np.linalg.solve(1e-6 + B_d.T @ P @ B_d, B_d.T @ P @ A_d)
+    rng = np.random.default_rng(0)
+    n, T = 400, 3000
+    x, xh = np.zeros((n, 4)), np.zeros((n, 4))
+    q2 = []
+    for k in range(T):
+        u = -xh @ K.T
+        x = x @ A_d.T + u @ B_d.T
+        y = x + rng.normal(0, sigma, x.shape)
+        pred = xh @ A_d.T + u @ B_d.T
+        xh = pred + (y - pred) @ L.T
+        if k >= 1000:
+            q2.append(x[:, 1].copy())
+    std = np.std(np.array(q2))
+    assert std == pytest.approx(floor[1], rel=0.03)  # 800k correlated samples: a few % of sampling error
+    assert np.sqrt(lqg_stationary(A_d, B_d, K, L, P_post, P_prior + R_n)[1, 1]) == pytest.approx(floor[1], rel=1e-9)
+    for w in [0.1, 1.0, 10.0, 100.0]:
+        for r in [1e-4, 1e-2, 1.0, 100.0]:
+            P = scipy.linalg.solve_discrete_are(A_d, B_d, np.diag([w, 1.0, 0.1, 0.1]), np.array([[r]]))
+            K = np.linalg.solve(r + B_d.T @ P @ B_d, B_d.T @ P @ A_d)
+            assert np.sqrt(lqg_stationary(A_d, B_d, K, L, P_post, P_prior + R_n)[1, 1]) >= floor[1] * (1 - 1e-6)
