@@ -404,7 +404,8 @@ def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: 
               "An LQR catch far below the bound is the controller's limit, not physics'. With observation noise, the last "
               "column is the smallest stationary standard deviation of each angle about upright that any causal controller "
               "achieves on the linearization (the LQG optimum as its input weight vanishes, `controllers.region.noise_floor`): "
-              "a success tolerance of two such deviations or less is out of reach whatever the controller:", "", catch_table(catch), ""]  # fmt: skip
+              "no controller holds the angle with a smaller spread, so a tolerance of two such deviations or less fails often "
+              "whatever the controller:", "", catch_table(catch), ""]  # fmt: skip
     L += ["**Two metrics.** The error columns are the tracking error after the first second; the agents were trained on the "
           "reward, whose return also counts the start transient and the effort: per step "
           "`-(w_e |e|^2 + w_de |v_ref - v|^2 + w_u |a|^2)` with `(w_e, w_de, w_u) = (1, 0.1, 1e-3)` on the joint-tracking "

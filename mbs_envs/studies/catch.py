@@ -8,8 +8,8 @@ model-based controller, with its nominal gains) brings that plant back
 (:func:`controllers.region.axis_catch`, by simulation on the control map). Where the second is far
 below the first, a failed catch is the controller's, not physics'. Under observation noise also the
 smallest stationary spread of each angle about upright that any controller achieves
-(:func:`controllers.region.noise_floor`): a success tolerance of a few such deviations is out of reach
-whatever the controller.
+(:func:`controllers.region.noise_floor`): no controller holds an angle with a smaller spread, so a
+success tolerance of a few such deviations fails often whatever the controller.
 """
 
 from __future__ import annotations
