@@ -90,7 +90,7 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
                  prior: float = 0.1, obs_noise: float = 0.01, process_noise: Any = ((1e-4, 1e-2), (3e-4, 3e-2)),
                  plan_time: float = 3.0, horizon: float = 10.0, tail: float = 0.5, iterations: int = 100, refine_iterations: int = 10,
                  w_u: float = 0.1, w_T: float = 1e4, margin: float = 0.85, accept: float = 0.05, retry: float = 1.0,
-                 refine_every: float = 0.5, funnel: float = 0.5, drop: float = 0.3, patience: float = 1e3, track_r: float = 1.0, w_x: float = 0.0, catch_time: float = 3.0,
+                 refine_every: float = 0.5, funnel: float = 0.5, drop: float = 0.3, patience: float = 5.0, track_r: float = 1.0, w_x: float = 0.0, catch_time: float = 3.0,
                  catch_tol: float = 0.01):  # fmt: skip
         super().__init__(env, k_q=k_q, k_v=k_v, k_E=k_E, lqr_r=lqr_r, window=window, prior=prior, obs_noise=obs_noise,
                          process_noise=process_noise)  # fmt: skip
