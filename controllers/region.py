@@ -211,6 +211,12 @@ def noise_floor(A: np.ndarray, B: np.ndarray, dt: float, sigma: float, rho: floa
     ndarray, shape (n,)
         The floor per coordinate [rad, rad/s].
     """
+    with warnings.catch_warnings():  # the Riccati solves are ill-conditioned at small rho (docstring above)
+        warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
+        return _noise_floor(A, B, dt, sigma, rho, eps)
+
+
+def _noise_floor(A: np.ndarray, B: np.ndarray, dt: float, sigma: float, rho: float, eps: float) -> np.ndarray:
     A_d, B_d = discretize(A, B, dt)
     n = A.shape[0]
     R_n = sigma**2 * np.eye(n)
@@ -222,9 +228,7 @@ def noise_floor(A: np.ndarray, B: np.ndarray, dt: float, sigma: float, rho: floa
     for j in range(n):
         Q = eps * np.eye(n)
         Q[j, j] = 1.0
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
-            P = scipy.linalg.solve_discrete_are(A_d, B_d, Q, np.array([[rho]]))
+        P = scipy.linalg.solve_discrete_are(A_d, B_d, Q, np.array([[rho]]))
         K = np.linalg.solve(rho + B_d.T @ P @ B_d, B_d.T @ P @ A_d)
         floor[j] = np.sqrt(lqg_stationary(A_d, B_d, K, L, P_post, S_innov)[j, j])
     return floor

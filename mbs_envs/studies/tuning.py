@@ -40,6 +40,12 @@ between themselves, are ranked by the error over the conditions they do win
   swing-up + LQR's first-stage pick (``scripts/tune.py --refine-only``; a first stage for it, about an
   hour per scene on one core, crashed on a singular Riccati step, since fixed, and was not repeated): its pumping gains are
   those tuned for the nominal-model controller, its LQR weight and catch level its own.
+- identified iLQR + TVLQR: no grid in ``scripts/tune.py`` (a candidate costs minutes per scene): it takes
+  the adaptive controller's pumping gains and LQR weight; its own settings were compared by hand on
+  the same tuning seeds (20000-20019, then -20039; nominal and +-20 %, as here): the prior 0.1 J^2
+  against 1, the time-varying LQR's input weight 1 against 100, the initial guess's patience 5 s
+  against 3 s and none (``controllers/planned_swingup.py`` states the measured shares); it has no
+  catch level to tune (the LQR takes over where its simulated region says).
 
 A pick at the edge of its grid is reported as such by ``scripts/tune.py``
 (the grid should then be widened).
