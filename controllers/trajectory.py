@@ -11,11 +11,11 @@ one), from a state ``x0 = (q, v)``:
 2. **Optimization**: control-limited iLQR (Tassa, Mansard & Todorov 2014; for one input the box QP of
    the backward pass is a clamp, and a clamped input has no feedback) on
 
-       min_u  sum_k (w_u / 2) u_k^2 dt + (w_T / 2) dx_H^T S dx_H,     |u_k| <= u_max,
+       min_u  sum_k (w_u u_k^2 + dx_k^T W dx_k) dt / 2 + dx_H^T P_T dx_H / 2,     |u_k| <= u_max,
 
    with the horizon ``H`` the guess's arrival step plus a tail, ``dx = x - x_up`` with wrapped angles,
-   ``S`` the upright LQR's cost-to-go and ``w_T`` large: a minimum-effort path that ends where the LQR
-   holds. The dynamics are the discrete map the environments integrate (``substeps`` classical RK4 steps
+   ``P_T`` a large terminal weight and ``W`` a running one (zero in the shipped controller: a minimum-effort
+   path that ends upright). The dynamics are the discrete map the environments integrate (``substeps`` classical RK4 steps
    of the model's forward dynamics with the input held; :func:`controllers.control_map.rk4_map` is its
    numpy twin, equal to round-off, which the tests check).
 3. **Stabilization**: time-varying LQR along ``(X, U)``: the discrete Riccati recursion on the map's
@@ -30,6 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from mbs_envs.dynamics.jit import njit
+from mbs_envs.dynamics.trig import wrap
 from mbs_envs.models.planar2r import _acceleration, _energy, _friction
 
 #: line-search step lengths of the iLQR
@@ -78,7 +79,7 @@ def wrapped(x, goal):  # pragma: no cover - compiled
     """``x - goal`` with the angles (entries 0, 1) wrapped to ``[-pi, pi)``; shape (4,)."""
     d = x - goal
     for i in range(2):
-        d[i] = (d[i] + np.pi) % (2.0 * np.pi) - np.pi
+        d[i] = wrap(d[i])
     return d
 
 
@@ -95,9 +96,9 @@ def pumping_input(x, k_q, k_v, k_E, E_up, driven, theta, u_max):  # pragma: no c
     input is ``(y - a(0)) / (a(1) - a(0))``, from two forward-dynamics calls (no mass matrix needed)."""
     E_err = energy(x, theta) - E_up
     if driven == 1:  # acrobot
-        y = -k_q * ((x[1] + np.pi) % (2.0 * np.pi) - np.pi) - k_v * x[3] + k_E * E_err * x[2]
+        y = -k_q * wrap(x[1]) - k_v * x[3] + k_E * E_err * x[2]
     else:  # pendubot
-        y = -k_q * ((x[0] - 0.5 * np.pi + np.pi) % (2.0 * np.pi) - np.pi) - k_v * x[2] - k_E * E_err * x[2]
+        y = -k_q * wrap(x[0] - 0.5 * np.pi) - k_v * x[2] - k_E * E_err * x[2]
     r0 = rate(x[0], x[1], x[2], x[3], 0.0, driven, theta)
     r1 = rate(x[0], x[1], x[2], x[3], 1.0, driven, theta)
     a0, a1 = (r0[3], r1[3]) if driven == 1 else (r0[2], r1[2])
@@ -122,7 +123,7 @@ def pumping_search(x0, gains, E_up, goal, S, u_max, driven, theta, dt, substeps,
             for i in range(4):
                 d[i] = x[i] - goal[i]
             for i in range(2):
-                d[i] = (d[i] + np.pi) % (2.0 * np.pi) - np.pi
+                d[i] = wrap(d[i])
             c = 0.0
             for i in range(4):
                 for j in range(4):
@@ -322,8 +323,7 @@ def lqr_catches(x0, K, goal, u_max, driven, theta, dt, substeps, steps, tol):  #
     x0_, x1, x2, x3 = x0[0], x0[1], x0[2], x0[3]
     hold = max(1, steps // 10)
     for k in range(steps):
-        d0 = (x0_ - goal[0] + np.pi) % (2.0 * np.pi) - np.pi
-        d1 = (x1 - goal[1] + np.pi) % (2.0 * np.pi) - np.pi
+        d0, d1 = wrap(x0_ - goal[0]), wrap(x1 - goal[1])
         d2, d3 = x2 - goal[2], x3 - goal[3]
         if k >= steps - hold and max(abs(d0), abs(d1), abs(d2), abs(d3)) > tol:
             return False
