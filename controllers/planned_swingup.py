@@ -19,12 +19,12 @@ weight 1 (against 100, both with the prior at 1: acrobot 100/80/70 % nominal/+20
 alike) and the guess's patience 5 s (tuning seeds 20000-20039: acrobot 97/88/88 % against 97/78/80 % without
 patience, pendubot 100/93/97 % against 100/80/100 %). The others (a 10-s horizon, 100 iterations, refinement every
 0.5 s, 85 % of the torque limit, the funnel and the catch test) were set while building it; a horizon of 3 s planned
-too rarely (3 of 10 nominal episodes while building). The plan costs about 0.3-0.6 s of one core per attempt (2
+too rarely (3 of 10 nominal episodes while building, with 30 iterations). The plan costs about 0.3-0.6 s of one core per attempt (2
 cores: most of the main job's 8.5-10 minutes).
 
 **Memory** (SB3's ``state``): a tuple ``(row, plan)``: ``row`` (n, :data:`ROW_SIZE`) holds the adaptive
-controller's memory (identification, filter, last input) followed by the phase, the step in the plan, the
-plan's length and the steps since the episode started; ``plan`` (n, :attr:`plan_size`) the plan's inputs,
+controller's memory (identification, filter, last inputs) followed by the phase, the step in the plan, the
+plan's length, the steps since the episode started and those since the last plan (or attempt); ``plan`` (n, :attr:`plan_size`) the plan's inputs,
 states and gains. ``plan`` is only replaced (never written in place) when a member plans, so a state
 passed to ``predict`` is never changed by it.
 """
@@ -69,8 +69,10 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
         Seconds the plan continues after the pumping guess's closest approach to upright.
     iterations, refine_iterations : int
         iLQR iterations of a new plan and of a plan refined from where the arm is.
-    w_u, w_T : float
-        The plan's effort weight [1/(N m)^2 s] and the weight of its terminal cost-to-go.
+    w_u, w_T, w_x : float
+        The plan's effort weight [1/(N m)^2 s], and the scales of its terminal and running state weights
+        (:data:`TERMINAL` times each; :func:`controllers.trajectory.ilqr`'s objective). ``w_x = 0``: a
+        running cost quadratic in wrapped angles far from upright made plans worse while building it.
     margin : float
         The share of the torque limit the plan may use (the rest is the feedback's).
     accept : float
@@ -134,18 +136,21 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
         n, H = len(plan), self.max_steps
         return plan[:, :H], plan[:, H : H + 4 * (H + 1)].reshape(n, H + 1, 4), plan[:, H + 4 * (H + 1) :].reshape(n, H, 4)
 
+    def kernel_columns(self, row: np.ndarray, members: np.ndarray) -> list[np.ndarray]:
+        """The identified model of each of ``members`` as the kernels take it: a contiguous column ``(P, 1)`` each."""
+        model = ident.identified_model(row[members, THETA], self.model)
+        theta = np.asarray(model.kernel_params(), float).reshape(len(members), -1)
+        return [np.ascontiguousarray(t[:, None]) for t in theta]
+
     def make_plans(self, row: np.ndarray, plan: np.ndarray, members: np.ndarray, x: np.ndarray, refine: np.ndarray) -> np.ndarray:
         """Plan for ``members`` from ``x`` (n, 4) on their identified models: afresh, or where ``refine`` (per
         member listed) from the rest of the plan being tracked. Writes ``row`` (phase, step, length, since) in
         place and returns a new plan array (the one passed in untouched)."""
         plan = plan.copy()
         Us, Xs, Ks = self._views(plan)
-        model = ident.identified_model(row[members, THETA], self.model)
-        theta = np.asarray(model.kernel_params(), float).reshape(len(members), -1)
         u_max, driven, R = float(self.u_max[0]), self.driven, self.track_r
         U_new, X_new, K_new = np.empty(self.max_steps), np.empty((self.max_steps + 1, 4)), np.empty((self.max_steps, 4))
-        for j, i in enumerate(members):
-            th = np.ascontiguousarray(theta[j][:, None])
+        for j, (i, th) in enumerate(zip(members, self.kernel_columns(row, members))):
             S = row[i, S_].reshape(4, 4)
             if refine[j]:
                 k, H = int(row[i, STEP]), int(row[i, LENGTH])
@@ -168,10 +173,8 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
     def lqr_catches(self, row: np.ndarray, members: np.ndarray, x: np.ndarray) -> np.ndarray:
         """The ``members`` (indices) whose state ``x`` lies in the region of attraction of their identified model's
         saturated upright LQR, by simulating it for ``catch_time`` (:func:`controllers.trajectory.lqr_catches`)."""
-        model = ident.identified_model(row[members, THETA], self.model)
-        theta = np.asarray(model.kernel_params(), float).reshape(len(members), -1)
-        ok = [traj.lqr_catches(x[i], row[i, K_], self.goal, float(self.u_max[0]), self.driven, np.ascontiguousarray(theta[j][:, None]),
-                               self.dt, self.substeps, self.catch_steps, self.catch_tol) for j, i in enumerate(members)]  # fmt: skip
+        ok = [traj.lqr_catches(x[i], row[i, K_], self.goal, float(self.u_max[0]), self.driven, th, self.dt, self.substeps,
+                               self.catch_steps, self.catch_tol) for i, th in zip(members, self.kernel_columns(row, members))]  # fmt: skip
         return members[np.array(ok, bool)]
 
     def control(self, obs: Any, state: Any, episode_start: Any) -> tuple[np.ndarray, Any]:
@@ -217,8 +220,11 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
         kk = np.minimum(k, self.max_steps - 1)
         u_track = Us[idx, kk] + np.einsum("bi,bi->b", Ks[idx, kk], state_error(x, Xs[idx, kk]))
         u_lqr = -np.einsum("bi,bi->b", row[:, K_], dx)
-        u_pump = self.swing_up(q, v, ident.identified_model(row[:, THETA], self.model))
-        u = np.clip(np.where(phase == 1.0, u_track, np.where(phase == 2.0, u_lqr, u_pump)), -self.u_max[0], self.u_max[0])
+        u = np.where(phase == 1.0, u_track, u_lqr)
+        pumping = np.flatnonzero(phase == 0.0)
+        if len(pumping):
+            u[pumping] = self.swing_up(q[pumping], v[pumping], ident.identified_model(row[pumping, THETA], self.model))
+        u = np.clip(u, -self.u_max[0], self.u_max[0])
         row[phase == 1.0, STEP] += 1.0
         row[:, MODE] = phase == 2.0
         self.commit(row, u)
