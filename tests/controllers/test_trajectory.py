@@ -163,3 +163,27 @@ def test_swing_up_and_hold_on_the_nominal_acrobot():
         held.append(info["upright"])
     assert all(held[-200:])
     assert state[0][PHASE] == 2.0 and state[0][LENGTH] > 0  # balancing, after tracking a plan
+
+
+@pytest.mark.parametrize("env_id", ["mbs_envs/Acrobot-v1", "mbs_envs/Pendubot-v1"])
+def test_the_compiled_pumping_law_is_the_swing_up_controllers(env_id):
+    """The planner's guesses come from the same energy-pumping law as :class:`SwingUpLQR` (written twice: numba and
+    numpy): equal inputs on random states and gains, including states where the law saturates."""
+    from controllers import SwingUpLQR
+
+    env = gym.make(env_id, params={"b1": 0.05, "b2": 0.02})
+    model = env.unwrapped.model
+    ctrl = SwingUpLQR(env)
+    th, u_max, a = theta_of(model), float(env.unwrapped.u_max[0]), int(model.driven[0])
+    E_up = traj.energy(GOAL, th)
+    assert E_up == pytest.approx(ctrl.E_up, rel=1e-14)
+    rng = np.random.default_rng(2)
+    saturated = 0
+    for _ in range(200):
+        x = rng.uniform([-np.pi, -np.pi, -6, -6], [np.pi, np.pi, 6, 6])
+        ctrl.k_q, ctrl.k_v, ctrl.k_E = rng.uniform(0, 50), rng.uniform(0, 10), rng.uniform(0, 16)
+        want = np.clip(ctrl.swing_up(x[:2], x[2:]), -u_max, u_max)
+        got = traj.pumping_input(x, ctrl.k_q, ctrl.k_v, ctrl.k_E, E_up, a, th, u_max)
+        assert got == pytest.approx(want, rel=1e-9, abs=1e-9)
+        saturated += abs(want) == u_max
+    assert 0 < saturated < 200
