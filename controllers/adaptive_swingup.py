@@ -46,8 +46,9 @@ from mbs_envs.envs.tracking import wrap_angle
 
 from . import identification as ident
 from .base import care
-from .control_map import rk4_map, state_error
-from .estimator import ekf_step
+from .control_map import fast_map, state_error
+from . import trajectory as traj
+from .estimator import EPS as EKF_EPS
 from .swingup import SwingUpLQR, upright_linearization
 
 N = ident.N_BASE
@@ -126,15 +127,17 @@ class AdaptiveSwingUpLQR(SwingUpLQR):
         return state
 
     def estimate_state(self, state: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """The filter's step (:func:`controllers.estimator.ekf_step`) on the model the last input was chosen
-        with: the new ``(x, P)`` written into (a copy of) ``state``."""
+        """The filter's step (:func:`controllers.estimator.ekf_step`, compiled as :func:`controllers.trajectory.ekf_steps`)
+        on the model the last input was chosen with: the new ``(x, P)`` written into (a copy of) ``state``."""
         state = state.copy()
         n = len(state)
-        model = ident.identified_model(state[:, THETA], self.model)
+        theta = np.ascontiguousarray(self.kernel_theta(state[:, THETA]).T)
         Q_w = np.where((state[:, MODE] > 0.5)[:, None, None], self.Q_w[0], self.Q_w[1])
+        x, P = np.empty((n, 4)), np.empty((n, 4, 4))
         with np.errstate(all="ignore"):  # a diverging member is caught below
-            x, P = ekf_step(model, state[:, XH], state[:, P_].reshape(n, 4, 4), self.applied(state)[:, None], y, self.dt,
-                            self.substeps, Q_w, self.R_n)  # fmt: skip
+            traj.ekf_steps(np.ascontiguousarray(state[:, XH]), np.ascontiguousarray(state[:, P_].reshape(n, 4, 4)), self.applied(state),
+                           np.ascontiguousarray(y, float), theta,
+                           self.driven, self.dt, self.substeps, Q_w, self.R_n, EKF_EPS, x, P)  # fmt: skip
         # an estimate that is not finite or has left the observation by more than RESTART_SIGMAS noise deviations
         # (the model's prediction lost: a plant far off the identified model, a fall) restarts from the observation
         lost = ~(np.isfinite(x).all(axis=1) & np.isfinite(P).all(axis=(1, 2)))
@@ -201,7 +204,7 @@ class AdaptiveSwingUpLQR(SwingUpLQR):
         if not late.any():
             return q, v
         model = ident.identified_model(state[late, THETA], self.model)
-        x = rk4_map(model, np.concatenate([q[late], v[late]], axis=1), state[late, U][:, None], self.dt, self.substeps)
+        x = fast_map(model, np.concatenate([q[late], v[late]], axis=1), state[late, U][:, None], self.dt, self.substeps)
         q, v = q.copy(), v.copy()
         q[late], v[late] = wrap_angle(x[:, :2]), x[:, 2:]
         return q, v
@@ -211,6 +214,18 @@ class AdaptiveSwingUpLQR(SwingUpLQR):
         """Record the input ``u`` just chosen (the last one becomes the one before), in place."""
         state[:, U_PREV] = state[:, U]
         state[:, U] = u
+
+    def kernel_theta(self, th: np.ndarray) -> np.ndarray:
+        """The kernel parameters (:meth:`mbs_envs.models.planar2r.Planar2R.kernel_params`) of the models identified as
+        base parameters ``th`` (n, 5): shape ``(n, P)``."""
+        key = np.ascontiguousarray(th, float).tobytes()
+        cache = self.__dict__.setdefault("_kernel_theta", {})  # a pure function of th, which changes once per window
+        if key not in cache:
+            if len(cache) >= 16:
+                cache.clear()
+            model = ident.identified_model(th, self.model)
+            cache[key] = np.asarray(model.kernel_params(), float).reshape(len(th), -1)
+        return cache[key].copy()
 
     def gains(self, model: Any, n: int) -> tuple[np.ndarray, np.ndarray]:
         """The LQR's ``(K, S)`` for each member of ``model`` (per-member parameters of shape ``(n,)``)."""

@@ -46,6 +46,27 @@ def rk4_map(model: Any, x: np.ndarray, u: np.ndarray, dt: float, substeps: int) 
     return np.concatenate([q, v], axis=-1)
 
 
+def fast_map(model: Any, x: np.ndarray, u: np.ndarray, dt: float, substeps: int) -> np.ndarray:
+    """:func:`rk4_map`, compiled for the 2R arm with one motor (:func:`controllers.trajectory.map_rows`, equal to
+    round-off); any other model (or input) takes :func:`rk4_map`. Same arguments and result; the model's parameters
+    may be per member, broadcast against ``x``'s leading axes."""
+    from mbs_envs.models.planar2r import Planar2R
+
+    from . import trajectory as traj
+
+    if not (isinstance(model, Planar2R) and len(model.driven) == 1 and x.shape[-1] == 4 and np.shape(u)[-1:] == (1,)):
+        return rk4_map(model, x, u, dt, substeps)
+    lead = np.broadcast_shapes(x.shape[:-1], np.shape(u)[:-1])
+    theta = np.asarray(model.kernel_params(), float)
+    n = int(np.prod(lead))
+    theta = np.broadcast_to(theta, lead + theta.shape[-1:]).reshape(n, -1).T if theta.ndim > 1 else theta[:, None]
+    X = np.ascontiguousarray(np.broadcast_to(x, lead + (4,)).reshape(n, 4), float)
+    U = np.ascontiguousarray(np.broadcast_to(u, lead + (1,)).reshape(n), float)
+    out = np.empty((n, 4))
+    traj.map_rows(X, U, int(model.driven[0]), np.ascontiguousarray(theta), float(dt), int(substeps), out)
+    return out.reshape(lead + (4,))
+
+
 def state_error(x: np.ndarray, x_ref: np.ndarray) -> np.ndarray:
     """``x - x_ref`` with the angles (the first half) wrapped to ``[-pi, pi)``, shape of ``x``."""
     n = x.shape[-1] // 2

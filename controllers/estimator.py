@@ -26,8 +26,11 @@ from mbs_envs.envs.tracking import wrap_angle
 
 from .control_map import rk4_map, state_error
 
+#: the central differences' step for ``F_x`` [rad, rad/s]
+EPS = 1e-6
 
-def map_jacobian(model: Any, x: np.ndarray, u: np.ndarray, dt: float, substeps: int, eps: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
+
+def map_jacobian(model: Any, x: np.ndarray, u: np.ndarray, dt: float, substeps: int, eps: float = EPS) -> tuple[np.ndarray, np.ndarray]:
     """``F(x, u)`` and ``F_x = dF/dx`` by central differences, in one batched call of the map.
 
     Parameters

@@ -138,9 +138,7 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
 
     def kernel_columns(self, row: np.ndarray, members: np.ndarray) -> list[np.ndarray]:
         """The identified model of each of ``members`` as the kernels take it: a contiguous column ``(P, 1)`` each."""
-        model = ident.identified_model(row[members, THETA], self.model)
-        theta = np.asarray(model.kernel_params(), float).reshape(len(members), -1)
-        return [np.ascontiguousarray(t[:, None]) for t in theta]
+        return [np.ascontiguousarray(t[:, None]) for t in self.kernel_theta(row[members, THETA])]
 
     def make_plans(self, row: np.ndarray, plan: np.ndarray, members: np.ndarray, x: np.ndarray, refine: np.ndarray) -> np.ndarray:
         """Plan for ``members`` from ``x`` (n, 4) on their identified models: afresh, or where ``refine`` (per

@@ -15,7 +15,7 @@ Two figures for a 2R arm with one motor about upright, both on the linearization
   controller achieves with the observations noisy (the LQG optimum as the input weight vanishes).
 - :func:`estimate_region` -- **what a given feedback catches**, by simulation: states are
   drawn uniformly in a box about upright, then below the level found so far, and each is run in closed loop ``u = clip(-K x)`` on
-  the discrete map the env integrates (:func:`controllers.control_map.rk4_map`), on every plant
+  the discrete map the env integrates (:func:`controllers.control_map.fast_map`: compiled for the 2R arm), on every plant
   of a set (the nominal and mismatched ones, optionally with the input applied one step late);
   the estimate is the largest level ``c*`` of the LQR's cost-to-go ``x^T S x`` below which no
   sample failed. It is a sampled estimate, not a certificate: the tests check that fresh states
@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 import scipy.linalg
 
-from .control_map import rk4_map, state_error
+from .control_map import fast_map, state_error
 
 
 def saturation_bound(A: np.ndarray, B: np.ndarray, u_max: float, delay: float = 0.0) -> np.ndarray:
@@ -101,7 +101,7 @@ def closed_loop_final(cases: list[PlantCase], x0: np.ndarray, x_goal: np.ndarray
             for _ in range(steps):
                 u = np.clip(-(state_error(x, x_goal) @ K.T), -u_max, u_max)
                 queue.append(u)
-                x = rk4_map(case.model, x, queue.pop(0), dt, substeps)
+                x = fast_map(case.model, x, queue.pop(0), dt, substeps)
                 x = np.where(np.abs(x) < 1e6, x, np.nan)
                 if box is not None:
                     x = np.where(np.all(np.abs(state_error(x, x_goal)) <= box, axis=-1, keepdims=True), x, np.nan)

@@ -75,6 +75,19 @@ def step_map(x, u, driven, theta, dt, substeps):  # pragma: no cover - compiled
 
 
 @njit
+def map_rows(X, u, driven, theta, dt, substeps, out):  # pragma: no cover - compiled
+    """:func:`step_map` for each row: ``X`` (B, 4), ``u`` (B,), ``theta`` (P, B) a column per row (or (P, 1) for
+    all); ``out`` (B, 4) written."""
+    n_p = theta.shape[0]
+    col = np.empty((n_p, 1))
+    for b in range(X.shape[0]):
+        j = b if theta.shape[1] > 1 else 0
+        for p in range(n_p):
+            col[p, 0] = theta[p, j]
+        out[b, 0], out[b, 1], out[b, 2], out[b, 3] = step4(X[b, 0], X[b, 1], X[b, 2], X[b, 3], u[b], driven, col, dt, substeps)
+
+
+@njit
 def wrapped(x, goal):  # pragma: no cover - compiled
     """``x - goal`` with the angles (entries 0, 1) wrapped to ``[-pi, pi)``; shape (4,)."""
     d = x - goal
@@ -332,3 +345,58 @@ def lqr_catches(x0, K, goal, u_max, driven, theta, dt, substeps, steps, tol):  #
         if not (np.isfinite(x0_) and np.isfinite(x1) and np.isfinite(x2) and np.isfinite(x3)):
             return False
     return True
+
+
+@njit
+def ekf_steps(X, P, u, Y, theta, driven, dt, substeps, Q_w, R_n, eps, X_out, P_out):  # pragma: no cover - compiled
+    """One extended Kalman filter step per member on the 2R arm's map (:func:`controllers.estimator.ekf_step`,
+    the same arithmetic compiled; the model's map :func:`step4`, ``F_x`` by central differences of ``eps``):
+
+        predict:  x- = F(x+, u),              P- = F_x P+ F_x^T + Q_w
+        update:   L = P- (P- + R_n)^-1,       x+ = x- + L (y - x-),   P+ = (I - L) P-  (symmetrized)
+
+    Parameters
+    ----------
+    X, P : ndarray, shapes (B, 4) and (B, 4, 4)
+        Last estimates ``(q, v)`` [rad, rad/s] and covariances.
+    u : ndarray, shape (B,)
+        The input applied since [N m].
+    Y : ndarray, shape (B, 4)
+        New observations.
+    theta : ndarray, shape (P, B)
+        Each member's kernel parameters (a column each).
+    Q_w : ndarray, shape (B, 4, 4)
+    R_n : ndarray, shape (4, 4)
+    X_out, P_out : ndarray, shapes of ``X`` and ``P``
+        Written with the new estimates (angles wrapped) and covariances; NaN for a member whose prediction is
+        not finite.
+    """
+    B, n_p = X.shape[0], theta.shape[0]
+    col = np.empty((n_p, 1))
+    F = np.empty((4, 4))
+    z = np.empty(4)
+    for b in range(B):
+        for p in range(n_p):
+            col[p, 0] = theta[p, b]
+        x0, x1, x2, x3 = step4(X[b, 0], X[b, 1], X[b, 2], X[b, 3], u[b], driven, col, dt, substeps)
+        for j in range(4):
+            z[:] = X[b]
+            z[j] += eps
+            p0, p1, p2, p3 = step4(z[0], z[1], z[2], z[3], u[b], driven, col, dt, substeps)
+            z[:] = X[b]
+            z[j] -= eps
+            m0, m1, m2, m3 = step4(z[0], z[1], z[2], z[3], u[b], driven, col, dt, substeps)
+            F[0, j], F[1, j] = (p0 - m0) / (2 * eps), (p1 - m1) / (2 * eps)
+            F[2, j], F[3, j] = (p2 - m2) / (2 * eps), (p3 - m3) / (2 * eps)
+        P_pred = F @ P[b] @ F.T + Q_w[b]
+        if not (np.isfinite(P_pred).all() and np.isfinite(x0) and np.isfinite(x1) and np.isfinite(x2) and np.isfinite(x3)):
+            X_out[b], P_out[b] = np.nan, np.nan  # a lost member: the caller restarts it
+            continue
+        L = np.linalg.solve(P_pred + R_n, P_pred).T
+        e0, e1, e2, e3 = wrap(Y[b, 0] - x0), wrap(Y[b, 1] - x1), Y[b, 2] - x2, Y[b, 3] - x3
+        X_out[b, 0] = wrap(x0 + (L[0, 0] * e0 + L[0, 1] * e1 + L[0, 2] * e2 + L[0, 3] * e3))
+        X_out[b, 1] = wrap(x1 + (L[1, 0] * e0 + L[1, 1] * e1 + L[1, 2] * e2 + L[1, 3] * e3))
+        X_out[b, 2] = x2 + (L[2, 0] * e0 + L[2, 1] * e1 + L[2, 2] * e2 + L[2, 3] * e3)
+        X_out[b, 3] = x3 + (L[3, 0] * e0 + L[3, 1] * e1 + L[3, 2] * e2 + L[3, 3] * e3)
+        P_new = P_pred - L @ P_pred
+        P_out[b] = 0.5 * (P_new + P_new.T)

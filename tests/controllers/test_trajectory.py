@@ -34,6 +34,58 @@ def test_compiled_map_is_the_envs_map(env_id):
         assert np.allclose(traj.step_map(x, u, int(model.driven[0]), theta_of(model), 0.01, 2), want, rtol=0, atol=1e-12)
 
 
+@pytest.mark.parametrize("env_id", ["mbs_envs/Acrobot-v1", "mbs_envs/Pendubot-v1"])
+def test_compiled_filter_step_is_the_numpy_filter_step(env_id):
+    """The adaptive controllers' compiled EKF step equals controllers.estimator.ekf_step, per member on its own
+    identified model, with angles far from [-pi, pi) and covariances of every size. Tolerance 1e-8: both take F_x
+    by central differences of 1e-6, which turn the maps' 1e-16 round-off into ~1e-10 in F_x."""
+    from controllers import identification as ident
+    from controllers.adaptive_swingup import AdaptiveSwingUpLQR
+    from controllers.estimator import EPS, ekf_step
+
+    c = AdaptiveSwingUpLQR(gym.make(env_id))
+    rng = np.random.default_rng(3)
+    B = 40
+    p = c.model.params
+    th = ident.base_parameters(p.batched(m1=p.m1 * rng.uniform(0.7, 1.3, B), m2=p.m2 * rng.uniform(0.7, 1.3, B), r2=p.r2 * rng.uniform(0.7, 1.3, B)))
+    model = ident.identified_model(th, c.model)
+    X = rng.uniform(-9, 9, (B, 4))
+    A = rng.normal(size=(B, 4, 4)) * 10.0 ** rng.uniform(-4, 0, (B, 1, 1))
+    P = A @ A.transpose(0, 2, 1) + 1e-8 * np.eye(4)
+    u = rng.uniform(-10, 10, B)
+    Y = X + rng.normal(0, 0.01, (B, 4)) + 2 * np.pi * rng.integers(-2, 3, (B, 4)) * [1, 1, 0, 0]
+    Q_w = c.Q_w[rng.integers(0, 2, B)]
+    x_want, P_want = ekf_step(model, X, P, u[:, None], Y, c.dt, c.substeps, Q_w, c.R_n)
+    x, P_new = np.empty_like(X), np.empty_like(P)
+    traj.ekf_steps(X, P, u, Y, np.ascontiguousarray(c.kernel_theta(th).T), c.driven, c.dt, c.substeps, Q_w, c.R_n, EPS, x, P_new)
+    assert np.allclose(x, x_want, rtol=0, atol=1e-8)
+    assert np.allclose(P_new, P_want, rtol=1e-8, atol=1e-8 * np.abs(P_want).max(axis=(1, 2), keepdims=True))
+
+
+def test_the_fast_map_is_the_numpy_map_for_every_model_and_shape():
+    """controllers.control_map.fast_map (compiled for the one-motor 2R arm) equals rk4_map to round-off with
+    per-member parameters broadcast against leading axes, a scalar model, NaN and far-off states; a model it does
+    not compile (two motors) takes rk4_map itself."""
+    from controllers import identification as ident
+    from controllers.control_map import fast_map
+
+    rng = np.random.default_rng(5)
+    for env_id in ["mbs_envs/Acrobot-v1", "mbs_envs/Pendubot-v1"]:
+        model = gym.make(env_id, params={"b1": 0.05, "b2": 0.02}).unwrapped.model
+        p, B = model.params, 12
+        batched = ident.identified_model(ident.base_parameters(p.batched(m2=p.m2 * rng.uniform(0.7, 1.3, B))), model)
+        for m, x, u in [(batched, rng.uniform(-9, 9, (3, B, 4)), rng.uniform(-10, 10, (B, 1))),
+                        (model, rng.uniform(-9, 9, (5, 4)), rng.uniform(-10, 10, (5, 1))),
+                        (model, np.array([[np.nan, 0.0, 1.0, 2.0], [1e3, -1e3, 50.0, -50.0]]), np.array([[1.0]]))]:  # fmt: skip
+            want = rk4_map(m, x, u, 0.01, 2)
+            got = fast_map(m, x, u, 0.01, 2)
+            assert got.shape == want.shape
+            assert np.allclose(got, want, rtol=1e-13, atol=1e-12, equal_nan=True)
+    both = gym.make("mbs_envs/Planar2R-v0").unwrapped.model
+    x, u = rng.uniform(-2, 2, (4, 4)), rng.uniform(-5, 5, (4, 2))
+    assert np.array_equal(fast_map(both, x, u, 0.01, 2), rk4_map(both, x, u, 0.01, 2))
+
+
 def test_jacobians_are_those_of_the_map():
     """Forward differences against central differences of the numpy map (truncation error ~1e-7)."""
     model = gym.make("mbs_envs/Acrobot-v1").unwrapped.model
