@@ -40,12 +40,13 @@ between themselves, are ranked by the error over the conditions they do win
   swing-up + LQR's first-stage pick (``scripts/tune.py --refine-only``; a first stage for it, about an
   hour per scene on one core, crashed on a singular Riccati step, since fixed, and was not repeated): its pumping gains are
   those tuned for the nominal-model controller, its LQR weight and catch level its own.
-- identified iLQR + TVLQR: no grid in ``scripts/tune.py`` (a candidate costs minutes per scene): it takes
-  the adaptive controller's pumping gains and LQR weight; its own settings were compared by hand on
-  the same tuning seeds (20000-20019, then -20039; nominal and +-20 %, as here): the prior 0.1 J^2
-  against 1, the time-varying LQR's input weight 1 against 100, the initial guess's patience 5 s
-  against 3 s and none (``controllers/planned_swingup.py`` states the measured shares); it has no
-  catch level to tune (the LQR takes over where its simulated region says).
+- identified iLQR + TVLQR: the same first grid (not run: a candidate costs minutes per scene) and a
+  second stage (:func:`planner_grid`) from the adaptive controller's pick: its pumping gains (the first
+  3 s) with the upright LQR's input weight in {1, 10, ..., 1e4} (``--refine-only``). Its other
+  settings were compared by hand on the same tuning seeds (20000-20019, then -20039; nominal and
+  +-20 %, as here): the prior 0.1 J^2 against 1, the time-varying LQR's input weight 1 against 100, the
+  initial guess's patience 5 s against 3 s and none (``controllers/planned_swingup.py`` states the
+  measured shares); it has no catch level to tune (the LQR takes over where its simulated region says).
 
 A pick at the edge of its grid is reported as such by ``scripts/tune.py``
 (the grid should then be widened).
@@ -116,9 +117,18 @@ def swing_up_refine_grid(best: dict[str, Any]) -> list[dict[str, Any]]:
     ]
 
 
+def planner_grid(best: dict[str, Any]) -> list[dict[str, Any]]:
+    """The second stage of identified iLQR + TVLQR: ``best``'s pumping gains (those of the first 3 s) with the
+    upright LQR's input weight ``lqr_r`` in {1, 10, 100, 1e3, 1e4} (the time-varying LQR's is 1); no catch level
+    (the planner catches where the simulated region says)."""
+    pumping = {k: best[k] for k in ("k_q", "k_v", "k_E")}
+    return [{**pumping, "lqr_r": r} for r in (1.0, 10.0, 100.0, 1e3, 1e4)]
+
+
 #: controller display name -> the grid of a second stage around the first stage's pick
 REFINE: dict[str, Callable[[dict[str, Any]], list[dict[str, Any]]]] = {"swing-up + LQR": swing_up_refine_grid,
-                                                                     "adaptive swing-up + LQR": swing_up_refine_grid}
+                                                                     "adaptive swing-up + LQR": swing_up_refine_grid,
+                                                                     "identified iLQR + TVLQR": planner_grid}
 
 #: controller display name -> its grid
 GRIDS: dict[str, Callable[[], list[dict[str, Any]]]] = {
@@ -129,6 +139,7 @@ GRIDS: dict[str, Callable[[], list[dict[str, Any]]]] = {
     "PD steering": steering_grid,
     "swing-up + LQR": swing_up_grid,
     "adaptive swing-up + LQR": swing_up_grid,
+    "identified iLQR + TVLQR": swing_up_grid,
 }
 
 
