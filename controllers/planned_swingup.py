@@ -22,7 +22,7 @@ nominal and +-20 %: failures 0 % on the acrobot against 3-7 % for 1, 100, 1e3, 1
 patience, pendubot 100/93/97 % against 100/80/100 %). The others (a 10-s horizon, 100 iterations, refinement every
 0.5 s, 85 % of the torque limit, the funnel and the catch test) were set while building it; a horizon of 3 s planned
 too rarely (3 of 10 nominal episodes while building, with 30 iterations). The plan costs about 0.3-0.6 s of one core per attempt (2
-cores: most of the main job's 8.5-10 minutes).
+cores: most of the main job's 6.7 minutes in its last run).
 
 **Memory** (SB3's ``state``): a tuple ``(row, plan)``: ``row`` (n, :data:`ROW_SIZE`) holds the adaptive
 controller's memory (identification, filter, last inputs) followed by the phase, the step in the plan, the
