@@ -232,3 +232,50 @@ def _noise_floor(A: np.ndarray, B: np.ndarray, dt: float, sigma: float, rho: flo
         K = np.linalg.solve(rho + B_d.T @ P @ B_d, B_d.T @ P @ A_d)
         floor[j] = np.sqrt(lqg_stationary(A_d, B_d, K, L, P_post, S_innov)[j, j])
     return floor
+
+
+#: the LQG controllers :func:`lqg_hold_share` tries: input weights ``rho`` [(N m)^-2] x rate weights (angles weighted 1)
+LQG_GRID = tuple((rho, w_v) for rho in (1e-9, 1e-6, 1e-4, 1e-2) for w_v in (1e-12, 1e-3, 1e-1))
+
+
+def lqg_hold_share(A: np.ndarray, B: np.ndarray, dt: float, sigma: float, tol: float, hold_steps: int, windows: int = 2000,
+                   settle_steps: int = 300, seed: int = 0) -> float:  # fmt: skip
+    """**What observation noise leaves of a hold**: the largest share, over the LQG controllers of :data:`LQG_GRID`,
+    of windows of ``hold_steps`` control steps in which both angles stay within ``tol`` of upright, on the
+    linearization observed as in :func:`noise_floor` (every state entry with white Gaussian noise of std ``sigma``,
+    no process noise, the input unbounded).
+
+    Each controller (the Kalman filter of :func:`noise_floor` and the discrete LQR of ``x^T diag(1, 1, w_v, w_v) x +
+    rho u^2``) runs ``windows`` independent episodes from upright with an exact estimate, ``settle_steps`` steps to
+    reach its stationary spread, then the window. An estimate of what a controller that knows the plant achieves,
+    not a bound (minimum variance is not maximum probability of staying inside a box); the share at the tolerance
+    of the swing-up scenes' success rule sets a model-free controller's strict success against it.
+
+    Returns
+    -------
+    float
+        The share in ``[0, 1]``.
+    """
+    with warnings.catch_warnings():  # ill-conditioned Riccati solves at small rho (noise_floor)
+        warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
+        A_d, B_d = discretize(A, B, dt)
+        n = A.shape[0]
+        R_n = sigma**2 * np.eye(n)
+        P_prior = scipy.linalg.solve_discrete_are(A_d.T, np.eye(n), 1e-12 * np.eye(n), R_n)
+        L = P_prior @ np.linalg.inv(P_prior + R_n)
+        best = 0.0
+        for rho, w_v in LQG_GRID:
+            Q = np.diag([1.0] * (n // 2) + [w_v] * (n - n // 2))
+            P = scipy.linalg.solve_discrete_are(A_d, B_d, Q, np.array([[rho]]))
+            K = np.linalg.solve(rho + B_d.T @ P @ B_d, B_d.T @ P @ A_d)
+            rng = np.random.default_rng(seed)
+            x, xh = np.zeros((windows, n)), np.zeros((windows, n))
+            held = np.ones(windows, bool)
+            for k in range(settle_steps + hold_steps):
+                xh = xh + (x + rng.normal(0.0, sigma, x.shape) - xh) @ L.T  # the filter's update on the new observation
+                u = -xh @ K.T
+                x, xh = x @ A_d.T + u @ B_d.T, xh @ A_d.T + u @ B_d.T  # the plant's step and the filter's prediction
+                if k >= settle_steps:
+                    held &= np.all(np.abs(x[:, : n // 2]) <= tol, axis=1)
+            best = max(best, float(held.mean()))
+    return best

@@ -9,7 +9,9 @@ model-based controller, with its nominal gains) brings that plant back
 below the first, a failed catch is the controller's, not physics'. Under observation noise also the
 smallest stationary spread of each angle about upright that any controller achieves
 (:func:`controllers.region.noise_floor`): no controller holds an angle with a smaller spread, so a
-success tolerance of a few such deviations fails often whatever the controller.
+success tolerance of a few such deviations fails often whatever the controller; and the share of the success
+rule's windows (both angles within the tolerance for the last 2 s) that the best of a grid of LQG controllers
+holds on the linearization (:func:`controllers.region.lqg_hold_share`, an estimate, not a bound).
 """
 
 from __future__ import annotations
@@ -19,10 +21,11 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from controllers.region import PlantCase, axis_catch, noise_floor, saturation_bound
+from controllers.region import PlantCase, axis_catch, lqg_hold_share, noise_floor, saturation_bound
 from controllers.swingup import SwingUpLQR, upright_linearization
 from ..envs.swingup import Q_UP
 from .comparison import SCENES, Condition, plant_kwargs
+from .evaluation import HOLD
 
 #: the coordinates of the table
 AXES = ("q1 [rad]", "q2 [rad]", "v1 [rad/s]", "v2 [rad/s]")
@@ -43,17 +46,20 @@ def catch_rows(scene: str, conditions: list[Condition]) -> list[dict[str, Any]]:
         case = PlantCase(plant, cond.delay)
         caught = [axis_catch(case, x_up, lqr.K, u_max, dt, substeps, j, 1.5 * b if np.isfinite(b) else 5.0) for j, b in enumerate(bound)]
         floor = noise_floor(A, B, dt, cond.obs_noise)[:2].tolist() if cond.obs_noise > 0 else None
-        rows.append({"scene": scene, "condition": cond.name, "bound": [float(b) for b in bound], "lqr_catch": caught, "noise_floor": floor})
+        hold = lqg_hold_share(A, B, dt, cond.obs_noise, nominal.upright_tolerance, int(round(HOLD / dt))) if cond.obs_noise > 0 else None
+        rows.append({"scene": scene, "condition": cond.name, "bound": [float(b) for b in bound], "lqr_catch": caught, "noise_floor": floor,
+                     "lqg_hold": hold})  # fmt: skip
     return rows
 
 
 def catch_table(rows: list[dict[str, Any]]) -> str:
     """A markdown table of :func:`catch_rows`: ``LQR catch / bound`` per coordinate."""
-    lines = ["| scene | condition | " + " | ".join(f"{a}: LQR / bound" for a in AXES) + " | noise floor: std q1 / q2 [rad] |",
-             "|---|---|" + "---|" * (len(AXES) + 1)]  # fmt: skip
+    lines = ["| scene | condition | " + " | ".join(f"{a}: LQR / bound" for a in AXES) + " | noise floor: std q1 / q2 [rad] | LQG holds |",
+             "|---|---|" + "---|" * (len(AXES) + 2)]  # fmt: skip
     for r in rows:
         cells = [f"{c:.3f} / {b:.3f}" for c, b in zip(r["lqr_catch"], r["bound"])]
         floor = r.get("noise_floor")
         cells.append(f"{floor[0]:.4f} / {floor[1]:.4f}" if floor else "")
+        cells.append(f"{r['lqg_hold']:.0%}" if r.get("lqg_hold") is not None else "")
         lines.append(f"| {r['scene']} | {r['condition']} | " + " | ".join(cells) + " |")
     return "\n".join(lines)

@@ -150,9 +150,11 @@ def episode_metrics(ep: Episode, settle_time: float = 1.0) -> dict[str, float]:
 
 #: the looser success tolerance [rad] and the "near upright" band [rad] a swing-up is also scored at
 WIDE_TOLERANCE, NEAR_UPRIGHT = 0.2, 0.3
+#: [s] a swing-up succeeds when it stays upright for the last HOLD seconds of its episode
+HOLD = 2.0
 
 
-def swing_up_metrics(ep: Episode, hold: float = 2.0, dt: float | None = None) -> dict[str, float]:
+def swing_up_metrics(ep: Episode, hold: float = HOLD, dt: float | None = None) -> dict[str, float]:
     """Summary figures of a swing-up episode (Acrobot, Pendubot: v0 and v1), with those of :func:`episode_metrics`.
 
     - ``success``: within the upright tolerance at every step of the last ``hold`` seconds

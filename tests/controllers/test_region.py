@@ -144,3 +144,25 @@ def test_the_noise_floor_is_what_the_lqg_achieves_in_simulation_and_no_lqr_beats
             P = scipy.linalg.solve_discrete_are(A_d, B_d, np.diag([w, 1.0, 0.1, 0.1]), np.array([[r]]))
             K = np.linalg.solve(r + B_d.T @ P @ B_d, B_d.T @ P @ A_d)
             assert np.sqrt(lqg_stationary(A_d, B_d, K, L, P_post, P_prior + R_n)[1, 1]) >= floor[1] * (1 - 1e-6)
+
+
+def test_the_lqg_hold_share_falls_with_the_noise_and_matches_the_stationary_spread():
+    """lqg_hold_share: 1 where the noise is tiny against the tolerance, falling as the noise grows (same seed),
+    0 where the tolerance is a fraction of the noise floor; and a one-step window's share is at most the probability
+    that a zero-mean Gaussian of the elbow's floor deviation lies within the tolerance (no controller's elbow spreads
+    less), within sampling error (2,000 windows: 0.035)."""
+    import scipy.stats
+
+    from controllers.region import lqg_hold_share, noise_floor
+    from controllers.swingup import upright_linearization
+
+    env = gym.make("mbs_envs/Acrobot-v1").unwrapped
+    A, B = upright_linearization(env.model)
+    dt = env.dt
+    shares = [lqg_hold_share(A, B, dt, s, 0.1, 200) for s in (1e-4, 0.005, 0.01, 0.02)]
+    assert shares[0] == 1.0 and shares[0] >= shares[1] >= shares[2] >= shares[3] and shares[3] < shares[1]
+    floor = noise_floor(A, B, dt, 0.01)
+    assert lqg_hold_share(A, B, dt, 0.01, 0.2 * floor[1], 200) == 0.0
+    one = lqg_hold_share(A, B, dt, 0.01, 0.1, 1)  # one step: P(both angles inside) at the stationary spread
+    p_elbow = scipy.stats.norm.cdf(0.1 / floor[1]) * 2 - 1  # the elbow alone, at the floor: an upper estimate
+    assert one <= p_elbow + 0.035 and one > 0.5
