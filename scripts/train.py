@@ -29,7 +29,7 @@ import mbs_envs  # noqa: F401
 from mbs_envs.envs import registry
 from mbs_envs.studies.evaluation import ERROR_METRIC
 from mbs_envs.studies.parallel import run_tasks
-from mbs_envs.studies.training import ALGOS, TrainConfig, hyper_setting, residual_base, train
+from mbs_envs.studies.training import ALGOS, TrainConfig, hyper_setting, out_refusal, residual_base, train
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -55,13 +55,14 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--eval-every", type=int, help="env-steps between evaluations (default steps/10)")
     p.add_argument("--checkpoint-every", type=int, help="env-steps between checkpoints")
     p.add_argument("--tensorboard", action="store_true")
+    p.add_argument("--overwrite", action="store_true", help="replace an agent already in --out (a folder another run is writing is refused)")
     p.add_argument("--ray", nargs="?", const="local", help="run the seeds on Ray (cluster ADDRESS, or a local instance)")
     return p.parse_args(argv)
 
 
 def _train_one(task: dict) -> dict:
     config = TrainConfig(**task["config"])
-    return train(config, pathlib.Path(task["out"]), task["tensorboard"], task["checkpoint_every"])
+    return train(config, pathlib.Path(task["out"]), task["tensorboard"], task["checkpoint_every"], task["overwrite"])
 
 
 def run(args: argparse.Namespace) -> list[dict]:
@@ -78,7 +79,11 @@ def run(args: argparse.Namespace) -> list[dict]:
         except ValueError as exc:
             raise SystemExit(f"train.py: {exc}") from None
         out = args.out if len(args.seed) == 1 else args.out / f"seed{seed}"
-        tasks.append({"config": config, "out": str(out), "tensorboard": args.tensorboard, "checkpoint_every": args.checkpoint_every})
+        refusal = out_refusal(out, args.overwrite)
+        if refusal:
+            raise SystemExit(f"train.py: {refusal} (--overwrite replaces an agent)")
+        tasks.append({"config": config, "out": str(out), "tensorboard": args.tensorboard, "checkpoint_every": args.checkpoint_every,
+                      "overwrite": args.overwrite})  # fmt: skip
     records = run_tasks(_train_one, tasks, ray_address=args.ray)
     for task, r in zip(tasks, records):
         e = r["final_evaluation"]

@@ -91,6 +91,33 @@ def test_train_writes_an_agent_that_loads_and_predicts(tmp_path):
     assert cfg["env_id"] == "mbs_envs/Planar2R-v0"
     log = (tmp_path / "training_log.csv").read_text().splitlines()
     assert log[0].startswith("timesteps,train_wall_s") and len(log) >= 3
+    assert not (tmp_path / "TRAINING").exists()  # the claim released
+
+
+def test_train_refuses_a_folder_holding_an_agent_or_being_written(tmp_path):
+    """Two runs into one folder would overwrite each other's agent and log: a finished agent is kept unless
+    --overwrite, a folder another run holds is refused even with it, and a refusal leaves the folder as it was."""
+    from mbs_envs.studies.training import CLAIM, TrainConfig, claimed, train
+
+    script = load_script("train.py")
+    args = ["--env", "mbs_envs/Planar2R-v0", "--algo", "ppo", "--steps", "1024", "--n-envs", "8", "--eval-seeds", "2", "--out", str(tmp_path)]
+    script["run"](script["parse_args"](args))
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()}
+    with pytest.raises(SystemExit, match="already holds a trained agent"):
+        script["run"](script["parse_args"](args))
+    config = TrainConfig(env_id="mbs_envs/Planar2R-v0", algo="ppo", steps=1024, seed=0, n_envs=8, eval_seeds=2)
+    with pytest.raises(ValueError, match="^out: .*already holds a trained agent"):
+        train(config, tmp_path)
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()} == before
+    with claimed(tmp_path / "busy"):  # another run is writing there
+        assert (tmp_path / "busy" / CLAIM).exists()
+        with pytest.raises(ValueError, match="^out: .*another training run"):
+            train(config, tmp_path / "busy", overwrite=True)
+        with pytest.raises(SystemExit, match="another training run"):
+            script["run"](script["parse_args"](args[:-1] + [str(tmp_path / "busy"), "--overwrite"]))
+    assert not (tmp_path / "busy" / CLAIM).exists()
+    records = script["run"](script["parse_args"](args + ["--overwrite"]))
+    assert records[0]["steps"] == 1024 and not (tmp_path / CLAIM).exists()
 
 
 def test_train_with_action_repeat_counts_control_steps_and_the_agent_holds_its_decisions(tmp_path):

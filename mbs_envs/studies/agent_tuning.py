@@ -63,7 +63,7 @@ def rank_key(evaluation: Mapping[str, float], env_id: str) -> tuple[float, float
 
 
 def _train_candidate(task: dict[str, Any]) -> dict[str, Any]:
-    return train(TrainConfig(**task["config"]), pathlib.Path(task["out"]))
+    return train(TrainConfig(**task["config"]), pathlib.Path(task["out"]), overwrite=True)  # a re-run of a search replaces its candidates
 
 
 def tune_agent(env_id: str, algo: str, steps: int, grid: list[dict[str, float]], out: pathlib.Path, seed: int = 0,

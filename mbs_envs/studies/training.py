@@ -15,14 +15,16 @@ Requires the ``rl`` extra.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import dataclasses
 import json
+import os
 import pathlib
 import platform
 import sys
 import time
-from typing import Any
+from typing import Any, Iterator
 
 import gymnasium as gym
 import numpy as np
@@ -321,24 +323,69 @@ def write_log(path: pathlib.Path, rows: list[dict[str, float]]) -> None:
         w.writerows(rows)
 
 
-def train(config: TrainConfig, out: pathlib.Path, tensorboard: bool = False, checkpoint_every: int | None = None) -> dict[str, Any]:
-    """Train one agent and save it with its configuration and log to ``out``.
+#: the file a training run holds in its folder while it runs (another run into the same folder is refused)
+CLAIM = "TRAINING"
+
+
+def out_refusal(out: pathlib.Path, overwrite: bool = False) -> str | None:
+    """Why a training run may not write into ``out`` (another run holds it, or it holds a trained agent and not
+    ``overwrite``), or None."""
+    out = pathlib.Path(out)
+    if (out / CLAIM).exists():
+        return f"out: {out} is being written by another training run (its {CLAIM} file; remove it if that run has died)"
+    return _holds_agent(out, overwrite)
+
+
+def _holds_agent(out: pathlib.Path, overwrite: bool) -> str | None:
+    if (out / "config.json").exists() and not overwrite:
+        return f"out: {out} already holds a trained agent (config.json); choose another folder or overwrite it"
+    return None
+
+
+@contextlib.contextmanager
+def claimed(out: pathlib.Path, overwrite: bool = False) -> Iterator[pathlib.Path]:
+    """``out`` created and held for one training run: refused (``ValueError`` naming ``out``) where another run holds
+    it (its :data:`CLAIM` file, created atomically) or, unless ``overwrite``, where it already holds a trained agent
+    (``config.json``); the claim is released when the run ends, however it ends."""
+    out = pathlib.Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        fd = os.open(out / CLAIM, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+    except FileExistsError:
+        raise ValueError(out_refusal(out, overwrite)) from None
+    try:
+        os.write(fd, str(os.getpid()).encode())
+        os.close(fd)
+        if _holds_agent(out, overwrite):
+            raise ValueError(_holds_agent(out, overwrite))
+        yield out
+    finally:
+        (out / CLAIM).unlink(missing_ok=True)
+
+
+def train(config: TrainConfig, out: pathlib.Path, tensorboard: bool = False, checkpoint_every: int | None = None,
+          overwrite: bool = False) -> dict[str, Any]:  # fmt: skip
+    """Train one agent and save it with its configuration and log to ``out`` (held by :func:`claimed` while it runs:
+    two runs into one folder would overwrite each other's agent and log).
 
     Returns
     -------
     dict
         The contents of ``config.json``.
     """
-    import stable_baselines3
-    import torch
-
     if tensorboard:
         try:
             import tensorboard as _  # noqa: F401
         except ImportError:
             raise ValueError("tensorboard logging needs the tensorboard package: pip install tensorboard") from None
-    out = pathlib.Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    with claimed(out, overwrite) as out:
+        return _train(config, out, tensorboard, checkpoint_every)
+
+
+def _train(config: TrainConfig, out: pathlib.Path, tensorboard: bool, checkpoint_every: int | None) -> dict[str, Any]:
+    import stable_baselines3
+    import torch
+
     torch.set_num_threads(1)
     members = seed_ranges.training_members(config.seed, config.members)
     venv = make_sb3_vec_env(config.env_id, n_envs=config.members, seed=members[0], action_repeat=config.action_repeat, **config.env_kwargs)
