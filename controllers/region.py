@@ -27,9 +27,10 @@ Two figures for a 2R arm with one motor about upright, both on the linearization
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import warnings
-from typing import Any
+from typing import Any, Iterator
 
 import numpy as np
 import scipy.linalg
@@ -211,27 +212,44 @@ def noise_floor(A: np.ndarray, B: np.ndarray, dt: float, sigma: float, rho: floa
     ndarray, shape (n,)
         The floor per coordinate [rad, rad/s].
     """
-    with warnings.catch_warnings():  # the Riccati solves are ill-conditioned at small rho (docstring above)
+    with quiet_riccati():  # ill-conditioned at small rho (docstring above)
+        A_d, B_d = discretize(A, B, dt)
+        n = A.shape[0]
+        L, P_post, S_innov = steady_kalman(A_d, sigma, eps)
+        floor = np.empty(n)
+        for j in range(n):
+            Q = eps * np.eye(n)
+            Q[j, j] = 1.0
+            K = dlqr(A_d, B_d, Q, rho)
+            floor[j] = np.sqrt(lqg_stationary(A_d, B_d, K, L, P_post, S_innov)[j, j])
+    return floor
+
+
+@contextlib.contextmanager
+def quiet_riccati() -> Iterator[None]:
+    """Silence scipy's warning of an ill-conditioned Riccati solve (the LQG optima at small input weights; their
+    results are checked against simulation in the tests)."""
+    with warnings.catch_warnings():
         warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
-        return _noise_floor(A, B, dt, sigma, rho, eps)
+        yield
 
 
-def _noise_floor(A: np.ndarray, B: np.ndarray, dt: float, sigma: float, rho: float, eps: float) -> np.ndarray:
-    A_d, B_d = discretize(A, B, dt)
-    n = A.shape[0]
+def steady_kalman(A_d: np.ndarray, sigma: float, eps: float = 1e-12) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The steady-state Kalman filter of ``x_{k+1} = A_d x_k + B_d u_k`` observed as ``y_k = x_k + n_k`` (every entry,
+    white noise of std ``sigma``; a process noise of covariance ``eps I`` regularizes the Riccati equation):
+    ``(L, P+, S)``, the gain ``x^+ = x^- + L (y - x^-)``, the posterior covariance and the innovations'."""
+    n = A_d.shape[0]
     R_n = sigma**2 * np.eye(n)
     P_prior = scipy.linalg.solve_discrete_are(A_d.T, np.eye(n), eps * np.eye(n), R_n)
     S_innov = P_prior + R_n
     L = P_prior @ np.linalg.inv(S_innov)
-    P_post = P_prior - L @ P_prior
-    floor = np.empty(n)
-    for j in range(n):
-        Q = eps * np.eye(n)
-        Q[j, j] = 1.0
-        P = scipy.linalg.solve_discrete_are(A_d, B_d, Q, np.array([[rho]]))
-        K = np.linalg.solve(rho + B_d.T @ P @ B_d, B_d.T @ P @ A_d)
-        floor[j] = np.sqrt(lqg_stationary(A_d, B_d, K, L, P_post, S_innov)[j, j])
-    return floor
+    return L, P_prior - L @ P_prior, S_innov
+
+
+def dlqr(A_d: np.ndarray, B_d: np.ndarray, Q: np.ndarray, rho: float) -> np.ndarray:
+    """The discrete LQR gain ``K`` (``u = -K x``) of ``sum x^T Q x + rho u^2``, shape (1, n)."""
+    P = scipy.linalg.solve_discrete_are(A_d, B_d, Q, np.array([[rho]]))
+    return np.linalg.solve(rho + B_d.T @ P @ B_d, B_d.T @ P @ A_d)
 
 
 #: the LQG controllers :func:`lqg_hold_share` tries: input weights ``rho`` [(N m)^-2] x rate weights (angles weighted 1)
@@ -256,18 +274,13 @@ def lqg_hold_share(A: np.ndarray, B: np.ndarray, dt: float, sigma: float, tol: f
     float
         The share in ``[0, 1]``.
     """
-    with warnings.catch_warnings():  # ill-conditioned Riccati solves at small rho (noise_floor)
-        warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
+    with quiet_riccati():  # ill-conditioned at small rho (noise_floor)
         A_d, B_d = discretize(A, B, dt)
         n = A.shape[0]
-        R_n = sigma**2 * np.eye(n)
-        P_prior = scipy.linalg.solve_discrete_are(A_d.T, np.eye(n), 1e-12 * np.eye(n), R_n)
-        L = P_prior @ np.linalg.inv(P_prior + R_n)
+        L = steady_kalman(A_d, sigma)[0]
         best = 0.0
         for rho, w_v in LQG_GRID:
-            Q = np.diag([1.0] * (n // 2) + [w_v] * (n - n // 2))
-            P = scipy.linalg.solve_discrete_are(A_d, B_d, Q, np.array([[rho]]))
-            K = np.linalg.solve(rho + B_d.T @ P @ B_d, B_d.T @ P @ A_d)
+            K = dlqr(A_d, B_d, np.diag([1.0] * (n // 2) + [w_v] * (n - n // 2)), rho)
             rng = np.random.default_rng(seed)
             x, xh = np.zeros((windows, n)), np.zeros((windows, n))
             held = np.ones(windows, bool)

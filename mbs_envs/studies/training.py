@@ -356,8 +356,9 @@ def claimed(out: pathlib.Path, overwrite: bool = False) -> Iterator[pathlib.Path
     try:
         os.write(fd, str(os.getpid()).encode())
         os.close(fd)
-        if _holds_agent(out, overwrite):
-            raise ValueError(_holds_agent(out, overwrite))
+        refusal = _holds_agent(out, overwrite)
+        if refusal:
+            raise ValueError(refusal)
         yield out
     finally:
         (out / CLAIM).unlink(missing_ok=True)
