@@ -26,6 +26,7 @@ if not any(isinstance(f, ModuleAliases) for f in sys.meta_path):
 
 from . import models
 from .dynamics import integrators
+from .envs.presets import PROTOCOL_IDS
 from .envs.registry import SCENES
 from .envs.vector import make_vector as _make_vector
 from .simulate import Trajectory, simulate  # the module first, then the name is the function
@@ -43,4 +44,15 @@ for _scene in SCENES:
             entry_point=_scene.entry_point,
             vector_entry_point=functools.partial(_make_vector, _scene.entry_point),
             max_episode_steps=_scene.max_episode_steps,
+        )
+
+# the published protocols' ids (a preset's plant and setup with the protocol's episode length; mbs_envs.envs.presets)
+for _id, _entry, _preset, _steps in PROTOCOL_IDS:
+    if _id not in registry:
+        register(
+            id=_id,
+            entry_point=_entry,
+            vector_entry_point=functools.partial(_make_vector, _entry),
+            max_episode_steps=_steps,
+            kwargs={"preset": _preset},
         )

@@ -72,7 +72,7 @@ def real(
     ok = np.isfinite(x) and (x > low if low_open else x >= low) and (x < high if high_open else x <= high)
     if not ok:
         raise ValueError(f"{name} must be finite and in {_interval(low, high, low_open, high_open)}, got {value!r}")
-    return x
+    return x + 0.0  # -0.0 -> 0.0: a signed zero would flip intervals such as U(-s, s) (numpy refuses high < low)
 
 
 def positive(value: Any, name: str, high: float = np.inf) -> float:

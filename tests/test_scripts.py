@@ -440,3 +440,22 @@ def test_tune_refine_only_starts_a_controller_without_a_pick_from_the_one_whose_
     assert script["first_stage_of"](stored, "mbs_envs/Acrobot-v1", "adaptive swing-up + LQR") == ("mbs_envs/Acrobot-v1", "adaptive swing-up + LQR")
     with pytest.raises(SystemExit, match="no stored first stage"):
         script["first_stage_of"](stored, "mbs_envs/Pendubot-v1", "adaptive swing-up + LQR")
+
+
+def test_train_env_kwargs_reach_the_training_members_only(tmp_path, monkeypatch):
+    """A curriculum (--train-env-kwargs) shapes the training members; the validation episodes run the task."""
+    from mbs_envs.studies import training
+
+    seen = {}
+    real_vec, real_eval = training.make_sb3_vec_env, training.evaluate
+    monkeypatch.setattr(training, "make_sb3_vec_env", lambda *a, **kw: seen.setdefault("train", kw) and real_vec(*a, **kw))
+    monkeypatch.setattr(training, "evaluate", lambda p, i, s, kw, **r: seen.setdefault("eval", dict(kw)) is not None and real_eval(p, i, s, kw, **r))
+    script = load_script("train.py")
+    records = script["run"](script["parse_args"](["--env", "mbs_envs/Acrobot-v1", "--algo", "ppo", "--steps", "1024", "--n-envs", "8",
+                                                  "--hyper", "n_steps=32", "--eval-seeds", "2", "--env-kwargs", '{"start_noise": 0.05}',
+                                                  "--train-env-kwargs", '{"start_upright": 0.5, "start_noise": 0.3}',
+                                                  "--out", str(tmp_path)]))  # fmt: skip
+    assert seen["train"]["start_upright"] == 0.5 and seen["train"]["start_noise"] == 0.3
+    assert seen["eval"] == {"start_noise": 0.05}
+    assert records[0]["train_env_kwargs"] == {"start_upright": 0.5, "start_noise": 0.3}
+    assert records[0]["env_kwargs"] == {"start_noise": 0.05}

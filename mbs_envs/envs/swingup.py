@@ -34,6 +34,7 @@ from ..models import planar2r as _model
 from ..models.planar2r import Planar2R
 from .base import MBSEnv
 from .engine import engine_step
+from .presets import with_preset
 from .rendering import Shape, arm_shapes
 from .tracking import _as_columns
 
@@ -160,7 +161,10 @@ class SwingUpTaskParams:
     tolerance : float
         Upright tolerance per joint [rad].
     start_noise : float
-        ``q0 = q_down + U(-s, s)``, ``v0 = U(-s, s)``.
+        ``q0 = q_c + U(-s, s)``, ``v0 = U(-s, s)`` about the start's centre ``q_c``.
+    start_upright : float
+        The share of episodes whose centre ``q_c`` is upright instead of hanging (0: every
+        episode hangs, the task as evaluated; a training curriculum may raise it).
     """
 
     weights: np.ndarray
@@ -168,6 +172,7 @@ class SwingUpTaskParams:
     driven: int
     tolerance: float
     start_noise: float
+    start_upright: float = 0.0
 
     def kernel_arguments(self) -> tuple:
         """``(weights, u_max, driven, tolerance)`` as :func:`swingup_columns` takes them."""
@@ -175,9 +180,12 @@ class SwingUpTaskParams:
 
 
 def start(p: SwingUpTaskParams, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """A start ``(q0, v0)`` near hanging, shape ``(2,)`` each (the task has no other episode state)."""
+    """A start ``(q0, v0)``, shape ``(2,)`` each (the task has no other episode state): near hanging,
+    or near upright with probability ``p.start_upright`` (drawn first, and only when that share is
+    positive, so the hanging task's starts are the same draws as without the option)."""
     s = p.start_noise
-    return Q_DOWN + rng.uniform(-s, s, 2), rng.uniform(-s, s, 2)
+    centre = Q_UP if p.start_upright > 0.0 and rng.uniform() < p.start_upright else Q_DOWN
+    return centre + rng.uniform(-s, s, 2), rng.uniform(-s, s, 2)
 
 
 def task_rows(p: SwingUpTaskParams, q: np.ndarray, v: np.ndarray, action: np.ndarray) -> np.ndarray:
@@ -222,7 +230,10 @@ class SwingUpEnv(MBSEnv):
     ## Starting State
 
     Hanging: ``q0 = (-pi/2, 0) + U(-s, s)``, ``v0 = U(-s, s)`` with ``s = start_noise``
-    (default 0.1), or exactly ``reset(options={"q": ..., "v": ...})``.
+    (default 0.1, at most pi: then ``q0`` is uniform on the torus), or exactly
+    ``reset(options={"q": ..., "v": ...})``. ``start_upright = p`` (default 0) starts a share ``p``
+    of the episodes about upright instead, ``q0 = (pi/2, 0) + U(-s, s)``: a training curriculum
+    (``scripts/train.py --train-env-kwargs``), not the task the evaluation scores.
 
     ## Episode End
 
@@ -236,7 +247,7 @@ class SwingUpEnv(MBSEnv):
     ## Arguments
 
     ``gym.make(id, params=None, torque_limit=..., dt=0.01, integrator="rk4", substeps=2,
-    reward_weights=(1, 0.05, 0.01), hold_bonus=None, start_noise=0.1, upright_tolerance=0.1, compiled=True, ...)``;
+    reward_weights=(1, 0.05, 0.01), hold_bonus=None, start_noise=0.1, start_upright=0.0, upright_tolerance=0.1, compiled=True, ...)``;
     ``params`` overrides :class:`~mbs_envs.models.planar2r.Planar2RParams` (Planar2R-v0's defaults:
     uniform 1 kg, 1 m rods, no friction).
     """
@@ -248,7 +259,8 @@ class SwingUpEnv(MBSEnv):
     default_torque_limit: ClassVar[float]
 
     reward_weights = check.Checked(lambda x, name: check.vector(x, name, 3, 0.0, broadcast=False))
-    start_noise = check.Checked(lambda x, name: check.nonnegative(x, name, 1.0))
+    start_noise = check.Checked(lambda x, name: check.nonnegative(x, name, np.pi))
+    start_upright = check.Checked(lambda x, name: check.real(x, name, 0.0, 1.0))
     upright_tolerance = check.Checked(lambda x, name: check.positive(x, name, np.pi))
     hold_bonus = check.Checked(lambda x, name: check.nonnegative(x, name, 1e6))
     #: the task's default hold bonus ``w_b`` (0 for v0: its reward is unchanged)
@@ -258,17 +270,25 @@ class SwingUpEnv(MBSEnv):
         self,
         params: Mapping[str, Any] | None = None,
         torque_limit: Any = None,
-        substeps: int = 2,
+        substeps: int | None = None,
         reward_weights: Any = (1.0, 0.05, 0.01),
-        start_noise: float = 0.1,
+        start_noise: float | None = None,
+        start_upright: float = 0.0,
         upright_tolerance: float = 0.1,
         hold_bonus: Any = None,
+        preset: str | None = None,
         **kwargs: Any,
     ):
-        limit = self.default_torque_limit if torque_limit is None else torque_limit
-        super().__init__(Planar2R(params, driven=(self.driven,)), limit, substeps=substeps, **kwargs)
+        given = {"params": params, "torque_limit": torque_limit, "substeps": substeps, "start_noise": start_noise, **kwargs}
+        kwargs = with_preset(preset, {k: v for k, v in given.items() if v is not None})
+        params, torque_limit = kwargs.pop("params", None), kwargs.pop("torque_limit", self.default_torque_limit)
+        substeps, start_noise = kwargs.pop("substeps", 2), kwargs.pop("start_noise", 0.1)
+        #: the preset this env was built from (:mod:`mbs_envs.envs.presets`), or None
+        self.preset = preset
+        super().__init__(Planar2R(params, driven=(self.driven,)), torque_limit, substeps=substeps, **kwargs)
         self.reward_weights = reward_weights
         self.start_noise = start_noise
+        self.start_upright = start_upright
         self.upright_tolerance = upright_tolerance
         self.hold_bonus = self.default_hold_bonus if hold_bonus is None else hold_bonus
         high = np.concatenate([np.ones(4), np.full(2, self.divergence_limit)]).astype(np.float32)
@@ -279,11 +299,11 @@ class SwingUpEnv(MBSEnv):
 
     def _task_cache(self) -> tuple:
         """``(key, task_params, kernel arguments)``, built again only when a setting they hold changes."""
-        key = (self.reward_weights.tobytes(), self.hold_bonus, self.u_max.tobytes(), self.upright_tolerance, self.start_noise)
+        key = (self.reward_weights.tobytes(), self.hold_bonus, self.u_max.tobytes(), self.upright_tolerance, self.start_noise, self.start_upright)
         cached = self.__dict__.get("_task_params")
         if cached is None or cached[0] != key:
             weights = np.append(self.reward_weights, self.hold_bonus)
-            params = SwingUpTaskParams(weights, self.u_max, self.driven, self.upright_tolerance, self.start_noise)
+            params = SwingUpTaskParams(weights, self.u_max, self.driven, self.upright_tolerance, self.start_noise, self.start_upright)
             cached = self._task_params = (key, params, params.kernel_arguments())
         return cached
 

@@ -87,7 +87,11 @@ class TrainConfig:
         run ``seed`` starts from ``reset(seed=100_000 + 1_000 seed + i)``
         (:func:`mbs_envs.studies.seeds.training_members`), apart from test seeds.
     env_kwargs : dict
-        Arguments of the environment (``params``, ``n_links``, ...).
+        Arguments of the environment (``params``, ``n_links``, ...): the task trained on and evaluated.
+    train_env_kwargs : dict
+        Arguments applied on top of ``env_kwargs`` to the training members only, never to the
+        validation episodes: a training curriculum, e.g. ``{"start_upright": 0.5}`` on the swing-up
+        scenes (half the training episodes start near upright; the task scored still starts hanging).
     net_arch : tuple of int, optional
         Hidden layers of the policy (and value/Q) networks; default SB3's:
         (64, 64) for PPO, (256, 256) for SAC and TD3.
@@ -130,6 +134,7 @@ class TrainConfig:
     seed: int = 0
     n_envs: int | None = None
     env_kwargs: dict = dataclasses.field(default_factory=dict)
+    train_env_kwargs: dict = dataclasses.field(default_factory=dict)
     net_arch: tuple[int, ...] | None = None
     eval_every: int | None = None
     eval_seeds: int = 10
@@ -389,7 +394,8 @@ def _train(config: TrainConfig, out: pathlib.Path, tensorboard: bool, checkpoint
 
     torch.set_num_threads(1)
     members = seed_ranges.training_members(config.seed, config.members)
-    venv = make_sb3_vec_env(config.env_id, n_envs=config.members, seed=members[0], action_repeat=config.action_repeat, **config.env_kwargs)
+    venv = make_sb3_vec_env(config.env_id, n_envs=config.members, seed=members[0], action_repeat=config.action_repeat,
+                            **{**config.env_kwargs, **config.train_env_kwargs})
     base = base_gains = None
     if config.residual:
         nominal = gym.make(config.env_id, **config.env_kwargs)
@@ -428,6 +434,7 @@ def _train(config: TrainConfig, out: pathlib.Path, tensorboard: bool, checkpoint
     record = {
         "env_id": config.env_id,
         "env_kwargs": config.env_kwargs,
+        "train_env_kwargs": config.train_env_kwargs,
         "algo": config.algo,
         "steps": config.steps,
         "seed": config.seed,

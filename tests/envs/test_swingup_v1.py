@@ -71,3 +71,29 @@ def test_swing_up_metrics_at_the_wider_tolerance_and_near_upright():
     assert m["time_near_upright"] == pytest.approx(4.0)  # every step after the first second
     e[-1, 1] = 0.21
     assert not swing_up_metrics(Episode(**{**ep.__dict__, "tracking_error": e}))["success_wide"]
+
+
+def test_start_upright_curriculum():
+    """start_upright = p starts a share p of the episodes about upright; p = 0 draws exactly the hanging
+    task's starts (the same generator calls as before the option existed)."""
+    from gymnasium.utils import seeding
+
+    from mbs_envs.envs.swingup import Q_DOWN, Q_UP
+
+    env = gym.make("mbs_envs/Acrobot-v1")
+    for seed in range(5):
+        env.reset(seed=seed)
+        rng = seeding.np_random(seed)[0]
+        np.testing.assert_array_equal(env.unwrapped.q, Q_DOWN + rng.uniform(-0.1, 0.1, 2))
+        np.testing.assert_array_equal(env.unwrapped.v, rng.uniform(-0.1, 0.1, 2))
+    for p, lo, hi in ((1.0, 200, 200), (0.5, 70, 130)):  # 200 episodes: 0.5 within +-4.2 sigma
+        env = gym.make("mbs_envs/Pendubot-v1", start_upright=p, start_noise=0.3)
+        up = 0
+        for seed in range(200):
+            env.reset(seed=seed)
+            near_up = np.abs(env.unwrapped.q - Q_UP).max() <= 0.3
+            assert near_up or np.abs(env.unwrapped.q - Q_DOWN).max() <= 0.3
+            up += near_up
+        assert lo <= up <= hi
+    with pytest.raises(ValueError, match="start_upright"):
+        gym.make("mbs_envs/Acrobot-v1", start_upright=1.5)

@@ -1,0 +1,166 @@
+"""The DFKI double-pendulum benchmark (RealAIGym) as the project computes it: success rule and score.
+
+The protocol's plant and simulation are the preset ``"dfki_c1"`` (:mod:`mbs_envs.envs.presets`; the
+ids ``mbs_envs/AcrobotDFKI-v1``, ``mbs_envs/PendubotDFKI-v1``). An episode is recorded as the
+benchmark's simulator records one (``Simulator.step`` records before it integrates): at every control
+step ``i`` the time ``T[i] = i dt``, the state ``X[i] = (q, v)`` the step starts from and the torques
+``U[i]`` (both joints, the passive one 0, after the limit) it applies; ``N`` = 5,000 rows for 10 s.
+
+**Success** (their ``get_swingup_time``, method ``"height"``, ``has_to_stay``): the end effector's
+height over the shoulder, ``y = l1 sin q1 + l2 sin(q1 + q2)`` in our angles (upright at
+``(pi/2, 0)``), is above ``0.9 (l1 + l2)`` from the swing-up time to the end. Their loop scans the
+samples ``N-2, N-3, ..., 1`` backwards while the end effector is up: the swing-up time is the first
+sample of the run of "up" samples that ends at ``N-2`` (the last sample is not read), and
+``T[N-1]`` when sample ``N-2`` is down; the episode succeeds when that time is before ``T[N-1]``.
+
+**Score** (simulation leaderboard v2): ``success * (1 - mean_k tanh(pi c_k / n_k))`` over five
+criteria ``c_k`` with the leaderboard's normalizers ``n_k`` (:data:`NORMALIZERS`):
+
+- swing-up time [s];
+- energy ``sum_i sum_j |(q_j[i+1] - q_j[i]) u_j[i]|`` [J];
+- torque cost ``sum_i |u[i]|^2 dt_i`` [N^2 m^2 s];
+- torque smoothness ``sum_j std_i(u_j[i+1] - u_j[i])`` [N m] (over all ``N - 1`` differences);
+- velocity cost ``sum_i |v[i]|^2 dt_i`` [rad^2/s].
+
+Every sum runs over ``i = 0 .. N-2`` (the intervals). The functions take numpy arrays and are checked
+in ``tests/test_dfki.py`` on hand-made trajectories and against the published leaderboard rows.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+
+#: end-effector threshold as a fraction of the reach ``l1 + l2``
+HEIGHT = 0.9
+#: simulation leaderboard v2: every criterion weighted 1, divided by these
+NORMALIZERS: Mapping[str, float] = MappingProxyType(
+    {"swingup_time": 20.0, "energy": 60.0, "tau_cost": 20.0, "tau_smoothness": 0.1, "velocity_cost": 400.0}
+)
+
+
+def end_effector_height(q: np.ndarray, l1: float, l2: float) -> np.ndarray:
+    """``y = l1 sin q1 + l2 sin(q1 + q2)`` [m], shape ``(...)``, from our angles ``q`` ``(..., 2)``."""
+    q = np.asarray(q, float)
+    return l1 * np.sin(q[..., 0]) + l2 * np.sin(q[..., 0] + q[..., 1])
+
+
+def swingup_time(T: np.ndarray, up: np.ndarray) -> float:
+    """The swing-up time [s] from the sample times ``T`` ``(N,)`` and whether the end effector is up ``(N,)``
+    (module docstring: the start of the run of "up" samples ending at ``N-2``; ``T[-1]`` if none)."""
+    T, up = np.asarray(T, float), np.asarray(up, bool)
+    if T.ndim != 1 or T.shape != up.shape or len(T) < 3:
+        raise ValueError(f"T and up must be 1-D of one length >= 3, got shapes {T.shape} and {up.shape}")
+    index = len(T) - 1
+    down = np.flatnonzero(~up[1:-1])  # samples 1 .. N-2
+    first = (down[-1] + 2) if down.size else 1  # first "up" sample after the last "down" one
+    if first <= len(T) - 2:
+        index = first
+    return float(T[index])
+
+
+def criteria(T: np.ndarray, q: np.ndarray, v: np.ndarray, u: np.ndarray, l1: float, l2: float) -> dict[str, float]:
+    """The benchmark's criteria of one episode (module docstring).
+
+    Parameters
+    ----------
+    T : ndarray, shape (N,)
+        Sample times [s], the start included.
+    q, v : ndarray, shape (N, 2)
+        Angles (ours: upright at ``(pi/2, 0)``; unwrapped or wrapped, steps are wrapped) [rad] and velocities [rad/s].
+    u : ndarray, shape (N, 2)
+        Torques on both joints [N m] applied from ``T[i]`` on.
+    l1, l2 : float
+        Link lengths [m] (the success threshold).
+
+    Returns
+    -------
+    dict
+        ``success`` (1.0 or 0.0), ``swingup_time``, ``energy``, ``tau_cost``, ``tau_smoothness``,
+        ``velocity_cost``.
+    """
+    T, q, v, u = (np.asarray(x, float) for x in (T, q, v, u))
+    n = len(T)
+    if q.shape != (n, 2) or v.shape != (n, 2) or u.shape != (n, 2):
+        raise ValueError(f"q, v and u must have shape ({n}, 2) for {n} times, got {q.shape}, {v.shape}, {u.shape}")
+    dt = np.diff(T)
+    dq = np.angle(np.exp(1j * np.diff(q, axis=0)))  # a step of the angle, wrapped (2 ms steps are far below pi)
+    t_up = swingup_time(T, end_effector_height(q, l1, l2) > HEIGHT * (l1 + l2))
+    return {
+        "success": float(t_up < T[-1]),
+        "swingup_time": t_up,
+        "energy": float(np.abs(dq * u[:-1]).sum()),
+        "tau_cost": float((u[:-1] ** 2 * dt[:, None]).sum()),
+        "tau_smoothness": float(np.std(np.diff(u, axis=0), axis=0).sum()),
+        "velocity_cost": float((v[:-1] ** 2 * dt[:, None]).sum()),
+    }
+
+
+def score(c: Mapping[str, Any], normalizers: Mapping[str, float] = NORMALIZERS) -> float:
+    """The leaderboard's score v2, ``success * (1 - mean_k tanh(pi c_k / n_k))``, in ``[0, 1]``."""
+    terms = [np.tanh(np.pi * float(c[k]) / n) for k, n in normalizers.items()]
+    return float(c["success"]) * (1.0 - float(np.mean(terms)))
+
+
+def record(venv: Any, policy: Any, seeds: list[int], deterministic: bool = True) -> list[dict[str, Any]]:
+    """Run one protocol episode per seed on a batched env and record it as the benchmark does.
+
+    Parameters
+    ----------
+    venv : MBSVectorEnv
+        Of a protocol id (``gym.make_vec("mbs_envs/AcrobotDFKI-v1", num_envs=len(seeds),
+        vectorization_mode="vector_entry_point", autoreset_mode="Disabled")``).
+    policy : object with ``predict``
+        Called once per control step on the batch; its memory passed back through ``state``.
+    seeds : list of int
+        Member ``i`` resets with ``seeds[i]`` (the protocol starts at rest, so seeds matter only to
+        a stochastic policy or a randomized plant).
+
+    Returns
+    -------
+    list of dict
+        Per member: ``T (N,)``, ``q (N, 2)``, ``v (N, 2)``, ``u (N, 2)`` (module docstring) and
+        ``terminated`` (the episode ended early: diverged). The arrays stop at the member's last step.
+    """
+    base = venv.unwrapped
+    n = len(seeds)
+    if base.num_envs != n:
+        raise ValueError(f"venv has {base.num_envs} members for {n} seeds")
+    steps = base.max_episode_steps
+    if steps is None:
+        raise ValueError("venv needs a max_episode_steps (make it with gym.make_vec from a protocol id)")
+    driven, dt = int(base.env.driven), float(base.env.dt)
+    obs, _ = base.reset(seed=list(seeds))
+    q, v, u = np.zeros((steps, n, 2)), np.zeros((steps, n, 2)), np.zeros((steps, n, 2))
+    end = np.full(n, steps)
+    done = np.zeros(n, bool)
+    state, start = None, np.ones(n, bool)
+    for i in range(steps):
+        q[i], v[i] = base.q, base.v
+        action, state = policy.predict(obs, state=state, episode_start=start, deterministic=deterministic)
+        start = np.zeros(n, bool)
+        obs, _, terminated, truncated, info = base.step(action)
+        u[i, :, driven] = np.asarray(info["u"], float).reshape(n, -1)[:, 0]
+        newly = ~done & (terminated | truncated)
+        end[newly & terminated] = i + 1
+        done |= newly
+        if done.all():
+            break
+    T = np.arange(steps) * dt
+    return [{"T": T[: end[k]], "q": q[: end[k], k], "v": v[: end[k], k], "u": u[: end[k], k], "terminated": bool(end[k] < steps)}
+            for k in range(n)]  # fmt: skip
+
+
+def evaluate(runs: list[dict[str, Any]], l1: float, l2: float) -> list[dict[str, float]]:
+    """:func:`criteria` and :func:`score` of recorded runs; a run that ended early fails (score 0)."""
+    out = []
+    for run in runs:
+        c = criteria(run["T"], run["q"], run["v"], run["u"], l1, l2) if len(run["T"]) >= 3 else {"success": 0.0}
+        if run["terminated"]:
+            c["success"] = 0.0
+        c["score"] = score(c) if c["success"] else 0.0
+        out.append(c)
+    return out
