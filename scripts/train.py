@@ -41,6 +41,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--out", required=True, type=pathlib.Path)
     p.add_argument("--n-envs", type=int, help="parallel members (default 64 for PPO, 4 otherwise)")
     p.add_argument("--env-kwargs", type=json.loads, default={}, help="JSON dict of env arguments")
+    p.add_argument("--keep-best", action="store_true",
+                   help="ship the agent of the evaluation with the highest validation return, not the last")
     p.add_argument("--train-env-kwargs", type=json.loads, default={},
                    help="JSON dict of env arguments for the training members only (a curriculum; validation runs the task as "
                         "--env-kwargs gives it), e.g. '{\"start_upright\": 0.5}'")
@@ -73,7 +75,7 @@ def run(args: argparse.Namespace) -> list[dict]:
     residual = residual_base(args.env) if args.residual == "default" else args.residual
     for seed in args.seed:
         config = dict(env_id=args.env, algo=args.algo, steps=args.steps, seed=seed, n_envs=args.n_envs,
-                      env_kwargs=args.env_kwargs, train_env_kwargs=args.train_env_kwargs, net_arch=tuple(args.net_arch) if args.net_arch else None,
+                      env_kwargs=args.env_kwargs, train_env_kwargs=args.train_env_kwargs, keep_best=args.keep_best, net_arch=tuple(args.net_arch) if args.net_arch else None,
                       eval_every=args.eval_every, eval_seeds=args.eval_seeds, residual=residual, residual_bound=args.residual_bound,
                       hyper=dict(args.hyper), action_repeat=args.action_repeat, normalize=args.normalize,
                       init=str(args.init).format(seed=seed) if args.init else None)  # fmt: skip

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import json
 import pathlib
 import runpy
@@ -459,3 +460,23 @@ def test_train_env_kwargs_reach_the_training_members_only(tmp_path, monkeypatch)
     assert seen["eval"] == {"start_noise": 0.05}
     assert records[0]["train_env_kwargs"] == {"start_upright": 0.5, "start_noise": 0.3}
     assert records[0]["env_kwargs"] == {"start_noise": 0.05}
+
+
+def test_keep_best_ships_the_evaluation_with_the_highest_validation_return(tmp_path):
+    """--keep-best: agent.zip is the agent evaluated best on the validation seeds; config.json says which."""
+    import json
+
+    from mbs_envs.studies.training import evaluate, load_agent
+    from mbs_envs.studies import seeds as seed_ranges
+
+    script = load_script("train.py")
+    records = script["run"](script["parse_args"](["--env", "mbs_envs/Pendubot-v1", "--algo", "ppo", "--steps", "6144", "--n-envs", "8",
+                                                  "--hyper", "n_steps=32", "--eval-seeds", "2", "--eval-every", "1024",
+                                                  "--keep-best", "--out", str(tmp_path)]))  # fmt: skip
+    rows = list(csv.DictReader(open(tmp_path / "training_log.csv")))
+    returns = [float(r["return"]) for r in rows]
+    kept = json.loads((tmp_path / "config.json").read_text())["kept"]
+    assert kept["timesteps"] == records[0]["kept"]["timesteps"] and kept["return"] == max(returns)
+    policy, _ = load_agent(tmp_path)
+    again = evaluate(policy, "mbs_envs/Pendubot-v1", seed_ranges.validation_seeds(2), {})
+    assert again["return"] == pytest.approx(kept["return"], rel=1e-9)

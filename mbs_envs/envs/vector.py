@@ -21,7 +21,13 @@ observation and info are in ``info["final_obs"]``, ``info["final_info"]``).
 Domain randomization: ``randomize={"m2": 0.2, ...}`` scales the named model
 parameters of every member by ``U(1 - s, 1 + s)``, drawn from the member's
 generator at each reset (after its task), for models whose equations accept
-per-member parameters (see :meth:`mbs_envs.models.base.Params.batched`).
+per-member parameters (see :meth:`mbs_envs.models.base.Params.batched`). Fixed per-member
+parameters (a parameter sweep run as one batch): ``member_params=[{"m2": 0.9}, {"m2": 1.1}, ...]``,
+one mapping per member over the nominal parameters (randomized ones scale the member's own value).
+
+Impulses: :meth:`MBSVectorEnv.apply_impulse` adds a generalized impulse ``J`` to every member's
+velocities, ``v <- v + M(q)^-1 J`` (unconstrained models), e.g. a torque pulse ``tau(t)`` applied
+step by step as ``J = tau(t_k) dt`` (first-order operator splitting).
 
 With an adaptive (scipy) integrator the batch is one system with one step
 size, so members differ from single envs within the tolerance; fixed-step
@@ -89,6 +95,9 @@ class MBSVectorEnv(VectorEnv):
     autoreset_mode : AutoresetMode or str
     randomize : dict, optional
         ``{parameter name: relative half-width}`` (domain randomization).
+    member_params : sequence of Mapping, optional
+        One mapping of model parameters per member (fixed for the env's life), each validated as
+        ``params`` are; members may name different parameters (the others stay nominal).
     full_info : bool
         ``info`` carries everything the single env's does (energy, reward
         terms, task quantities); False keeps ``t`` and ``diverged`` only (faster).
@@ -106,6 +115,7 @@ class MBSVectorEnv(VectorEnv):
         max_episode_steps: int | None = None,
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
         randomize: dict[str, float] | None = None,
+        member_params: Any = None,
         full_info: bool = True,
         render_mode: str | None = None,
         **env_kwargs: Any,
@@ -126,6 +136,9 @@ class MBSVectorEnv(VectorEnv):
         self.nominal_params = self.model.params
         self.randomize = self._checked_randomize(randomize)
         self.num_envs = int(num_envs)
+        self._fixed = self._checked_member_params(member_params)
+        #: the per-member parameters given at construction (a tuple of dicts), or None
+        self.member_params = None if member_params is None else tuple(dict(m) for m in member_params)
         self.max_episode_steps = max_episode_steps
         self.full_info = bool(full_info)
         self.render_mode = render_mode
@@ -144,6 +157,7 @@ class MBSVectorEnv(VectorEnv):
         self._task: Any = None
         self._task_columns: tuple | None = None  # the compiled step's layout of _task, kept in step with it
         self._scales: dict[str, np.ndarray] = {k: np.ones(n) for k in self.randomize}
+        self._apply_scales()  # fixed per-member parameters from the start
         self._autoreset = np.zeros(n, bool)
         self._started = False
 
@@ -199,11 +213,41 @@ class MBSVectorEnv(VectorEnv):
             raise ValueError(f"{type(self.model).__name__} does not support per-member parameters (randomize)")
         return randomize
 
+    def _checked_member_params(self, member_params: Any) -> dict[str, np.ndarray]:
+        """``{name: values (num_envs,)}`` of the parameters some member sets (the others' nominal), each
+        member's set validated as ``params`` (a ValueError names the member and the parameter)."""
+        if member_params is None:
+            return {}
+        if isinstance(member_params, (str, bytes)) or not hasattr(member_params, "__len__") or len(member_params) != self.num_envs:
+            raise ValueError(f"member_params must be a sequence of {self.num_envs} mappings (one per member), got {member_params!r:.80}")
+        if not getattr(self.model, "batched_params", False):
+            raise ValueError(f"{type(self.model).__name__} does not support per-member parameters (member_params)")
+        names: set[str] = set()
+        for i, m in enumerate(member_params):
+            m = check.mapping(m, f"member_params[{i}]")
+            try:
+                self.nominal_params.replace(**m)
+            except ValueError as e:
+                raise ValueError(f"member_params[{i}]: {e}") from None
+            names |= set(m)
+        return {k: np.array([float(m.get(k, getattr(self.nominal_params, k))) for m in member_params]) for k in sorted(names)}
+
+    def _base_value(self, name: str) -> Any:
+        """Parameter ``name`` of every member before randomization: fixed per member, or nominal."""
+        return self._fixed[name] if name in self._fixed else getattr(self.nominal_params, name)
+
+    def _member_values(self, idx: Any, scales: dict[str, np.ndarray] | None = None) -> dict[str, Any]:
+        """The per-member parameters of members ``idx`` (an index array or an int)."""
+        scales = self._scales if scales is None else scales
+        values = {k: v[idx] for k, v in self._fixed.items()}
+        for k in self.randomize:
+            values[k] = np.asarray(self._base_value(k) * np.ones(self.num_envs))[idx] * scales[k][idx]
+        return values
+
     def _apply_scales(self) -> None:
-        if not self.randomize:
+        if not (self.randomize or self._fixed):
             return
-        values = {k: getattr(self.nominal_params, k) * self._scales[k] for k in self.randomize}
-        self._model = self.nominal_model.with_params(self.nominal_params.batched(**values))
+        self._model = self.nominal_model.with_params(self.nominal_params.batched(**self._member_values(np.arange(self.num_envs))))
 
     # -- resets ----------------------------------------------------------------
 
@@ -228,9 +272,9 @@ class MBSVectorEnv(VectorEnv):
         try:
             for i in idx:
                 model = self.nominal_model
-                if self.randomize:  # the member's parameters first: start states may depend on them
-                    for k, s in self.randomize.items():
-                        scales[k][i] = rngs[i].uniform(1 - s, 1 + s)
+                for k, s in self.randomize.items():  # the member's parameters first: start states may depend on them
+                    scales[k][i] = rngs[i].uniform(1 - s, 1 + s)
+                if self.randomize or self._fixed:
                     model = self._member_model(i, scales)
                 drawn.append(env.draw_start(options, rngs[i], model))
             if drawn:  # every drawn start checked at once (the single env's rule, batched)
@@ -257,8 +301,7 @@ class MBSVectorEnv(VectorEnv):
 
     def _member_model(self, i: int, scales: dict[str, np.ndarray] | None = None):
         """The model with member ``i``'s parameters (``scales``, default the current ones; for start states that use the model)."""
-        scales = self._scales if scales is None else scales
-        values = {k: getattr(self.nominal_params, k) * scales[k][i] for k in self.randomize}
+        values = {k: float(v) for k, v in self._member_values(int(i), scales).items()}
         return self.nominal_model.with_params(self.nominal_params.replace(**values))
 
     def reset(self, *, seed: int | list | None = None, options: dict | None = None):
@@ -373,9 +416,8 @@ class MBSVectorEnv(VectorEnv):
         if self.full_info:
             q, v, u, task = self._q[idx], self._v[idx], self._u[idx], self._pick(self._task, idx)
             model = self.model
-            if self.randomize:  # the members' own parameters
-                model = self.nominal_model.with_params(
-                    self.nominal_params.batched(**{k: getattr(self.nominal_params, k) * self._scales[k][idx] for k in self.randomize}))
+            if self.randomize or self._fixed:  # the members' own parameters
+                model = self.nominal_model.with_params(self.nominal_params.batched(**self._member_values(idx)))
             out["energy"] = model.energy(q, v)
             out["u"] = u
             out.update(self.env.task_info(q, v, self.env.task_now(self._t[idx], task), task, u))
@@ -423,6 +465,31 @@ class MBSVectorEnv(VectorEnv):
     def v(self) -> np.ndarray:
         """Velocities of every member, shape ``(num_envs, nv)`` (a copy)."""
         return self._v.copy()
+
+    def apply_impulse(self, J: Any) -> None:
+        """Add the generalized impulse ``J`` to every member's velocities: ``v <- v + M(q)^-1 J``.
+
+        Parameters
+        ----------
+        J : array_like, shape (num_envs, nv)
+            Impulse per member [N m s or N s per coordinate], e.g. ``tau dt`` of a torque ``tau``
+            applied over one control step.
+
+        Raises
+        ------
+        ValueError
+            Naming ``J``: wrong shape or a non-finite entry; or for a model with constraints (its
+            velocities would leave the constraint manifold). Nothing changes on refusal.
+        """
+        if self.model.constrained:
+            raise ValueError(f"apply_impulse: {type(self.model).__name__} has constraints; impulses are for unconstrained models")
+        J = check.reals(J, "J")
+        if J.shape != (self.num_envs, self.model.nv) or not np.isfinite(J).all():
+            raise ValueError(f"J must be finite with shape ({self.num_envs}, {self.model.nv}), got shape {J.shape}")
+        if not self._started:
+            raise gym.error.ResetNeeded("call reset() before apply_impulse()")
+        dv = np.linalg.solve(self.model.mass_matrix(self._q), J[..., None])[..., 0]
+        self._vc += dv.T
 
     def render(self) -> tuple[np.ndarray, ...] | None:
         """One RGB frame per member (``render_mode="rgb_array"``)."""

@@ -164,3 +164,140 @@ def evaluate(runs: list[dict[str, Any]], l1: float, l2: float) -> list[dict[str,
         c["score"] = score(c) if c["success"] else 0.0
         out.append(c)
     return out
+
+
+# -- the robustness benchmark (robustness v2) ---------------------------------------------------------
+
+#: values per swept axis (their ``N_var``)
+N_VALUES = 21
+#: the final-state rule: |wrapped angle error| and |velocity| below these (their ``eps``, ``check_only_final_state``)
+FINAL_EPS = (0.35, 0.35, 1.0, 1.0)
+#: the axes, in their order; the score is the mean of their success fractions
+AXES = ("model", "velocity noise", "torque noise", "torque response", "time delay", "perturbations")
+#: ranges: velocity-noise std [rad/s], torque-noise std [N m], responsiveness, delay [s]
+RANGES = MappingProxyType({"velocity noise": (0.0, 0.5), "torque noise": (0.0, 1.1), "torque response": (0.1, 2.0),
+                           "time delay": (0.0, 0.04)})  # fmt: skip
+#: perturbations: episodes, pulses per joint, least spacing [s], width and height ranges [s], [N m]
+PULSES = MappingProxyType({"episodes": 50, "per_joint": 3, "min_spacing": 1.0, "sigma": (0.05, 0.1), "amplitude": (0.5, 5.0)})
+#: model axes varied by x [0.75, 1.25] in their convention (m r with m fixed, so r moves; I about the joint)
+MODEL_FACTORS = ("m1r1", "I1", "m2r2", "m2", "I2")
+#: viscous friction swept over [0, 0.1] N m s/rad (their range is [-0.1, 0.1]; ours is >= 0: the upper half)
+MODEL_DAMPING = ("b1", "b2")
+
+
+def final_success(q: np.ndarray, v: np.ndarray, eps: tuple = FINAL_EPS) -> np.ndarray:
+    """Their final-state rule on our states ``q, v`` ``(n, 2)``: within ``eps`` of upright at rest, ``(n,)`` bool."""
+    e = np.angle(np.exp(1j * (np.asarray(q, float) - np.array([np.pi / 2, 0.0]))))
+    return (np.abs(e) < eps[:2]).all(-1) & (np.abs(np.asarray(v, float)) < eps[2:]).all(-1)
+
+
+def model_variations(p: Any = None, n: int = N_VALUES) -> list[tuple[str, float, dict[str, float] | None]]:
+    """The model axis as ``(parameter, value, Planar2R params or None)``: their variations of ``p`` (default
+    :data:`~mbs_envs.envs.presets.DFKI_C1`) converted with :func:`~mbs_envs.envs.presets.planar2r_params`;
+    None where the variation has no rigid link (an inertia about the joint below ``m r^2``), which is not simulated.
+    Left out: the motor inertia (Planar2R has no rotor), Coulomb friction (a differently smoothed law) and
+    negative damping."""
+    import dataclasses
+
+    from ..envs.presets import DFKI_C1, planar2r_params
+
+    p = DFKI_C1 if p is None else p
+    factors = np.linspace(0.75, 1.25, n)
+    out: list[tuple[str, float, dict[str, float] | None]] = []
+    for name in MODEL_FACTORS:
+        for f in factors:
+            if name == "m1r1":
+                value, changed = p.m1 * p.r1 * f, {"r1": p.r1 * f}
+            elif name == "m2r2":
+                value, changed = p.m2 * p.r2 * f, {"r2": p.r2 * f}
+            else:
+                value, changed = getattr(p, name) * f, {name: getattr(p, name) * f}
+            try:
+                params = planar2r_params(dataclasses.replace(p, **changed))
+            except ValueError:
+                params = None
+            out.append((name, float(value), params))
+    for name in MODEL_DAMPING:
+        for value in np.linspace(0.0, 0.1, (n + 1) // 2):
+            out.append((name, float(value), {**planar2r_params(p), name: float(value)}))
+    return out
+
+
+def random_pulses(rng: np.random.Generator, episodes: int, t: np.ndarray) -> np.ndarray:
+    """Their random disturbance (``get_random_gauss_perturbation_array``): per episode ``2 k`` Gaussian torque
+    pulses, ``k`` per joint, centres at least ``min_spacing`` apart in shuffled order, widths and heights
+    uniform in :data:`PULSES` ranges with random signs. Returns ``(episodes, len(t), 2)`` [N m]."""
+    from .robustness import gaussian_pulses
+
+    k, gap, T = PULSES["per_joint"], PULSES["min_spacing"], float(t[-1] + (t[1] - t[0]))
+    n = 2 * k
+    room = (T - (n + 1) * gap) / n
+    mu = np.cumsum(gap + rng.uniform(0, room, (episodes, n)), axis=1)
+    mu = rng.permuted(mu, axis=1).reshape(episodes, 2, k)
+    s_lo, s_hi = PULSES["sigma"]
+    a_lo, a_hi = PULSES["amplitude"]
+    sigma = rng.uniform(s_lo, s_hi, (episodes, 2, k))
+    amp = rng.uniform(-(a_hi - a_lo), a_hi - a_lo, (episodes, 2, k))
+    amp += a_lo * np.sign(amp)
+    return gaussian_pulses(t, mu, sigma, amp)
+
+
+def sweep(env_id: str, make_policy: Any, n: int = N_VALUES, seed: int = 0, axes: tuple = AXES) -> dict[str, dict[str, Any]]:
+    """The robustness benchmark of one controller on a protocol id, one batched rollout per axis.
+
+    Parameters
+    ----------
+    env_id : str
+        ``"mbs_envs/AcrobotDFKI-v1"`` or ``"mbs_envs/PendubotDFKI-v1"``.
+    make_policy : callable
+        ``make_policy(env) -> policy`` on the nominal env (called once per axis; its memory lives in ``state``).
+    n : int
+        Values per axis (their 21).
+    seed : int
+        Seeds the noise and the random pulses.
+
+    Returns
+    -------
+    dict
+        Per axis: ``values`` (what each member varied; the model axis: ``(parameter, value)``), ``success``
+        (bool per member; the model axis' unphysical variations are left out and counted in ``skipped``),
+        ``fraction``; and ``"score"``: the mean of the fractions.
+    """
+    import gymnasium as gym
+
+    from .robustness import Perturbation, run
+
+    nominal = gym.make(env_id)
+    steps = nominal.spec.max_episode_steps
+    dt = float(nominal.unwrapped.dt)
+    rng = np.random.default_rng(seed)
+    out: dict[str, dict[str, Any]] = {}
+
+    def batch(members: int, p: Perturbation, **vec_kwargs: Any) -> np.ndarray:
+        venv = gym.make_vec(env_id, num_envs=members, vectorization_mode="vector_entry_point", autoreset_mode="Disabled", **vec_kwargs)
+        res = run(venv, make_policy(nominal), list(range(members)), p, noise_seed=int(rng.integers(2**31)))
+        venv.close()
+        return final_success(res["q"], res["v"]) & ~res["terminated"]
+
+    for axis in axes:
+        if axis == "model":
+            points = model_variations(n=n)
+            kept = [(name, value, params) for name, value, params in points if params is not None]
+            ok = batch(len(kept), Perturbation(), member_params=[params for _, _, params in kept])
+            out[axis] = {"values": [(name, value) for name, value, _ in kept], "success": ok,
+                         "skipped": [(name, value) for name, value, params in points if params is None]}  # fmt: skip
+        elif axis == "perturbations":
+            members = PULSES["episodes"]
+            pulses = random_pulses(rng, members, np.arange(steps) * dt)
+            ok = batch(members, Perturbation(pulses=pulses))
+            out[axis] = {"values": list(range(members)), "success": ok}
+        else:
+            values = np.linspace(*RANGES[axis], n)
+            p = {"velocity noise": lambda x: Perturbation(noise_sigma=x, noise_index=(4, 5)),
+                 "torque noise": lambda x: Perturbation(torque_sigma=x),
+                 "torque response": lambda x: Perturbation(response=x),
+                 "time delay": lambda x: Perturbation(delay=np.rint(x / dt).astype(int))}[axis](values)  # fmt: skip
+            out[axis] = {"values": values.tolist(), "success": batch(n, p)}
+        out[axis]["fraction"] = float(np.mean(out[axis]["success"]))
+    out["score"] = {"value": float(np.mean([out[a]["fraction"] for a in axes]))}
+    return out

@@ -126,6 +126,10 @@ class TrainConfig:
         residual base must be the source's; its hyperparameters are kept (``hyper`` must be empty);
         not for a normalized run (its reward statistics are not saved).
         ``config.json`` records the source and its budget.
+    keep_best : bool
+        Ship the agent of the evaluation with the highest validation return (validation seeds only,
+        never test seeds; SB3's ``EvalCallback`` best-model rule) instead of the last one: PPO's return
+        can collapse late in a run. ``config.json`` records which evaluation was kept.
     """
 
     env_id: str
@@ -144,6 +148,7 @@ class TrainConfig:
     action_repeat: int = 1
     normalize: bool = False
     init: str | None = None
+    keep_best: bool = False
 
     def __post_init__(self) -> None:
         if self.algo not in ALGOS:
@@ -269,8 +274,10 @@ def evaluate(policy: Any, env_id: str, seeds: list[int], env_kwargs: dict, **rol
 class TrainingLog(BaseCallback):
     """Progress bar, and the deterministic policy's metrics every ``eval_every`` env-steps."""
 
-    def __init__(self, config: TrainConfig, eval_every: int, as_policy: Any = None, csv_path: pathlib.Path | None = None):
+    def __init__(self, config: TrainConfig, eval_every: int, as_policy: Any = None, csv_path: pathlib.Path | None = None,
+                 on_row: Any = None):
         super().__init__()
+        self.on_row = on_row  # called with each evaluation's row (e.g. to keep the best agent)
         self.csv_path = csv_path
         self.config = config
         self.as_policy = as_policy or (lambda model: model)
@@ -301,6 +308,8 @@ class TrainingLog(BaseCallback):
         self._next = self.env_steps + self.eval_every
         if self.csv_path is not None:  # written as it grows: a long run's curve can be read before it ends
             write_log(self.csv_path, self.rows)
+        if self.on_row is not None:
+            self.on_row(self.rows[-1])
 
     def _on_step(self) -> bool:
         if self._bar is not None:
@@ -420,16 +429,27 @@ def _train(config: TrainConfig, out: pathlib.Path, tensorboard: bool, checkpoint
                                         tensorboard_log=str(out / "tensorboard") if tensorboard else None)  # fmt: skip
         model.set_random_seed(config.seed)
         hyper = source["hyperparameters"]
-    log = TrainingLog(config, config.eval_every or max(config.steps // 10, 1), as_policy, out / "training_log.csv")
+    kept: dict[str, Any] = {}
+
+    def keep(row: dict[str, float]) -> None:
+        if config.keep_best and np.isfinite(row["return"]) and row["return"] > kept.get("return", -np.inf):
+            kept.clear()
+            kept.update(row)
+            model.save(out / "agent.zip")
+            if config.normalize:
+                ObsNormalization.of(venv).save(out)
+
+    log = TrainingLog(config, config.eval_every or max(config.steps // 10, 1), as_policy, out / "training_log.csv", on_row=keep)
     callbacks: list[BaseCallback] = [log]
     if checkpoint_every:
         every = checkpoint_every // (config.members * config.action_repeat)
         callbacks.append(CheckpointCallback(max(every, 1), str(out / "checkpoints"), name_prefix="agent", save_vecnormalize=config.normalize))
     model.learn(config.steps // config.action_repeat, callback=CallbackList(callbacks))
     wall = log.train_wall_s
-    model.save(out / "agent.zip")
-    if config.normalize:
-        ObsNormalization.of(venv).save(out)
+    if not kept:  # the last agent (keep_best: the best evaluated one is saved already)
+        model.save(out / "agent.zip")
+        if config.normalize:
+            ObsNormalization.of(venv).save(out)
     venv.close()  # training_log.csv: written by the log at each evaluation, the last at the end of training
     record = {
         "env_id": config.env_id,
@@ -452,6 +472,7 @@ def _train(config: TrainConfig, out: pathlib.Path, tensorboard: bool, checkpoint
         "command": "python scripts/train.py " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("train.py") else None,
         "train_wall_s": wall,
         "final_evaluation": log.rows[-1],
+        "kept": dict(kept) if kept else None,
         "versions": {"python": platform.python_version(), "stable_baselines3": stable_baselines3.__version__,
                      "torch": torch.__version__, "numpy": np.__version__},  # fmt: skip
     }

@@ -304,3 +304,67 @@ def test_the_state_is_one_array_of_columns_on_both_paths_and_observations_are_co
     assert obs.shape == (5, venv.single_observation_space.shape[0]) and obs.dtype == np.float32
     assert obs.flags.f_contiguous
     obs[1] = 0.0  # rows of the batch stay writable (autoresets write them)
+
+
+def test_member_params_run_each_member_on_its_own_plant():
+    """A parameter sweep as one batch: member i equals the single env made with its params (1e-12)."""
+    sets = [{"m2": 0.5}, {}, {"m2": 0.7, "I1": 0.02}, {"l1": 0.25, "r1": 0.1}]
+    v = gym.make_vec("mbs_envs/AcrobotDFKI-v1", num_envs=4, vectorization_mode="vector_entry_point", member_params=sets)
+    assert v.unwrapped.member_params == tuple(sets)
+    obs, _ = v.reset(seed=0)
+    a = np.linspace(-1, 1, 4, dtype=np.float32)[:, None]
+    for _ in range(60):
+        obs, r, *_ = v.step(a)
+    for i, params in enumerate(sets):
+        e = gym.make("mbs_envs/AcrobotDFKI-v1", params=params or None)
+        e.reset(seed=i)
+        for _ in range(60):
+            o, ri, *_ = e.step(a[i])
+        np.testing.assert_allclose(v.unwrapped.q[i], e.unwrapped.q, rtol=0, atol=1e-12)
+        assert r[i] == pytest.approx(ri, rel=1e-12, abs=1e-12)
+
+
+def test_member_params_with_randomize_scale_the_members_value():
+    v = gym.make_vec("mbs_envs/Acrobot-v1", num_envs=2, vectorization_mode="vector_entry_point",
+                     member_params=[{"m2": 2.0}, {}], randomize={"m2": 0.1})  # fmt: skip
+    v.reset(seed=3)
+    m2 = v.unwrapped.model.params.m2
+    scales = v.unwrapped._scales["m2"]
+    np.testing.assert_allclose(m2, [2.0 * scales[0], 1.0 * scales[1]], rtol=1e-15)
+
+
+@pytest.mark.parametrize(
+    "env_id, member_params, match",
+    [
+        ("mbs_envs/Acrobot-v1", [{"m2": -1.0}, {}], r"member_params\[0\]: parameter 'm2'"),
+        ("mbs_envs/Acrobot-v1", [{"m2": 1.0}], "sequence of 2 mappings"),
+        ("mbs_envs/Acrobot-v1", "m2", "sequence of 2 mappings"),
+        ("mbs_envs/Acrobot-v1", [{"mass": 1.0}, {}], r"member_params\[0\]"),
+        ("mbs_envs/SerialChain-v0", [{}, {}], "does not support per-member parameters"),
+    ],
+)
+def test_member_params_are_refused_with_the_culprit_named(env_id, member_params, match):
+    with pytest.raises(ValueError, match=match):
+        gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", member_params=member_params)
+
+
+def test_apply_impulse_changes_momentum_by_the_impulse():
+    """M(q) (v+ - v-) = J to round-off, per member with its own parameters; refusals change nothing."""
+    v = gym.make_vec("mbs_envs/Acrobot-v1", num_envs=3, vectorization_mode="vector_entry_point",
+                     member_params=[{"m2": 0.5}, {}, {"I2": 0.3}])  # fmt: skip
+    base = v.unwrapped
+    v.reset(seed=1)
+    v.step(np.zeros((3, 1), np.float32))
+    J = np.array([[0.3, -0.1], [0.0, 0.2], [-1.0, 1.0]])
+    v0, q = base.v, base.q
+    base.apply_impulse(J)
+    np.testing.assert_allclose(np.einsum("nij,nj->ni", base.model.mass_matrix(q), base.v - v0), J, rtol=1e-12, atol=1e-14)
+    before = base.v
+    for bad in (J[:2], np.full((3, 2), np.nan), "x"):
+        with pytest.raises(ValueError, match="J"):
+            base.apply_impulse(bad)
+    np.testing.assert_array_equal(base.v, before)
+    four = gym.make_vec("mbs_envs/FourBar-v0", num_envs=2, vectorization_mode="vector_entry_point")
+    four.reset(seed=0)
+    with pytest.raises(ValueError, match="constraints"):
+        four.unwrapped.apply_impulse(np.zeros((2, four.unwrapped.model.nv)))
