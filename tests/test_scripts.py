@@ -480,3 +480,20 @@ def test_keep_best_ships_the_evaluation_with_the_highest_validation_return(tmp_p
     policy, _ = load_agent(tmp_path)
     again = evaluate(policy, "mbs_envs/Pendubot-v1", seed_ranges.validation_seeds(2), {})
     assert again["return"] == pytest.approx(kept["return"], rel=1e-9)
+
+
+def test_dfki_script_scores_the_protocol_and_writes_its_report(tmp_path, monkeypatch):
+    """The protocol run and a small robustness sweep (2 values per axis, 2 pulse episodes) of one controller."""
+    from mbs_envs.studies import dfki
+
+    monkeypatch.setattr(dfki, "PULSES", {**dfki.PULSES, "episodes": 2})
+    script = load_script("dfki.py")
+    record = script["run"](script["parse_args"](["--out", str(tmp_path), "--scene", "Pendubot", "--controller", "swing-up + LQR",
+                                                 "--robustness", "--values", "2"]))  # fmt: skip
+    row = record["rows"][0]
+    assert row["scene"] == "Pendubot" and row["success"] in (0.0, 1.0) and 0.0 <= row["score"] <= 1.0
+    assert 0.0 <= row["robustness score"] <= 1.0
+    for name in ("dfki.csv", "dfki.json", "report.md", "run_Pendubot_swing_up___LQR.png", "robustness_Pendubot.png"):
+        assert (tmp_path / name).stat().st_size > 0, name
+    text = (tmp_path / "report.md").read_text()
+    assert "ours: swing-up + LQR" in text and "AR-EAPO (published)" in text

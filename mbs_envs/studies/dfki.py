@@ -301,3 +301,50 @@ def sweep(env_id: str, make_policy: Any, n: int = N_VALUES, seed: int = 0, axes:
         out[axis]["fraction"] = float(np.mean(out[axis]["success"]))
     out["score"] = {"value": float(np.mean([out[a]["fraction"] for a in axes]))}
     return out
+
+
+# -- the published leaderboards (read 2026-11-25), to print our numbers beside -----------------------------
+
+#: simulation performance v2: controller -> (swing-up time, energy, torque cost, smoothness, velocity cost, score)
+PUBLISHED_SIMULATION_V2 = MappingProxyType({
+    "Acrobot": MappingProxyType({
+        "url": "https://dfki-ric-underactuated-lab.github.io/real_ai_gym_leaderboard/acrobot_simulation_performance_leaderboard_v2.html",
+        "rows": MappingProxyType({
+            "mcpilco": (1.45, 19.43, 3.22, 0.097, 253.59, 0.316),
+            "History SAC": (1.0, 8.08, 1.8, 0.01, 88.5, 0.655),
+            "TVLQR": (4.05, 10.43, 1.87, 0.016, 105.83, 0.504),
+            "AR-EAPO": (1.39, 8.32, 1.52, 0.008, 117.96, 0.633),
+            "iLQR Riccati Gains": (4.04, 10.55, 1.98, 0.067, 106.49, 0.396),
+            "evolsac": (0.96, 9.26, 2.71, 0.03, 96.56, 0.524),
+            "iLQR MPC stabilization": (4.86, 11.54, 2.68, 0.096, 110.4, 0.345),
+        }),
+    }),
+})  # fmt: skip
+
+#: robustness v2: controller -> success fractions [%] of the six axes (AXES order) and the score
+PUBLISHED_ROBUSTNESS_V2 = MappingProxyType({
+    "Acrobot": MappingProxyType({
+        "url": "https://dfki-ric-underactuated-lab.github.io/real_ai_gym_leaderboard/acrobot_simulation_robustness_leaderboard_v2.html",
+        "rows": MappingProxyType({
+            "mcpilco": (9.0, 9.5, 19.0, 52.4, 4.8, 50.0, 0.241),
+            "History SAC": (58.1, 23.8, 100.0, 100.0, 90.5, 78.0, 0.751),
+            "TVLQR": (48.1, 19.0, 100.0, 95.2, 23.8, 78.0, 0.607),
+            "AR-EAPO": (67.6, 28.6, 100.0, 100.0, 76.2, 64.0, 0.727),
+            "iLQR Riccati Gains": (4.8, 9.5, 9.5, 52.4, 4.8, 2.0, 0.138),
+            "evolsac": (64.8, 23.8, 100.0, 100.0, 47.6, 76.0, 0.687),
+            "iLQR MPC stabilization": (6.7, 9.5, 90.5, 52.4, 4.8, 42.0, 0.343),
+        }),
+    }),
+    "Pendubot": MappingProxyType({
+        "url": "https://dfki-ric-underactuated-lab.github.io/real_ai_gym_leaderboard/pendubot_simulation_robustness_leaderboard_v2.html",
+        "rows": MappingProxyType({
+            "mcpilco": (24.8, 76.2, 61.9, 95.2, 28.6, 82.0, 0.614),
+            "History SAC": (68.1, 47.6, 100.0, 100.0, 100.0, 46.0, 0.770),
+            "AR-EAPO": (87.6, 81.0, 100.0, 100.0, 81.0, 98.0, 0.913),
+            "iLQR Riccati Gains": (5.2, 38.1, 9.5, 85.7, 14.3, 0.0, 0.255),
+            "evolsac": (75.2, 57.1, 100.0, 100.0, 71.4, 68.0, 0.786),
+            "TVLQR": (62.9, 90.5, 100.0, 100.0, 42.9, 64.0, 0.767),
+            "iLQR MPC stabilization": (31.9, 90.5, 100.0, 100.0, 38.1, 44.0, 0.674),
+        }),
+    }),
+})  # fmt: skip

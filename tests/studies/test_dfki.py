@@ -93,7 +93,7 @@ def test_upright_run_succeeds_and_scores_by_its_criteria():
 
 
 #: the published simulation leaderboard v2 for the acrobot (criteria and score as printed, rounded)
-LEADERBOARD_V2 = {
+LEADERBOARD_V2 = {  # as dfki.PUBLISHED_SIMULATION_V2 holds them (checked below)
     "mcpilco": (1.45, 19.43, 3.22, 0.097, 253.59, 0.316),
     "History SAC": (1.0, 8.08, 1.8, 0.01, 88.5, 0.655),
     "TVLQR": (4.05, 10.43, 1.87, 0.016, 105.83, 0.504),
@@ -151,3 +151,12 @@ def test_record_follows_the_protocol_and_matches_the_env():
         env.step(np.ones(1, np.float32))
     out = dfki.evaluate(runs, L1, L2)
     assert out[0]["score"] == (dfki.score(out[0]) if out[0]["success"] else 0.0)
+
+
+def test_published_tables_are_consistent():
+    """The stored leaderboard rows: the simulation table is the one the score test uses; every robustness
+    score is the mean of its six fractions (to their rounding)."""
+    assert dict(dfki.PUBLISHED_SIMULATION_V2["Acrobot"]["rows"]) == LEADERBOARD_V2
+    for scene in dfki.PUBLISHED_ROBUSTNESS_V2.values():
+        for row in scene["rows"].values():
+            assert np.mean(row[:6]) / 100 == pytest.approx(row[6], abs=0.0015)
