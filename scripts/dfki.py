@@ -3,7 +3,8 @@
 The protocol (``mbs_envs/AcrobotDFKI-v1``, ``mbs_envs/PendubotDFKI-v1``: the identified design C.1
 plant, 6 N m, RK4 at 2 ms, 10 s from hanging at rest) runs every model-based swing-up controller once
 and scores it with the benchmark's success rule and simulation-v2 score (``mbs_envs/studies/dfki.py``);
-``--robustness`` adds its robustness-v2 sweep (six axes, one batched rollout per axis). Writes
+``--robustness`` adds its robustness-v2 sweep (six axes, one batched rollout per axis). The controllers
+run in parallel processes (``--workers``), or on Ray with ``--ray [ADDRESS]`` (the ``ray`` extra). Writes
 ``dfki.csv``, ``dfki.json``, ``report.md`` (our rows beside the published ones), one time-series plot per
 controller and one robustness plot per scene to ``--out``::
 
@@ -18,17 +19,14 @@ import csv
 import json
 import pathlib
 import sys
-import time
-
 import gymnasium as gym
 import numpy as np
-from tqdm import tqdm
 
 import mbs_envs  # noqa: F401
 from mbs_envs.envs.presets import PROTOCOL_IDS
 from mbs_envs.envs.registry import SWING_UP_CONTROLLERS
 from mbs_envs.studies import dfki
-from mbs_envs.studies.evaluation import make_controller
+from mbs_envs.studies.parallel import run_tasks
 from mbs_envs.studies.plotting import pyplot, save
 
 SCENES = {entry[0].split("/")[1].replace("DFKI-v1", ""): entry[0] for entry in PROTOCOL_IDS}
@@ -43,6 +41,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--robustness", action="store_true", help="run the robustness-v2 sweep too")
     p.add_argument("--values", type=int, default=dfki.N_VALUES, help=f"values per robustness axis (default {dfki.N_VALUES}, as theirs)")
     p.add_argument("--seed", type=int, default=0, help="seeds the sweep's noise and pulses")
+    p.add_argument("--workers", type=int, default=None, help="local processes (default: one per core, at most one per controller)")
+    p.add_argument("--ray", nargs="?", const="local", default=None, help="run the controllers on Ray (cluster ADDRESS, or a local instance)")
     return p.parse_args(argv)
 
 
@@ -52,28 +52,21 @@ def run(args: argparse.Namespace) -> dict:
     names = args.controller or list(SWING_UP_CONTROLLERS)
     rows, sweeps = [], {}
     jobs = [(s, n) for s in scenes for n in names]
-    for scene, name in tqdm(jobs, desc="DFKI protocol"):
-        env_id = SCENES[scene]
-        env = gym.make(env_id)
-        gains = own_scene_gains(scene, name)
-        make = lambda e, name=name, gains=gains: make_controller(SWING_UP_CONTROLLERS[name], e, gains)  # noqa: E731
-        venv = gym.make_vec(env_id, num_envs=1, vectorization_mode="vector_entry_point", autoreset_mode="Disabled")
-        tic = time.perf_counter()
-        run_ = dfki.record(venv, make(env), [0])[0]
-        p = env.unwrapped.model.params
-        c = dfki.evaluate([run_], p.l1, p.l2)[0]
-        row = {"scene": scene, "controller": name, **c, "wall_s": time.perf_counter() - tic}
-        plot_run(run_, p, f"{scene}: {name}", args.out / f"run_{scene}_{slug(name)}.png")
+    tasks = [{"env_id": SCENES[s], "spec": SWING_UP_CONTROLLERS[n], "gains": own_scene_gains(s, n), "robustness": args.robustness,
+              "values": args.values, "seed": args.seed} for s, n in jobs]  # fmt: skip
+    results = run_tasks(dfki.controller_job, tasks, ray_address=args.ray, max_workers=args.workers, progress="DFKI protocol")
+    for (scene, name), res in zip(jobs, results):
+        c = res["criteria"]
+        row = {"scene": scene, "controller": name, **c, "wall_s": res["wall_s"]}
+        plot_run(res["run"], gym.make(SCENES[scene]).unwrapped.model.params, f"{scene}: {name}", args.out / f"run_{scene}_{slug(name)}.png")
         if args.robustness:
-            tic = time.perf_counter()
-            res = dfki.sweep(env_id, make, n=args.values, seed=args.seed)
-            sweeps[(scene, name)] = res
-            row.update({f"robust {a}": res[a]["fraction"] for a in dfki.AXES})
-            row["robustness score"] = res["score"]["value"]
-            row["robustness wall_s"] = time.perf_counter() - tic
+            sweeps[(scene, name)] = res["sweep"]
+            row.update({f"robust {a}": res["sweep"][a]["fraction"] for a in dfki.AXES})
+            row["robustness score"] = res["sweep"]["score"]["value"]
+            row["robustness wall_s"] = res["sweep_wall_s"]
         rows.append(row)
-        tqdm.write(f"{scene}, {name}: success {c['success']:.0f}, score {c['score']:.3f}"
-                   + (f", robustness {row['robustness score']:.3f}" if args.robustness else ""))  # fmt: skip
+        print(f"{scene}, {name}: success {c['success']:.0f}, score {c['score']:.3f}"
+              + (f", robustness {row['robustness score']:.3f}" if args.robustness else ""))  # fmt: skip
     with open(args.out / "dfki.csv", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()

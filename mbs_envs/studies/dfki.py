@@ -348,3 +348,32 @@ PUBLISHED_ROBUSTNESS_V2 = MappingProxyType({
         }),
     }),
 })  # fmt: skip
+
+
+def controller_job(task: Mapping[str, Any]) -> dict[str, Any]:
+    """One controller on one protocol id (a picklable task for :func:`mbs_envs.studies.parallel.run_tasks`).
+
+    ``task``: ``env_id``, ``spec`` (``"module:Class"``), ``gains`` (an entry of ``controllers/tuned.json``
+    or None), ``robustness`` (bool), ``values`` and ``seed`` (the sweep's). Returns the recorded run, its
+    criteria and score, and with ``robustness`` the :func:`sweep`; wall times in seconds.
+    """
+    import time
+
+    import gymnasium as gym
+
+    from .evaluation import make_controller
+
+    def make(env: Any) -> Any:
+        return make_controller(task["spec"], env, task.get("gains"))
+
+    env = gym.make(task["env_id"])
+    p = env.unwrapped.model.params
+    venv = gym.make_vec(task["env_id"], num_envs=1, vectorization_mode="vector_entry_point", autoreset_mode="Disabled")
+    tic = time.perf_counter()
+    run_ = record(venv, make(env), [0])[0]
+    out: dict[str, Any] = {"run": run_, "criteria": evaluate([run_], p.l1, p.l2)[0], "wall_s": time.perf_counter() - tic}
+    if task.get("robustness"):
+        tic = time.perf_counter()
+        out["sweep"] = sweep(task["env_id"], make, n=task.get("values", N_VALUES), seed=task.get("seed", 0))
+        out["sweep_wall_s"] = time.perf_counter() - tic
+    return out
