@@ -32,7 +32,8 @@ from mbs_envs.studies.plotting import pyplot, save
 from mbs_envs.studies.tuning import tuning_seeds
 from mbs_envs.studies.training import load_agent
 
-GRID = [{"catch": c, "release": r} for c in (300.0, 1000.0, 3000.0, 10000.0, 30000.0) for r in (4.0,)]
+#: catch levels from 300 to 1e7 (the first grid ended at 3e4, where the pendubot's pick sat at its edge: widened)
+GRID = [{"catch": c, "release": r} for c in (300.0, 1000.0, 3000.0, 10000.0, 30000.0, 1e5, 3e5, 1e6, 3e6, 1e7) for r in (4.0,)]
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
