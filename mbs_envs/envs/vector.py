@@ -467,7 +467,12 @@ class MBSVectorEnv(VectorEnv):
         return self._v.copy()
 
     def apply_impulse(self, J: Any) -> None:
-        """Add the generalized impulse ``J`` to every member's velocities: ``v <- v + M(q)^-1 J``.
+        """Add the generalized impulse ``J`` to every member's velocities.
+
+        Unconstrained: ``v <- v + M(q)^-1 J``. With constraints ``Psi(q) v = 0`` (loop closure, rolling) the
+        constraints answer with an impulse of their own (the impulsive form of the equations of motion):
+        ``M (v+ - v) = J + Psi^T Lam``, ``Psi v+ = 0``, solved as the constrained accelerations are
+        (:func:`~mbs_envs.dynamics.constraints.constrained_accelerations`, the Schur complement).
 
         Parameters
         ----------
@@ -478,17 +483,23 @@ class MBSVectorEnv(VectorEnv):
         Raises
         ------
         ValueError
-            Naming ``J``: wrong shape or a non-finite entry; or for a model with constraints (its
-            velocities would leave the constraint manifold). Nothing changes on refusal.
+            Naming ``J``: wrong shape or a non-finite entry. Nothing changes on refusal.
         """
-        if self.model.constrained:
-            raise ValueError(f"apply_impulse: {type(self.model).__name__} has constraints; impulses are for unconstrained models")
         J = check.reals(J, "J")
         if J.shape != (self.num_envs, self.model.nv) or not np.isfinite(J).all():
             raise ValueError(f"J must be finite with shape ({self.num_envs}, {self.model.nv}), got shape {J.shape}")
         if not self._started:
             raise gym.error.ResetNeeded("call reset() before apply_impulse()")
-        dv = np.linalg.solve(self.model.mass_matrix(self._q), J[..., None])[..., 0]
+        q, v = self._q, self._v
+        M = self.model.mass_matrix(q)
+        if self.model.constrained:
+            from ..dynamics.constraints import constrained_accelerations
+            from ..dynamics.linalg import batched_matvec
+
+            Psi = self.model.constraint_jacobian(q)
+            dv = constrained_accelerations(M, J, Psi, -batched_matvec(Psi, v), conditioning=False)[0]
+        else:
+            dv = np.linalg.solve(M, J[..., None])[..., 0]
         self._vc += dv.T
 
     def render(self) -> tuple[np.ndarray, ...] | None:

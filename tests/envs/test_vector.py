@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import gymnasium as gym
 import numpy as np
+import scipy.linalg
 import pytest
 from gymnasium.vector import AutoresetMode
 
@@ -364,7 +365,23 @@ def test_apply_impulse_changes_momentum_by_the_impulse():
         with pytest.raises(ValueError, match="J"):
             base.apply_impulse(bad)
     np.testing.assert_array_equal(base.v, before)
-    four = gym.make_vec("mbs_envs/FourBar-v0", num_envs=2, vectorization_mode="vector_entry_point")
-    four.reset(seed=0)
-    with pytest.raises(ValueError, match="constraints"):
-        four.unwrapped.apply_impulse(np.zeros((2, four.unwrapped.model.nv)))
+
+
+@pytest.mark.parametrize("env_id", ["mbs_envs/FourBar-v0", "mbs_envs/RollingDisk-v0"])
+def test_apply_impulse_with_constraints_is_the_impulsive_equation_of_motion(env_id):
+    """With constraints: M (v+ - v-) - J lies in the range of Psi^T (the constraints' impulse), Psi v+ = 0,
+    and the kinetic energy of the change is the least among velocities that keep the constraints (the
+    M-orthogonal projection of M^-1 J, checked against an independent null-space solve)."""
+    v = gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point")
+    base = v.unwrapped
+    v.reset(seed=2)
+    v.step(np.zeros((3, base.model.nu), np.float32))
+    J = np.random.default_rng(0).normal(size=(3, base.model.nv))
+    q, v0 = base.q, base.v
+    base.apply_impulse(J)
+    M, Psi = base.model.mass_matrix(q), base.model.constraint_jacobian(q)
+    for i in range(3):
+        N = scipy.linalg.null_space(Psi[i])  # velocities that keep the constraints: v = N z
+        z = np.linalg.solve(N.T @ M[i] @ N, N.T @ (M[i] @ v0[i] + J[i]))  # Lagrange's equations on the null space
+        np.testing.assert_allclose(base.v[i], N @ z, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(Psi[i] @ base.v[i], 0.0, atol=1e-13)
