@@ -32,15 +32,16 @@ from mbs_envs.studies.plotting import pyplot, save
 from mbs_envs.studies.tuning import tuning_seeds
 from mbs_envs.studies.training import load_agent
 
-#: catch levels from 300 to 1e7 (the first grid ended at 3e4, where the pendubot's pick sat at its edge: widened)
-GRID = [{"catch": c, "release": r} for c in (300.0, 1000.0, 3000.0, 10000.0, 30000.0, 1e5, 3e5, 1e6, 3e6, 1e7) for r in (4.0,)]
+#: catch levels from 300 to 1e7 (the first grid ended at 3e4, where the pendubot's pick sat at its edge: widened),
+#: each with the hysteresis factors 2, 4 (the model-based controller's) and 16 (added in the third round)
+GRID = [{"catch": c, "release": r} for c in (300.0, 1000.0, 3000.0, 10000.0, 30000.0, 1e5, 3e5, 1e6, 3e6, 1e7) for r in (2.0, 4.0, 16.0)]
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", required=True, type=pathlib.Path)
     p.add_argument("--agents", type=pathlib.Path, default=pathlib.Path("agents"), help="root of the shipped agents (default agents/)")
-    p.add_argument("--seeds", type=int, default=20, help="tuning seeds per condition (default 20)")
+    p.add_argument("--seeds", type=int, default=40, help="tuning seeds per condition (default 40)")
     p.add_argument("--scene", action="append", help="scene(s) (default every swing-up scene)")
     p.add_argument("--write", action="store_true", help="store the picks in controllers/tuned.json")
     return p.parse_args(argv)
