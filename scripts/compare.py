@@ -21,7 +21,10 @@ on the same held-out test seeds through ``predict``:
 - learning curves of every algorithm (mean and range over training seeds)
   against env steps and training wall time, model-based errors as lines;
 - actuator sizing by inverse dynamics over the references of all test seeds,
-  and the start transient of the best controller.
+  and the start transient of the best controller;
+- a six-axis robustness sweep of every policy (model parameters, velocity noise, torque
+  noise, torque response, delay, torque pulses; ``mbs_envs/studies/scene_robustness.py``,
+  5 values per axis here, ``scripts/robustness.py`` for more).
 
 Writes ``report.md``, ``episodes.csv``, ``summary.json`` and PNG plots to ``--out``.
 Cells run in local processes, or on Ray with ``--ray [ADDRESS]``.
@@ -50,7 +53,9 @@ from mbs_envs import seeds as seed_ranges
 from mbs_envs.envs import registry
 from mbs_envs.studies.catch import catch_rows, catch_table
 from mbs_envs.studies.handover import TUNED_NAME as HAND_OVER_NAME
+from mbs_envs.studies import scene_robustness as sr
 from mbs_envs.studies.parallel import run_tasks
+from mbs_envs.studies.robustness import plot_success
 from mbs_envs.studies import provenance
 from mbs_envs.studies.plotting import pyplot, save
 from mbs_envs.studies.sizing import actuator_sizing
@@ -71,6 +76,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--no-agents", action="store_true", help="model-based controllers only")
     p.add_argument("--workers", type=int, default=2, help="local processes")
     p.add_argument("--ray", nargs="?", const="local", help="run the cells on Ray (ADDRESS, or a local instance)")
+    p.add_argument("--robustness-values", type=int, default=5, help="values per axis of the robustness sweep (default 5; --quick 2)")
+    p.add_argument("--robustness-seeds", type=int, default=1, help="test seeds per value of the robustness sweep (default 1)")
+    p.add_argument("--robustness-pulses", type=int, default=10, help="perturbation episodes of the robustness sweep (default 10; --quick 2)")
+    p.add_argument("--no-robustness", action="store_true", help="skip the robustness sweep")
     return p.parse_args(argv)
 
 
@@ -100,6 +109,8 @@ def run(args: argparse.Namespace) -> dict:
     else:
         results = run_tasks(cmp.evaluate_cell, tasks, ray_address=args.ray)
     rows = [r for cell in results for r in cell]
+    robust = None if args.no_robustness else robustness(args, {scene: {**{k: [v] for k, v in cmp.SCENES[scene][2].items()}, **agents[scene]}
+                                                                   for scene in scenes})  # fmt: skip
     with open(args.out / "episodes.csv", "w", newline="") as f:  # swing-up rows carry more columns
         w = csv.DictWriter(f, fieldnames=list(dict.fromkeys(k for r in rows for k in r)), restval="")
         w.writeheader()
@@ -111,18 +122,45 @@ def run(args: argparse.Namespace) -> dict:
         plot_scene(scene, summary[scene], args.out / f"comparison_{scene}.png")
     plot_learning_curves(summary, curves, args.out / "learning_curves.png")
     catch = [r for scene in scenes if scoring_of(scene) == "swing-up" for r in catch_rows(scene, conds)]
-    report = make_report(summary, sizing, agents, curves, seeds, conds, n_swing, catch)
+    report = make_report(summary, sizing, agents, curves, seeds, conds, n_swing, catch, robust)
     (args.out / "report.md").write_text(report)
+    if robust:
+        for scene, by_policy in robust["scenes"].items():
+            plot_success({n: s.pop("sweeps") for n, s in by_policy.items()}, sr.AXES, f"{scene}: robustness sweep, success",
+                         args.out / f"robustness_{scene}.png")  # fmt: skip
     config = {"test_seeds": [seeds[0], seeds[-1]], "conditions": [c.name for c in conds], "agents": portable(agents),
               "provenance": provenance.record()}  # fmt: skip
-    (args.out / "summary.json").write_text(json.dumps({"config": config, "summary": summary, "sizing": sizing, "catch": catch}, indent=2, default=float))
+    (args.out / "summary.json").write_text(json.dumps({"config": config, "summary": summary, "sizing": sizing, "catch": catch, "robustness": robust},
+                                                      indent=2, default=float))  # fmt: skip
     print(headline(summary))
     swing = swing_up_headline(summary)
     if swing:
         print("\nswing-up scenes (success within 0.1 / 0.2 rad for the last 2 s; per condition: success 0.1 / 0.2 rad / time near upright [s])")
         print(swing)
-    print(f"written to {args.out}/report.md, episodes.csv, summary.json, learning_curves.png and comparison_<scene>.png")
-    return {"summary": summary, "rows": rows, "sizing": sizing}
+    if robust:
+        print("\nrobustness score (mean success over the six axes; report.md has each axis)")
+        for scene, by_policy in robust["scenes"].items():
+            print(f"  {scene}: " + ", ".join(f"{name} {r['score']:.2f}" for name, r in by_policy.items()))
+    print(f"written to {args.out}/report.md, episodes.csv, summary.json, learning_curves.png, comparison_<scene>.png"
+          + (" and robustness_<scene>.png" if robust else ""))  # fmt: skip
+    return {"summary": summary, "rows": rows, "sizing": sizing, "robustness": robust}
+
+
+def robustness(args: argparse.Namespace, policies: dict[str, dict[str, list[str]]]) -> dict:
+    """The six-axis robustness sweep of every policy (``mbs_envs/studies/scene_robustness.py``; ``scripts/robustness.py``
+    runs it with more values): per scene and policy the success fractions, the score and the wall times."""
+    import time
+
+    n, pulses = (2, 2) if args.quick else (args.robustness_values, args.robustness_pulses)
+    jobs = sr.tasks(policies, n, args.robustness_seeds, pulses)
+    tic = time.perf_counter()
+    if args.ray is None:
+        results = run_tasks(sr.sweep_job, jobs, max_workers=args.workers, progress="robustness sweeps")
+    else:
+        results = run_tasks(sr.sweep_job, jobs, ray_address=args.ray)
+    _, summary = sr.collect(jobs, results)
+    return {"values_per_axis": n, "seeds_per_value": args.robustness_seeds, "pulse_episodes": pulses, "wall_s": time.perf_counter() - tic,
+            "scenes": summary}  # fmt: skip
 
 
 def portable(obj: Any) -> Any:
@@ -367,7 +405,7 @@ def plot_learning_curves(summary: dict, curves: dict, path: pathlib.Path) -> Non
 
 
 def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: list[int], conds: list, n_swing: int | None = None,
-                catch: list | None = None) -> str:
+                catch: list | None = None, robust: dict | None = None) -> str:
     tuned_record = json.loads(tuned.PATH.read_text()) if tuned.PATH.exists() else {}
     L = ["# RL agents against model-based controllers", ""]
     swing_seeds = f"; on the swing-up scenes {n_swing}, seeds 0-{n_swing - 1}" if n_swing else ""
@@ -481,6 +519,12 @@ def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: 
         if best_mb:
             L.append(f"- Best model-based at the nominal plant: {best_mb}.")
         L.append("")
+    if robust:
+        L += ["## Robustness (six axes)", "", sr.describe(robust["values_per_axis"], robust["seeds_per_value"], robust["pulse_episodes"])
+              + f" Sweep wall time {robust['wall_s']:.0f} s. `python scripts/robustness.py --out DIR` runs it with more values "
+              "(`docs/figures/robustness/`).", ""]  # fmt: skip
+        for scene, by_policy in robust["scenes"].items():
+            L += [f"### {scene}", "", *sr.markdown_table(by_policy), "", f"![{scene}](robustness_{scene}.png)", ""]
     if sizing:
         L += [f"## Actuator sizing (inverse dynamics along the references of the {len(seeds)} test seeds, whole episodes)", "",
               "The torque the reference motion itself needs; the start transient (correcting the initial error) comes on top "

@@ -27,6 +27,7 @@ from mbs_envs.envs.presets import PROTOCOL_IDS
 from mbs_envs.envs.registry import SWING_UP_CONTROLLERS
 from mbs_envs.studies import dfki
 from mbs_envs.studies.parallel import run_tasks
+from mbs_envs.studies.robustness import plot_success
 from mbs_envs.studies.plotting import pyplot, save
 
 SCENES = {entry[0].split("/")[1].replace("DFKI-v1", ""): entry[0] for entry in PROTOCOL_IDS}
@@ -77,7 +78,8 @@ def run(args: argparse.Namespace) -> dict:
     (args.out / "dfki.json").write_text(json.dumps(record, indent=2, default=float))
     for scene in scenes:
         if any(k[0] == scene for k in sweeps):
-            plot_sweeps({n: r for (s, n), r in sweeps.items() if s == scene}, scene, args.out / f"robustness_{scene}.png")
+            plot_success({n: [r] for (s, n), r in sweeps.items() if s == scene}, dfki.AXES, f"{scene} (DFKI robustness v2 axes): success",
+                         args.out / f"robustness_{scene}.png")  # fmt: skip
     (args.out / "report.md").write_text(report(rows, args))
     print(f"written {args.out}")
     return record
@@ -116,31 +118,6 @@ def plot_run(run_: dict, p, title: str, path: pathlib.Path) -> None:
     ax[3].axhline(dfki.HEIGHT * (p.l1 + p.l2), color="k", ls="--", lw=0.8)
     ax[3].set(ylabel="tip height [m]", xlabel="t [s]")
     ax[0].set_title(title)
-    save(fig, path)
-
-
-def plot_sweeps(results: dict, scene: str, path: pathlib.Path) -> None:
-    """Success against each axis' value, one line per controller (the model axis: share per parameter)."""
-    plt = pyplot()
-    fig, axes = plt.subplots(2, 3, figsize=(11, 6))
-    for ax, axis in zip(axes.flat, dfki.AXES):
-        for name, res in results.items():
-            r = res[axis]
-            ok = np.asarray(r["success"], float)
-            if axis == "model":
-                params = list(dict.fromkeys(n for n, _ in r["values"]))
-                ax.bar(np.arange(len(params)) + 0.25 * list(results).index(name), [ok[[n == k for n, _ in r["values"]]].mean() for k in params],
-                       width=0.25, label=name)  # fmt: skip
-                ax.set_xticks(np.arange(len(params)), params, fontsize=7)
-            elif axis == "perturbations":
-                ax.bar(list(results).index(name), ok.mean(), label=name)
-                ax.set_xticks([])
-            else:
-                ax.plot(r["values"], ok + 0.02 * list(results).index(name), marker="o", ms=3, label=name)
-        ax.set_title(f"{axis}", fontsize=9)
-        ax.set_ylim(-0.05, 1.1)
-    axes.flat[0].legend(fontsize=7)
-    fig.suptitle(f"{scene} (DFKI robustness v2 axes): success")
     save(fig, path)
 
 

@@ -47,11 +47,17 @@ def test_compare_quick_end_to_end(tmp_path, capsys):
     assert "Headline" in report and "Actuator sizing" in report and "disjoint" in report
     assert (tmp_path / "learning_curves.png").stat().st_size > 0
     assert "best model-based" in capsys.readouterr().out
+    robust = out["robustness"]["scenes"]["Planar2R"]  # the robustness sweep of every policy, in the report
+    assert set(robust) == set(nominal) and all(0.0 <= r["score"] <= 1.0 for r in robust.values())
+    assert len(robust["PPO"]["seed_scores"]) == nominal["PPO"]["train_seeds"]
+    assert "## Robustness (six axes)" in report and "| computed torque | model-based |" in report
+    assert (tmp_path / "robustness_Planar2R.png").stat().st_size > 0
 
 
 def test_compare_scores_a_swing_up_scene_by_success_time_and_energy(tmp_path):
     script = load_script("compare.py")
-    out = script["run"](script["parse_args"](["--out", str(tmp_path), "--quick", "--scene", "Acrobot", "--no-agents", "--workers", "1"]))
+    out = script["run"](script["parse_args"](["--out", str(tmp_path), "--quick", "--scene", "Acrobot", "--no-agents", "--workers", "1",
+                                                                 "--no-robustness"]))
     by_cond = out["summary"]["Acrobot"]
     assert set(by_cond) == {"nominal", "mismatch +20%", "mismatch -20%", "obs noise 0.01", "input delay 1 step"}
     for r in out["rows"]:  # a failed episode is one that does not end upright; it has no time to swing up
@@ -497,3 +503,18 @@ def test_dfki_script_scores_the_protocol_and_writes_its_report(tmp_path, monkeyp
         assert (tmp_path / name).stat().st_size > 0, name
     text = (tmp_path / "report.md").read_text()
     assert "ours: swing-up + LQR" in text and "AR-EAPO (published)" in text
+
+
+def test_robustness_script_sweeps_a_scene_and_writes_its_report(tmp_path):
+    """One controller on one scene, 2 values per axis, 1 seed, 2 pulse episodes: the CSV has a row per member."""
+    script = load_script("robustness.py")
+    record = script["run"](script["parse_args"](["--out", str(tmp_path), "--scene", "Acrobot", "--policy", "swing-up + LQR",
+                                                 "--values", "2", "--seeds", "1", "--pulse-episodes", "2"]))  # fmt: skip
+    s = record["scenes"]["Acrobot"]["swing-up + LQR"]
+    assert set(s["fractions"]) == {"model", "velocity noise", "torque noise", "torque response", "time delay", "perturbations"}
+    assert s["score"] == pytest.approx(np.mean(list(s["fractions"].values())))
+    for name in ("robustness.csv", "robustness.json", "report.md", "robustness_Acrobot.png"):
+        assert (tmp_path / name).stat().st_size > 0, name
+    rows = (tmp_path / "robustness.csv").read_text().splitlines()
+    assert len(rows) == 1 + (8 * 2 + 2 * 1) + 4 * 2 + 2
+    assert "| swing-up + LQR | model-based |" in (tmp_path / "report.md").read_text()

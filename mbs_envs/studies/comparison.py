@@ -77,15 +77,21 @@ def scaled_params(model: Any, s: float) -> dict[str, Any]:
 def plant_kwargs(scene: str, condition: Condition) -> dict[str, Any]:
     """Env arguments of the plant: scaled parameters, nominal actuators (limits, armature)."""
     env_id, kwargs, _ = SCENES[scene]
+    if condition.scale == 1.0:
+        return dict(kwargs)
+    return model_kwargs(scene, scaled_params(gym.make(env_id, **kwargs).unwrapped.model, condition.scale))
+
+
+def model_kwargs(scene: str, params: dict[str, Any]) -> dict[str, Any]:
+    """Env arguments of the scene's plant with the parameters ``params`` changed and the actuators nominal
+    (the torque limits and the drives' armature, which some scenes derive from the parameters)."""
+    env_id, kwargs, _ = SCENES[scene]
     nominal = gym.make(env_id, **kwargs).unwrapped
-    kw = dict(kwargs)
-    if condition.scale != 1.0:
-        params = scaled_params(nominal.model, condition.scale)
-        if hasattr(nominal.model.params, "armature"):
-            params["armature"] = nominal.model.params.armature
-        kw["params"] = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in params.items()}
-        kw["torque_limit"] = nominal.u_max.tolist()
-    return kw
+    params = dict(params)
+    if hasattr(nominal.model.params, "armature"):
+        params["armature"] = nominal.model.params.armature
+    return {**kwargs, "params": {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in params.items()},
+            "torque_limit": nominal.u_max.tolist()}  # fmt: skip
 
 
 #: the prefix of an agent's spec that makes it an RL + LQR pair (:mod:`mbs_envs.studies.handover`)

@@ -226,20 +226,11 @@ def model_variations(p: Any = None, n: int = N_VALUES) -> list[tuple[str, float,
 def random_pulses(rng: np.random.Generator, episodes: int, t: np.ndarray) -> np.ndarray:
     """Their random disturbance (``get_random_gauss_perturbation_array``): per episode ``2 k`` Gaussian torque
     pulses, ``k`` per joint, centres at least ``min_spacing`` apart in shuffled order, widths and heights
-    uniform in :data:`PULSES` ranges with random signs. Returns ``(episodes, len(t), 2)`` [N m]."""
-    from .robustness import gaussian_pulses
+    uniform in :data:`PULSES` ranges with random signs (:func:`mbs_envs.studies.robustness.random_pulses`).
+    Returns ``(episodes, len(t), 2)`` [N m]."""
+    from .robustness import random_pulses as pulses
 
-    k, gap, T = PULSES["per_joint"], PULSES["min_spacing"], float(t[-1] + (t[1] - t[0]))
-    n = 2 * k
-    room = (T - (n + 1) * gap) / n
-    mu = np.cumsum(gap + rng.uniform(0, room, (episodes, n)), axis=1)
-    mu = rng.permuted(mu, axis=1).reshape(episodes, 2, k)
-    s_lo, s_hi = PULSES["sigma"]
-    a_lo, a_hi = PULSES["amplitude"]
-    sigma = rng.uniform(s_lo, s_hi, (episodes, 2, k))
-    amp = rng.uniform(-(a_hi - a_lo), a_hi - a_lo, (episodes, 2, k))
-    amp += a_lo * np.sign(amp)
-    return gaussian_pulses(t, mu, sigma, amp)
+    return pulses(rng, episodes, t, 2, PULSES["per_joint"], PULSES["min_spacing"], PULSES["sigma"], PULSES["amplitude"])
 
 
 def sweep(env_id: str, make_policy: Any, n: int = N_VALUES, seed: int = 0, axes: tuple = AXES) -> dict[str, dict[str, Any]]:

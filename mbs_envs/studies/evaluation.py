@@ -274,23 +274,45 @@ def rollout_batch(
             queue.append(action)
             action = queue.pop(0)
         obs, reward, terminated, truncated, info = venv.step(action)
-        rows["t"].append(info["t"])
-        rows["e"].append(info["tracking_error"])
-        rows["u"].append(info["u"])
-        rows["r"].append(reward)
-        rows["div"].append(info["diverged"])
-        for key in ("upright", "power"):
-            if key in info:
-                rows[key].append(info[key])
+        record_step(rows, reward, info)
         newly = ~done & (terminated | truncated)
         end[newly] = len(rows["t"])
         terminated_any |= newly & terminated
         done |= newly
+    return episodes_from_rows(rows, end, terminated_any)
+
+
+def record_step(rows: dict[str, list], reward: np.ndarray, info: dict[str, Any]) -> None:
+    """Append one batched step's reward and ``info`` to ``rows`` (the keys :func:`episodes_from_rows` reads)."""
+    rows["t"].append(info["t"])
+    rows["e"].append(info["tracking_error"])
+    rows["u"].append(info["u"])
+    rows["r"].append(reward)
+    rows["div"].append(info["diverged"])
+    for key in ("upright", "power"):
+        if key in info:
+            rows.setdefault(key, []).append(info[key])
+
+
+def episodes_from_rows(rows: dict[str, list], end: np.ndarray, terminated: np.ndarray) -> list[Episode]:
+    """Cut a batched rollout's per-step records into one :class:`Episode` per member.
+
+    Parameters
+    ----------
+    rows : dict of list
+        Per control step, one entry with a value per member: ``t``, ``e`` (tracking error), ``u``, ``r``
+        (reward), ``div`` (diverged) and, where the scene has them, ``upright`` and ``power``; ``dt``
+        (compute time per member of the step's ``predict``) one scalar per step.
+    end : ndarray of int (n,)
+        Steps member ``i`` ran (its episode is the first ``end[i]`` rows).
+    terminated : ndarray of bool (n,)
+        Whether member ``i`` ended early.
+    """
     t, e, u, r = (np.array(rows[k]) for k in ("t", "e", "u", "r"))
     div = np.array(rows["div"])
     dt = np.array(rows["dt"])
-    up = np.array(rows["upright"], bool) if rows["upright"] else None
-    power = np.array(rows["power"], float) if rows["power"] else None
+    up = np.array(rows["upright"], bool) if rows.get("upright") else None
+    power = np.array(rows["power"], float) if rows.get("power") else None
     return [
         Episode(
             t=t[: end[i], i],
@@ -299,9 +321,9 @@ def rollout_batch(
             reward=r[: end[i], i],
             compute_time=dt[: end[i]],
             diverged=bool(div[end[i] - 1, i]),
-            terminated=bool(terminated_any[i]),
+            terminated=bool(terminated[i]),
             upright=None if up is None else up[: end[i], i],
             power=None if power is None else power[: end[i], i],
         )
-        for i in range(n)
+        for i in range(len(end))
     ]

@@ -25,6 +25,7 @@ rule judges them. Actions go through the env as the agent's normalized actions (
 from __future__ import annotations
 
 import dataclasses
+import time
 from typing import Any
 
 import numpy as np
@@ -40,8 +41,8 @@ class Perturbation:
         Std of the measurement noise on the observation entries ``noise_index``.
     noise_index : tuple of int
         Observation entries the noise reaches (empty: all).
-    torque_sigma : ndarray (n,), optional
-        Std of the torque noise [N m].
+    torque_sigma : ndarray (n,) or (n, nu), optional
+        Std of the torque noise [N m], per member or per member and input.
     response : ndarray (n,), optional
         Actuator responsiveness ``r`` (module docstring).
     delay : ndarray of int (n,), optional
@@ -76,15 +77,60 @@ def gaussian_pulses(t: np.ndarray, mu: np.ndarray, sigma: np.ndarray, amplitude:
     return (amplitude[:, None] * np.exp(-0.5 * z**2)).sum(-1)
 
 
-def run(venv: Any, policy: Any, seeds: list[int], p: Perturbation, noise_seed: int = 0, deterministic: bool = True) -> dict[str, np.ndarray]:
+def random_pulses(rng: np.random.Generator, episodes: int, t: np.ndarray, coordinates: int, per_coordinate: int, gap: float,
+                  sigma: tuple[float, float], amplitude: tuple[Any, Any]) -> np.ndarray:  # fmt: skip
+    """The DFKI benchmark's random disturbance (``get_random_gauss_perturbation_array``), for any number of coordinates.
+
+    Per episode ``c k`` Gaussian torque pulses, ``k = per_coordinate`` on each of ``c = coordinates``: their
+    centres ``gap`` apart at least (cumulative sums of ``gap + U(0, room)``, ``room = (T - (c k + 1) gap) / (c k)``),
+    in shuffled order; widths ``U(sigma)``; heights of random sign with ``|A| ~ U(amplitude)``.
+
+    Parameters
+    ----------
+    rng : numpy Generator
+    episodes : int
+    t : ndarray (steps,)
+        Control times [s], evenly spaced from 0.
+    coordinates, per_coordinate : int
+    gap : float
+        Least spacing of the centres [s].
+    sigma : (float, float)
+        Width range [s].
+    amplitude : (array_like, array_like)
+        Height range [N m or N], scalars or one per coordinate, shape (c,).
+
+    Returns
+    -------
+    ndarray (episodes, steps, c)
+    """
+    T = float(t[-1] + (t[1] - t[0]))
+    n = coordinates * per_coordinate
+    room = (T - (n + 1) * gap) / n
+    if room < 0:
+        raise ValueError(f"gap: {n} pulses {gap} s apart do not fit in {T} s")
+    mu = np.cumsum(gap + rng.uniform(0, room, (episodes, n)), axis=1)
+    mu = rng.permuted(mu, axis=1).reshape(episodes, coordinates, per_coordinate)
+    width = rng.uniform(sigma[0], sigma[1], (episodes, coordinates, per_coordinate))
+    lo, hi = (np.broadcast_to(np.asarray(a, float), (coordinates,))[:, None] for a in amplitude)
+    amp = rng.uniform(-(hi - lo), hi - lo, (episodes, coordinates, per_coordinate))
+    amp += lo * np.sign(amp)
+    return gaussian_pulses(t, mu, width, amp)
+
+
+def run(venv: Any, policy: Any, seeds: list[int], p: Perturbation, noise_seed: int = 0, deterministic: bool = True,
+        record: bool = False) -> dict[str, Any]:  # fmt: skip
     """One perturbed episode per member of ``venv`` (``autoreset_mode="Disabled"``, a ``max_episode_steps``).
 
     Returns
     -------
     dict
         ``q`` (n, nq) and ``v`` (n, nv): each member's state when its episode ended; ``terminated`` (n,):
-        it ended early (diverged); ``steps`` (n,): the control steps it ran.
+        it ended early (diverged); ``steps`` (n,): the control steps it ran; with ``record``, ``episodes``:
+        one :class:`~mbs_envs.studies.evaluation.Episode` per member (what the plant did: the applied,
+        perturbed torques in ``u``), for the scene's own scoring.
     """
+    from .evaluation import episodes_from_rows, record_step
+
     base = venv.unwrapped
     n, steps = len(seeds), base.max_episode_steps
     if base.num_envs != n or steps is None:
@@ -102,6 +148,7 @@ def run(venv: Any, policy: Any, seeds: list[int], p: Perturbation, noise_seed: i
     terminated_any = np.zeros(n, bool)
     state, start = None, np.ones(n, bool)
     dt = float(base.env.dt)
+    rows: dict[str, list] = {"t": [], "e": [], "u": [], "r": [], "dt": [], "div": []}
     for k in range(steps):
         history[k % len(history)] = obs
         seen = history[np.maximum(k - delay, 0) % len(history), members] if delay.any() else obs
@@ -110,17 +157,22 @@ def run(venv: Any, policy: Any, seeds: list[int], p: Perturbation, noise_seed: i
             noisy = seen.copy()
             noisy[:, idx] = seen[:, idx] + (np.asarray(p.noise_sigma)[:, None] * rng.standard_normal((n, noisy[:, idx].shape[1])))
             seen = noisy.astype(obs.dtype)
+        tic = time.perf_counter()
         action, state = policy.predict(seen, state=state, episode_start=start, deterministic=deterministic)
+        rows["dt"].append((time.perf_counter() - tic) / n)
         start = np.zeros(n, bool)
         u = np.clip(np.asarray(action, float).reshape(n, -1), -1.0, 1.0) * u_max
         if p.torque_sigma is not None:
-            u = u + np.asarray(p.torque_sigma)[:, None] * rng.standard_normal(u.shape)
+            sigma = np.asarray(p.torque_sigma, float)
+            u = u + (sigma[:, None] if sigma.ndim == 1 else sigma) * rng.standard_normal(u.shape)
         if p.response is not None:
             u = applied + np.asarray(p.response)[:, None] * (u - applied)
         applied = np.clip(u, -u_max, u_max)
         if p.pulses is not None:
             base.apply_impulse(np.where(done[:, None], 0.0, p.pulses[:, k] * dt))
-        obs, _, terminated, truncated, _ = base.step((applied / u_max).astype(np.float32))
+        obs, reward, terminated, truncated, info = base.step((applied / u_max).astype(np.float32))
+        if record:
+            record_step(rows, reward, info)
         newly = ~done & (terminated | truncated)
         q_now, v_now = base.q, base.v
         q_end[newly], v_end[newly] = q_now[newly], v_now[newly]
@@ -129,4 +181,46 @@ def run(venv: Any, policy: Any, seeds: list[int], p: Perturbation, noise_seed: i
         done |= newly
         if done.all():
             break
-    return {"q": q_end, "v": v_end, "terminated": terminated_any, "steps": ran}
+    out = {"q": q_end, "v": v_end, "terminated": terminated_any, "steps": ran}
+    if record:
+        out["episodes"] = episodes_from_rows(rows, ran, terminated_any)
+    return out
+
+
+def plot_success(results: dict[str, list[dict[str, Any]]], axes: tuple[str, ...], title: str, path: Any) -> None:
+    """Success against each axis' value, one line per policy (the model axis: the share per parameter; the
+    perturbations: one share per policy), 2 x 3 panels; policy ``j``'s line is drawn ``0.012 j`` higher so
+    equal lines stay apart.
+
+    ``results``: policy name -> its sweeps (one per training seed), each ``{axis: {"values", "success"}}``;
+    the shares pool the seeds and training seeds of a value.
+    """
+    from .plotting import pyplot, save
+
+    plt = pyplot()
+    fig, panels = plt.subplots(2, 3, figsize=(12, 6.5))
+    width = 0.8 / max(len(results), 1)
+    for ax, axis in zip(panels.flat, axes):
+        for j, (name, sweeps) in enumerate(results.items()):
+            values = [v for r in sweeps for v in r[axis]["values"]]
+            ok = np.concatenate([np.asarray(r[axis]["success"], float) for r in sweeps])
+            if axis == "model":
+                keys = list(dict.fromkeys(v[0] for v in values))
+                share = [ok[[v[0] == k for v in values]].mean() for k in keys]
+                ax.bar(np.arange(len(keys)) + width * (j - (len(results) - 1) / 2), share, width=width, label=name)
+                ax.set_xticks(np.arange(len(keys)), keys, fontsize=7)
+            elif axis == "perturbations":
+                ax.bar(j, ok.mean(), label=name)
+                ax.set_xticks([])
+            else:
+                x = np.asarray(values, float)
+                grid = np.unique(x)
+                ax.plot(grid, [ok[x == g].mean() + 0.012 * j for g in grid], marker="o", ms=3, label=name)  # offset: lines stay apart
+        ax.set_title(axis, fontsize=9)
+        ax.set_ylim(-0.05, 1.05)
+    panels.flat[0].set_ylabel("success")
+    panels.flat[3].set_ylabel("success")
+    handles, labels = panels.flat[1].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=min(len(labels), 5), fontsize=7)
+    fig.suptitle(title)
+    save(fig, path, rect=(0, 0.07, 1, 0.96))
