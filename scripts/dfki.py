@@ -1,8 +1,10 @@
 """Our swing-up controllers on the DFKI double-pendulum benchmark (RealAIGym), beside its leaderboards.
 
 The protocol (``mbs_envs/AcrobotDFKI-v1``, ``mbs_envs/PendubotDFKI-v1``: the identified design C.1
-plant, 6 N m, RK4 at 2 ms, 10 s from hanging at rest) runs every model-based swing-up controller once
-and scores it with the benchmark's success rule and simulation-v2 score (``mbs_envs/studies/dfki.py``);
+plant, 6 N m, RK4 at 2 ms, 10 s from hanging at rest) runs every model-based swing-up controller once, and
+every agent trained on the protocol (``agents/<scene>DFKI-v1/<algo>/seed<k>/``) alone and with the plant's
+upright LQR catching, and scores each with the benchmark's success rule and simulation-v2 score
+(``mbs_envs/studies/dfki.py``);
 ``--robustness`` adds its robustness-v2 sweep (six axes, one batched rollout per axis). The controllers
 run in parallel processes (``--workers``), or on Ray with ``--ray [ADDRESS]`` (the ``ray`` extra). Writes
 ``dfki.csv``, ``dfki.json``, ``report.md`` (our rows beside the published ones), one time-series plot per
@@ -38,7 +40,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", required=True, type=pathlib.Path)
     p.add_argument("--scene", action="append", choices=sorted(SCENES), help="scene(s) (default both)")
-    p.add_argument("--controller", action="append", choices=sorted(SWING_UP_CONTROLLERS), help="controller(s) (default every one)")
+    p.add_argument("--controller", action="append", help="controller(s) or agent(s) by name, e.g. 'swing-up + LQR', 'PPO seed0' (default every one)")
+    p.add_argument("--agents", type=pathlib.Path, default=pathlib.Path("agents"),
+                   help="root of the agents trained on the protocol (<root>/<scene>DFKI-v1/<algo>/seed<k>/; default agents/)")
+    p.add_argument("--no-agents", action="store_true", help="the model-based controllers only")
     p.add_argument("--robustness", action="store_true", help="run the robustness-v2 sweep too")
     p.add_argument("--values", type=int, default=dfki.N_VALUES, help=f"values per robustness axis (default {dfki.N_VALUES}, as theirs)")
     p.add_argument("--seed", type=int, default=0, help="seeds the sweep's noise and pulses")
@@ -50,11 +55,13 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 def run(args: argparse.Namespace) -> dict:
     args.out.mkdir(parents=True, exist_ok=True)
     scenes = args.scene or sorted(SCENES)
-    names = args.controller or list(SWING_UP_CONTROLLERS)
     rows, sweeps = [], {}
-    jobs = [(s, n) for s in scenes for n in names]
-    tasks = [{"env_id": SCENES[s], "spec": SWING_UP_CONTROLLERS[n], "gains": own_scene_gains(s, n), "robustness": args.robustness,
-              "values": args.values, "seed": args.seed} for s, n in jobs]  # fmt: skip
+    specs = {s: policies(s, None if args.no_agents else args.agents) for s in scenes}
+    jobs = [(s, n) for s in scenes for n in specs[s] if not args.controller or n in args.controller]
+    if not jobs:
+        raise SystemExit("dfki.py: no controller or agent matches --controller")
+    tasks = [{"env_id": SCENES[s], "spec": specs[s][n], "gains": own_scene_gains(s, n) if n in SWING_UP_CONTROLLERS else None,
+              "robustness": args.robustness, "values": args.values, "seed": args.seed} for s, n in jobs]  # fmt: skip
     results = run_tasks(dfki.controller_job, tasks, ray_address=args.ray, max_workers=args.workers, progress="DFKI protocol")
     for (scene, name), res in zip(jobs, results):
         c = res["criteria"]
@@ -83,6 +90,23 @@ def run(args: argparse.Namespace) -> dict:
     (args.out / "report.md").write_text(report(rows, args))
     print(f"written {args.out}")
     return record
+
+
+def policies(scene: str, agents: pathlib.Path | None) -> dict[str, str]:
+    """Name -> spec of every policy run on the protocol: the model-based swing-up controllers, then each agent trained
+    on the protocol (``<agents>/<scene>DFKI-v1/<algo>/seed<k>/agent.zip``, one row per training seed) alone and with
+    the protocol plant's upright LQR catching (``"<ALGO> + LQR seed<k>"``, :mod:`mbs_envs.studies.handover`)."""
+    from mbs_envs.studies.comparison import AGENT_GROUPS, HAND_OVER
+
+    out = dict(SWING_UP_CONTROLLERS)
+    if agents is None:
+        return out
+    for folder in sorted(pathlib.Path(agents).glob(f"{scene}DFKI-v1/*/seed*/agent.zip")):
+        algo, seed = folder.parent.parent.name, folder.parent.name
+        name = AGENT_GROUPS.get(algo, (algo.upper(),))[0]
+        out[f"{name} {seed}"] = str(folder.parent)
+        out[f"{name} + LQR {seed}"] = HAND_OVER + str(folder.parent)
+    return out
 
 
 def own_scene_gains(scene: str, name: str) -> dict | None:

@@ -518,3 +518,18 @@ def test_robustness_script_sweeps_a_scene_and_writes_its_report(tmp_path):
     rows = (tmp_path / "robustness.csv").read_text().splitlines()
     assert len(rows) == 1 + (8 * 2 + 2 * 1) + 4 * 2 + 2
     assert "| swing-up + LQR | model-based |" in (tmp_path / "report.md").read_text()
+
+
+def test_dfki_script_runs_agents_trained_on_the_protocol_alone_and_with_the_lqr(tmp_path):
+    """An agent under <agents>/AcrobotDFKI-v1/ppo/seed0 (a tiny one, trained on the preset) is found, run alone and as
+    agent + LQR, and scored like the controllers."""
+    folder = tmp_path / "agents" / "AcrobotDFKI-v1" / "ppo" / "seed0"
+    train = load_script("train.py")
+    train["run"](train["parse_args"](["--env", "mbs_envs/Acrobot-v1", "--env-kwargs", '{"preset": "dfki_c1"}', "--algo", "ppo",
+                                      "--steps", "512", "--n-envs", "4", "--eval-seeds", "1", "--out", str(folder)]))  # fmt: skip
+    script = load_script("dfki.py")
+    record = script["run"](script["parse_args"](["--out", str(tmp_path / "out"), "--scene", "Acrobot", "--agents", str(tmp_path / "agents"),
+                                                 "--controller", "PPO seed0", "--controller", "PPO + LQR seed0", "--workers", "1"]))  # fmt: skip
+    assert [r["controller"] for r in record["rows"]] == ["PPO seed0", "PPO + LQR seed0"]
+    assert all(r["success"] in (0.0, 1.0) and 0.0 <= r["score"] <= 1.0 for r in record["rows"])
+    assert "ours: PPO + LQR seed0" in (tmp_path / "out" / "report.md").read_text()

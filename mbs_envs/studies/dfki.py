@@ -344,18 +344,22 @@ PUBLISHED_ROBUSTNESS_V2 = MappingProxyType({
 def controller_job(task: Mapping[str, Any]) -> dict[str, Any]:
     """One controller on one protocol id (a picklable task for :func:`mbs_envs.studies.parallel.run_tasks`).
 
-    ``task``: ``env_id``, ``spec`` (``"module:Class"``), ``gains`` (an entry of ``controllers/tuned.json``
-    or None), ``robustness`` (bool), ``values`` and ``seed`` (the sweep's). Returns the recorded run, its
+    ``task``: ``env_id``, ``spec`` (``"module:Class"``, an agent folder or ``"lqr-catch:" + folder``, as
+    :func:`mbs_envs.studies.comparison.load_policy` reads them), ``gains`` (a controller's entry of
+    ``controllers/tuned.json`` or None), ``robustness`` (bool), ``values`` and ``seed`` (the sweep's). Returns the recorded run, its
     criteria and score, and with ``robustness`` the :func:`sweep`; wall times in seconds.
     """
     import time
 
     import gymnasium as gym
 
+    from .comparison import load_policy
     from .evaluation import make_controller
 
     def make(env: Any) -> Any:
-        return make_controller(task["spec"], env, task.get("gains"))
+        if task.get("gains") is not None:
+            return make_controller(task["spec"], env, task["gains"])
+        return load_policy(task["spec"], env)  # a controller with its defaults, an agent, or an agent + LQR
 
     env = gym.make(task["env_id"])
     p = env.unwrapped.model.params
