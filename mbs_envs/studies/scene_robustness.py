@@ -100,7 +100,9 @@ _TWO_LINKS = ("m1", "m2", "l1", "l2", "r1", "r2", "I1", "I2")
 _TWO_JOINTS = MappingProxyType({"b1": (0,), "b2": (1,)})
 
 #: the sweep of each compared scene. FourBar keeps its lengths (they are the loop the reference lives on);
-#: the chain (5 s episodes, ten joints) gets one pulse per joint, 0.4 s apart at least
+#: the chain (5 s episodes, ten joints) gets one pulse per joint, 0.4 s apart at least; the disk's radius also moves
+#: its critical spin, against which each episode's commanded spin is drawn (the task changes with the plant, as
+#: under the comparison's mismatch)
 SWEEPS: Mapping[str, SceneSweep] = MappingProxyType({
     "Planar2R": SceneSweep(_TWO_LINKS, _TWO_JOINTS, (0, 1), pulse_gap=0.5),
     "FourBar": SceneSweep(("m1", "m2", "m3", "r1", "r2", "r3", "I1", "I2", "I3"),
