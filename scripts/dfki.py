@@ -44,6 +44,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--agents", type=pathlib.Path, default=pathlib.Path("agents"),
                    help="root of the agents trained on the protocol (<root>/<scene>DFKI-v1/<algo>/seed<k>/; default agents/)")
     p.add_argument("--no-agents", action="store_true", help="the model-based controllers only")
+    p.add_argument("--no-controllers", action="store_true", help="the agents only")
     p.add_argument("--robustness", action="store_true", help="run the robustness-v2 sweep too")
     p.add_argument("--values", type=int, default=dfki.N_VALUES, help=f"values per robustness axis (default {dfki.N_VALUES}, as theirs)")
     p.add_argument("--seed", type=int, default=0, help="seeds the sweep's noise and pulses")
@@ -57,7 +58,8 @@ def run(args: argparse.Namespace) -> dict:
     scenes = args.scene or sorted(SCENES)
     rows, sweeps = [], {}
     specs = {s: policies(s, None if args.no_agents else args.agents) for s in scenes}
-    jobs = [(s, n) for s in scenes for n in specs[s] if not args.controller or n in args.controller]
+    jobs = [(s, n) for s in scenes for n in specs[s]
+            if (not args.controller or n in args.controller) and not (args.no_controllers and n in SWING_UP_CONTROLLERS)]  # fmt: skip
     if not jobs:
         raise SystemExit("dfki.py: no controller or agent matches --controller")
     tasks = [{"env_id": SCENES[s], "spec": specs[s][n], "gains": own_scene_gains(s, n) if n in SWING_UP_CONTROLLERS else None,
