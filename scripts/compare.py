@@ -55,7 +55,6 @@ from mbs_envs.studies.catch import catch_rows, catch_table
 from mbs_envs.studies.handover import TUNED_NAME as HAND_OVER_NAME
 from mbs_envs.studies import scene_robustness as sr
 from mbs_envs.studies.parallel import run_tasks
-from mbs_envs.studies.robustness import plot_success
 from mbs_envs.studies import provenance
 from mbs_envs.studies.plotting import pyplot, save
 from mbs_envs.studies.sizing import actuator_sizing
@@ -97,7 +96,7 @@ def run(args: argparse.Namespace) -> dict:
     tasks, agents = [], {}
     for scene in scenes:
         agents[scene] = {} if args.no_agents else cmp.find_agents(args.agents, scene)
-        policies = {**{k: [v] for k, v in cmp.SCENES[scene][2].items()}, **agents[scene]}
+        policies = sr.policies(scene, agents[scene])
         for c in conds:
             scene_seeds = seed_ranges.test_seeds(n_swing) if scoring_of(scene) == "swing-up" else seeds
             tasks.append({"scene": scene, "condition": vars(c), "seeds": scene_seeds, "policies": policies})
@@ -109,8 +108,7 @@ def run(args: argparse.Namespace) -> dict:
     else:
         results = run_tasks(cmp.evaluate_cell, tasks, ray_address=args.ray)
     rows = [r for cell in results for r in cell]
-    robust = None if args.no_robustness else robustness(args, {scene: {**{k: [v] for k, v in cmp.SCENES[scene][2].items()}, **agents[scene]}
-                                                                   for scene in scenes})  # fmt: skip
+    robust, sweeps = (None, None) if args.no_robustness else robustness(args, {scene: sr.policies(scene, agents[scene]) for scene in scenes})
     with open(args.out / "episodes.csv", "w", newline="") as f:  # swing-up rows carry more columns
         w = csv.DictWriter(f, fieldnames=list(dict.fromkeys(k for r in rows for k in r)), restval="")
         w.writeheader()
@@ -124,10 +122,8 @@ def run(args: argparse.Namespace) -> dict:
     catch = [r for scene in scenes if scoring_of(scene) == "swing-up" for r in catch_rows(scene, conds)]
     report = make_report(summary, sizing, agents, curves, seeds, conds, n_swing, catch, robust)
     (args.out / "report.md").write_text(report)
-    if robust:
-        for scene, by_policy in robust["scenes"].items():
-            plot_success({n: s.pop("sweeps") for n, s in by_policy.items()}, sr.AXES, f"{scene}: robustness sweep, success",
-                         args.out / f"robustness_{scene}.png")  # fmt: skip
+    if sweeps:
+        sr.plot(sweeps, args.out)
     config = {"test_seeds": [seeds[0], seeds[-1]], "conditions": [c.name for c in conds], "agents": portable(agents),
               "provenance": provenance.record()}  # fmt: skip
     (args.out / "summary.json").write_text(json.dumps({"config": config, "summary": summary, "sizing": sizing, "catch": catch, "robustness": robust},
@@ -146,21 +142,19 @@ def run(args: argparse.Namespace) -> dict:
     return {"summary": summary, "rows": rows, "sizing": sizing, "robustness": robust}
 
 
-def robustness(args: argparse.Namespace, policies: dict[str, dict[str, list[str]]]) -> dict:
+def robustness(args: argparse.Namespace, policies: dict[str, dict[str, list[str]]]) -> tuple[dict, dict]:
     """The six-axis robustness sweep of every policy (``mbs_envs/studies/scene_robustness.py``; ``scripts/robustness.py``
-    runs it with more values): per scene and policy the success fractions, the score and the wall times."""
+    runs it with more values): per scene and policy the success fractions, the score and the wall times; and the
+    sweeps themselves (for the plots)."""
     import time
 
     n, pulses = (2, 2) if args.quick else (args.robustness_values, args.robustness_pulses)
     jobs = sr.tasks(policies, n, args.robustness_seeds, pulses)
     tic = time.perf_counter()
-    if args.ray is None:
-        results = run_tasks(sr.sweep_job, jobs, max_workers=args.workers, progress="robustness sweeps")
-    else:
-        results = run_tasks(sr.sweep_job, jobs, ray_address=args.ray)
-    _, summary = sr.collect(jobs, results)
+    results = run_tasks(sr.sweep_job, jobs, ray_address=args.ray, max_workers=args.workers, progress="robustness sweeps")
+    _, summary, sweeps = sr.collect(jobs, results)
     return {"values_per_axis": n, "seeds_per_value": args.robustness_seeds, "pulse_episodes": pulses, "wall_s": time.perf_counter() - tic,
-            "scenes": summary}  # fmt: skip
+            "scenes": summary}, sweeps  # fmt: skip
 
 
 def portable(obj: Any) -> Any:

@@ -24,7 +24,7 @@ import time
 import mbs_envs  # noqa: F401
 from mbs_envs.studies import scene_robustness as sr
 from mbs_envs.studies.parallel import run_tasks
-from mbs_envs.studies.robustness import plot_success
+from mbs_envs.studies.comparison import find_agents
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -45,7 +45,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 def run(args: argparse.Namespace) -> dict:
     args.out.mkdir(parents=True, exist_ok=True)
-    chosen = {scene: {name: specs for name, specs in sr.policies(scene, args.agents, not args.no_agents).items()
+    chosen = {scene: {name: specs for name, specs in sr.policies(scene, {} if args.no_agents else find_agents(args.agents, scene)).items()
                       if not args.policy or name in args.policy}
               for scene in args.scene or list(sr.SWEEPS)}  # fmt: skip
     jobs = sr.tasks(chosen, args.values, args.seeds, args.pulse_episodes, args.seed)
@@ -54,14 +54,12 @@ def run(args: argparse.Namespace) -> dict:
     tic = time.perf_counter()
     results = run_tasks(sr.sweep_job, jobs, ray_address=args.ray, max_workers=args.workers, progress="robustness sweeps")
     wall = time.perf_counter() - tic
-    rows, summary = sr.collect(jobs, results)
+    rows, summary, sweeps = sr.collect(jobs, results)
     with open(args.out / "robustness.csv", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
-    for scene, by_policy in summary.items():
-        plot_success({n: s.pop("sweeps") for n, s in by_policy.items()}, sr.AXES, f"{scene}: robustness sweep, success",
-                     args.out / f"robustness_{scene}.png")  # fmt: skip
+    sr.plot(sweeps, args.out)
     command = "python scripts/robustness.py " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("robustness.py") else None
     record = {"command": command, "values_per_axis": args.values, "seeds_per_value": args.seeds, "pulse_episodes": args.pulse_episodes,
               "seed": args.seed, "tolerance_rad": sr.TOLERANCE, "wall_s": wall, "scenes": summary,

@@ -159,7 +159,8 @@ def run(venv: Any, policy: Any, seeds: list[int], p: Perturbation, noise_seed: i
             seen = noisy.astype(obs.dtype)
         tic = time.perf_counter()
         action, state = policy.predict(seen, state=state, episode_start=start, deterministic=deterministic)
-        rows["dt"].append((time.perf_counter() - tic) / n)
+        if record:
+            rows["dt"].append((time.perf_counter() - tic) / n)
         start = np.zeros(n, bool)
         u = np.clip(np.asarray(action, float).reshape(n, -1), -1.0, 1.0) * u_max
         if p.torque_sigma is not None:
@@ -217,7 +218,7 @@ def plot_success(results: dict[str, list[dict[str, Any]]], axes: tuple[str, ...]
                 grid = np.unique(x)
                 ax.plot(grid, [ok[x == g].mean() + 0.012 * j for g in grid], marker="o", ms=3, label=name)  # offset: lines stay apart
         ax.set_title(axis, fontsize=9)
-        ax.set_ylim(-0.05, 1.05)
+        ax.set_ylim(-0.05, 1.05 + 0.012 * len(results))  # room for the offset lines at 1
     panels.flat[0].set_ylabel("success")
     panels.flat[3].set_ylabel("success")
     handles, labels = panels.flat[1].get_legend_handles_labels()

@@ -278,17 +278,13 @@ def sweep_job(task: Mapping[str, Any]) -> dict[str, Any]:
     return {"sweep": res, "wall_s": time.perf_counter() - tic}
 
 
-def policies(scene: str, agents_root: Any, agents: bool = True) -> dict[str, list[str]]:
-    """Every policy of a scene as the comparison has them: the model-based controllers, then every shipped
-    agent (each training seed) and, on the swing-up scenes, its RL + LQR pair; name -> specs."""
-    import pathlib
+def policies(scene: str, agents: Mapping[str, list[str]]) -> dict[str, list[str]]:
+    """Every policy of a scene as the comparison runs them: the model-based controllers, then the shipped agents
+    ``agents`` (:func:`mbs_envs.studies.comparison.find_agents`: every training seed and, on the swing-up scenes,
+    the RL + LQR pairs); name -> specs."""
+    from .comparison import SCENES
 
-    from .comparison import SCENES, find_agents
-
-    out = {name: [spec] for name, spec in SCENES[scene][2].items()}
-    if agents:
-        out.update(find_agents(pathlib.Path(agents_root), scene))
-    return out
+    return {**{name: [spec] for name, spec in SCENES[scene][2].items()}, **agents}
 
 
 def summarize(sweeps: list[dict[str, Any]], axes: tuple[str, ...] = AXES) -> dict[str, Any]:
@@ -310,10 +306,10 @@ def tasks(policies_by_scene: Mapping[str, Mapping[str, list[str]]], n: int = N_V
             for scene, by_name in policies_by_scene.items() for name, specs in by_name.items() for k, spec in enumerate(specs)]  # fmt: skip
 
 
-def collect(jobs: list[Mapping[str, Any]], results: list[Mapping[str, Any]]) -> tuple[list[dict[str, Any]], dict[str, dict[str, Any]]]:
+def collect(jobs: list[Mapping[str, Any]], results: list[Mapping[str, Any]]) -> tuple[list[dict[str, Any]], dict, dict]:
     """The sweeps of :func:`tasks` as rows (one per member: scene, policy, kind, training seed, axis, parameter,
-    value, seed, success) and a summary (scene -> policy -> :func:`summarize`, its kind, wall times, and the model
-    variations skipped), and the sweeps themselves under ``"sweeps"`` of each policy."""
+    value, seed, success), a summary (scene -> policy -> :func:`summarize`, its kind, wall times, and the model
+    variations skipped), and the sweeps themselves (scene -> policy -> one per training seed, for :func:`plot`)."""
     from .comparison import kind_of
 
     rows: list[dict[str, Any]] = []
@@ -327,9 +323,20 @@ def collect(jobs: list[Mapping[str, Any]], results: list[Mapping[str, Any]]) -> 
                 rows.append({"scene": job["scene"], "policy": job["policy"], "kind": kind_of(job["policy"]), "train_seed": job["train_seed"],
                              "axis": axis, "parameter": parameter, "value": value, "seed": s, "success": bool(ok)})  # fmt: skip
     summary = {scene: {name: {**summarize([r["sweep"] for r in rs]), "kind": kind_of(name), "wall_s": [r["wall_s"] for r in rs],
-                              "skipped": rs[0]["sweep"]["model"]["skipped"], "sweeps": [r["sweep"] for r in rs]}
+                              "skipped": rs[0]["sweep"]["model"]["skipped"]}
                        for name, rs in by_name.items()} for scene, by_name in grouped.items()}  # fmt: skip
-    return rows, summary
+    sweeps = {scene: {name: [r["sweep"] for r in rs] for name, rs in by_name.items()} for scene, by_name in grouped.items()}
+    return rows, summary, sweeps
+
+
+def plot(sweeps: Mapping[str, Mapping[str, list]], folder: Any) -> None:
+    """``robustness_<scene>.png`` in ``folder`` for each scene of :func:`collect`'s sweeps."""
+    import pathlib
+
+    from .robustness import plot_success
+
+    for scene, by_policy in sweeps.items():
+        plot_success(dict(by_policy), AXES, f"{scene}: robustness sweep, success", pathlib.Path(folder) / f"robustness_{scene}.png")
 
 
 def markdown_table(by_policy: Mapping[str, Mapping[str, Any]]) -> list[str]:
