@@ -38,11 +38,14 @@ parallel to z, offsets and centres along the links' x axes and gravity along -y 
 from __future__ import annotations
 
 import dataclasses
+import sys
 from typing import Any
 
 import numpy as np
 
 from .. import validation as check
+from ..dynamics import compiled as _compiled
+from ..dynamics.compiled import batch_theta, columns_of, rk_run
 from ..dynamics.jit import njit
 from .base import Params, as_vector, param
 from .serial_chain import RecursiveChain, link_count
@@ -296,10 +299,11 @@ def _rows_crba(q, axis, offset, com, inertia, m, armature):  # pragma: no cover 
 
 
 @njit
-def _rows_aba(q, v, tau, axis, offset, com, inertia, m, armature, g_vec):  # pragma: no cover - compiled
+def _rows_aba(q, v, tau, armature, axis, offset, com, inertia, m, g_vec):  # pragma: no cover - compiled
+    """:func:`aba_member` per row, with the row's own armature ``(B, N)``."""
     out = np.empty(q.shape)
     for b in range(q.shape[0]):
-        out[b] = aba_member(q[b], v[b], tau[b], axis, offset, com, inertia, m, armature, g_vec)
+        out[b] = aba_member(q[b], v[b], tau[b], axis, offset, com, inertia, m, armature[b], g_vec)
     return out
 
 
@@ -318,6 +322,89 @@ def _rows_kinematics(q, axis, offset, com, inertia, m):  # pragma: no cover - co
     for b in range(B):
         R[b], p[b], z[b], c[b], _, _ = kinematics_member(q[b], axis, offset, com, inertia, m)
     return R, p, z, c
+
+
+# ---------------------------------------------------------------------------------------------
+# the compiled path's kernels (see mbs_envs.dynamics.compiled): the batch in columns (N, B), the
+# parameters theta (21 N + 3, 1), one column for every member (SpatialChain.kernel_params):
+# axis (3 N), offset (3 N), com (3 N), inertia (9 N), row by row, then m, armature, b (N each), g_vec (3)
+
+
+@njit
+def _unpack(th, N):  # pragma: no cover - compiled
+    """The per-link arrays of one parameter column ``th`` (``(21 N + 3,)``), copied out (no reshape)."""
+    axis, offset, com = np.empty((N, 3)), np.empty((N, 3)), np.empty((N, 3))
+    inertia = np.empty((N, 3, 3))
+    m, arm, b = np.empty(N), np.empty(N), np.empty(N)
+    g = np.empty(3)
+    for i in range(N):
+        for r in range(3):
+            axis[i, r] = th[3 * i + r]
+            offset[i, r] = th[3 * N + 3 * i + r]
+            com[i, r] = th[6 * N + 3 * i + r]
+            for k in range(3):
+                inertia[i, r, k] = th[9 * N + 9 * i + 3 * r + k]
+        m[i] = th[18 * N + i]
+        arm[i] = th[19 * N + i]
+        b[i] = th[20 * N + i]
+    for r in range(3):
+        g[r] = th[21 * N + r]
+    return axis, offset, com, inertia, m, arm, b, g
+
+
+@njit
+def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
+    """Accelerations of a batch in columns by :func:`aba_member`, the joint damping ``b v`` included.
+
+    Parameters
+    ----------
+    q, v, tau : ndarray, shape (N, B)
+        Joint angles [rad], rates [rad/s] and torques [N m], one column per member.
+    theta : ndarray, shape (21 N + 3, B) or (21 N + 3, 1)
+        :meth:`SpatialChain.kernel_params` in columns (one for every member when shared).
+    a : ndarray, shape (N, B)
+        Written: ``a = ABA(q, v, tau - b v)`` [rad/s^2].
+    """
+    N, B = q.shape
+    C = theta.shape[1]
+    axis, offset, com, inertia, m, arm, b, g = _unpack(theta[:, 0], N)
+    qk, vk, net = np.empty(N), np.empty(N), np.empty(N)
+    for k in range(B):
+        if C > 1 and k > 0:
+            axis, offset, com, inertia, m, arm, b, g = _unpack(theta[:, k], N)
+        for i in range(N):
+            qk[i] = q[i, k]
+            vk[i] = v[i, k]
+            net[i] = tau[i, k] - b[i] * v[i, k]
+        acc = aba_member(qk, vk, net, axis, offset, com, inertia, m, arm, g)
+        for i in range(N):
+            a[i, k] = acc[i]
+
+
+@njit
+def energy_kernel(q, v, theta, E):  # pragma: no cover - compiled
+    """``E = T + V`` [J] of a batch in columns (:func:`energy_member`); ``E`` shape ``(B,)``, written."""
+    N, B = q.shape
+    C = theta.shape[1]
+    axis, offset, com, inertia, m, arm, b, g = _unpack(theta[:, 0], N)
+    qk, vk = np.empty(N), np.empty(N)
+    for k in range(B):
+        if C > 1 and k > 0:
+            axis, offset, com, inertia, m, arm, b, g = _unpack(theta[:, k], N)
+        for i in range(N):
+            qk[i] = q[i, k]
+            vk[i] = v[i, k]
+        T, U = energy_member(qk, vk, axis, offset, com, inertia, m, arm, g)
+        E[k] = T + U
+
+
+_this = sys.modules[__name__]
+
+
+@njit
+def advance_kernel(theta, stepper, q, v, tau):  # pragma: no cover - compiled
+    """:func:`mbs_envs.dynamics.compiled.rk_run` with this model's :func:`acceleration_kernel` (cached on disk)."""
+    rk_run(_this.acceleration_kernel, _compiled.no_projection, theta, stepper, q, v, tau)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -477,9 +564,15 @@ class SpatialChain(RecursiveChain):
 
     def aba(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """Accelerations for joint torques ``tau`` (damping not included) by the articulated-body algorithm, O(N)."""
+        return self.shifted_forward_dynamics(q, v, tau, np.zeros(self.n_links))
+
+    def shifted_forward_dynamics(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, d: np.ndarray) -> np.ndarray:
+        """``(M + diag(d))^-1 (tau - C v - G)`` in O(N): the articulated-body algorithm with ``d`` added to
+        the armature (which enters ``M`` the same way); see
+        :meth:`mbs_envs.models.base.Model.shifted_forward_dynamics`."""
         p = self.params
-        shape, (qr, vr, tr) = self._rows((q, "q"), (v, "v"), (tau, "tau"))
-        return _rows_aba(qr, vr, tr, *p.kernel_args(), p.armature, p.g_vec).reshape(shape)
+        shape, (qr, vr, tr, dr) = self._rows((q, "q"), (v, "v"), (tau, "tau"), (d, "d"))
+        return _rows_aba(qr, vr, tr, p.armature + dr, *p.kernel_args(), p.g_vec).reshape(shape)
 
     def _energies(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         p = self.params
@@ -488,6 +581,24 @@ class SpatialChain(RecursiveChain):
         return T.reshape(shape[:-1]), U.reshape(shape[:-1])
 
     def energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """``T + V`` [J]."""
-        T, U = self._energies(q, v)
-        return T + U
+        """``T + V`` [J], by :func:`energy_kernel`, the compiled step's own (the same bits as its ``info["energy"]``)."""
+        n = self.n_links
+        q, v = as_vector(q, n, "q"), as_vector(v, n, "v")
+        lead = np.broadcast_shapes(q.shape, v.shape)[:-1]
+        qc, vc = columns_of(np.broadcast_to(q, lead + (n,))), columns_of(np.broadcast_to(v, lead + (n,)))
+        E = np.empty(qc.shape[1])
+        energy_kernel(qc, vc, batch_theta(self, qc.shape[1]), E)
+        return E.reshape(lead)
+
+    # -- compiled path (see :mod:`mbs_envs.dynamics.compiled`) -----------------------------
+
+    kernels = (acceleration_kernel, energy_kernel)
+    advance_kernel = staticmethod(advance_kernel)
+    #: the kernels take one parameter column for every member (:func:`mbs_envs.dynamics.compiled.batch_theta`)
+    shared_theta = True
+
+    def kernel_params(self) -> np.ndarray:
+        """``(axis, offset, com, inertia)`` row by row, then ``(m, armature, b)`` per link, then ``g_vec``:
+        shape ``(21 N + 3,)``."""
+        p = self.params
+        return np.concatenate([p.axis.ravel(), p.offset.ravel(), p.com.ravel(), p.inertia.ravel(), p.m, p.armature, p.b, p.g_vec])

@@ -163,6 +163,27 @@ def test_batched_equals_member_by_member():
                 np.testing.assert_array_equal(x[i, j], y)
 
 
+def test_compiled_path_equals_the_numpy_path_and_the_shifted_solve_is_M_plus_diag_d():
+    """The env's compiled step (columns, one parameter column, damping inside the kernel) against the numpy
+    path (ABA rows, damping by ``friction``): the same kernels in the same order, so equal bits; the shifted
+    solve of the joint-implicit step against a dense solve of ``(M + diag d) a = tau - C v - G``."""
+    from mbs_envs.dynamics.integrators import get
+    from mbs_envs.dynamics.simulate import advance
+
+    rng = np.random.default_rng(8)
+    chain = random_chain(5, rng).with_params(random_chain(5, rng).params.replace(b=rng.uniform(0, 0.5, 5)))
+    q, v, u = rng.normal(size=(3, 4, 5))
+    fast = advance(chain, get("rk4"), 0.0, q, v, 0.02, 2, u=u, compiled=True)
+    slow = advance(chain, get("rk4"), 0.0, q, v, 0.02, 2, u=u, compiled=False)
+    np.testing.assert_array_equal(fast[0], slow[0])
+    np.testing.assert_array_equal(fast[1], slow[1])
+    np.testing.assert_allclose(chain.energy(q, v), chain.kinetic_energy(q, v) + chain.potential_energy(q), rtol=1e-14, atol=1e-14)
+    d = rng.uniform(0, 1, (4, 5))
+    M = chain.mass_matrix(q) + np.einsum("bi,ij->bij", d, np.eye(5))
+    rhs = u - chain.rnea(q, v, np.zeros_like(v))
+    assert rel(chain.shifted_forward_dynamics(q, v, u, d), np.linalg.solve(M, rhs[..., None])[..., 0]) < 1e-12
+
+
 def test_free_motion_conserves_energy_at_rk4s_order():
     chain = random_chain(4, np.random.default_rng(5), armature=True)
     q0, v0 = np.full(4, 0.3), np.full(4, 0.5)
