@@ -116,7 +116,8 @@ def run(args: argparse.Namespace) -> dict:
         grid = tuning.GRIDS[r["controller"]]() + (tuning.REFINE[r["controller"]](r["best"]) if r["controller"] in tuning.REFINE else [])
         edge = tuning.at_grid_edge(r["best"], grid)
         score = {"tuned": {"failure_rate": chosen["failure_rate"], "error": chosen["error"]},
-                 "pre_tuning": r["pre_tuning"], "at_grid_edge": edge, "wall_s": r["wall_s"], "command": command}  # fmt: skip
+                 "pre_tuning": r["pre_tuning"], "at_grid_edge": edge, "wall_s": r["wall_s"], "command": command,
+                 "tuning_seeds": record["tuning_seeds"]}  # fmt: skip
         if r.get("start") is not None:  # the first stage is the stored one
             env, source = first_stage_of(stored, env_id, r["controller"])
             first = stored["scores"][env][source]
@@ -133,6 +134,9 @@ def run(args: argparse.Namespace) -> dict:
             for key in ("gains", "scores"):
                 old = stored.get(key, {})
                 record[key] = {env: {**old.get(env, {}), **record[key].get(env, {})} for env in {**old, **record[key]}}
+            if stored.get("tuning_seeds"):  # the range covering every stored entry's seeds (each new entry states its own)
+                record["tuning_seeds"] = [min(stored["tuning_seeds"][0], record["tuning_seeds"][0]),
+                                          max(stored["tuning_seeds"][1], record["tuning_seeds"][1])]
         tuned.PATH.write_text(json.dumps(record, indent=2) + "\n")
         tuned.clear_cache()
         print(f"written {tuned.PATH}")

@@ -109,7 +109,7 @@ def test_the_numerics_studies_take_their_cases_from_the_registry(monkeypatch):
     free = work_precision.free_problems(0.2)
     stiff, singular = stiff_cases.stiff_cases(quick=True), stiff_cases.singular_cases()
     declared = [s for s in registry.SCENES if s.free_motions]
-    assert {s.name for s in declared} == {"Planar2R", "FourBar", "SerialChain", "RollingDisk"}
+    assert {s.name for s in declared} == {"Planar2R", "FourBar", "SerialChain", "SpatialChain", "RollingDisk"}
     assert [p.name for p in free] == [f"{m[0]}-free" for s in declared for m in registry.load(s.free_motions)()]
     assert all(p.steps == 5 and p.q0.dtype == np.float64 for p in free)
     for p in free:  # every free motion starts consistent with its model's constraints
@@ -117,7 +117,7 @@ def test_the_numerics_studies_take_their_cases_from_the_registry(monkeypatch):
     names = [c.scene for c in stiff + singular]
     assert len(set(names)) == len(names) and all(isinstance(c, numerics.Case) for c in stiff + singular)
     assert [c.scene for c in singular] == ["disk falls flat"]
-    assert len(stiff_cases.stiff_cases(quick=False)) == len(stiff) + 1  # the 500-link chain
+    assert len(stiff_cases.stiff_cases(quick=False)) == len(stiff) + 2  # the 500-link chains, planar and spatial
     fourbar = registry.scene("FourBar")
     extra = dataclasses.replace(fourbar, name="FourBar2", id="mbs_envs/FourBar2-v0")
     monkeypatch.setattr(registry, "SCENES", registry.SCENES + (extra,))

@@ -105,6 +105,10 @@ SCENES: tuple[Scene, ...] = (
           model="mbs_envs.models.serial_chain:SerialChain", edge_parameters=(("m", {"n_links": 5}), ("l", {"n_links": 5})),
           bench_kwargs=({"n_links": 10}, {"n_links": 100}),
           free_motions="mbs_envs.envs.serial_chain:free_motions", stiff_cases="mbs_envs.envs.serial_chain:stiff_cases"),
+    Scene("SpatialChain", "mbs_envs/SpatialChain-v0", "mbs_envs.envs.spatial_chain:SpatialChainEnv", 500,
+          model="mbs_envs.models.spatial_chain:SpatialChain", edge_parameters=(("m", {"n_links": 5}), ("l", {"n_links": 5})),
+          bench_kwargs=({"n_links": 10}, {"n_links": 100}),
+          free_motions="mbs_envs.envs.spatial_chain:free_motions", stiff_cases="mbs_envs.envs.spatial_chain:stiff_cases"),
     Scene(
         "RollingDisk", "mbs_envs/RollingDisk-v0", "mbs_envs.envs.rolling_disk:RollingDiskEnv", 1000,
         controllers=MappingProxyType({"LQR": "controllers:LQR", "PD steering": "controllers:SteeringPD", "no control": "controllers:NoControl"}),

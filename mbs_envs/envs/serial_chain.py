@@ -2,20 +2,18 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
-from .. import validation as check
-from ..models.serial_chain import SerialChain, SerialChainParams, link_count
+from ..models.serial_chain import SerialChain
 from .rendering import Shape, arm_shapes
 from ..dynamics import compiled as _compiled
 from ..dynamics.jit import njit
 from ..models import serial_chain as _model
 from . import tracking as _tracking
 from .engine import engine_step
-from .tracking import JointTrackingEnv
+from .tracking import ChainTrackingEnv
 
 
 @njit
@@ -27,7 +25,7 @@ def step_kernel(theta, stepper, control, task, state, out):  # pragma: no cover 
     )
 
 
-class SerialChainEnv(JointTrackingEnv):
+class SerialChainEnv(ChainTrackingEnv):
     """An N-link planar chain, every joint driven, tracking a random smooth joint reference.
 
     ## Description
@@ -97,54 +95,22 @@ class SerialChainEnv(JointTrackingEnv):
     """
 
     step_kernel = staticmethod(step_kernel)
+    Model = SerialChain
 
-    omega_range = (0.5, 3.0)
-    #: the longest chain of the task (its construction forms the N x N mass matrix once)
-    max_links = 500
-    #: a drive at full torque accelerates its own rotor alone at this rate [rad/s^2]
-    rotor_acceleration = 30.0
-
-    def __init__(
-        self,
-        n_links: int = 10,
-        params: Mapping[str, Any] | None = None,
-        torque_limit: Any = None,
-        reward_weights: Any = (1.0, 0.1, 1e-3),
-        **kwargs: Any,
-    ):
-        n_links = link_count(n_links, self.max_links)
-        if isinstance(params, SerialChainParams):  # a ready parameter set: the model exactly as given
-            if params.n_links != n_links:
-                raise ValueError(f"params has n_links = {params.n_links}, but n_links = {n_links}; pass the same number")
-            model = SerialChain(params)
-            holding = self.horizontal_gravity_torque(model)
-        else:
-            params = check.mapping(params, "params")
-            if "n_links" in params:
-                raise ValueError("params: pass n_links as the make kwarg n_links, not inside params")
-            nominal = SerialChain(n_links=n_links, **{k: v for k, v in params.items() if k != "armature"})
-            holding = self.horizontal_gravity_torque(nominal)
-            model = SerialChain({"armature": holding / self.rotor_acceleration, **params, "n_links": n_links})
-        if torque_limit is None:
-            torque_limit = holding
-        n = model.n_links
-        self.center_low = np.r_[-np.pi / 2 - 0.5, np.full(n - 1, -1.0 / n)]
-        self.center_high = np.r_[-np.pi / 2 + 0.5, np.full(n - 1, 1.0 / n)]
-        self.max_amplitude = np.full(n, 0.8 / n)
-        weights = check.vector(reward_weights, "reward_weights", 3, 0.0, broadcast=False) / n
-        kwargs.setdefault("start_noise", 0.1 / n)
-        super().__init__(model, torque_limit, reward_weights=weights, **kwargs)
-        # PD gains with computed torque's bandwidth at the hanging posture, joint by
-        # joint, on the apparent inertia 1 / (M^-1)_ii (the others free to move)
-        M = model.mass_matrix(np.r_[-np.pi / 2, np.zeros(n - 1)])
-        J = 1.0 / np.diag(np.linalg.inv(M))
-        self.joint_inertia = J
-        self.pd_gains = (100.0 * J, 20.0 * J)
+    @staticmethod
+    def holding_torque(model: SerialChain) -> np.ndarray:
+        """The drives' torque limits: :meth:`horizontal_gravity_torque`."""
+        return SerialChainEnv.horizontal_gravity_torque(model)
 
     @staticmethod
     def horizontal_gravity_torque(model: SerialChain) -> np.ndarray:
         """Gravity torque at each joint with the whole chain held horizontal [N m], shape (N,)."""
         return np.abs(model.gravity(np.zeros(model.n_links)))
+
+    @staticmethod
+    def posture(model: SerialChain) -> np.ndarray:
+        """Hanging: ``q_1 = -pi/2``, the others 0."""
+        return np.r_[-np.pi / 2, np.zeros(model.n_links - 1)]
 
     def _render_extent(self) -> float:
         return 1.1 * float(np.sum(self.model.params.l))

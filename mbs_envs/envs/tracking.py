@@ -444,3 +444,77 @@ class JointTrackingEnv(MBSEnv):
 
     def task_info(self, q, v, now, task, u) -> dict[str, Any]:
         return info(self.task_params, q, v, now)
+
+
+class ChainTrackingEnv(JointTrackingEnv):
+    """An N-link chain, every joint driven, tracking a random smooth joint reference about a rest posture.
+
+    What the planar and the spatial chain share (``mbs_envs/SerialChain-v0``, ``mbs_envs/SpatialChain-v0``):
+    the drives, the reference distribution and the PD pre-tuning; the subclass names its model class
+    (:attr:`Model`) and gives :meth:`holding_torque` and :meth:`posture`.
+
+    - Drives: a torque limit per joint of :meth:`holding_torque` (the gravity torque of the chain beyond
+      the joint held out straight), and a rotor inertia reflected through its gear (``armature``, on
+      ``M``'s diagonal) of ``torque_limit / rotor_acceleration``: a drive at full torque accelerates its
+      own rotor at 30 rad/s^2. ``params={"armature": 0}`` gives the bare chain.
+    - Reference: centres ``posture + U(-s, s)`` with ``s = 0.5`` rad on the first :attr:`wide_joints`
+      joints and ``1 / N`` on the others, amplitude ``U(0.5, 1) 0.8 / N`` rad per joint, frequencies
+      ``U(0.5, 3)`` rad/s; start at the reference plus ``U(-0.1, 0.1) / N``. The ``1 / N`` keeps the
+      whole chain's posture the same for any N.
+    - Reward ``-(w_e |e|^2 + w_de |v_ref - v|^2 + w_u |action|^2) / N``, default weights ``(1, 0.1, 0.001)``.
+    - ``pd_gains``: ``(100, 20) J_i`` per joint, ``J_i = 1 / (M^-1)_ii`` the apparent inertia of joint i at
+      the posture (computed torque's bandwidth joint by joint).
+    """
+
+    Model: ClassVar[type]
+    omega_range = (0.5, 3.0)
+    #: the longest chain of the task (its construction forms the N x N mass matrix once)
+    max_links: ClassVar[int] = 500
+    #: a drive at full torque accelerates its own rotor alone at this rate [rad/s^2]
+    rotor_acceleration: ClassVar[float] = 30.0
+    #: how many joints (from the base) have reference centres spread by +-0.5 rad (the others +-1/N)
+    wide_joints: ClassVar[int] = 1
+
+    def __init__(self, n_links: int = 10, params: Any = None, torque_limit: Any = None,
+                 reward_weights: Any = (1.0, 0.1, 1e-3), **kwargs: Any):  # fmt: skip
+        from ..models.serial_chain import link_count
+
+        n_links = link_count(n_links, self.max_links)
+        if isinstance(params, self.Model.Params):  # a ready parameter set: the model exactly as given
+            if params.n_links != n_links:
+                raise ValueError(f"params has n_links = {params.n_links}, but n_links = {n_links}; pass the same number")
+            model = self.Model(params)
+            holding = self.holding_torque(model)
+        else:
+            params = check.mapping(params, "params")
+            if "n_links" in params:
+                raise ValueError("params: pass n_links as the make kwarg n_links, not inside params")
+            nominal = self.Model(n_links=n_links, **{k: v for k, v in params.items() if k != "armature"})
+            holding = self.holding_torque(nominal)
+            model = self.Model({"armature": holding / self.rotor_acceleration, **params, "n_links": n_links})
+        if torque_limit is None:
+            torque_limit = holding
+        n = model.n_links
+        posture = self.posture(model)
+        spread = np.full(n, 1.0 / n)
+        spread[: self.wide_joints] = 0.5
+        self.center_low, self.center_high = posture - spread, posture + spread
+        self.max_amplitude = np.full(n, 0.8 / n)
+        weights = check.vector(reward_weights, "reward_weights", 3, 0.0, broadcast=False) / n
+        kwargs.setdefault("start_noise", 0.1 / n)
+        super().__init__(model, torque_limit, reward_weights=weights, **kwargs)
+        # PD gains with computed torque's bandwidth at the posture, joint by joint, on the apparent
+        # inertia 1 / (M^-1)_ii (the others free to move)
+        J = 1.0 / np.diag(np.linalg.inv(model.mass_matrix(posture)))
+        self.joint_inertia = J
+        self.pd_gains = (100.0 * J, 20.0 * J)
+
+    @staticmethod
+    def holding_torque(model: Any) -> np.ndarray:
+        """The torque limit of each joint's drive [N m], shape (N,) (the subclass's)."""
+        raise NotImplementedError
+
+    @staticmethod
+    def posture(model: Any) -> np.ndarray:
+        """The rest posture the references are drawn about [rad], shape (N,) (the subclass's)."""
+        raise NotImplementedError

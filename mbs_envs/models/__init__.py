@@ -18,6 +18,8 @@ _LAZY = {
     "RollingDisk": "rolling_disk",
     "RollingDiskParams": "rolling_disk",
     "critical_spin": "rolling_disk",
+    "SpatialChain": "spatial_chain",
+    "SpatialChainParams": "spatial_chain",
 }
 
 __all__ = ["Model", "Params", "Planar2R", "Planar2RParams", "SerialChain", "SerialChainParams", *_LAZY]

@@ -62,14 +62,15 @@ def conditions(levels: tuple[float, ...] = (0.2,), noise: float = 0.01, delay: i
 
 
 def scaled_params(model: Any, s: float) -> dict[str, Any]:
-    """Masses ``m*`` times ``s``, lengths ``l*``/``r*`` times ``s``, inertias ``I*`` times ``s^3``."""
+    """Masses ``m*`` times ``s``, lengths ``l*``/``r*`` (and the spatial chain's ``offset``, ``com``) times ``s``,
+    inertias ``I*`` (``inertia``) times ``s^3``."""
     out = {}
     for name in model.params.names():
         value = getattr(model.params, name)
         head = name.rstrip("0123456789")
-        if head in ("m", "l", "r"):
+        if head in ("m", "l", "r", "offset", "com"):
             out[name] = value * s
-        elif head == "I":
+        elif head in ("I", "inertia"):
             out[name] = value * s**3
     return out
 

@@ -100,7 +100,7 @@ _TWO_LINKS = ("m1", "m2", "l1", "l2", "r1", "r2", "I1", "I2")
 _TWO_JOINTS = MappingProxyType({"b1": (0,), "b2": (1,)})
 
 #: the sweep of each compared scene. FourBar keeps its lengths (they are the loop the reference lives on);
-#: the chain (5 s episodes, ten joints) gets one pulse per joint, 0.4 s apart at least; the disk's radius also moves
+#: the chains (5 s episodes, ten joints) get one pulse per joint, 0.4 s apart at least; the disk's radius also moves
 #: its critical spin, against which each episode's commanded spin is drawn (the task changes with the plant, as
 #: under the comparison's mismatch)
 SWEEPS: Mapping[str, SceneSweep] = MappingProxyType({
@@ -109,6 +109,8 @@ SWEEPS: Mapping[str, SceneSweep] = MappingProxyType({
                           MappingProxyType({"b1": (0,), "b2": (1,), "b3": (2,)}), (0,)),
     "SerialChain": SceneSweep(("m", "l", "r", "I"), MappingProxyType({"b": tuple(range(10))}), tuple(range(10)),
                               pulses_per_coordinate=1, pulse_gap=0.4),
+    "SpatialChain": SceneSweep(("m", "l", "com", "inertia"), MappingProxyType({"b": tuple(range(10))}), tuple(range(10)),
+                               pulses_per_coordinate=1, pulse_gap=0.4),
     "RollingDisk": SceneSweep(("m", "r"), MappingProxyType({"b_pivot": (3,), "b_roll": (5,)}), (3, 4, 5), pulses_per_coordinate=2),
     "Acrobot": SceneSweep(_TWO_LINKS, _TWO_JOINTS, (0, 1)),
     "Pendubot": SceneSweep(_TWO_LINKS, _TWO_JOINTS, (0, 1)),
