@@ -177,7 +177,7 @@ def _bent(n: int) -> np.ndarray:
 
 def free_motions() -> list[tuple]:
     """The work-precision study's free motions: spatial chains of 10 and 50 links with drives, from rest."""
-    return [(f"spatial chain{n}", drive_chain(n), _bent(n), np.zeros(n), None) for n in (10, 50)]
+    return [(f"spatialchain{n}", drive_chain(n), _bent(n), np.zeros(n), None) for n in (10, 50)]
 
 
 def stiff_cases(quick: bool = False) -> list:

@@ -20,7 +20,9 @@ subspace is ``S_i = (z_i, p_i x z_i)``; a body's spatial inertia about the origi
 frame ``dS_i/dt = V_i x S_i`` and no coordinate transforms are needed between links:
 
 - **RNEA** (inverse dynamics): ``V_i = V_{i-1} + S_i v_i``, ``A_i = A_{i-1} + S_i a_i + V_i x S_i v_i``
-  with ``A_{-1} = (0, -g_vec)``; ``F_i = I_i A_i + V_i x* I_i V_i``; backwards
+  with ``A_{-1} = (0, -g_vec)``; ``F_i = I_i A_i + V_i x* I_i V_i``, evaluated in 3 x 3 form (the centre's
+  velocity ``v_c = v_O + w x c`` and acceleration ``a_c = a_O + al x c + w x v_c``, ``f = m a_c``,
+  ``n_O = c x f + Ic al + w x Ic w``: a third of the 6 x 6 products' work); backwards
   ``tau_i = S_i^T F_i``, ``F_{i-1} += F_i``; plus ``armature_i a_i``. O(N).
 - **CRBA** (mass matrix): composite inertias ``Ic_i = I_i + Ic_{i+1}``, ``M_ij = S_i^T Ic_j S_j`` for
   ``i <= j``; plus ``diag(armature)``. O(N^2) (the matrix).
@@ -29,7 +31,8 @@ frame ``dS_i/dt = V_i x S_i`` and no coordinate transforms are needed between li
   parent as ``IA - U U^T / D`` and ``pA + (IA - U U^T / D) c_i + U u_i / D`` with
   ``c_i = V_i x S_i v_i``; forwards ``a_i = (u_i - U_i^T (A_{i-1} + c_i)) / D_i``. O(N).
 
-Everything runs in numba kernels, one member at a time over a flattened batch. With all axes
+Everything runs in numba kernels, one member at a time over a flattened batch, in work arrays
+allocated once per call (:func:`work_arrays`); ``Ic_i = R_i inertia_i R_i^T`` as two 3 x 3 products. With all axes
 parallel to z, offsets and centres along the links' x axes and gravity along -y it is the planar
 :class:`~mbs_envs.models.serial_chain.SerialChain` (the fast special case; tested to 1e-12).
 ``tests/models/test_spatial_chain.py`` checks it against Pinocchio (``pin``) and a SymPy Lagrangian.
@@ -110,73 +113,105 @@ def _dot6(a, b):  # pragma: no cover - compiled
 
 
 @njit
-def kinematics_member(q, axis, offset, com, inertia, m):  # pragma: no cover - compiled
-    """World rotations ``R (N, 3, 3)``, joint positions ``p (N, 3)``, axes ``z (N, 3)``, centres of mass
-    ``c (N, 3)``, motion subspaces ``S (N, 6)`` and spatial inertias about the origin ``I (N, 6, 6)``
-    (one allocation per array, none per link)."""
+def work_arrays(N):  # pragma: no cover - compiled
+    """The work arrays of one member, allocated once per kernel call: frames ``R (N, 3, 3)``, joint
+    positions ``p``, axes ``z``, centres ``c`` ``(N, 3)``, world inertias about the centres ``Ic (N, 3, 3)``,
+    motion subspaces ``S (N, 6)``; the ABA's articulated inertias ``IA (N, 6, 6)``, bias forces ``pA``,
+    velocity products ``cb``, ``U (N, 6)``, ``D``, ``u (N,)``; RNEA's forces ``F (N, 6)``."""
+    return (np.empty((N, 3, 3)), np.empty((N, 3)), np.empty((N, 3)), np.empty((N, 3)), np.empty((N, 3, 3)), np.empty((N, 6)),
+            np.empty((N, 6, 6)), np.empty((N, 6)), np.empty((N, 6)), np.empty((N, 6)), np.empty(N), np.empty(N),
+            np.empty((N, 6)))  # fmt: skip
+
+
+@njit
+def frames_into(q, axis, offset, com, inertia, w):  # pragma: no cover - compiled
+    """Forward kinematics into the work arrays ``w`` (:func:`work_arrays`): ``R_i = R_{i-1} Rot(a_i, q_i)``,
+    ``p_i = p_{i-1} + R_{i-1} offset_i``, ``z_i = R_{i-1} a_i`` (= ``R_i a_i``: a rotation keeps its axis),
+    ``c_i = p_i + R_i com_i``, ``S_i = (z_i, p_i x z_i)``, ``Ic_i = R_i inertia_i R_i^T`` (two 3 x 3 products)."""
+    R, p, z, c, Ic, S = w[0], w[1], w[2], w[3], w[4], w[5]
     N = q.shape[0]
-    R = np.empty((N, 3, 3))
-    p = np.empty((N, 3))
-    z = np.empty((N, 3))
-    c = np.empty((N, 3))
-    S = np.empty((N, 6))
-    I = np.empty((N, 6, 6))  # noqa: E741
     J = np.empty((3, 3))
-    Ic = np.empty((3, 3))
+    T = np.empty((3, 3))
     for i in range(N):
         _rot_into(axis[i], q[i], J)
         for r in range(3):
             if i == 0:
                 p[i, r] = offset[i, r]
+                z[i, r] = axis[i, r]
                 for k in range(3):
                     R[i, r, k] = J[r, k]
             else:
-                p[i, r] = p[i - 1, r] + R[i - 1, r, 0] * offset[i, 0] + R[i - 1, r, 1] * offset[i, 1] + R[i - 1, r, 2] * offset[i, 2]
+                a0, a1, a2 = R[i - 1, r, 0], R[i - 1, r, 1], R[i - 1, r, 2]
+                p[i, r] = p[i - 1, r] + a0 * offset[i, 0] + a1 * offset[i, 1] + a2 * offset[i, 2]
+                z[i, r] = a0 * axis[i, 0] + a1 * axis[i, 1] + a2 * axis[i, 2]
                 for k in range(3):
-                    R[i, r, k] = R[i - 1, r, 0] * J[0, k] + R[i - 1, r, 1] * J[1, k] + R[i - 1, r, 2] * J[2, k]
+                    R[i, r, k] = a0 * J[0, k] + a1 * J[1, k] + a2 * J[2, k]
         for r in range(3):
-            z[i, r] = R[i, r, 0] * axis[i, 0] + R[i, r, 1] * axis[i, 1] + R[i, r, 2] * axis[i, 2]
             c[i, r] = p[i, r] + R[i, r, 0] * com[i, 0] + R[i, r, 1] * com[i, 1] + R[i, r, 2] * com[i, 2]
         S[i, 0], S[i, 1], S[i, 2] = z[i, 0], z[i, 1], z[i, 2]
         S[i, 3] = p[i, 1] * z[i, 2] - p[i, 2] * z[i, 1]
         S[i, 4] = p[i, 2] * z[i, 0] - p[i, 0] * z[i, 2]
         S[i, 5] = p[i, 0] * z[i, 1] - p[i, 1] * z[i, 0]
-        for r in range(3):  # Ic = R inertia R^T
+        for r in range(3):  # T = inertia R^T
             for k in range(3):
-                acc = 0.0
-                for s_ in range(3):
-                    for t in range(3):
-                        acc += R[i, r, s_] * inertia[i, s_, t] * R[i, k, t]
-                Ic[r, k] = acc
-        mi = m[i]
-        cx, cy, cz = c[i, 0], c[i, 1], c[i, 2]
-        cc = cx * cx + cy * cy + cz * cz
-        cv = (cx, cy, cz)
-        for r in range(3):  # Ic + m [c]x [c]x^T = Ic + m (|c|^2 1 - c c^T)
+                T[r, k] = inertia[i, r, 0] * R[i, k, 0] + inertia[i, r, 1] * R[i, k, 1] + inertia[i, r, 2] * R[i, k, 2]
+        for r in range(3):  # Ic = R T
             for k in range(3):
-                I[i, r, k] = Ic[r, k] + mi * ((cc if r == k else 0.0) - cv[r] * cv[k])
-                I[i, 3 + r, 3 + k] = mi if r == k else 0.0
-        # m [c]x and its transpose
-        I[i, 0, 3], I[i, 0, 4], I[i, 0, 5] = 0.0, -mi * cz, mi * cy
-        I[i, 1, 3], I[i, 1, 4], I[i, 1, 5] = mi * cz, 0.0, -mi * cx
-        I[i, 2, 3], I[i, 2, 4], I[i, 2, 5] = -mi * cy, mi * cx, 0.0
-        for r in range(3):
-            for k in range(3):
-                I[i, 3 + k, r] = I[i, r, 3 + k]
-    return R, p, z, c, S, I
+                Ic[i, r, k] = R[i, r, 0] * T[0, k] + R[i, r, 1] * T[1, k] + R[i, r, 2] * T[2, k]
 
 
 @njit
-def rnea_member(q, v, a, axis, offset, com, inertia, m, armature, g_vec, gravity):  # pragma: no cover - compiled
-    """``tau = M a + C v (+ G)`` by the RNEA (module docstring), shape ``(N,)``; ``gravity`` False leaves ``G`` out."""
+def spatial_inertia_into(mi, c, Ic, I):  # pragma: no cover - compiled
+    """A body's spatial inertia about the origin, ``I (6, 6)`` written:
+    ``[[Ic + m [c]x [c]x^T, m [c]x], [m [c]x^T, m 1]]`` (``[c]x [c]x^T = |c|^2 1 - c c^T``)."""
+    cx, cy, cz = c[0], c[1], c[2]
+    cc = cx * cx + cy * cy + cz * cz
+    for r in range(3):
+        for k in range(3):
+            I[r, k] = Ic[r, k] + mi * ((cc if r == k else 0.0) - c[r] * c[k])
+            I[3 + r, 3 + k] = mi if r == k else 0.0
+    I[0, 3], I[0, 4], I[0, 5] = 0.0, -mi * cz, mi * cy
+    I[1, 3], I[1, 4], I[1, 5] = mi * cz, 0.0, -mi * cx
+    I[2, 3], I[2, 4], I[2, 5] = -mi * cy, mi * cx, 0.0
+    for r in range(3):
+        for k in range(3):
+            I[3 + k, r] = I[r, 3 + k]
+
+
+@njit(inline="always")
+def _body_force(mi, c, Ic, w0, w1, w2, v0, v1, v2, al0, al1, al2, a0, a1, a2, F):  # pragma: no cover - compiled
+    """``F = I A + V x* I V`` of one body (written into ``F (6,)``) from its mass, centre ``c`` and world
+    inertia ``Ic`` about it, in 3 x 3 form: the centre's velocity ``v_c = v_O + w x c`` and acceleration
+    ``a_c = a_O + al x c + w x v_c`` (``(al, a_O)`` the spatial acceleration), ``f = m a_c``,
+    ``n_O = c x f + Ic al + w x (Ic w)``."""
+    cx, cy, cz = c[0], c[1], c[2]
+    vc0 = v0 + w1 * cz - w2 * cy
+    vc1 = v1 + w2 * cx - w0 * cz
+    vc2 = v2 + w0 * cy - w1 * cx
+    f0 = mi * (a0 + al1 * cz - al2 * cy + w1 * vc2 - w2 * vc1)
+    f1 = mi * (a1 + al2 * cx - al0 * cz + w2 * vc0 - w0 * vc2)
+    f2 = mi * (a2 + al0 * cy - al1 * cx + w0 * vc1 - w1 * vc0)
+    h0 = Ic[0, 0] * w0 + Ic[0, 1] * w1 + Ic[0, 2] * w2
+    h1 = Ic[1, 0] * w0 + Ic[1, 1] * w1 + Ic[1, 2] * w2
+    h2 = Ic[2, 0] * w0 + Ic[2, 1] * w1 + Ic[2, 2] * w2
+    F[0] = cy * f2 - cz * f1 + Ic[0, 0] * al0 + Ic[0, 1] * al1 + Ic[0, 2] * al2 + w1 * h2 - w2 * h1
+    F[1] = cz * f0 - cx * f2 + Ic[1, 0] * al0 + Ic[1, 1] * al1 + Ic[1, 2] * al2 + w2 * h0 - w0 * h2
+    F[2] = cx * f1 - cy * f0 + Ic[2, 0] * al0 + Ic[2, 1] * al1 + Ic[2, 2] * al2 + w0 * h1 - w1 * h0
+    F[3], F[4], F[5] = f0, f1, f2
+
+
+@njit
+def rnea_into(q, v, a, axis, offset, com, inertia, m, armature, g_vec, gravity, w, tau):  # pragma: no cover - compiled
+    """``tau = M a + C v (+ G)`` by the RNEA (module docstring), written into ``tau (N,)``; ``gravity`` False
+    leaves ``G`` out. Each body's force in 3 x 3 form (:func:`_body_force`)."""
     N = q.shape[0]
-    _, _, _, _, S, I = kinematics_member(q, axis, offset, com, inertia, m)
+    frames_into(q, axis, offset, com, inertia, w)
+    c, Ic, S, F = w[3], w[4], w[5], w[12]
     V = np.zeros(6)
     A = np.zeros(6)
     if gravity:
         A[3], A[4], A[5] = -g_vec[0], -g_vec[1], -g_vec[2]
-    F = np.empty((N, 6))
-    Sv, tmp, IV = np.empty(6), np.empty(6), np.empty(6)
+    Sv, tmp = np.empty(6), np.empty(6)
     for i in range(N):
         for k in range(6):
             Sv[k] = S[i, k] * v[i]
@@ -184,59 +219,51 @@ def rnea_member(q, v, a, axis, offset, com, inertia, m, armature, g_vec, gravity
         _cross_motion_into(V, Sv, tmp)
         for k in range(6):
             A[k] += S[i, k] * a[i] + tmp[k]
-        _matvec6(I[i], A, F[i])
-        _matvec6(I[i], V, IV)
-        _cross_force_into(V, IV, tmp)
-        for k in range(6):
-            F[i, k] += tmp[k]
-    tau = np.empty(N)
+        _body_force(m[i], c[i], Ic[i], V[0], V[1], V[2], V[3], V[4], V[5], A[0], A[1], A[2], A[3], A[4], A[5], F[i])
     for i in range(N - 1, -1, -1):
         tau[i] = _dot6(S[i], F[i]) + armature[i] * a[i]
         if i > 0:
             for k in range(6):
                 F[i - 1, k] += F[i, k]
-    return tau
 
 
 @njit
-def crba_member(q, axis, offset, com, inertia, m, armature):  # pragma: no cover - compiled
-    """``M(q)`` by the CRBA (module docstring), shape ``(N, N)``."""
+def crba_into(q, axis, offset, com, inertia, m, armature, w, M):  # pragma: no cover - compiled
+    """``M(q)`` by the CRBA (module docstring), written into ``M (N, N)``."""
     N = q.shape[0]
-    _, _, _, _, S, I = kinematics_member(q, axis, offset, com, inertia, m)
-    M = np.empty((N, N))
-    Ic = np.zeros((6, 6))
+    frames_into(q, axis, offset, com, inertia, w)
+    c, Ic, S = w[3], w[4], w[5]
+    Icomp = np.zeros((6, 6))
+    I = np.empty((6, 6))  # noqa: E741
     F = np.empty(6)
     for j in range(N - 1, -1, -1):
+        spatial_inertia_into(m[j], c[j], Ic[j], I)
         for r in range(6):
             for k in range(6):
-                Ic[r, k] += I[j, r, k]
-        _matvec6(Ic, S[j], F)
+                Icomp[r, k] += I[r, k]
+        _matvec6(Icomp, S[j], F)
         for i in range(j + 1):
             M[i, j] = _dot6(S[i], F)
             M[j, i] = M[i, j]
         M[j, j] += armature[j]
-    return M
 
 
 @njit
-def aba_member(q, v, tau, axis, offset, com, inertia, m, armature, g_vec):  # pragma: no cover - compiled
-    """Accelerations ``(M)^-1 (tau - C v - G)`` by the ABA (module docstring), shape ``(N,)``."""
+def aba_into(q, v, tau, axis, offset, com, inertia, m, armature, g_vec, w, acc):  # pragma: no cover - compiled
+    """Accelerations ``M^-1 (tau - C v - G)`` by the ABA (module docstring), written into ``acc (N,)``."""
     N = q.shape[0]
-    _, _, _, _, S, IA = kinematics_member(q, axis, offset, com, inertia, m)  # IA starts as the links' own inertias
-    pA = np.empty((N, 6))
-    cb = np.empty((N, 6))
+    frames_into(q, axis, offset, com, inertia, w)
+    c, Ic, S, IA, pA, cb, U, D, u = w[3], w[4], w[5], w[6], w[7], w[8], w[9], w[10], w[11]
     V = np.zeros(6)
-    Sv, IV = np.empty(6), np.empty(6)
+    Sv = np.empty(6)
     for i in range(N):
         for k in range(6):
             Sv[k] = S[i, k] * v[i]
             V[k] += Sv[k]
         _cross_motion_into(V, Sv, cb[i])
-        _matvec6(IA[i], V, IV)
-        _cross_force_into(V, IV, pA[i])
-    U = np.empty((N, 6))
-    D = np.empty(N)
-    u = np.empty(N)
+        spatial_inertia_into(m[i], c[i], Ic[i], IA[i])
+        # the bias force V x* I V: the body's force at zero spatial acceleration
+        _body_force(m[i], c[i], Ic[i], V[0], V[1], V[2], V[3], V[4], V[5], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, pA[i])
     Iac = np.empty(6)
     for i in range(N - 1, -1, -1):
         _matvec6(IA[i], S[i], U[i])
@@ -245,14 +272,15 @@ def aba_member(q, v, tau, axis, offset, com, inertia, m, armature, g_vec):  # pr
         if i > 0:
             inv = 1.0 / D[i]
             for r in range(6):  # Ia = IA - U U^T / D, added to the parent
+                ur = U[i, r] * inv
                 for k in range(6):
-                    IA[i, r, k] -= U[i, r] * U[i, k] * inv
-                    IA[i - 1, r, k] += IA[i, r, k]
+                    x = IA[i, r, k] - ur * U[i, k]
+                    IA[i, r, k] = x
+                    IA[i - 1, r, k] += x
             _matvec6(IA[i], cb[i], Iac)
-            w = u[i] * inv
+            s = u[i] * inv
             for k in range(6):
-                pA[i - 1, k] += pA[i, k] + Iac[k] + U[i, k] * w
-    acc = np.empty(N)
+                pA[i - 1, k] += pA[i, k] + Iac[k] + U[i, k] * s
     A = np.zeros(6)
     A[3], A[4], A[5] = -g_vec[0], -g_vec[1], -g_vec[2]
     for i in range(N):
@@ -261,66 +289,79 @@ def aba_member(q, v, tau, axis, offset, com, inertia, m, armature, g_vec):  # pr
         acc[i] = (u[i] - _dot6(U[i], A)) / D[i]
         for k in range(6):
             A[k] += S[i, k] * acc[i]
-    return acc
 
 
 @njit
-def energy_member(q, v, axis, offset, com, inertia, m, armature, g_vec):  # pragma: no cover - compiled
-    """``(T, V)`` [J]: ``T = sum_i V_i^T I_i V_i / 2 + armature_i v_i^2 / 2``, ``V = -sum_i m_i g_vec . c_i``."""
+def energy_member(q, v, axis, offset, com, inertia, m, armature, g_vec, w):  # pragma: no cover - compiled
+    """``(T, V)`` [J]: ``T = sum_i (m_i |v_ci|^2 + w_i . Ic_i w_i + armature_i v_i^2) / 2`` (the spatial
+    ``V_i^T I_i V_i / 2`` about the centre), ``V = -sum_i m_i g_vec . c_i``."""
     N = q.shape[0]
-    _, _, _, c, S, I = kinematics_member(q, axis, offset, com, inertia, m)
+    frames_into(q, axis, offset, com, inertia, w)
+    c, Ic, S = w[3], w[4], w[5]
     Vel = np.zeros(6)
-    IV = np.empty(6)
     T = 0.0
     U = 0.0
     for i in range(N):
         for k in range(6):
             Vel[k] += S[i, k] * v[i]
-        _matvec6(I[i], Vel, IV)
-        T += 0.5 * _dot6(Vel, IV) + 0.5 * armature[i] * v[i] * v[i]
-        U -= m[i] * (g_vec[0] * c[i, 0] + g_vec[1] * c[i, 1] + g_vec[2] * c[i, 2])
+        w0, w1, w2 = Vel[0], Vel[1], Vel[2]
+        cx, cy, cz = c[i, 0], c[i, 1], c[i, 2]
+        vc0 = Vel[3] + w1 * cz - w2 * cy
+        vc1 = Vel[4] + w2 * cx - w0 * cz
+        vc2 = Vel[5] + w0 * cy - w1 * cx
+        rot = 0.0
+        for r in range(3):
+            rot += Vel[r] * (Ic[i, r, 0] * w0 + Ic[i, r, 1] * w1 + Ic[i, r, 2] * w2)
+        T += 0.5 * (m[i] * (vc0 * vc0 + vc1 * vc1 + vc2 * vc2) + rot) + 0.5 * armature[i] * v[i] * v[i]
+        U -= m[i] * (g_vec[0] * cx + g_vec[1] * cy + g_vec[2] * cz)
     return T, U
 
 
 @njit
 def _rows_rnea(q, v, a, axis, offset, com, inertia, m, armature, g_vec, gravity):  # pragma: no cover - compiled
     out = np.empty(q.shape)
+    w = work_arrays(q.shape[1])
     for b in range(q.shape[0]):
-        out[b] = rnea_member(q[b], v[b], a[b], axis, offset, com, inertia, m, armature, g_vec, gravity)
+        rnea_into(q[b], v[b], a[b], axis, offset, com, inertia, m, armature, g_vec, gravity, w, out[b])
     return out
 
 
 @njit
 def _rows_crba(q, axis, offset, com, inertia, m, armature):  # pragma: no cover - compiled
     out = np.empty((q.shape[0], q.shape[1], q.shape[1]))
+    w = work_arrays(q.shape[1])
     for b in range(q.shape[0]):
-        out[b] = crba_member(q[b], axis, offset, com, inertia, m, armature)
+        crba_into(q[b], axis, offset, com, inertia, m, armature, w, out[b])
     return out
 
 
 @njit
 def _rows_aba(q, v, tau, armature, axis, offset, com, inertia, m, g_vec):  # pragma: no cover - compiled
-    """:func:`aba_member` per row, with the row's own armature ``(B, N)``."""
+    """:func:`aba_into` per row, with the row's own armature ``(B, N)``."""
     out = np.empty(q.shape)
+    w = work_arrays(q.shape[1])
     for b in range(q.shape[0]):
-        out[b] = aba_member(q[b], v[b], tau[b], axis, offset, com, inertia, m, armature[b], g_vec)
+        aba_into(q[b], v[b], tau[b], axis, offset, com, inertia, m, armature[b], g_vec, w, out[b])
     return out
 
 
 @njit
 def _rows_energy(q, v, axis, offset, com, inertia, m, armature, g_vec):  # pragma: no cover - compiled
     T, U = np.empty(q.shape[0]), np.empty(q.shape[0])
+    w = work_arrays(q.shape[1])
     for b in range(q.shape[0]):
-        T[b], U[b] = energy_member(q[b], v[b], axis, offset, com, inertia, m, armature, g_vec)
+        T[b], U[b] = energy_member(q[b], v[b], axis, offset, com, inertia, m, armature, g_vec, w)
     return T, U
 
 
 @njit
-def _rows_kinematics(q, axis, offset, com, inertia, m):  # pragma: no cover - compiled
+def _rows_kinematics(q, axis, offset, com, inertia):  # pragma: no cover - compiled
     B, N = q.shape
     p, c, z, R = np.empty((B, N, 3)), np.empty((B, N, 3)), np.empty((B, N, 3)), np.empty((B, N, 3, 3))
+    w = work_arrays(N)
     for b in range(B):
-        R[b], p[b], z[b], c[b], _, _ = kinematics_member(q[b], axis, offset, com, inertia, m)
+        frames_into(q[b], axis, offset, com, inertia, w)
+        R[b], p[b], z[b], c[b] = w[0], w[1], w[2], w[3]
     return R, p, z, c
 
 
@@ -354,7 +395,7 @@ def _unpack(th, N):  # pragma: no cover - compiled
 
 @njit
 def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
-    """Accelerations of a batch in columns by :func:`aba_member`, the joint damping ``b v`` included.
+    """Accelerations of a batch in columns by :func:`aba_into`, the joint damping ``b v`` included.
 
     Parameters
     ----------
@@ -368,7 +409,8 @@ def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
     N, B = q.shape
     C = theta.shape[1]
     axis, offset, com, inertia, m, arm, b, g = _unpack(theta[:, 0], N)
-    qk, vk, net = np.empty(N), np.empty(N), np.empty(N)
+    qk, vk, net, acc = np.empty(N), np.empty(N), np.empty(N), np.empty(N)
+    w = work_arrays(N)
     for k in range(B):
         if C > 1 and k > 0:
             axis, offset, com, inertia, m, arm, b, g = _unpack(theta[:, k], N)
@@ -376,7 +418,7 @@ def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
             qk[i] = q[i, k]
             vk[i] = v[i, k]
             net[i] = tau[i, k] - b[i] * v[i, k]
-        acc = aba_member(qk, vk, net, axis, offset, com, inertia, m, arm, g)
+        aba_into(qk, vk, net, axis, offset, com, inertia, m, arm, g, w, acc)
         for i in range(N):
             a[i, k] = acc[i]
 
@@ -388,13 +430,14 @@ def energy_kernel(q, v, theta, E):  # pragma: no cover - compiled
     C = theta.shape[1]
     axis, offset, com, inertia, m, arm, b, g = _unpack(theta[:, 0], N)
     qk, vk = np.empty(N), np.empty(N)
+    w = work_arrays(N)
     for k in range(B):
         if C > 1 and k > 0:
             axis, offset, com, inertia, m, arm, b, g = _unpack(theta[:, k], N)
         for i in range(N):
             qk[i] = q[i, k]
             vk[i] = v[i, k]
-        T, U = energy_member(qk, vk, axis, offset, com, inertia, m, arm, g)
+        T, U = energy_member(qk, vk, axis, offset, com, inertia, m, arm, g, w)
         E[k] = T + U
 
 
@@ -534,7 +577,7 @@ class SpatialChain(RecursiveChain):
     def kinematics(self, q: np.ndarray) -> dict[str, np.ndarray]:
         """World rotations ``R (..., N, 3, 3)``, joint positions ``p``, axes ``z`` and centres of mass ``c`` (``(..., N, 3)``)."""
         shape, (qr,) = self._rows((q, "q"))
-        R, p, z, c = _rows_kinematics(qr, *self.params.kernel_args())
+        R, p, z, c = _rows_kinematics(qr, *self.params.kernel_args()[:4])
         lead = shape[:-1]
         return {"R": R.reshape(lead + R.shape[1:]), "p": p.reshape(lead + p.shape[1:]), "z": z.reshape(lead + z.shape[1:]),
                 "c": c.reshape(lead + c.shape[1:])}  # fmt: skip
