@@ -50,6 +50,7 @@ from .. import validation as check
 from ..dynamics import compiled as _compiled
 from ..dynamics.compiled import batch_theta, columns_of, rk_run
 from ..dynamics.jit import njit
+from ..dynamics.trig import sincos_columns
 from .base import Params, as_vector, param
 from .serial_chain import RecursiveChain, link_count
 
@@ -61,10 +62,10 @@ MAX_SPATIAL_LINKS = 10_000
 # kernels (one member; spatial vectors as length-6 arrays, angular part first)
 
 
-@njit
-def _rot_into(a, angle, R):  # pragma: no cover - compiled
-    """Rodrigues, written into ``R (3, 3)``: the rotation by ``angle`` about the unit axis ``a``."""
-    c, s = np.cos(angle), np.sin(angle)
+@njit(inline="always")
+def _rot_into(a, s, c, R):  # pragma: no cover - compiled
+    """Rodrigues, written into ``R (3, 3)``: the rotation about the unit axis ``a`` by the angle whose sine
+    and cosine are ``s, c``."""
     x, y, z = a[0], a[1], a[2]
     C = 1.0 - c
     R[0, 0], R[0, 1], R[0, 2] = c + x * x * C, x * y * C - z * s, x * z * C + y * s
@@ -116,24 +117,27 @@ def _dot6(a, b):  # pragma: no cover - compiled
 def work_arrays(N):  # pragma: no cover - compiled
     """The work arrays of one member, allocated once per kernel call: frames ``R (N, 3, 3)``, joint
     positions ``p``, axes ``z``, centres ``c`` ``(N, 3)``, world inertias about the centres ``Ic (N, 3, 3)``,
-    motion subspaces ``S (N, 6)``; the ABA's articulated inertias ``IA (N, 6, 6)``, bias forces ``pA``,
-    velocity products ``cb``, ``U (N, 6)``, ``D``, ``u (N,)``; RNEA's forces ``F (N, 6)``."""
+    motion subspaces ``S (N, 6)``; the ABA's articulated inertia and the child's ``(2, 6, 6)``, bias forces
+    ``pA``, velocity products ``cb``, ``U (N, 6)``, ``D``, ``u (N,)``; RNEA's forces ``F (N, 6)``; the joint
+    angles' sines and cosines ``(N,)``; the ABA's child bias force and ``IA c`` ``(2, 6)``."""
     return (np.empty((N, 3, 3)), np.empty((N, 3)), np.empty((N, 3)), np.empty((N, 3)), np.empty((N, 3, 3)), np.empty((N, 6)),
-            np.empty((N, 6, 6)), np.empty((N, 6)), np.empty((N, 6)), np.empty((N, 6)), np.empty(N), np.empty(N),
-            np.empty((N, 6)))  # fmt: skip
+            np.empty((2, 6, 6)), np.empty((N, 6)), np.empty((N, 6)), np.empty((N, 6)), np.empty(N), np.empty(N),
+            np.empty((N, 6)), np.empty(N), np.empty(N), np.empty((2, 6)))  # fmt: skip
 
 
 @njit
 def frames_into(q, axis, offset, com, inertia, w):  # pragma: no cover - compiled
     """Forward kinematics into the work arrays ``w`` (:func:`work_arrays`): ``R_i = R_{i-1} Rot(a_i, q_i)``,
     ``p_i = p_{i-1} + R_{i-1} offset_i``, ``z_i = R_{i-1} a_i`` (= ``R_i a_i``: a rotation keeps its axis),
-    ``c_i = p_i + R_i com_i``, ``S_i = (z_i, p_i x z_i)``, ``Ic_i = R_i inertia_i R_i^T`` (two 3 x 3 products)."""
-    R, p, z, c, Ic, S = w[0], w[1], w[2], w[3], w[4], w[5]
+    ``c_i = p_i + R_i com_i``, ``S_i = (z_i, p_i x z_i)``, ``Ic_i = R_i inertia_i R_i^T`` (two 3 x 3 products);
+    the sines and cosines of ``q`` by :func:`mbs_envs.dynamics.trig.sincos_columns` (1 ulp of libm's)."""
+    R, p, z, c, Ic, S, sn, cs = w[0], w[1], w[2], w[3], w[4], w[5], w[13], w[14]
     N = q.shape[0]
     J = np.empty((3, 3))
     T = np.empty((3, 3))
+    sincos_columns(q, sn, cs)  # one SIMD pass (libm for arguments out of its range)
     for i in range(N):
-        _rot_into(axis[i], q[i], J)
+        _rot_into(axis[i], sn[i], cs[i], J)
         for r in range(3):
             if i == 0:
                 p[i, r] = offset[i, r]
@@ -250,10 +254,15 @@ def crba_into(q, axis, offset, com, inertia, m, armature, w, M):  # pragma: no c
 
 @njit
 def aba_into(q, v, tau, axis, offset, com, inertia, m, armature, g_vec, w, acc):  # pragma: no cover - compiled
-    """Accelerations ``M^-1 (tau - C v - G)`` by the ABA (module docstring), written into ``acc (N,)``."""
+    """Accelerations ``M^-1 (tau - C v - G)`` by the ABA (module docstring), written into ``acc (N,)``.
+
+    The inward pass carries one 6 x 6 articulated inertia and one bias force from child to parent
+    (``IA_i = I_i + Ia_{i+1}``, ``pA_i = V_i x* I_i V_i + pa_{i+1}``), using their symmetry: ``U_i = IA_i S_i``
+    and ``IA_i c_i`` in one pass over ``IA_i``, ``Ia_i = IA_i - U_i U_i^T / D_i`` on the upper triangle,
+    ``pa_i = pA_i + IA_i c_i - U_i (U_i^T c_i - u_i) / D_i``."""
     N = q.shape[0]
     frames_into(q, axis, offset, com, inertia, w)
-    c, Ic, S, IA, pA, cb, U, D, u = w[3], w[4], w[5], w[6], w[7], w[8], w[9], w[10], w[11]
+    c, Ic, S, pA, cb, U, D, u = w[3], w[4], w[5], w[7], w[8], w[9], w[10], w[11]
     V = np.zeros(6)
     Sv = np.empty(6)
     for i in range(N):
@@ -261,26 +270,42 @@ def aba_into(q, v, tau, axis, offset, com, inertia, m, armature, g_vec, w, acc):
             Sv[k] = S[i, k] * v[i]
             V[k] += Sv[k]
         _cross_motion_into(V, Sv, cb[i])
-        spatial_inertia_into(m[i], c[i], Ic[i], IA[i])
         # the bias force V x* I V: the body's force at zero spatial acceleration
         _body_force(m[i], c[i], Ic[i], V[0], V[1], V[2], V[3], V[4], V[5], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, pA[i])
-    Iac = np.empty(6)
+    IA, Ia = w[6][0], w[6][1]  # the link's articulated inertia, and its child's as passed up
+    pa, Ac = w[15][0], w[15][1]
+    Ia[:] = 0.0
+    pa[:] = 0.0
     for i in range(N - 1, -1, -1):
-        _matvec6(IA[i], S[i], U[i])
-        D[i] = _dot6(S[i], U[i]) + armature[i]
-        u[i] = tau[i] - _dot6(S[i], pA[i])
+        spatial_inertia_into(m[i], c[i], Ic[i], IA)
+        for r in range(6):
+            for k in range(6):
+                IA[r, k] += Ia[r, k]
+        Ui, Si, ci = U[i], S[i], cb[i]
+        for r in range(6):
+            x = 0.0
+            y = 0.0
+            for k in range(6):
+                x += IA[r, k] * Si[k]
+                y += IA[r, k] * ci[k]
+            Ui[r] = x
+            Ac[r] = y
+        D[i] = _dot6(Si, Ui) + armature[i]
+        pi = pA[i]
+        for k in range(6):
+            pi[k] += pa[k]
+        u[i] = tau[i] - _dot6(Si, pi)
         if i > 0:
             inv = 1.0 / D[i]
-            for r in range(6):  # Ia = IA - U U^T / D, added to the parent
-                ur = U[i, r] * inv
-                for k in range(6):
-                    x = IA[i, r, k] - ur * U[i, k]
-                    IA[i, r, k] = x
-                    IA[i - 1, r, k] += x
-            _matvec6(IA[i], cb[i], Iac)
-            s = u[i] * inv
+            for r in range(6):
+                ur = Ui[r] * inv
+                for k in range(r, 6):
+                    x = IA[r, k] - ur * Ui[k]
+                    Ia[r, k] = x
+                    Ia[k, r] = x
+            s_ = (_dot6(Ui, ci) - u[i]) * inv
             for k in range(6):
-                pA[i - 1, k] += pA[i, k] + Iac[k] + U[i, k] * s
+                pa[k] = pi[k] + Ac[k] - Ui[k] * s_
     A = np.zeros(6)
     A[3], A[4], A[5] = -g_vec[0], -g_vec[1], -g_vec[2]
     for i in range(N):
@@ -337,11 +362,12 @@ def _rows_crba(q, axis, offset, com, inertia, m, armature):  # pragma: no cover 
 
 @njit
 def _rows_aba(q, v, tau, armature, axis, offset, com, inertia, m, g_vec):  # pragma: no cover - compiled
-    """:func:`aba_into` per row, with the row's own armature ``(B, N)``."""
+    """:func:`aba_into` per row, with the row's own armature ``(B, N)`` (or one row ``(1, N)`` for all)."""
     out = np.empty(q.shape)
     w = work_arrays(q.shape[1])
+    shared = armature.shape[0] == 1
     for b in range(q.shape[0]):
-        aba_into(q[b], v[b], tau[b], axis, offset, com, inertia, m, armature[b], g_vec, w, out[b])
+        aba_into(q[b], v[b], tau[b], axis, offset, com, inertia, m, armature[0 if shared else b], g_vec, w, out[b])
     return out
 
 
@@ -571,6 +597,9 @@ class SpatialChain(RecursiveChain):
     def _rows(self, *arrays: np.ndarray) -> tuple[tuple, list[np.ndarray]]:
         n = self.n_links
         arrays = [as_vector(x, n, name) for x, name in arrays]
+        shape = arrays[0].shape
+        if all(x.shape == shape and x.flags.c_contiguous and x.dtype == np.float64 for x in arrays):  # the common case: views
+            return shape, [x.reshape(-1, n) for x in arrays]
         shape = np.broadcast_shapes(*(x.shape for x in arrays))
         return shape, [np.ascontiguousarray(np.broadcast_to(x, shape).reshape(-1, n), dtype=float) for x in arrays]
 
@@ -607,7 +636,9 @@ class SpatialChain(RecursiveChain):
 
     def aba(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """Accelerations for joint torques ``tau`` (damping not included) by the articulated-body algorithm, O(N)."""
-        return self.shifted_forward_dynamics(q, v, tau, np.zeros(self.n_links))
+        p = self.params
+        shape, (qr, vr, tr) = self._rows((q, "q"), (v, "v"), (tau, "tau"))
+        return _rows_aba(qr, vr, tr, p.armature.reshape(1, -1), *p.kernel_args(), p.g_vec).reshape(shape)
 
     def shifted_forward_dynamics(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, d: np.ndarray) -> np.ndarray:
         """``(M + diag(d))^-1 (tau - C v - G)`` in O(N): the articulated-body algorithm with ``d`` added to
