@@ -1,0 +1,453 @@
+"""Models derived from a Lagrangian (issue 36): SymPy derives, code generation compiles.
+
+The lecture's method: write the kinetic and the potential energy in generalized coordinates, let a
+computer-algebra system derive the equations of motion, simulate. Here
+:class:`sympy.physics.mechanics.LagrangesMethod` derives them from ``L = T - V``::
+
+    M(q) a = -(C(q, v) v + G(q)) + B u - F(v)
+
+and :func:`derive` returns a :class:`~mbs_envs.models.base.Model` with the interface of the hand-written
+ones (``mass_matrix``, ``coriolis``, ``gravity``, ``bias``, ``forward_dynamics``, ``inverse_dynamics``,
+``energy``), so ``simulate``, the integrators and PD / computed torque / LQR work on it unchanged.
+
+What is derived, and how:
+
+- ``M`` is LagrangesMethod's mass matrix, ``-(C v + G)`` its forcing with no applied forces; ``G = dV/dq``
+  is differentiated directly and ``C v`` is the rest (so ``coriolis`` and ``gravity`` are separate, as in
+  the hand-written models). Viscous joint friction ``F_i = b_i v_i`` with ``b_i`` a parameter named per
+  coordinate; the inputs enter through a constant actuation matrix ``B``.
+- Code generation: SymPy's common-subexpression elimination over ``M`` (upper triangle), ``C v``, ``G``,
+  ``T`` and ``V`` together, printed as straight-line Python of one member's scalars, compiled by numba in a
+  module written to a cache folder and named by the SHA-256 of its source: a second process imports it
+  (numba's own on-disk cache holds the machine code) and derives nothing again for the same expressions
+  (:data:`CACHE`, default ``~/.cache/mbs_envs/derived``, or ``$MBS_ENVS_DERIVED_CACHE``).
+- The compiled path: the generated module also holds the model's ``acceleration_kernel`` (``M`` by the
+  generated code, a Cholesky solve), ``energy_kernel`` and ``advance_kernel`` (its binding of
+  :func:`mbs_envs.dynamics.compiled.rk_run`), on the batch in columns as every model's
+  (:mod:`mbs_envs.dynamics.compiled`); the numpy methods call the same generated code row by row.
+
+Refused with a ``ValueError`` naming the culprit: a coordinate whose rate does not appear in ``T`` (its row
+of ``M`` is zero), a mass matrix that depends on the rates, parameters without defaults or with names that
+clash with the coordinates, and an actuation matrix of the wrong shape.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import importlib.util
+import os
+import pathlib
+import sys
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from .base import Model, Params, as_vector, param
+
+#: where generated modules are kept (``$MBS_ENVS_DERIVED_CACHE`` overrides)
+CACHE = pathlib.Path(os.environ.get("MBS_ENVS_DERIVED_CACHE", pathlib.Path.home() / ".cache" / "mbs_envs" / "derived"))
+
+
+@dataclasses.dataclass(frozen=True)
+class Derivation:
+    """The derived equations in plain symbols: ``q_i, v_i`` for the coordinates and their rates.
+
+    Attributes
+    ----------
+    name : str
+    q, v : tuple of sympy.Symbol
+        Coordinates and rates.
+    params : tuple of (str, float)
+        Parameter names and defaults, in the order the kernels read them.
+    M : sympy.Matrix, shape (n, n)
+    Cv, G : sympy.Matrix, shape (n, 1)
+    T, V : sympy.Expr
+    B : ndarray, shape (n, nu)
+    damping : tuple of str or None
+        The viscous friction parameter of each coordinate (None: none).
+    """
+
+    name: str
+    q: tuple
+    v: tuple
+    params: tuple
+    M: Any
+    Cv: Any
+    G: Any
+    T: Any
+    V: Any
+    B: np.ndarray
+    damping: tuple
+
+
+def derive_equations(name: str, q: Sequence[Any], T: Any, V: Any, params: Mapping[str, float],
+                     actuation: Any = None, damping: Mapping[Any, str] | None = None) -> Derivation:  # fmt: skip
+    """Lagrange's equations of ``L = T - V`` by :class:`sympy.physics.mechanics.LagrangesMethod`.
+
+    Parameters
+    ----------
+    name : str
+        A Python identifier (the model's class name).
+    q : sequence of sympy dynamicsymbols
+        The generalized coordinates ``q_i(t)``; ``T`` holds their rates as ``q_i.diff(t)``.
+    T, V : sympy expressions
+        Kinetic and potential energy [J].
+    params : mapping
+        Every other symbol in ``T`` and ``V`` by name, with its default value.
+    actuation : array_like, shape (n, nu), optional
+        ``B`` (default the identity: every coordinate driven).
+    damping : mapping, optional
+        Coordinate -> name of its viscous friction parameter (a key of ``params``).
+
+    Raises
+    ------
+    ValueError
+        Naming the culprit (module docstring).
+    """
+    import sympy as sp
+    from sympy.physics.mechanics import LagrangesMethod, dynamicsymbols
+
+    if not (isinstance(name, str) and name.isidentifier()):
+        raise ValueError(f"name must be a Python identifier, got {name!r}")
+    q = tuple(q)
+    n = len(q)
+    if n == 0:
+        raise ValueError("q: at least one coordinate")
+    t = dynamicsymbols._t
+    qs = sp.symbols(f"q0:{n}", real=True)
+    vs = sp.symbols(f"v0:{n}", real=True)
+    names = {str(s) for s in qs + vs}
+    params = dict(params)
+    for key, value in params.items():
+        if not (isinstance(key, str) and key.isidentifier()) or key in names:
+            raise ValueError(f"params: {key!r} is not a usable parameter name (identifiers other than {sorted(names)})")
+        if not np.isfinite(float(value)):
+            raise ValueError(f"params: {key!r} needs a finite default, got {value!r}")
+    T, V = sp.sympify(T), sp.sympify(V)
+    unknown = sorted(str(s) for s in (T.free_symbols | V.free_symbols) - {t} if str(s) not in params)
+    if unknown:
+        raise ValueError(f"T and V use symbols without a value in params: {unknown}")
+    rates = {qi.diff(t): vi for qi, vi in zip(q, vs)}
+    coords = {qi: qs_i for qi, qs_i in zip(q, qs)}
+
+    def plain(e):  # rates first (a coordinate replaced inside its derivative would leave d(q0)/dt); no simplify: CSE does the work
+        return sp.sympify(e).xreplace(rates).xreplace(coords)
+
+    lm = LagrangesMethod(T - V, list(q))
+    lm.form_lagranges_equations()
+    M = lm.mass_matrix.applyfunc(plain)
+    forcing = lm.forcing.applyfunc(plain)
+    for i in range(n):
+        if all(M[i, j] == 0 for j in range(n)):
+            raise ValueError(f"coordinate {q[i]} is missing from T: its rate does not appear, its row of M is zero")
+    if any(s in M.free_symbols for s in vs):
+        raise ValueError("the mass matrix depends on the rates: T must be quadratic in the rates")
+    Vp = plain(V)
+    G = sp.Matrix([sp.diff(Vp, qi) for qi in qs])
+    Cv = (-forcing - G).applyfunc(sp.expand)
+    B = np.eye(n) if actuation is None else np.asarray(actuation, float)
+    if B.ndim != 2 or B.shape[0] != n or not np.all(np.isfinite(B)):
+        raise ValueError(f"actuation must be a finite (n, nu) array with n = {n}, got shape {B.shape}")
+    damp = [None] * n
+    for coord, pname in (damping or {}).items():
+        if coord not in q:
+            raise ValueError(f"damping: {coord} is not a coordinate")
+        if pname not in params:
+            raise ValueError(f"damping: parameter {pname!r} is not in params")
+        damp[q.index(coord)] = pname
+    return Derivation(name, qs, vs, tuple((k, float(v)) for k, v in params.items()), M, Cv, G, plain(T), Vp, B,
+                      tuple(damp))  # fmt: skip
+
+
+# ---------------------------------------------------------------------------------------------
+# code generation
+
+
+def generate_source(d: Derivation) -> str:
+    """The module of one derived model: ``_terms(q, v, p, M, Cv, G)`` and ``_energies(q, v, p)`` of one member
+    (straight-line code after common-subexpression elimination), the kernels over columns and ``advance_kernel``."""
+    import sympy as sp
+    from sympy.printing.numpy import NumPyPrinter
+
+    n = len(d.q)
+    psyms = [sp.Symbol(k, real=True) for k, _ in d.params]
+    subs = {sp.Symbol(k): s for (k, _), s in zip(d.params, psyms)}
+    upper = [(i, j) for i in range(n) for j in range(i, n)]
+    exprs = [d.M[i, j] for i, j in upper] + list(d.Cv) + list(d.G) + [d.T, d.V]
+    exprs = [sp.sympify(e).xreplace(subs) for e in exprs]
+    reps, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("x"), optimizations="basic")
+    printer = NumPyPrinter({"fully_qualified_modules": True, "inline": True, "allow_unknown_functions": False})
+
+    def code(e):
+        return printer.doprint(e).replace("numpy.", "np.")
+
+    head = [f"    {s} = q[{i}]" for i, s in enumerate(d.q)] + [f"    {s} = v[{i}]" for i, s in enumerate(d.v)]
+    head += [f"    {s} = p[{k}]" for k, s in enumerate(psyms)]
+    body = [f"    {s} = {code(e)}" for s, e in reps]
+    out = [f"    M[{i}, {j}] = {code(reduced[k])}" + (f"\n    M[{j}, {i}] = M[{i}, {j}]" if i != j else "") for k, (i, j) in enumerate(upper)]
+    m = len(upper)
+    out += [f"    Cv[{i}] = {code(reduced[m + i])}" for i in range(n)]
+    out += [f"    G[{i}] = {code(reduced[m + n + i])}" for i in range(n)]
+    out += [f"    E[0] = {code(reduced[m + 2 * n])}", f"    E[1] = {code(reduced[m + 2 * n + 1])}"]
+    damp = [(i, [k for k, (name, _) in enumerate(d.params) if name == pname][0]) for i, pname in enumerate(d.damping) if pname]
+    lines = [
+        f'"""Generated by mbs_envs.models.symbolic for {d.name!r}: do not edit (named by the hash of this text)."""',
+        "import sys",
+        "import numpy as np",
+        "from mbs_envs.dynamics.jit import njit",
+        "from mbs_envs.dynamics import compiled as _compiled",
+        "from mbs_envs.dynamics.compiled import rk_run",
+        "",
+        f"N = {n}",
+        f"DAMPING = {tuple(damp)!r}",
+        "",
+        "",
+        "@njit(cache=True)",
+        "def terms(q, v, p, M, Cv, G, E):",
+        '    """M (n, n), C v, G (n,), (T, V) of one member into the arrays given."""',
+        *head, *body, *out,
+        "",
+        "",
+        "@njit(cache=True)",
+        "def rows(q, v, p):",
+        '    """terms() of rows (B, n): M (B, n, n), Cv, G (B, n), E (B, 2)."""',
+        "    B = q.shape[0]",
+        "    M = np.empty((B, N, N))",
+        "    Cv = np.empty((B, N))",
+        "    G = np.empty((B, N))",
+        "    E = np.empty((B, 2))",
+        "    for b in range(B):",
+        "        terms(q[b], v[b], p, M[b], Cv[b], G[b], E[b])",
+        "    return M, Cv, G, E",
+        "",
+        "",
+        "@njit(cache=True)",
+        "def _solve(M, r, a):",
+        '    """a = M^-1 r by Cholesky (M symmetric positive definite, overwritten)."""',
+        "    for j in range(N):",
+        "        s = M[j, j]",
+        "        for k in range(j):",
+        "            s -= M[j, k] * M[j, k]",
+        "        d = np.sqrt(s)",
+        "        M[j, j] = d",
+        "        for i in range(j + 1, N):",
+        "            s = M[i, j]",
+        "            for k in range(j):",
+        "                s -= M[i, k] * M[j, k]",
+        "            M[i, j] = s / d",
+        "    for i in range(N):",
+        "        s = r[i]",
+        "        for k in range(i):",
+        "            s -= M[i, k] * a[k]",
+        "        a[i] = s / M[i, i]",
+        "    for i in range(N - 1, -1, -1):",
+        "        s = a[i]",
+        "        for k in range(i + 1, N):",
+        "            s -= M[k, i] * a[k]",
+        "        a[i] = s / M[i, i]",
+        "",
+        "",
+        "@njit(cache=True)",
+        "def acceleration_kernel(q, v, tau, theta, a):",
+        '    """a = M^-1 (tau - b v - C v - G) of a batch in columns (n, B); theta (P, B) or (P, 1)."""',
+        "    B = q.shape[1]",
+        "    M, Cv, G, E = np.empty((N, N)), np.empty(N), np.empty(N), np.empty(2)",
+        "    qk, vk, r, ak = np.empty(N), np.empty(N), np.empty(N), np.empty(N)",
+        "    p = np.empty(theta.shape[0])",
+        "    for k in range(B):",
+        "        c = k if theta.shape[1] > 1 else 0",
+        "        for i in range(theta.shape[0]):",
+        "            p[i] = theta[i, c]",
+        "        for i in range(N):",
+        "            qk[i] = q[i, k]",
+        "            vk[i] = v[i, k]",
+        "        terms(qk, vk, p, M, Cv, G, E)",
+        "        for i in range(N):",
+        "            r[i] = tau[i, k] - Cv[i] - G[i]",
+        "        for i, j in DAMPING:",
+        "            r[i] -= p[j] * vk[i]",
+        "        _solve(M, r, ak)",
+        "        for i in range(N):",
+        "            a[i, k] = ak[i]",
+        "",
+        "",
+        "@njit(cache=True)",
+        "def energy_kernel(q, v, theta, E):",
+        '    """E = T + V of a batch in columns."""',
+        "    B = q.shape[1]",
+        "    M, Cv, G, TV = np.empty((N, N)), np.empty(N), np.empty(N), np.empty(2)",
+        "    qk, vk = np.empty(N), np.empty(N)",
+        "    p = np.empty(theta.shape[0])",
+        "    for k in range(B):",
+        "        c = k if theta.shape[1] > 1 else 0",
+        "        for i in range(theta.shape[0]):",
+        "            p[i] = theta[i, c]",
+        "        for i in range(N):",
+        "            qk[i] = q[i, k]",
+        "            vk[i] = v[i, k]",
+        "        terms(qk, vk, p, M, Cv, G, TV)",
+        "        E[k] = TV[0] + TV[1]",
+        "",
+        "",
+        "_this = sys.modules[__name__]",
+        "",
+        "",
+        "@njit(cache=True)",
+        "def advance_kernel(theta, stepper, q, v, tau):",
+        "    rk_run(_this.acceleration_kernel, _compiled.no_projection, theta, stepper, q, v, tau)",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def load_generated(source: str, cache: pathlib.Path | None = None):
+    """The generated module of ``source``, written once to ``cache`` as ``derived_<sha256>.py`` and imported
+    (numba then caches its machine code beside it)."""
+    folder = pathlib.Path(cache or CACHE)
+    digest = hashlib.sha256(source.encode()).hexdigest()[:32]
+    modname = f"mbs_envs_derived_{digest}"
+    if modname in sys.modules:
+        return sys.modules[modname]
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"{modname}.py"
+    if not path.exists() or path.read_text() != source:
+        tmp = path.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(source)
+        os.replace(tmp, path)  # atomic: a concurrent process reads the whole file or none
+    spec = importlib.util.spec_from_file_location(modname, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[modname] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+# ---------------------------------------------------------------------------------------------
+# the model
+
+
+class DerivedModel(Model):
+    """The base of models made by :func:`derive` (the class it returns sets the derivation)."""
+
+    derivation: Derivation
+    generated: Any
+    shared_theta = True
+
+    @property
+    def actuation(self) -> np.ndarray:
+        return self.derivation.B
+
+    def kernel_params(self) -> np.ndarray:
+        return np.array([getattr(self.params, k) for k, _ in self.derivation.params], float)
+
+    def _terms(self, q: np.ndarray, v: np.ndarray | None = None):
+        n = self.nq
+        q = as_vector(q, n, "q")
+        v = np.zeros(q.shape) if v is None else as_vector(v, n, "v")
+        shape = np.broadcast_shapes(q.shape, v.shape)
+        qr = np.ascontiguousarray(np.broadcast_to(q, shape).reshape(-1, n), dtype=float)
+        vr = np.ascontiguousarray(np.broadcast_to(v, shape).reshape(-1, n), dtype=float)
+        M, Cv, G, E = self.generated.rows(qr, vr, self.kernel_params())
+        lead = shape[:-1]
+        return M.reshape(lead + (n, n)), Cv.reshape(shape), G.reshape(shape), E[:, 0].reshape(lead), E[:, 1].reshape(lead)
+
+    def mass_matrix(self, q: np.ndarray) -> np.ndarray:
+        return self._terms(q)[0]
+
+    def coriolis(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        return self._terms(q, v)[1]
+
+    def gravity(self, q: np.ndarray) -> np.ndarray:
+        return self._terms(q)[2]
+
+    def kinetic_energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        return self._terms(q, v)[3]
+
+    def potential_energy(self, q: np.ndarray) -> np.ndarray:
+        return self._terms(q)[4]
+
+    def friction(self, v: np.ndarray) -> np.ndarray:
+        """Viscous friction ``b_i v_i`` on the coordinates with a damping parameter."""
+        v = as_vector(v, self.nv, "v")
+        b = np.array([0.0 if k is None else getattr(self.params, k) for k in self.derivation.damping])
+        return b * v
+
+    def bias(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        _, Cv, G, _, _ = self._terms(q, v)
+        return Cv + G + self.friction(v)
+
+    def __reduce__(self):  # the class is made at run time: rebuilt from the derivation (cached)
+        return (_rebuild, (self.derivation, self.params.as_dict()))
+
+
+def _rebuild(derivation: Derivation, params: dict) -> DerivedModel:
+    return model_class(derivation)(params)
+
+
+_CLASSES: dict[str, type] = {}
+
+
+def model_class(d: Derivation) -> type:
+    """The :class:`DerivedModel` subclass of a derivation (one per generated source, kept)."""
+    source = generate_source(d)
+    key = hashlib.sha256(source.encode()).hexdigest()
+    if key in _CLASSES:
+        return _CLASSES[key]
+    generated = load_generated(source)
+    fields = [(k, float, param(default, "finite", "", f"parameter {k} of {d.name}")) for k, default in d.params]
+    P = dataclasses.make_dataclass(f"{d.name}Params", fields, bases=(Params,), frozen=True)
+    n, nu = len(d.q), d.B.shape[1]
+    cls = type(d.name, (DerivedModel,), {
+        "Params": P, "nq": n, "nv": n, "nu": nu, "derivation": d, "generated": generated,
+        "kernels": (generated.acceleration_kernel, generated.energy_kernel),
+        "advance_kernel": staticmethod(generated.advance_kernel),
+        "__doc__": f"{d.name}: derived by mbs_envs.models.symbolic from T = {d.T}, V = {d.V}.",
+    })  # fmt: skip
+    _CLASSES[key] = cls
+    return cls
+
+
+def derive(name: str, q: Sequence[Any], T: Any, V: Any, params: Mapping[str, float], actuation: Any = None,
+           damping: Mapping[Any, str] | None = None) -> DerivedModel:  # fmt: skip
+    """A model from its Lagrangian: :func:`derive_equations`, then :func:`model_class`, at the default parameters.
+
+    Example (a pendulum of mass ``m`` on a massless rod ``l``, ``q`` from hanging)::
+
+        import sympy as sp
+        from sympy.physics.mechanics import dynamicsymbols
+        th = dynamicsymbols("th")
+        m, l, g = sp.symbols("m l g")
+        t = dynamicsymbols._t
+        model = derive("Pendulum", [th], m * (l * th.diff(t)) ** 2 / 2, -m * g * l * sp.cos(th), {"m": 1.0, "l": 1.0, "g": 9.81})
+    """
+    return model_class(cached_derivation(name, q, T, V, params, actuation, damping))()
+
+
+def cached_derivation(name: str, q: Sequence[Any], T: Any, V: Any, params: Mapping[str, float], actuation: Any = None,
+                      damping: Mapping[Any, str] | None = None, cache: pathlib.Path | None = None) -> Derivation:  # fmt: skip
+    """:func:`derive_equations`, kept on disk (a pickle in ``cache``, default :data:`CACHE`) under the SHA-256 of the
+    inputs' exact SymPy form (``srepr``): a second process with the same Lagrangian does not derive again."""
+    import pickle
+
+    import sympy as sp
+
+    B = None if actuation is None else np.asarray(actuation, float).tolist()
+    damp = None if damping is None else sorted((sp.srepr(k), v) for k, v in damping.items())
+    key = repr((name, [sp.srepr(x) for x in q], sp.srepr(sp.sympify(T)), sp.srepr(sp.sympify(V)), sorted((k, float(v)) for k, v in dict(params).items()),
+                B, damp))  # fmt: skip
+    folder = pathlib.Path(cache or CACHE)
+    path = folder / f"derivation_{hashlib.sha256(key.encode()).hexdigest()[:32]}.pkl"
+    if path.exists():
+        try:
+            stored = pickle.loads(path.read_bytes())
+            if stored[0] == key:
+                return stored[1]
+        except Exception:  # a damaged or foreign file: derive again and overwrite it
+            pass
+    d = derive_equations(name, q, T, V, params, actuation, damping)
+    folder.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(f".{os.getpid()}.tmp")
+    tmp.write_bytes(pickle.dumps((key, d)))
+    os.replace(tmp, path)
+    return d

@@ -1,0 +1,112 @@
+"""Models derived from a Lagrangian (issue 36, item 1-2 for unconstrained mechanisms): the 2R arm re-derived
+through ``mbs_envs.models.symbolic`` against the hand-written ``Planar2R``; the compiled path against the numpy
+one; the disk cache; refusals by name."""
+
+from __future__ import annotations
+
+import pickle
+
+import numpy as np
+import pytest
+import sympy as sp
+from sympy.physics.mechanics import dynamicsymbols
+
+from mbs_envs.dynamics.integrators import get
+from mbs_envs.dynamics.simulate import advance, simulate
+from mbs_envs.models import Planar2R
+from mbs_envs.models import symbolic
+
+t = dynamicsymbols._t
+NAMES = ("m1", "m2", "l1", "l2", "r1", "r2", "I1", "I2", "g", "b1", "b2")
+
+
+def arm_lagrangian():
+    """The 2R arm of docs/physics.md §3 written as a student would: centres of mass, then T and V."""
+    q1, q2 = dynamicsymbols("q1 q2")
+    m1, m2, l1, l2, r1, r2, I1, I2, g = sp.symbols("m1 m2 l1 l2 r1 r2 I1 I2 g")
+    x1, y1 = r1 * sp.cos(q1), r1 * sp.sin(q1)
+    x2, y2 = l1 * sp.cos(q1) + r2 * sp.cos(q1 + q2), l1 * sp.sin(q1) + r2 * sp.sin(q1 + q2)
+    d = lambda e: e.diff(t)  # noqa: E731
+    T = (m1 * (d(x1) ** 2 + d(y1) ** 2) + I1 * d(q1) ** 2 + m2 * (d(x2) ** 2 + d(y2) ** 2) + I2 * (d(q1) + d(q2)) ** 2) / 2
+    V = g * (m1 * y1 + m2 * y2)
+    return (q1, q2), T, V
+
+
+@pytest.fixture(scope="module")
+def pair(tmp_path_factory):
+    (q1, q2), T, V = arm_lagrangian()
+    hand = Planar2R(m1=1.3, m2=0.7, l1=0.9, l2=1.1, r1=0.4, r2=0.6, I1=0.08, I2=0.05, b1=0.2, b2=0.1)
+    params = {k: getattr(hand.params, k) for k in NAMES}
+    d = symbolic.cached_derivation("Arm2R", (q1, q2), T, V, params, damping={q1: "b1", q2: "b2"}, cache=tmp_path_factory.mktemp("derived"))
+    return symbolic.model_class(d)(), hand
+
+
+def rel(x, y):
+    return float(np.max(np.abs(np.asarray(x) - np.asarray(y))) / max(1.0, float(np.max(np.abs(y)))))
+
+
+def test_the_derived_arm_is_the_hand_written_one(pair):
+    derived, hand = pair
+    rng = np.random.default_rng(0)
+    q, v, u = rng.normal(size=(3, 200, 2)) * np.array([3.0, 5.0, 10.0])[:, None, None]
+    for name in ("mass_matrix", "gravity", "potential_energy"):
+        assert rel(getattr(derived, name)(q), getattr(hand, name)(q)) < 1e-12, name
+    for name in ("coriolis", "bias", "kinetic_energy", "energy", "friction"):
+        args = (v,) if name == "friction" else (q, v)
+        assert rel(getattr(derived, name)(*args), getattr(hand, name)(*args)) < 1e-12, name
+    assert rel(derived.forward_dynamics(q, v, u), hand.forward_dynamics(q, v, u)) < 1e-12
+    a = hand.forward_dynamics(q, v, u)
+    assert rel(derived.inverse_dynamics(q, v, a), u) < 1e-11
+
+
+def test_the_compiled_step_equals_the_numpy_one_and_the_episodes_the_hand_written(pair):
+    derived, hand = pair
+    rng = np.random.default_rng(1)
+    q, v, u = rng.normal(size=(3, 6, 2))
+    fast = advance(derived, get("rk4"), 0.0, q, v, 0.05, 5, u=u, compiled=True)
+    slow = advance(derived, get("rk4"), 0.0, q, v, 0.05, 5, u=u, compiled=False)
+    assert rel(fast[0], slow[0]) < 1e-12 and rel(fast[1], slow[1]) < 1e-12
+    a = simulate(derived, [0.3, -0.4], [0.0, 1.0], 1.0, dt=0.01, integrator="rk4", u=np.array([0.5, -0.2]))
+    b = simulate(hand, [0.3, -0.4], [0.0, 1.0], 1.0, dt=0.01, integrator="rk4", u=np.array([0.5, -0.2]))
+    assert rel(a.q, b.q) < 1e-10 and rel(a.v, b.v) < 1e-10
+
+
+def test_the_derivation_is_cached_on_disk_and_the_model_pickles(tmp_path, monkeypatch):
+    (q1, q2), T, V = arm_lagrangian()
+    params = {k: getattr(Planar2R().params, k) for k in NAMES}
+    first = symbolic.cached_derivation("Arm2R", (q1, q2), T, V, params, cache=tmp_path)
+    assert len(list(tmp_path.glob("derivation_*.pkl"))) == 1
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("derived again although cached")
+
+    monkeypatch.setattr(symbolic, "derive_equations", refuse)
+    again = symbolic.cached_derivation("Arm2R", (q1, q2), T, V, params, cache=tmp_path)
+    assert again.M == first.M and again.Cv == first.Cv and again.params == first.params
+    with pytest.raises(AssertionError, match="derived again"):  # other parameters are another Lagrangian's key
+        symbolic.cached_derivation("Arm2R", (q1, q2), T, V, {**params, "g": 1.62}, cache=tmp_path)
+    model = symbolic.model_class(first)({"m2": 2.0})
+    copy = pickle.loads(pickle.dumps(model))
+    assert type(copy).__name__ == "Arm2R" and copy.params.m2 == 2.0
+    q = np.array([0.2, -0.7])
+    np.testing.assert_array_equal(copy.mass_matrix(q), model.mass_matrix(q))
+
+
+def test_malformed_lagrangians_are_refused_by_name():
+    (q1, q2), T, V = arm_lagrangian()
+    params = {k: 1.0 for k in NAMES}
+    x = dynamicsymbols("x")
+    with pytest.raises(ValueError, match="x.*missing from T"):
+        symbolic.derive_equations("Bad", (q1, q2, x), T, V, params)
+    with pytest.raises(ValueError, match=r"without a value in params: \['k'\]"):
+        symbolic.derive_equations("Bad", (q1, q2), T, V + sp.Symbol("k") * q1, params)
+    with pytest.raises(ValueError, match="quadratic in the rates"):
+        symbolic.derive_equations("Bad", (q1, q2), T + q1.diff(t) ** 4, V, params)
+    with pytest.raises(ValueError, match="actuation"):
+        symbolic.derive_equations("Bad", (q1, q2), T, V, params, actuation=np.ones((3, 1)))
+    with pytest.raises(ValueError, match="params: 'q0'"):
+        symbolic.derive_equations("Bad", (q1, q2), T, V, {**params, "q0": 1.0})
+    with pytest.raises(ValueError, match="damping: parameter 'c'"):
+        symbolic.derive_equations("Bad", (q1, q2), T, V, params, damping={q1: "c"})
+    with pytest.raises(ValueError, match="name"):
+        symbolic.derive_equations("not a name", (q1, q2), T, V, params)
