@@ -533,8 +533,9 @@ class SpatialChainParams(Params):
         object.__setattr__(self, "n_links", n)
         m = _per_link(1.0 / n if self.m is None else self.m, n, (), "m")
         l = _per_link(1.0 / n if self.l is None else self.l, n, (), "l")  # noqa: E741
-        if np.any(m <= 0) or np.any(l <= 0):
-            raise ValueError("parameters 'm' and 'l' must be > 0")
+        for name, value in (("m", m), ("l", l)):
+            if np.any(value <= 0):
+                raise ValueError(f"parameter {name!r} must be > 0 for every link, got {value.tolist()}")
         axis = _per_link(alternating_axes(n) if self.axis is None else self.axis, n, (3,), "axis")
         norm = np.linalg.norm(axis, axis=1)
         if np.any(norm < 1e-12):
