@@ -199,6 +199,8 @@ def generate_source(d: Derivation) -> str:
         "from mbs_envs.dynamics.jit import njit",
         "from mbs_envs.dynamics import compiled as _compiled",
         "from mbs_envs.dynamics.compiled import rk_run",
+        "from mbs_envs.envs.engine import engine_step",
+        "from mbs_envs.envs import tracking as _tracking",
         "",
         f"N = {n}",
         f"DAMPING = {tuple(damp)!r}",
@@ -297,6 +299,13 @@ def generate_source(d: Derivation) -> str:
         "@njit(cache=True)",
         "def advance_kernel(theta, stepper, q, v, tau):",
         "    rk_run(_this.acceleration_kernel, _compiled.no_projection, theta, stepper, q, v, tau)",
+        "",
+        "",
+        "@njit(cache=True)",
+        "def step_kernel(theta, stepper, control, task, state, out):",
+        '    """The joint-tracking scene\'s compiled step on this model (mbs_envs.envs.derived)."""',
+        "    engine_step(_this.advance_kernel, _this.energy_kernel, _compiled.no_constraint_info, _compiled.never_singular,",
+        "                _tracking.tracking_task, theta, stepper, control, task, state, out)",
         "",
     ]
     return "\n".join(lines)

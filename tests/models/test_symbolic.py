@@ -110,3 +110,45 @@ def test_malformed_lagrangians_are_refused_by_name():
         symbolic.derive_equations("Bad", (q1, q2), T, V, params, damping={q1: "c"})
     with pytest.raises(ValueError, match="name"):
         symbolic.derive_equations("not a name", (q1, q2), T, V, params)
+
+
+def test_a_registered_env_from_the_derived_arm_gives_planar2r_v0s_episodes(pair):
+    """The derived arm registered as an id (``mbs_envs.envs.derived.register``) with Planar2R-v0's torque limits,
+    reference ranges and steps: the same observations and rewards as ``Planar2R-v0`` on the same seed and actions
+    (single env and batched, to 1e-10), and a drawing from the points the user names."""
+    import gymnasium as gym
+
+    from mbs_envs.envs import derived as derived_env
+    from mbs_envs.envs.planar2r import Planar2REnv
+
+    model, hand = pair
+    (q1, q2), _, _ = arm_lagrangian()
+    p = hand.params
+    points = [(0, 0), (p.l1 * sp.cos(q1), p.l1 * sp.sin(q1)),
+              (p.l1 * sp.cos(q1) + p.l2 * sp.cos(q1 + q2), p.l1 * sp.sin(q1) + p.l2 * sp.sin(q1 + q2))]  # fmt: skip
+    centre = (Planar2REnv.center_low + Planar2REnv.center_high) / 2
+    derived_env.register("mbs_envs_test/Arm2R-v0", model, torque_limit=(40.0, 20.0), posture=centre,
+                         spread=(Planar2REnv.center_high - Planar2REnv.center_low) / 2, amplitude=Planar2REnv.max_amplitude,
+                         substeps=2, coordinates=(q1, q2), points=points)  # fmt: skip
+    params = {k: getattr(p, k) for k in NAMES}
+    ours = gym.make("mbs_envs_test/Arm2R-v0", render_mode="rgb_array")
+    theirs = gym.make("mbs_envs/Planar2R-v0", params=params)
+    assert ours.unwrapped.compiled is not None  # the engine's compiled step on the generated kernels
+    a = np.random.default_rng(3).uniform(-1, 1, (100, 2)).astype(np.float32)
+    o1, _ = ours.reset(seed=5)
+    o2, _ = theirs.reset(seed=5)
+    np.testing.assert_allclose(o1, o2, rtol=0, atol=1e-6)  # float32 observations
+    for k in range(100):
+        o1, r1, *_ = ours.step(a[k])
+        o2, r2, *_ = theirs.step(a[k])
+        assert abs(r1 - r2) <= 1e-10 * max(1.0, abs(r2))
+    np.testing.assert_allclose(ours.unwrapped.q, theirs.unwrapped.q, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(ours.unwrapped.draw_points(ours.unwrapped.q), hand.joint_positions(ours.unwrapped.q), atol=1e-12)
+    assert ours.render().shape == (500, 500, 3)
+    venv = gym.make_vec("mbs_envs_test/Arm2R-v0", num_envs=3, vectorization_mode="vector_entry_point")
+    vo, _ = venv.reset(seed=[5, 6, 7])
+    o1, _ = ours.reset(seed=5)
+    np.testing.assert_array_equal(vo[0], o1)
+    assert pickle.loads(pickle.dumps(ours.unwrapped)).model.params == ours.unwrapped.model.params
+    with pytest.raises(ValueError, match="model must be a model from"):
+        derived_env.register("mbs_envs_test/Bad-v0", hand, torque_limit=1.0, posture=(0.0, 0.0))
