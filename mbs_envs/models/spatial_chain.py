@@ -342,47 +342,69 @@ def energy_member(q, v, axis, offset, com, inertia, m, armature, g_vec, w):  # p
     return T, U
 
 
+# The numpy path's row functions read the parameters from the kernels' own column (``theta (P, 1)``, unpacked
+# into fresh arrays as the compiled step does), so that the member functions below compile once for both paths.
+
+
 @njit
-def _rows_rnea(q, v, a, axis, offset, com, inertia, m, armature, g_vec, gravity):  # pragma: no cover - compiled
+def _rows_rnea(q, v, a, theta, gravity):  # pragma: no cover - compiled
+    N = q.shape[1]
+    axis, offset, com, inertia, m, arm, b_, g = _unpack(theta[:, 0], N)
     out = np.empty(q.shape)
-    w = work_arrays(q.shape[1])
+    w = work_arrays(N)
+    tau = np.empty(N)
     for b in range(q.shape[0]):
-        rnea_into(q[b], v[b], a[b], axis, offset, com, inertia, m, armature, g_vec, gravity, w, out[b])
+        rnea_into(q[b], v[b], a[b], axis, offset, com, inertia, m, arm, g, gravity, w, tau)
+        out[b] = tau
     return out
 
 
 @njit
-def _rows_crba(q, axis, offset, com, inertia, m, armature):  # pragma: no cover - compiled
-    out = np.empty((q.shape[0], q.shape[1], q.shape[1]))
-    w = work_arrays(q.shape[1])
+def _rows_crba(q, theta):  # pragma: no cover - compiled
+    N = q.shape[1]
+    axis, offset, com, inertia, m, arm, b_, g = _unpack(theta[:, 0], N)
+    out = np.empty((q.shape[0], N, N))
+    w = work_arrays(N)
+    M = np.empty((N, N))
     for b in range(q.shape[0]):
-        crba_into(q[b], axis, offset, com, inertia, m, armature, w, out[b])
+        crba_into(q[b], axis, offset, com, inertia, m, arm, w, M)
+        out[b] = M
     return out
 
 
 @njit
-def _rows_aba(q, v, tau, armature, axis, offset, com, inertia, m, g_vec):  # pragma: no cover - compiled
-    """:func:`aba_into` per row, with the row's own armature ``(B, N)`` (or one row ``(1, N)`` for all)."""
+def _rows_aba(q, v, tau, d, theta):  # pragma: no cover - compiled
+    """:func:`aba_into` per row, with ``d`` ``(B, N)`` (or one row ``(1, N)`` for all) added to the armature."""
+    B, N = q.shape
+    axis, offset, com, inertia, m, arm0, b_, g = _unpack(theta[:, 0], N)
     out = np.empty(q.shape)
-    w = work_arrays(q.shape[1])
-    shared = armature.shape[0] == 1
-    for b in range(q.shape[0]):
-        aba_into(q[b], v[b], tau[b], axis, offset, com, inertia, m, armature[0 if shared else b], g_vec, w, out[b])
+    w = work_arrays(N)
+    arm, acc = np.empty(N), np.empty(N)
+    shared = d.shape[0] == 1
+    for b in range(B):
+        row = 0 if shared else b
+        for i in range(N):
+            arm[i] = arm0[i] + d[row, i]
+        aba_into(q[b], v[b], tau[b], axis, offset, com, inertia, m, arm, g, w, acc)
+        out[b] = acc
     return out
 
 
 @njit
-def _rows_energy(q, v, axis, offset, com, inertia, m, armature, g_vec):  # pragma: no cover - compiled
+def _rows_energy(q, v, theta):  # pragma: no cover - compiled
+    N = q.shape[1]
+    axis, offset, com, inertia, m, arm, b_, g = _unpack(theta[:, 0], N)
     T, U = np.empty(q.shape[0]), np.empty(q.shape[0])
-    w = work_arrays(q.shape[1])
+    w = work_arrays(N)
     for b in range(q.shape[0]):
-        T[b], U[b] = energy_member(q[b], v[b], axis, offset, com, inertia, m, armature, g_vec, w)
+        T[b], U[b] = energy_member(q[b], v[b], axis, offset, com, inertia, m, arm, g, w)
     return T, U
 
 
 @njit
-def _rows_kinematics(q, axis, offset, com, inertia):  # pragma: no cover - compiled
+def _rows_kinematics(q, theta):  # pragma: no cover - compiled
     B, N = q.shape
+    axis, offset, com, inertia, m, arm, b_, g = _unpack(theta[:, 0], N)
     p, c, z, R = np.empty((B, N, 3)), np.empty((B, N, 3)), np.empty((B, N, 3)), np.empty((B, N, 3, 3))
     w = work_arrays(N)
     for b in range(B):
@@ -579,10 +601,6 @@ class SpatialChainParams(Params):
             overrides = {**{k: None for k in per_link if k not in ("armature", "b")}, "armature": 0.0, "b": 0.0, **overrides}
         return super().replace(**overrides)
 
-    def kernel_args(self) -> tuple:
-        """``(axis, offset, com, inertia, m)`` as the kernels take them."""
-        return (self.axis, self.offset, self.com, self.inertia, self.m)
-
 
 class SpatialChain(RecursiveChain):
     """N rigid links in space, each on a revolute joint about its own axis; every joint driven.
@@ -604,10 +622,14 @@ class SpatialChain(RecursiveChain):
         shape = np.broadcast_shapes(*(x.shape for x in arrays))
         return shape, [np.ascontiguousarray(np.broadcast_to(x, shape).reshape(-1, n), dtype=float) for x in arrays]
 
+    def _theta(self) -> np.ndarray:
+        """The kernels' parameter column ``(21 N + 3, 1)`` (read only, cached for the current parameters)."""
+        return batch_theta(self, 1)
+
     def kinematics(self, q: np.ndarray) -> dict[str, np.ndarray]:
         """World rotations ``R (..., N, 3, 3)``, joint positions ``p``, axes ``z`` and centres of mass ``c`` (``(..., N, 3)``)."""
         shape, (qr,) = self._rows((q, "q"))
-        R, p, z, c = _rows_kinematics(qr, *self.params.kernel_args()[:4])
+        R, p, z, c = _rows_kinematics(qr, self._theta())
         lead = shape[:-1]
         return {"R": R.reshape(lead + R.shape[1:]), "p": p.reshape(lead + p.shape[1:]), "z": z.reshape(lead + z.shape[1:]),
                 "c": c.reshape(lead + c.shape[1:])}  # fmt: skip
@@ -620,16 +642,14 @@ class SpatialChain(RecursiveChain):
 
     def rnea(self, q: np.ndarray, v: np.ndarray, a: np.ndarray, gravity: bool = True) -> np.ndarray:
         """``M a + C v (+ G)`` by the recursive Newton-Euler algorithm, O(N) per member; shape ``(..., N)``."""
-        p = self.params
         shape, (qr, vr, ar) = self._rows((q, "q"), (v, "v"), (a, "a"))
-        out = _rows_rnea(qr, vr, ar, *p.kernel_args(), p.armature, p.g_vec, bool(gravity))
+        out = _rows_rnea(qr, vr, ar, self._theta(), bool(gravity))
         return out.reshape(shape)
 
     def mass_matrix(self, q: np.ndarray) -> np.ndarray:
         """``M(q)`` by the composite-rigid-body algorithm, shape ``(..., N, N)``."""
-        p = self.params
         shape, (qr,) = self._rows((q, "q"))
-        return _rows_crba(qr, *p.kernel_args(), p.armature).reshape(shape + (self.n_links,))
+        return _rows_crba(qr, self._theta()).reshape(shape + (self.n_links,))
 
     def friction(self, v: np.ndarray) -> np.ndarray:
         """Viscous joint damping ``b v``."""
@@ -637,22 +657,19 @@ class SpatialChain(RecursiveChain):
 
     def aba(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """Accelerations for joint torques ``tau`` (damping not included) by the articulated-body algorithm, O(N)."""
-        p = self.params
         shape, (qr, vr, tr) = self._rows((q, "q"), (v, "v"), (tau, "tau"))
-        return _rows_aba(qr, vr, tr, p.armature.reshape(1, -1), *p.kernel_args(), p.g_vec).reshape(shape)
+        return _rows_aba(qr, vr, tr, np.zeros((1, self.n_links)), self._theta()).reshape(shape)
 
     def shifted_forward_dynamics(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, d: np.ndarray) -> np.ndarray:
         """``(M + diag(d))^-1 (tau - C v - G)`` in O(N): the articulated-body algorithm with ``d`` added to
         the armature (which enters ``M`` the same way); see
         :meth:`mbs_envs.models.base.Model.shifted_forward_dynamics`."""
-        p = self.params
         shape, (qr, vr, tr, dr) = self._rows((q, "q"), (v, "v"), (tau, "tau"), (d, "d"))
-        return _rows_aba(qr, vr, tr, p.armature + dr, *p.kernel_args(), p.g_vec).reshape(shape)
+        return _rows_aba(qr, vr, tr, dr, self._theta()).reshape(shape)
 
     def _energies(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        p = self.params
         shape, (qr, vr) = self._rows((q, "q"), (v, "v"))
-        T, U = _rows_energy(qr, vr, *p.kernel_args(), p.armature, p.g_vec)
+        T, U = _rows_energy(qr, vr, self._theta())
         return T.reshape(shape[:-1]), U.reshape(shape[:-1])
 
     def energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
