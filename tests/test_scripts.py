@@ -54,6 +54,7 @@ def test_compare_quick_end_to_end(tmp_path, capsys):
     assert (tmp_path / "robustness_Planar2R.png").stat().st_size > 0
 
 
+@pytest.mark.slow  # the swing-up metrics stay in the default run (tests/envs/test_swingup_env.py); this is the script end to end
 def test_compare_scores_a_swing_up_scene_by_success_time_and_energy(tmp_path):
     script = load_script("compare.py")
     out = script["run"](script["parse_args"](["--out", str(tmp_path), "--quick", "--scene", "Acrobot", "--no-agents", "--workers", "1",

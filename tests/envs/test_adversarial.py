@@ -86,7 +86,7 @@ def test_constructor_keywords_give_a_working_env_or_a_value_error(pair, value):
     _usable(env)
 
 
-@pytest.mark.parametrize("dt", [5e-324, 2.2250738585e-313, 1e-300])
+@pytest.mark.parametrize("dt", [5e-324, pytest.param(2.2250738585e-313, marks=pytest.mark.slow), pytest.param(1e-300, marks=pytest.mark.slow)])
 def test_every_scene_takes_a_subnormal_or_tiny_dt(dt):
     """Found by the test above in two runs (1 / dt overflowed render_fps, and the disk's trail length):
     a valid dt this small builds, resets and steps every scene (deterministic here)."""

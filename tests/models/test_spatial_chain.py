@@ -44,7 +44,7 @@ def pinocchio_model(chain: SpatialChain):
     return pinocchio_spatial_chain(chain)
 
 
-@pytest.mark.parametrize("n", [1, 2, 7, 50, 500])
+@pytest.mark.parametrize("n", [1, 2, 7, pytest.param(50, marks=pytest.mark.slow), pytest.param(500, marks=pytest.mark.slow)])  # 50, 500: the slow set (scripts/bench_chain.py checks N = 500 on every run)
 def test_agrees_with_pinocchio(n):
     rng = np.random.default_rng(n)
     chain = random_chain(n, rng)
