@@ -665,6 +665,16 @@ class RecursiveChain(Model):
         """The cross-check path: ``M^-1 (u - h)`` with ``M`` by CRBA and a Cholesky solve, O(N^3)."""
         return Model.forward_dynamics(self, q, v, u)
 
+    def energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``T + V`` [J], one pass: the subclass's compiled ``energy_kernel`` (``kernels[1]``), the compiled step's
+        own (the same bits as its ``info["energy"]``; one kernel less to compile on a first reset)."""
+        n = self.n_links
+        q, v = np.broadcast_arrays(as_vector(q, n, "q"), as_vector(v, n, "v"))
+        qc, vc = columns_of(q), columns_of(v)
+        E = np.empty(qc.shape[1])
+        self.kernels[1](qc, vc, batch_theta(self, qc.shape[1]), E)
+        return E.reshape(q.shape[:-1])
+
     def kinetic_energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Kinetic energy of the links and the drives' armature [J] from the link velocities (O(N), not via ``M``)."""
         return self._energies(q, v)[0]
@@ -809,17 +819,6 @@ class SerialChain(RecursiveChain):
         flat = lambda x: np.ascontiguousarray(np.broadcast_to(x, shape).reshape(-1, n), dtype=float)  # noqa: E731
         T, V = _energy_rows(flat(q), flat(v), p_.l, p_.r, p_.m, p_.I, p_.armature, float(p_.g))
         return T.reshape(shape[:-1]), V.reshape(shape[:-1])
-
-    def energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """``T + V`` [J], one pass: :func:`energy_kernel`, the compiled step's own (the same bits as
-        ``kinetic_energy + potential_energy``; one kernel less to compile on a first reset)."""
-        n = self.n_links
-        q, v = np.broadcast_arrays(as_vector(q, n, "q"), as_vector(v, n, "v"))
-        lead = q.shape[:-1]
-        qc, vc = columns_of(q), columns_of(v)
-        E = np.empty(qc.shape[1])
-        energy_kernel(qc, vc, batch_theta(self, qc.shape[1]), E)
-        return E.reshape(lead)
 
     # -- compiled path (see :mod:`mbs_envs.dynamics.compiled`) -----------------------------
 

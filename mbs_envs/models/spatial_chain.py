@@ -48,7 +48,7 @@ import numpy as np
 
 from .. import validation as check
 from ..dynamics import compiled as _compiled
-from ..dynamics.compiled import batch_theta, columns_of, rk_run
+from ..dynamics.compiled import batch_theta, rk_run
 from ..dynamics.jit import njit
 from ..dynamics.trig import sincos_columns
 from .base import Params, as_vector, param
@@ -671,16 +671,6 @@ class SpatialChain(RecursiveChain):
         shape, (qr, vr) = self._rows((q, "q"), (v, "v"))
         T, U = _rows_energy(qr, vr, self._theta())
         return T.reshape(shape[:-1]), U.reshape(shape[:-1])
-
-    def energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """``T + V`` [J], by :func:`energy_kernel`, the compiled step's own (the same bits as its ``info["energy"]``)."""
-        n = self.n_links
-        q, v = as_vector(q, n, "q"), as_vector(v, n, "v")
-        lead = np.broadcast_shapes(q.shape, v.shape)[:-1]
-        qc, vc = columns_of(np.broadcast_to(q, lead + (n,))), columns_of(np.broadcast_to(v, lead + (n,)))
-        E = np.empty(qc.shape[1])
-        energy_kernel(qc, vc, batch_theta(self, qc.shape[1]), E)
-        return E.reshape(lead)
 
     # -- compiled path (see :mod:`mbs_envs.dynamics.compiled`) -----------------------------
 

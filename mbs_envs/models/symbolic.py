@@ -24,10 +24,10 @@ What is derived, and how:
 - The compiled path: the generated module also holds the model's ``acceleration_kernel`` (``M`` by the
   generated code, a Cholesky solve), ``energy_kernel`` and ``advance_kernel`` (its binding of
   :func:`mbs_envs.dynamics.compiled.rk_run`), on the batch in columns as every model's
-  (:mod:`mbs_envs.dynamics.compiled`); the numpy methods call the same generated code row by row. With one
-  parameter column for the batch the accelerations run SIMD over the members (``accelerations_shared``: the
-  sines and cosines of each distinct argument in one vectorized pass, the terms per member, the Cholesky solve
-  over the columns), as fast as the hand-written ``Planar2R``'s step (``scripts/bench_derived.py``).
+  (:mod:`mbs_envs.dynamics.compiled`); the numpy methods call the same generated code row by row. A derived
+  model's parameters are the same for every member (one parameter column), so the accelerations run SIMD over
+  the members (the sines and cosines of each distinct argument in one vectorized pass, the terms per member, the
+  Cholesky solve over the columns), as fast as the hand-written ``Planar2R``'s step (``scripts/bench_derived.py``).
 
 Refused with a ``ValueError`` naming the culprit: a coordinate whose rate does not appear in ``T`` (its row
 of ``M`` is zero), a mass matrix that depends on the rates, parameters without defaults or with names that
@@ -230,75 +230,19 @@ def generate_source(d: Derivation) -> str:
         "    return M, Cv, G, E",
         "",
         "",
-        "@njit(cache=True, inline='always')",
-        "def _solve(M, r, a):",
-        '    """a = M^-1 r by Cholesky (M symmetric positive definite, overwritten)."""',
-        "    for j in range(N):",
-        "        s = M[j, j]",
-        "        for k in range(j):",
-        "            s -= M[j, k] * M[j, k]",
-        "        d = np.sqrt(s)",
-        "        M[j, j] = d",
-        "        for i in range(j + 1, N):",
-        "            s = M[i, j]",
-        "            for k in range(j):",
-        "                s -= M[i, k] * M[j, k]",
-        "            M[i, j] = s / d",
-        "    for i in range(N):",
-        "        s = r[i]",
-        "        for k in range(i):",
-        "            s -= M[i, k] * a[k]",
-        "        a[i] = s / M[i, i]",
-        "    for i in range(N - 1, -1, -1):",
-        "        s = a[i]",
-        "        for k in range(i + 1, N):",
-        "            s -= M[k, i] * a[k]",
-        "        a[i] = s / M[i, i]",
-        "",
-        "",
         *columns,
         "",
         "",
         "@njit(cache=True)",
-        "def acceleration_kernel(q, v, tau, theta, a):",
-        '    """a = M^-1 (tau - b v - C v - G) of a batch in columns (n, B); theta (P, B) or (P, 1)."""',
-        "    B = q.shape[1]",
-        "    if theta.shape[1] == 1:",
-        "        accelerations_shared(q, v, tau, theta, a)",
-        "        return",
-        "    M, Cv, G, E = np.empty((N, N)), np.empty(N), np.empty(N), np.empty(2)",
-        "    qk, vk, r, ak = np.empty(N), np.empty(N), np.empty(N), np.empty(N)",
-        "    p = np.empty(theta.shape[0])",
-        "    for i in range(theta.shape[0]):",
-        "        p[i] = theta[i, 0]",
-        "    for k in range(B):",
-        "        if theta.shape[1] > 1:",
-        "            for i in range(theta.shape[0]):",
-        "                p[i] = theta[i, k]",
-        "        for i in range(N):",
-        "            qk[i] = q[i, k]",
-        "            vk[i] = v[i, k]",
-        "        terms(qk, vk, p, M, Cv, G, E)",
-        "        for i in range(N):",
-        "            r[i] = tau[i, k] - Cv[i] - G[i]",
-        "        for i, j in DAMPING:",
-        "            r[i] -= p[j] * vk[i]",
-        "        _solve(M, r, ak)",
-        "        for i in range(N):",
-        "            a[i, k] = ak[i]",
-        "",
-        "",
-        "@njit(cache=True)",
         "def energy_kernel(q, v, theta, E):",
-        '    """E = T + V of a batch in columns."""',
+        '    """E = T + V of a batch in columns; theta (P, 1)."""',
         "    B = q.shape[1]",
         "    M, Cv, G, TV = np.empty((N, N)), np.empty(N), np.empty(N), np.empty(2)",
         "    qk, vk = np.empty(N), np.empty(N)",
         "    p = np.empty(theta.shape[0])",
+        "    for i in range(theta.shape[0]):  # one column for every member (DerivedModel.shared_theta)",
+        "        p[i] = theta[i, 0]",
         "    for k in range(B):",
-        "        c = k if theta.shape[1] > 1 else 0",
-        "        for i in range(theta.shape[0]):",
-        "            p[i] = theta[i, c]",
         "        for i in range(N):",
         "            qk[i] = q[i, k]",
         "            vk[i] = v[i, k]",
@@ -325,10 +269,11 @@ def generate_source(d: Derivation) -> str:
 
 
 def _columns_body(d: Derivation, exprs: list, psyms: list, upper: list, damp: list, code) -> list[str]:
-    """``accelerations_shared(q, v, tau, theta, a)``: the batch with one parameter column, the member loop
-    innermost so that it runs SIMD: the sines and cosines of each distinct argument in one
+    """``acceleration_kernel(q, v, tau, theta, a)``: ``a = M^-1 (tau - b v - C v - G)`` of the batch in columns
+    with its one parameter column (``theta (P, 1)``: a derived model's parameters are the same for every member,
+    ``DerivedModel.shared_theta``), the member loop innermost so that it runs SIMD: the sines and cosines of each distinct argument in one
     :func:`~mbs_envs.dynamics.trig.sincos_columns` pass, the straight-line terms per member, then the Cholesky
-    solve over the columns (the per-member kernel's operations in the same order)."""
+    solve over the columns."""
     import sympy as sp
 
     n = len(d.q)
@@ -343,8 +288,8 @@ def _columns_body(d: Derivation, exprs: list, psyms: list, upper: list, damp: li
     state = [f"        {s} = q[{i}, b]" for i, s in enumerate(d.q)] + [f"        {s} = v[{i}, b]" for i, s in enumerate(d.v)]
     lines = [
         "@njit(cache=True)",
-        "def accelerations_shared(q, v, tau, theta, a):",
-        '    """acceleration_kernel for one parameter column: SIMD over the members."""',
+        "def acceleration_kernel(q, v, tau, theta, a):",
+        '    """a = M^-1 (tau - b v - C v - G) of a batch in columns (n, B), theta (P, 1): SIMD over the members."""',
         "    B = q.shape[1]",
         *[f"    {s} = theta[{k}, 0]" for k, s in enumerate(psyms)],
         f"    A = np.empty(({max(K, 1)}, B))",
