@@ -47,7 +47,9 @@ from typing import Any
 
 import numpy as np
 
+from ..dynamics import constraints as _constraints
 from .base import Model, Params, as_vector, param
+from .constrained import ConstrainedModel
 
 #: where generated modules are kept (``$MBS_ENVS_DERIVED_CACHE`` overrides)
 CACHE = pathlib.Path(os.environ.get("MBS_ENVS_DERIVED_CACHE", pathlib.Path.home() / ".cache" / "mbs_envs" / "derived"))
@@ -83,10 +85,29 @@ class Derivation:
     V: Any
     B: np.ndarray
     damping: tuple
+    phi: Any = None
+    Psi: Any = None
+    Psidv: Any = None
+    independent: tuple = ()
+
+    @property
+    def nc(self) -> int:
+        """Rows of ``Psi`` (0 without constraints)."""
+        return 0 if self.Psi is None else self.Psi.shape[0]
+
+    @property
+    def nh(self) -> int:
+        """Holonomic rows (the first ``nh`` rows of ``Psi`` are ``d phi / d q``)."""
+        return 0 if self.phi is None else self.phi.shape[0]
+
+
+#: the version of what a cached derivation holds (part of the cache key)
+FORMAT = 2
 
 
 def derive_equations(name: str, q: Sequence[Any], T: Any, V: Any, params: Mapping[str, float],
-                     actuation: Any = None, damping: Mapping[Any, str] | None = None) -> Derivation:  # fmt: skip
+                     actuation: Any = None, damping: Mapping[Any, str] | None = None, constraints: Sequence[Any] = (),
+                     velocity_constraints: Sequence[Any] = (), independent: Sequence[Any] | None = None) -> Derivation:  # fmt: skip
     """Lagrange's equations of ``L = T - V`` by :class:`sympy.physics.mechanics.LagrangesMethod`.
 
     Parameters
@@ -103,6 +124,15 @@ def derive_equations(name: str, q: Sequence[Any], T: Any, V: Any, params: Mappin
         ``B`` (default the identity: every coordinate driven).
     damping : mapping, optional
         Coordinate -> name of its viscous friction parameter (a key of ``params``).
+    constraints : sequence of sympy expressions, optional
+        Holonomic constraints ``phi_k(q) = 0`` [m or rad] (loop closures): functions of the coordinates alone.
+        Their Jacobian ``d phi / d q`` is the first rows of ``Psi``.
+    velocity_constraints : sequence of sympy expressions, optional
+        Non-holonomic constraints ``A_k(q) dq/dt = 0`` (rolling): linear and homogeneous in the rates; the
+        coefficients ``A_k`` are the further rows of ``Psi``.
+    independent : sequence of coordinates (or their indices), optional
+        With constraints: the ``n - nc`` coordinates whose rates parametrize the motion (the ones a task
+        prescribes); the constraints must determine the others' rates from them.
 
     Raises
     ------
@@ -160,8 +190,99 @@ def derive_equations(name: str, q: Sequence[Any], T: Any, V: Any, params: Mappin
         if pname not in params:
             raise ValueError(f"damping: parameter {pname!r} is not in params")
         damp[q.index(coord)] = pname
-    return Derivation(name, qs, vs, tuple((k, float(v)) for k, v in params.items()), M, Cv, G, plain(T), Vp, B,
-                      tuple(damp))  # fmt: skip
+    d = Derivation(name, qs, vs, tuple((k, float(v)) for k, v in params.items()), M, Cv, G, plain(T), Vp, B, tuple(damp))
+    _check_mass_matrix(d)
+    if not (constraints or velocity_constraints):
+        if independent is not None:
+            raise ValueError("independent: only a mechanism with constraints names independent coordinates")
+        return d
+    phi, Psi, Psidv = _constraint_rows(q, qs, vs, plain, params, constraints, velocity_constraints)
+    d = dataclasses.replace(d, phi=phi, Psi=Psi, Psidv=Psidv)
+    return dataclasses.replace(d, independent=_independent(d, q, independent))
+
+
+def _numeric(d: Derivation, exprs: Any, samples: int = 3) -> list[np.ndarray]:
+    """``exprs`` (a matrix in ``q``) at ``samples`` random configurations ``q ~ U(-pi, pi)`` and the default parameters."""
+    import sympy as sp
+
+    exprs = sp.Matrix(exprs)
+    values = dict(d.params)
+    f = sp.lambdify([d.q], exprs.xreplace({s: values[str(s)] for s in exprs.free_symbols if str(s) in values}), "numpy")
+    rng = np.random.default_rng(0)
+    return [np.asarray(f(x), float) for x in rng.uniform(-np.pi, np.pi, (samples, len(d.q)))]
+
+
+def _check_mass_matrix(d: Derivation) -> None:
+    """Refuse a mass matrix that is singular at the default parameters (at every one of three random
+    configurations: ``T`` then does not fix every acceleration, e.g. two rates only ever appearing summed)."""
+    values = [np.linalg.eigvalsh(M) for M in _numeric(d, d.M)]
+    if all(not (w[0] > 1e-12 * max(abs(w[-1]), 1e-300)) for w in values):
+        w = values[0]
+        raise ValueError(f"the mass matrix of {d.name} is singular (eigenvalues {np.round(w, 12).tolist()} at a random q with "
+                         "the default params): T does not determine every acceleration (a coordinate only appears in a "
+                         "combination with others, or a body without mass or inertia)")  # fmt: skip
+
+
+def _constraint_rows(q, qs, vs, plain, params, constraints, velocity_constraints):
+    """``phi`` (nh, 1), ``Psi`` (nc, n) and ``Psi_dot v`` (nc, 1) of the constraints, each checked (see
+    :func:`derive_equations`)."""
+    import sympy as sp
+
+    known = set(qs) | set(vs) | {sp.Symbol(k) for k in params} | {sp.Symbol(k, real=True) for k in params}
+
+    def checked(kind, k, c):
+        e = plain(c)
+        unknown = sorted(str(s) for s in e.free_symbols - known if str(s) not in params)
+        if unknown:
+            raise ValueError(f"{kind}[{k}] = {c} uses symbols without a value in params: {unknown}")
+        return e
+
+    phi = []
+    for k, c in enumerate(constraints):
+        e = checked("constraints", k, c)
+        if e.free_symbols & set(vs):
+            raise ValueError(f"constraints[{k}] = {c} is not a function of the coordinates alone: it holds their rates "
+                             "(a constraint on the rates goes in velocity_constraints)")  # fmt: skip
+        if not e.free_symbols & set(qs):
+            raise ValueError(f"constraints[{k}] = {c} is not a function of the coordinates: it holds none of {list(q)}")
+        phi.append(e)
+    rows = [[sp.diff(e, x) for x in qs] for e in phi]
+    for k, c in enumerate(velocity_constraints):
+        e = checked("velocity_constraints", k, c)
+        A = [sp.diff(e, w) for w in vs]
+        linear = not any(a.free_symbols & set(vs) for a in A) and sp.expand(e - sum(a * w for a, w in zip(A, vs))) == 0
+        if not linear or all(a == 0 for a in A):
+            raise ValueError(f"velocity_constraints[{k}] = {c} must be linear and homogeneous in the rates, A(q) dq/dt = 0")
+        rows.append(A)
+    Psi = sp.Matrix(rows)
+    n = len(qs)
+    Psidv = sp.Matrix([sum(sp.diff(sum(Psi[k, j] * vs[j] for j in range(n)), qs[i]) * vs[i] for i in range(n))
+                       for k in range(Psi.shape[0])])  # fmt: skip
+    return sp.Matrix(phi) if phi else None, Psi, Psidv.applyfunc(sp.expand)
+
+
+def _independent(d: Derivation, q: tuple, independent: Any) -> tuple:
+    """The indices of the independent coordinates, checked: ``n - nc`` of them, the others' rates fixed by the
+    constraints (``Psi`` restricted to the dependent columns is regular at random configurations)."""
+    n, nc = len(q), d.nc
+    if nc >= n:
+        raise ValueError(f"constraints: {nc} constraint rows leave no motion to {n} coordinates")
+    if independent is None:
+        raise ValueError(f"independent: a constrained mechanism names the {n - nc} coordinates that parametrize its motion")
+    idx = []
+    for c in independent:
+        i = c if isinstance(c, (int, np.integer)) and not isinstance(c, bool) else (q.index(c) if c in q else None)
+        if i is None or not 0 <= i < n or i in idx:
+            raise ValueError(f"independent: {c!r} is not one of the coordinates {list(q)} (each once)")
+        idx.append(int(i))
+    if len(idx) != n - nc:
+        raise ValueError(f"independent: {len(idx)} coordinates given, but {n} coordinates with {nc} constraint rows "
+                         f"move with {n - nc}")  # fmt: skip
+    dep = [i for i in range(n) if i not in idx]
+    if all(np.linalg.matrix_rank(P[:, dep]) < nc for P in _numeric(d, d.Psi)):
+        raise ValueError(f"constraints / independent: the constraint rows are dependent, or do not fix the rates of "
+                         f"{[q[i] for i in dep]} from those of {[q[i] for i in idx]} (Psi's dependent columns are singular)")  # fmt: skip
+    return tuple(idx)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -176,10 +297,14 @@ def generate_source(d: Derivation) -> str:
 
     n = len(d.q)
     psyms = [sp.Symbol(k, real=True) for k, _ in d.params]
-    subs = {sp.Symbol(k): s for (k, _), s in zip(d.params, psyms)}
+    by_name = {k: s for (k, _), s in zip(d.params, psyms)}
+
+    def plain(e):  # the parameters as the real symbols the code reads, whatever assumptions the user's carried
+        e = sp.sympify(e)
+        return e.xreplace({s: by_name[str(s)] for s in e.free_symbols if str(s) in by_name})
+
     upper = [(i, j) for i in range(n) for j in range(i, n)]
-    exprs = [d.M[i, j] for i, j in upper] + list(d.Cv) + list(d.G) + [d.T, d.V]
-    exprs = [sp.sympify(e).xreplace(subs) for e in exprs]
+    exprs = [plain(e) for e in [d.M[i, j] for i, j in upper] + list(d.Cv) + list(d.G) + [d.T, d.V]]
     reps, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("x"), optimizations="basic")
     printer = NumPyPrinter({"fully_qualified_modules": True, "inline": True, "allow_unknown_functions": False})
 
@@ -195,13 +320,19 @@ def generate_source(d: Derivation) -> str:
     out += [f"    G[{i}] = {code(reduced[m + n + i])}" for i in range(n)]
     out += [f"    E[0] = {code(reduced[m + 2 * n])}", f"    E[1] = {code(reduced[m + 2 * n + 1])}"]
     damp = [(i, [k for k, (name, _) in enumerate(d.params) if name == pname][0]) for i, pname in enumerate(d.damping) if pname]
-    columns = _columns_body(d, exprs[: m + 2 * n], psyms, upper, damp, code)
+    if d.nc:
+        columns = _constrained_body(d, plain, head, damp, code)
+        after, info = "_this.project_kernel", "_this.constraint_info_kernel"
+    else:
+        columns = _columns_body(d, exprs[: m + 2 * n], psyms, upper, damp, code)
+        after, info = "_compiled.no_projection", "_compiled.no_constraint_info"
     lines = [
         f'"""Generated by mbs_envs.models.symbolic for {d.name!r}: do not edit (named by the hash of this text)."""',
         "import sys",
         "import numpy as np",
         "from mbs_envs.dynamics.jit import njit",
         "from mbs_envs.dynamics import compiled as _compiled",
+        "from mbs_envs.dynamics import constraints as _constraints",
         "from mbs_envs.dynamics.compiled import rk_run",
         "from mbs_envs.dynamics.trig import sincos_columns",
         "from mbs_envs.envs.engine import engine_step",
@@ -235,12 +366,12 @@ def generate_source(d: Derivation) -> str:
         "",
         "@njit(cache=True)",
         "def energy_kernel(q, v, theta, E):",
-        '    """E = T + V of a batch in columns; theta (P, 1)."""',
+        '    """E = T + V of a batch in columns; theta (P, 1) or (P, B) of equal columns."""',
         "    B = q.shape[1]",
         "    M, Cv, G, TV = np.empty((N, N)), np.empty(N), np.empty(N), np.empty(2)",
         "    qk, vk = np.empty(N), np.empty(N)",
         "    p = np.empty(theta.shape[0])",
-        "    for i in range(theta.shape[0]):  # one column for every member (DerivedModel.shared_theta)",
+        "    for i in range(theta.shape[0]):  # the parameters are the same for every member",
         "        p[i] = theta[i, 0]",
         "    for k in range(B):",
         "        for i in range(N):",
@@ -255,17 +386,114 @@ def generate_source(d: Derivation) -> str:
         "",
         "@njit(cache=True)",
         "def advance_kernel(theta, stepper, q, v, tau):",
-        "    rk_run(_this.acceleration_kernel, _compiled.no_projection, theta, stepper, q, v, tau)",
+        f"    rk_run(_this.acceleration_kernel, {after}, theta, stepper, q, v, tau)",
         "",
         "",
         "@njit(cache=True)",
         "def step_kernel(theta, stepper, control, task, state, out):",
         '    """The joint-tracking scene\'s compiled step on this model (mbs_envs.envs.derived)."""',
-        "    engine_step(_this.advance_kernel, _this.energy_kernel, _compiled.no_constraint_info, _compiled.never_singular,",
+        f"    engine_step(_this.advance_kernel, _this.energy_kernel, {info}, _compiled.never_singular,",
         "                _tracking.tracking_task, theta, stepper, control, task, state, out)",
         "",
     ]
     return "\n".join(lines)
+
+
+def _constrained_body(d: Derivation, plain, head: list, damp: list, code) -> list[str]:
+    """The constraint code of a constrained model: ``constraint_terms`` (``phi``, ``Psi``, ``Psi_dot v`` of one
+    member after common-subexpression elimination), ``constraint_rows`` (the numpy path's), and the member kernels
+    (``q, v, tau`` (n, 1), ``p`` (P, 1)) that :mod:`mbs_envs.dynamics.constraints`' general column loops take:
+    ``acceleration_kernel`` (Schur complement), ``project_kernel`` (Gauss-Newton on ``phi``, then ``v`` onto
+    ``Psi v = 0`` in the kinetic-energy metric) and ``constraint_info_kernel`` (``max |phi|``, multipliers)."""
+    import sympy as sp
+
+    n, nc, nh = len(d.q), d.nc, d.nh
+    exprs = [plain(e) for e in (list(d.phi) if nh else []) + list(d.Psi) + list(d.Psidv)]
+    reps, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("z"), optimizations="basic")
+    out = [f"    phi[{k}] = {code(reduced[k])}" for k in range(nh)]
+    out += [f"    Psi[{k}, {j}] = {code(reduced[nh + k * n + j])}" for k in range(nc) for j in range(n)]
+    out += [f"    Pdv[{k}] = {code(reduced[nh + nc * n + k])}" for k in range(nc)]
+    return [
+        f"NC = {nc}",
+        f"NH = {nh}",
+        f"ROWS = np.arange({nh})",
+        "",
+        "",
+        "@njit(cache=True, inline='always')",
+        "def constraint_terms(q, v, p, phi, Psi, Pdv):",
+        '    """phi (nh,), Psi (nc, n), Psi_dot v (nc,) of one member into the arrays given."""',
+        *head, *[f"    {s} = {code(e)}" for s, e in reps], *out,
+        "    return",
+        "",
+        "",
+        "@njit(cache=True)",
+        "def constraint_rows(q, v, p):",
+        '    """constraint_terms() of rows (B, n): phi (B, nh), Psi (B, nc, n), Pdv (B, nc)."""',
+        "    B = q.shape[0]",
+        "    phi, Psi, Pdv = np.empty((B, NH)), np.empty((B, NC, N)), np.empty((B, NC))",
+        "    for b in range(B):",
+        "        constraint_terms(q[b], v[b], p, phi[b], Psi[b], Pdv[b])",
+        "    return phi, Psi, Pdv",
+        "",
+        "",
+        "@njit(inline='always')",
+        "def _flat(x):",
+        "    out = np.empty(x.shape[0])",
+        "    for i in range(x.shape[0]):",
+        "        out[i] = x[i, 0]",
+        "    return out",
+        "",
+        "",
+        "@njit(cache=True)",
+        "def mass_member(q, p, M):",
+        "    Cv, G, E = np.empty(N), np.empty(N), np.empty(2)",
+        "    terms(_flat(q), np.zeros(N), _flat(p), M, Cv, G, E)",
+        "",
+        "",
+        "@njit(cache=True)",
+        "def residual_member(q, p, phi):",
+        "    ph, Psi, Pdv = np.empty(NH), np.empty((NC, N)), np.empty(NC)",
+        "    constraint_terms(_flat(q), np.zeros(N), _flat(p), ph, Psi, Pdv)",
+        "    for i in range(NH):",
+        "        phi[i] = ph[i]",
+        "",
+        "",
+        "@njit(cache=True)",
+        "def jacobian_member(q, p, Psi):",
+        "    ph, Pdv = np.empty(NH), np.empty(NC)",
+        "    constraint_terms(_flat(q), np.zeros(N), _flat(p), ph, Psi, Pdv)",
+        "",
+        "",
+        "@njit(cache=True)",
+        "def terms_member(q, v, tau, p, M, f, Psi, gamma):",
+        '    """M, f = tau - (C v + G + F), Psi, gamma = -Psi_dot v of one member (constraints.constrained_acceleration_columns)."""',
+        "    qk, vk, pk = _flat(q), _flat(v), _flat(p)",
+        "    Cv, G, E = np.empty(N), np.empty(N), np.empty(2)",
+        "    terms(qk, vk, pk, M, Cv, G, E)",
+        "    ph, Pdv = np.empty(NH), np.empty(NC)",
+        "    constraint_terms(qk, vk, pk, ph, Psi, Pdv)",
+        "    for i in range(N):",
+        "        f[i] = tau[i, 0] - Cv[i] - G[i]",
+        *[f"    f[{i}] -= pk[{j}] * vk[{i}]" for i, j in damp],
+        "    for i in range(NC):",
+        "        gamma[i] = -Pdv[i]",
+        "",
+        "",
+        "@njit(cache=True)",
+        "def acceleration_kernel(q, v, tau, theta, a):",
+        '    """Forward dynamics with the constraints enforced (Schur complement), a batch in columns (n, B)."""',
+        "    _constraints.constrained_acceleration_columns(_this.terms_member, NC, q, v, tau, theta, a)",
+        "",
+        "",
+        "@njit(cache=True)",
+        "def project_kernel(q, v, theta, tol):",
+        "    _constraints.project_columns(_this.residual_member, _this.jacobian_member, _this.mass_member, ROWS, NC, q, v, theta, tol)",
+        "",
+        "",
+        "@njit(cache=True)",
+        "def constraint_info_kernel(q, v, tau, theta, res, lam):",
+        "    _constraints.constraint_info_columns(_this.terms_member, _this.residual_member, q, v, tau, theta, res, lam)",
+    ]
 
 
 def _columns_body(d: Derivation, exprs: list, psyms: list, upper: list, damp: list, code) -> list[str]:
@@ -417,6 +645,100 @@ class DerivedModel(Model):
         return (_rebuild, (self.derivation, self.params.as_dict()))
 
 
+class ConstrainedDerivedModel(DerivedModel, ConstrainedModel):
+    """The base of derived models with constraints ``Psi(q) v = 0``: the holonomic rows first (``phi``, projected
+    onto after every step), then the non-holonomic ones; :class:`~mbs_envs.models.constrained.ConstrainedModel`'s
+    Schur-complement dynamics, multipliers, projection and consistent states, on the generated code."""
+
+    shared_theta = False  # the general column loops of mbs_envs.dynamics.constraints read one column per member
+
+    def _constraint_terms(self, q: np.ndarray, v: np.ndarray | None = None):
+        n = self.nq
+        q = as_vector(q, n, "q")
+        v = np.zeros(q.shape) if v is None else as_vector(v, n, "v")
+        shape = np.broadcast_shapes(q.shape, v.shape)
+        qr = np.ascontiguousarray(np.broadcast_to(q, shape).reshape(-1, n), dtype=float)
+        vr = np.ascontiguousarray(np.broadcast_to(v, shape).reshape(-1, n), dtype=float)
+        phi, Psi, Pdv = self.generated.constraint_rows(qr, vr, self.kernel_params())
+        lead = shape[:-1]
+        return phi.reshape(lead + (self.derivation.nh,)), Psi.reshape(lead + (self.nc, n)), Pdv.reshape(lead + (self.nc,))
+
+    def constraint_residual(self, q: np.ndarray) -> np.ndarray:
+        return self._constraint_terms(q)[0]
+
+    def constraint_jacobian(self, q: np.ndarray) -> np.ndarray:
+        return self._constraint_terms(q)[1]
+
+    def constraint_bias(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        return self._constraint_terms(q, v)[2]
+
+    def assemble(self, q_ind: np.ndarray, guess: np.ndarray, tol: float = 1e-12, max_iter: int = 50) -> np.ndarray:
+        """Coordinates on the holonomic constraints with the independent ones given: Gauss-Newton (minimum-norm
+        steps) on the dependent coordinates from ``guess``, the assembly branch nearest it.
+
+        Parameters
+        ----------
+        q_ind : ndarray, shape (..., n - nc)
+            The independent coordinates.
+        guess : ndarray, shape (..., n)
+            A configuration near the wanted one (its independent entries are replaced).
+
+        Raises
+        ------
+        ValueError
+            If the residual stays above ``1e3 tol`` from ``guess`` and from 20 restarts of the dependent coordinates
+            drawn in ``[-pi, pi]`` (a fixed generator: the same answer every call).
+        """
+        ind, dep = list(self.independent), self._dependent()
+        q = np.array(np.broadcast_to(as_vector(guess, self.nq, "guess"), np.shape(q_ind)[:-1] + (self.nq,)), float)
+        q[..., ind] = as_vector(q_ind, len(ind), "q_ind")
+        rows = list(self._rows())
+        if not rows:
+            return q
+
+        def residual(x):
+            y = q.copy()
+            y[..., dep] = x
+            return self.constraint_residual(y)
+
+        def jacobian(x):
+            y = q.copy()
+            y[..., dep] = x
+            return self.constraint_jacobian(y)[..., rows, :][..., dep]
+
+        x, phi = _constraints.gauss_newton_projection(q[..., dep], residual, jacobian, tol=tol, max_iter=max_iter)
+        failed = ~np.all(np.abs(phi) <= 1e3 * tol, axis=-1)
+        starts = np.random.default_rng(0).uniform(-np.pi, np.pi, (20, len(dep)))
+        for start in starts:  # Gauss-Newton stalled in a minimum of |phi| that is not an assembly: restart those
+            if not np.any(failed):
+                break
+            y, psi = _constraints.gauss_newton_projection(np.broadcast_to(start, x.shape), residual, jacobian, tol=tol, max_iter=max_iter)
+            fixed = failed & np.all(np.abs(psi) <= 1e3 * tol, axis=-1)
+            x, phi = np.where(fixed[..., None], y, x), np.where(fixed[..., None], psi, phi)
+            failed &= ~fixed
+        if np.any(failed):
+            raise ValueError(f"q_ind: no assembly of {self.derivation.name} at {np.asarray(q_ind)[failed].tolist()} "
+                             f"(residual {np.max(np.abs(phi)):.3g} after restarts)")  # fmt: skip
+        q[..., dep] = x
+        return q
+
+    def moving_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """The independent coordinates at 0.3 moving at 0.5, assembled from 0.3 in every coordinate."""
+        m = len(self.independent)
+        q = self.assemble(np.full(m, 0.3), np.full(self.nq, 0.3))
+        return q, self.complete_velocity(q, np.full(m, 0.5))
+
+    def motion_from_tracked(self, q_t, v_t, a_t, branch: int = 1):
+        """The whole motion from the independent coordinates' ``(q, v, a)``, each shape ``(T, m)``: each ``q``
+        assembled from the previous one (continuation along the motion, from :meth:`moving_state`'s configuration)."""
+        q = np.empty(np.shape(q_t)[:-1] + (self.nq,))
+        guess = self.moving_state()[0]
+        for k in range(len(q)):
+            guess = q[k] = self.assemble(q_t[k], guess)
+        v = self.complete_velocity(q, v_t)
+        return q, v, self.complete_acceleration(q, v, a_t)
+
+
 def _rebuild(derivation: Derivation, params: dict) -> DerivedModel:
     return model_class(derivation)(params)
 
@@ -434,19 +756,25 @@ def model_class(d: Derivation) -> type:
     fields = [(k, float, param(default, "finite", "", f"parameter {k} of {d.name}")) for k, default in d.params]
     P = dataclasses.make_dataclass(f"{d.name}Params", fields, bases=(Params,), frozen=True)
     n, nu = len(d.q), d.B.shape[1]
-    cls = type(d.name, (DerivedModel,), {
+    body = {
         "Params": P, "nq": n, "nv": n, "nu": nu, "derivation": d, "generated": generated,
         "kernels": (generated.acceleration_kernel, generated.energy_kernel),
         "advance_kernel": staticmethod(generated.advance_kernel),
         "__doc__": f"{d.name}: derived by mbs_envs.models.symbolic from T = {d.T}, V = {d.V}.",
-    })  # fmt: skip
+    }  # fmt: skip
+    if d.nc:
+        body.update(nc=d.nc, position_rows=tuple(range(d.nh)), independent=d.independent,
+                    project_kernel=staticmethod(generated.project_kernel),
+                    constraint_info_kernel=staticmethod(generated.constraint_info_kernel))  # fmt: skip
+    cls = type(d.name, (ConstrainedDerivedModel if d.nc else DerivedModel,), body)
     _CLASSES[key] = cls
     return cls
 
 
 def derive(name: str, q: Sequence[Any], T: Any, V: Any, params: Mapping[str, float], actuation: Any = None,
-           damping: Mapping[Any, str] | None = None) -> DerivedModel:  # fmt: skip
-    """A model from its Lagrangian: :func:`derive_equations`, then :func:`model_class`, at the default parameters.
+           damping: Mapping[Any, str] | None = None, **constraints: Any) -> DerivedModel:  # fmt: skip
+    """A model from its Lagrangian: :func:`derive_equations` (``constraints``: its ``constraints``,
+    ``velocity_constraints`` and ``independent``), then :func:`model_class`, at the default parameters.
 
     Example (a pendulum of mass ``m`` on a massless rod ``l``, ``q`` from hanging)::
 
@@ -457,11 +785,13 @@ def derive(name: str, q: Sequence[Any], T: Any, V: Any, params: Mapping[str, flo
         t = dynamicsymbols._t
         model = derive("Pendulum", [th], m * (l * th.diff(t)) ** 2 / 2, -m * g * l * sp.cos(th), {"m": 1.0, "l": 1.0, "g": 9.81})
     """
-    return model_class(cached_derivation(name, q, T, V, params, actuation, damping))()
+    return model_class(cached_derivation(name, q, T, V, params, actuation, damping, **constraints))()
 
 
 def cached_derivation(name: str, q: Sequence[Any], T: Any, V: Any, params: Mapping[str, float], actuation: Any = None,
-                      damping: Mapping[Any, str] | None = None, cache: pathlib.Path | None = None) -> Derivation:  # fmt: skip
+                      damping: Mapping[Any, str] | None = None, cache: pathlib.Path | None = None, *,
+                      constraints: Sequence[Any] = (), velocity_constraints: Sequence[Any] = (),
+                      independent: Sequence[Any] | None = None) -> Derivation:  # fmt: skip
     """:func:`derive_equations`, kept on disk (a pickle in ``cache``, default :data:`CACHE`) under the SHA-256 of the
     inputs' exact SymPy form (``srepr``): a second process with the same Lagrangian does not derive again."""
     import pickle
@@ -470,8 +800,9 @@ def cached_derivation(name: str, q: Sequence[Any], T: Any, V: Any, params: Mappi
 
     B = None if actuation is None else np.asarray(actuation, float).tolist()
     damp = None if damping is None else sorted((sp.srepr(k), v) for k, v in damping.items())
-    key = repr((name, [sp.srepr(x) for x in q], sp.srepr(sp.sympify(T)), sp.srepr(sp.sympify(V)), sorted((k, float(v)) for k, v in dict(params).items()),
-                B, damp))  # fmt: skip
+    ind = None if independent is None else [x if isinstance(x, (int, np.integer)) else sp.srepr(x) for x in independent]
+    key = repr((FORMAT, name, [sp.srepr(x) for x in q], sp.srepr(sp.sympify(T)), sp.srepr(sp.sympify(V)), sorted((k, float(v)) for k, v in dict(params).items()),
+                B, damp, [sp.srepr(sp.sympify(c)) for c in constraints], [sp.srepr(sp.sympify(c)) for c in velocity_constraints], ind))  # fmt: skip
     folder = pathlib.Path(cache or CACHE)
     path = folder / f"derivation_{hashlib.sha256(key.encode()).hexdigest()[:32]}.pkl"
     if path.exists():
@@ -481,7 +812,7 @@ def cached_derivation(name: str, q: Sequence[Any], T: Any, V: Any, params: Mappi
                 return stored[1]
         except Exception:  # a damaged or foreign file: derive again and overwrite it
             pass
-    d = derive_equations(name, q, T, V, params, actuation, damping)
+    d = derive_equations(name, q, T, V, params, actuation, damping, constraints, velocity_constraints, independent)
     folder.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(f".{os.getpid()}.tmp")
     tmp.write_bytes(pickle.dumps((key, d)))

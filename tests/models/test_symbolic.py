@@ -152,3 +152,144 @@ def test_a_registered_env_from_the_derived_arm_gives_planar2r_v0s_episodes(pair)
     assert pickle.loads(pickle.dumps(ours.unwrapped)).model.params == ours.unwrapped.model.params
     with pytest.raises(ValueError, match="model must be a model from"):
         derived_env.register("mbs_envs_test/Bad-v0", hand, torque_limit=1.0, posture=(0.0, 0.0))
+
+
+# -- constrained mechanisms: the four-bar (loop closure) and the rolling disk (non-holonomic) -------------------
+
+
+def fourbar_lagrangian():
+    """The four-bar of docs/physics.md §4 as a student writes it: the 2R arm (crank, coupler) and the rocker, T and V,
+    and the loop closed at B by two holonomic constraints."""
+    th1, ph2, ph1 = dynamicsymbols("th1 ph2 ph1")
+    l0, l1, l2, l3, m1, m2, m3, r1, r2, r3, I1, I2, I3, g = sp.symbols("l0 l1 l2 l3 m1 m2 m3 r1 r2 r3 I1 I2 I3 g")
+    x1, y1 = r1 * sp.cos(th1), r1 * sp.sin(th1)
+    x2, y2 = l1 * sp.cos(th1) + r2 * sp.cos(th1 + ph2), l1 * sp.sin(th1) + r2 * sp.sin(th1 + ph2)
+    d = lambda e: e.diff(t)  # noqa: E731
+    T = (m1 * (d(x1) ** 2 + d(y1) ** 2) + I1 * d(th1) ** 2 + m2 * (d(x2) ** 2 + d(y2) ** 2) + I2 * (d(th1) + d(ph2)) ** 2
+         + (I3 + m3 * r3**2) * d(ph1) ** 2) / 2  # fmt: skip
+    V = g * (m1 * y1 + m2 * y2 + m3 * r3 * sp.sin(ph1))
+    phi = [l1 * sp.cos(th1) + l2 * sp.cos(th1 + ph2) - l0 - l3 * sp.cos(ph1), l1 * sp.sin(th1) + l2 * sp.sin(th1 + ph2) - l3 * sp.sin(ph1)]
+    return (th1, ph2, ph1), T, V, phi
+
+
+def disk_lagrangian():
+    """The rolling disk of docs/physics.md §5 through ``sympy.physics.mechanics`` frames: heading and lean frame ``L``
+    (``Body`` ZXY), the disk ``D`` spinning about ``L.y``; T from the centre's velocity and ``w . I . w``; rolling is
+    the contact point's velocity ``v + w x (-r L.z)`` being zero: its vertical row holonomic (``z = r cos th2``), the
+    horizontal ones not."""
+    from sympy.physics.mechanics import ReferenceFrame, inertia
+
+    x, y, z, th1, th2, th3 = dynamicsymbols("x y z th1 th2 th3")
+    m, r, g = sp.symbols("m r g")
+    N = ReferenceFrame("N")
+    L = N.orientnew("L", "Body", (th1, th2, 0), "ZXY")
+    D = L.orientnew("D", "Axis", (th3, L.y))
+    w = D.ang_vel_in(N)
+    vc = x.diff(t) * N.x + y.diff(t) * N.y + z.diff(t) * N.z
+    T = m * vc.dot(vc) / 2 + w.dot(inertia(D, m * r**2 / 4, m * r**2 / 2, m * r**2 / 4).dot(w)) / 2
+    contact = vc + w.cross(-r * L.z)
+    return (x, y, z, th1, th2, th3), T, m * g * z, [z - r * sp.cos(th2)], [contact.dot(N.x), contact.dot(N.y)]
+
+
+FOURBAR = ("l0", "l1", "l2", "l3", "m1", "m2", "m3", "r1", "r2", "r3", "I1", "I2", "I3", "g", "b1", "b2", "b3")
+
+
+@pytest.fixture(scope="module")
+def fourbars(tmp_path_factory):
+    from mbs_envs.models import FourBar
+
+    (th1, ph2, ph1), T, V, phi = fourbar_lagrangian()
+    hand = FourBar(b1=0.1, b2=0.05, b3=0.02)
+    params = {k: getattr(hand.params, k) for k in FOURBAR}
+    d = symbolic.cached_derivation("FourBarD", (th1, ph2, ph1), T, V, params, [[1.0], [0.0], [0.0]], {th1: "b1", ph2: "b2", ph1: "b3"},
+                                   tmp_path_factory.mktemp("derived"), constraints=phi, independent=[th1])  # fmt: skip
+    return symbolic.model_class(d)(), hand
+
+
+@pytest.fixture(scope="module")
+def disks(tmp_path_factory):
+    from mbs_envs.models import RollingDisk
+
+    q, T, V, phi, rolling = disk_lagrangian()
+    hand = RollingDisk(b_roll=0.01, b_pivot=0.02)
+    params = {k: getattr(hand.params, k) for k in ("m", "r", "g", "b_roll", "b_pivot")}
+    d = symbolic.cached_derivation("DiskD", q, T, V, params, hand.actuation, {q[5]: "b_roll", q[3]: "b_pivot"}, tmp_path_factory.mktemp("derived"),
+                                   constraints=phi, velocity_constraints=rolling, independent=q[3:])  # fmt: skip
+    return symbolic.model_class(d)(), hand
+
+
+#: the disk's rows: derived (z: holonomic first; x, y) -> hand-written (x, y, z)
+DISK_ROWS = [1, 2, 0]
+
+
+@pytest.mark.parametrize("which", ["fourbar", "disk"])
+def test_the_derived_constrained_mechanisms_are_the_hand_written_ones(which, fourbars, disks):
+    """Mass matrix, bias, gravity, energy, phi, Psi, Psi_dot v, forward dynamics and multipliers on random (not
+    necessarily consistent) states to 1e-12 relative; the disk's rows reordered (holonomic first). The disk's lean
+    stays within 1.2 rad: at +-pi/2 its Euler angles are singular (M's heading-spin block has determinant
+    A C cos^2(lean); the model's ``singular`` flags it), and there both models' accelerations are rounding amplified
+    by 1 / cos^2 (7e-3 apart at cos = 0.002)."""
+    derived, hand = fourbars if which == "fourbar" else disks
+    rows = list(range(hand.nc)) if which == "fourbar" else DISK_ROWS
+    rng = np.random.default_rng(4)
+    q, v = rng.normal(size=(2, 300, hand.nq)) * np.array([2.0, 3.0])[:, None, None]
+    if which == "disk":
+        q[:, 4] = rng.uniform(-1.2, 1.2, 300)
+    u = rng.normal(size=(300, hand.nu))
+    for name in ("mass_matrix", "gravity", "potential_energy", "constraint_residual"):
+        assert rel(getattr(derived, name)(q), getattr(hand, name)(q)) < 1e-12, name
+    for name in ("bias", "coriolis", "kinetic_energy"):
+        assert rel(getattr(derived, name)(q, v), getattr(hand, name)(q, v)) < 1e-12, name
+    assert rel(derived.constraint_jacobian(q)[..., rows, :], hand.constraint_jacobian(q)) < 1e-12
+    assert rel(derived.constraint_bias(q, v)[..., rows], hand.constraint_bias(q, v)) < 1e-12
+    assert rel(derived.forward_dynamics(q, v, u), hand.forward_dynamics(q, v, u)) < 1e-12
+    assert rel(derived.multipliers(q, v, u)[..., rows], hand.multipliers(q, v, u)) < 1e-12
+    qc, vc = hand.moving_state()
+    lam = derived.multipliers(qc, vc, u[:5], compiled=True)  # the compiled kernel the env steps report
+    assert rel(lam[..., rows], hand.multipliers(qc, vc, u[:5])) < 1e-12
+
+
+@pytest.mark.parametrize("which", ["fourbar", "disk"])
+def test_derived_constrained_episodes_are_the_hand_written_ones_and_hold_the_constraints(which, fourbars, disks):
+    """Simulations (RK4 with projection, compiled and numpy) equal the hand-written model's to 1e-10; over 1e4
+    steps the projection keeps |phi| and |Psi v| below 1e-10."""
+    derived, hand = fourbars if which == "fourbar" else disks
+    q0, v0 = hand.moving_state()  # the disk rolling at twice its critical spin, leaning 0.1 rad
+    u = np.array([0.3]) if which == "fourbar" else np.array([0.01, 0.0])  # a steering torque of 0.3 N m would topple the disk
+    rng = np.random.default_rng(2)
+    qb, vb = hand.moving_state()
+    qb, vb = hand.project(qb + rng.normal(0, 0.01, (4, hand.nq)), vb + rng.normal(0, 0.1, (4, hand.nv)))
+    fast = advance(derived, get("rk4"), 0.0, qb, vb, 0.05, 5, u=u, stabilization=derived.stabilization(), compiled=True)
+    slow = advance(derived, get("rk4"), 0.0, qb, vb, 0.05, 5, u=u, stabilization=derived.stabilization(), compiled=False)
+    assert rel(fast[0], slow[0]) < 1e-12 and rel(fast[1], slow[1]) < 1e-12
+    a = simulate(derived, q0, v0, 2.0, dt=0.01, integrator="rk4", u=u)
+    b = simulate(hand, q0, v0, 2.0, dt=0.01, integrator="rk4", u=u)
+    assert not a.diverged and rel(a.q, b.q) < 1e-10 and rel(a.v, b.v) < 1e-10
+    if which == "disk":  # 100 s of rolling: without resistance (which would slow the spin below critical and topple it)
+        derived, u = type(derived)({"b_roll": 0.0, "b_pivot": 0.0}), np.zeros(2)
+    long = simulate(derived, q0, v0, 100.0, dt=0.01, integrator="rk4", u=u)
+    assert len(long.t) == 10_001 and not long.diverged
+    assert float(np.max(derived.constraint_violation(long.q, long.v))) < 1e-10
+
+
+def test_constrained_lagrangians_that_are_malformed_are_refused_by_name():
+    (th1, ph2, ph1), T, V, phi = fourbar_lagrangian()
+    params = {k: 1.0 for k in FOURBAR[:14]}
+    params.update(l1=0.3, l3=0.8)
+    with pytest.raises(ValueError, match=r"constraints\[1\].*not a function of the coordinates alone.*rates"):
+        symbolic.derive_equations("Bad", (th1, ph2, ph1), T, V, params, constraints=[phi[0], th1.diff(t) - 1], independent=[th1])
+    with pytest.raises(ValueError, match=r"constraints\[0\].*holds none of"):
+        symbolic.derive_equations("Bad", (th1, ph2, ph1), T, V, params, constraints=[sp.Symbol("l0") - 1], independent=[th1, ph2])
+    with pytest.raises(ValueError, match=r"velocity_constraints\[0\].*linear and homogeneous"):
+        symbolic.derive_equations("Bad", (th1, ph2, ph1), T, V, params, velocity_constraints=[th1.diff(t) ** 2], independent=[th1, ph2])
+    with pytest.raises(ValueError, match=r"constraints\[0\].*without a value in params: \['k'\]"):
+        symbolic.derive_equations("Bad", (th1, ph2, ph1), T, V, params, constraints=[phi[0] * sp.Symbol("k")], independent=[th1, ph2])
+    with pytest.raises(ValueError, match="independent: a constrained mechanism names"):
+        symbolic.derive_equations("Bad", (th1, ph2, ph1), T, V, params, constraints=phi)
+    with pytest.raises(ValueError, match="independent: 2 coordinates given"):
+        symbolic.derive_equations("Bad", (th1, ph2, ph1), T, V, params, constraints=phi, independent=[th1, ph2])
+    with pytest.raises(ValueError, match="dependent, or do not fix"):  # the same closure twice
+        symbolic.derive_equations("Bad", (th1, ph2, ph1), T, V, params, constraints=[phi[0], 2 * phi[0]], independent=[th1])
+    x, y = dynamicsymbols("x y")
+    with pytest.raises(ValueError, match="mass matrix of Bad is singular"):  # two rates that only ever appear summed
+        symbolic.derive_equations("Bad", (x, y), sp.Symbol("m") * (x.diff(t) + y.diff(t)) ** 2 / 2, 0, {"m": 1.0})
