@@ -138,6 +138,12 @@ def check_work_budget(env: Any, num_envs: int = 1) -> None:
         )
 
 
+def checked_residual_limit() -> check.Checked:
+    """The ``residual_limit`` setting of a scene whose loop can open, validated on every assignment: from 10x the
+    start's consistency tolerance (1e-9 m: a lower limit would end every episode at once) to 1 m."""
+    return check.Checked(lambda x, name: check.real(x, name, 1e-8, 1.0))
+
+
 class MBSEnv(gym.Env):
     """Base of all mbs_envs environments (see the module docstring).
 
@@ -228,7 +234,8 @@ class MBSEnv(gym.Env):
     #: kernels, or None (numpy path). It applies to the class that declares it: a subclass
     #: steps compiled only if it declares one too (its task may differ).
     step_kernel: ClassVar[Any] = None
-    #: the largest constraint residual [m] of a state that has not diverged (constrained scenes)
+    #: the largest constraint residual [m] of a state that has not diverged (constrained scenes; a scene
+    #: whose loop can open declares ``residual_limit = checked_residual_limit()``)
     residual_limit: float = np.inf
 
     @property
@@ -502,8 +509,24 @@ class MBSEnv(gym.Env):
         return np.zeros(np.shape(q)[:-1], bool)
 
     def state_diverged(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """Non-finite, absurdly large or singular states, bool ``(...)``."""
-        return diverged(q, v, self.divergence_limit, self.model)
+        """Non-finite, absurdly large or singular states, or (constrained models) a constraint residual
+        beyond ``residual_limit``, bool ``(...)`` (what the compiled step's engine checks)."""
+        bad = diverged(q, v, self.divergence_limit, self.model)
+        if self.model.nc and self.residual_limit < np.inf:
+            with np.errstate(invalid="ignore"):
+                bad = bad | ~(np.max(np.abs(self.model.constraint_residual(q)), axis=-1) <= self.residual_limit)
+        return bad
+
+    def constraint_info(self, q: np.ndarray, v: np.ndarray, u: np.ndarray) -> dict[str, Any]:
+        """``info``'s entries of a constrained model (none without constraints): ``constraint_residual``
+        (``max |phi|`` [m]) and the ``multipliers`` of the motion under ``u`` (by the compiled kernel when the
+        step is compiled, as the engine reports them)."""
+        if not self.model.nc:
+            return {}
+        return {
+            "constraint_residual": np.max(np.abs(self.model.constraint_residual(q)), axis=-1),
+            "multipliers": self.model.multipliers(q, v, u, compiled=self.compiled is not None),
+        }
 
     def task_info(self, q: np.ndarray, v: np.ndarray, now: Any, task: Any, u: np.ndarray) -> dict[str, Any]:
         """Task quantities for ``info``, each shaped ``(...)`` or ``(..., k)``."""

@@ -7,10 +7,17 @@ A user's mechanism becomes a registered Gymnasium id in a few lines::
                      coordinates=[q1, q2], points=[(0, 0), (x1, y1), (x2, y2)])
     env = gym.make("my/Arm2R-v0")                  # and gym.make_vec(..., vectorization_mode="vector_entry_point")
 
-The task is :class:`~mbs_envs.envs.tracking.JointTrackingEnv`'s (every coordinate driven; a random smooth
-reference about ``posture``, observation, reward and ``info`` as ``Planar2R-v0``'s), stepped by the compiled
-engine with the derived model's generated kernels (its ``step_kernel``), single and batched; the drawing is a
-line through the points the user names (planar ``(x, y)`` expressions in the coordinates).
+The task is :class:`~mbs_envs.envs.tracking.JointTrackingEnv`'s (a random smooth reference about ``posture``,
+observation, reward and ``info`` as ``Planar2R-v0``'s), stepped by the compiled engine with the derived model's
+generated kernels (its ``step_kernel``), single and batched; the drawing is a line through the points the user
+names (planar ``(x, y)`` expressions in the coordinates).
+
+Unconstrained, every coordinate is tracked and driven. With constraints (a derived
+:class:`~mbs_envs.models.symbolic.ConstrainedDerivedModel`) the tracked coordinates are the model's
+``independent`` ones, one input each (as ``FourBar-v0``'s crank): a start state is assembled on the constraints
+from ``guess`` (:meth:`~mbs_envs.models.symbolic.ConstrainedDerivedModel.assemble`), steps project onto them, a
+loop opened beyond ``residual_limit`` ends the episode as diverged, and ``info`` holds ``constraint_residual`` and
+the ``multipliers``.
 """
 
 from __future__ import annotations
@@ -23,6 +30,7 @@ import numpy as np
 
 from .. import validation as check
 from ..models.symbolic import DerivedModel
+from .base import checked_residual_limit
 from .rendering import Shape, arm_shapes
 from .tracking import JointTrackingEnv
 
@@ -35,18 +43,24 @@ class DerivedTrackingEnv(JointTrackingEnv):
     Parameters
     ----------
     model : DerivedModel
-        From :func:`mbs_envs.models.symbolic.derive`; every coordinate driven (``B`` selects one per input).
+        From :func:`mbs_envs.models.symbolic.derive`; one input per tracked coordinate (``B`` selects one each).
     torque_limit : float or array_like
         Per input [N m or N].
-    posture : array_like, shape (n,)
-        The reference's centre [rad or m].
+    posture : array_like, shape (m,)
+        The reference's centre [rad or m], one per tracked coordinate (all ``n``, or the ``independent`` ones).
     spread : float or array_like
         Centres drawn from ``posture +- spread``.
     amplitude : float or array_like
         The largest total amplitude of each coordinate's reference.
+    rate : (float, float), optional
+        A mean rate drawn from this range [rad/s] (a crank that turns); default none.
+    guess : array_like, shape (n,), optional
+        Constrained models: the configuration starts are assembled from (default zeros; its branch is kept).
+    residual_limit : float
+        Constrained models: the largest ``max |phi|`` [m] of a state that has not diverged.
     coordinates, points : optional
-        The user's coordinates (sympy dynamicsymbols) and the points to draw, ``(x, y)`` expressions in them
-        (or numbers); without them no drawing.
+        The user's coordinates (sympy dynamicsymbols) and the points to draw, ``(x, y)`` expressions in them and
+        the model's parameters (by name), or numbers; without them no drawing.
     params : mapping, optional
         Parameter overrides of the model.
     **kwargs
@@ -58,24 +72,65 @@ class DerivedTrackingEnv(JointTrackingEnv):
         """The compiled step: the derived model's generated binding of the engine to its kernels and this task's."""
         return type(self.model).generated.step_kernel
 
+    residual_limit = checked_residual_limit()
+
     def __init__(self, model: DerivedModel, torque_limit: Any, posture: Any, spread: Any = 0.5, amplitude: Any = 0.3,
-                 coordinates: Sequence[Any] = (), points: Sequence[Any] = (), params: Any = None, **kwargs: Any):  # fmt: skip
+                 rate: Any = None, guess: Any = None, residual_limit: float = 0.01, coordinates: Sequence[Any] = (),
+                 points: Sequence[Any] = (), params: Any = None, **kwargs: Any):  # fmt: skip
         if not isinstance(model, DerivedModel):
             raise ValueError(f"model must be a model from mbs_envs.models.symbolic.derive, got {type(model).__name__}")
         if params is not None:
             model = type(model)(check.mapping(params, "params"))
         n = model.nq
-        posture = check.vector(posture, "posture", n, broadcast=False)
-        self.center_low = posture - check.vector(spread, "spread", n, 0.0)
-        self.center_high = posture + check.vector(spread, "spread", n, 0.0)
-        self.max_amplitude = check.vector(amplitude, "amplitude", n, 0.0)
+        m = len(getattr(model, "independent", range(n)))
+        posture = check.vector(posture, "posture", m, broadcast=False)
+        self.center_low = posture - check.vector(spread, "spread", m, 0.0)
+        self.center_high = posture + check.vector(spread, "spread", m, 0.0)
+        self.max_amplitude = check.vector(amplitude, "amplitude", m, 0.0)
+        if rate is not None:
+            low, high = check.vector(rate, "rate", 2, -100.0, 100.0, broadcast=False)
+            if not low <= high:
+                raise ValueError(f"rate must be a range (low <= high), got {rate!r}")
+            self.rate_range = (float(low), float(high))
+        if guess is not None and not model.nc:
+            raise ValueError("guess: only a constrained model assembles its starts from a guess")
+        self.guess = np.zeros(n) if guess is None else check.vector(guess, "guess", n, broadcast=False)
+        self.residual_limit = residual_limit
         self._coordinates, self._points = tuple(coordinates), tuple(points)
         if self._points and len(self._coordinates) != n:
             raise ValueError(f"points need the {n} coordinates they are written in (coordinates=...)")
+        if model.nc:
+            kwargs.setdefault("stabilization", "projection")
         super().__init__(model, torque_limit, **kwargs)
-        J = 1.0 / np.diag(np.linalg.inv(model.mass_matrix(posture)))
+        J = self._apparent_inertia(posture)
         self.joint_inertia = J
         self.pd_gains = (100.0 * J, 20.0 * J)
+
+    def _apparent_inertia(self, posture: np.ndarray) -> np.ndarray:
+        """``1 / (J^-1)_ii`` of the tracked coordinates, ``J = T^T M T`` with ``T = dq / dq_tracked`` (the identity
+        without constraints): at ``posture``, or averaged over a turn of the first tracked coordinate when the
+        reference turns (``rate``) [kg m^2 or kg]."""
+        model, m = self.model, len(self.tracked)
+        q_t = np.array(np.broadcast_to(posture, (72 if self.rate_range else 1, m)))
+        if self.rate_range:
+            q_t[:, 0] = np.linspace(-np.pi, np.pi, 72, endpoint=False)
+        q = self._assembled(q_t)
+        T = np.stack([model.complete_velocity(q, np.eye(m)[k]) for k in range(m)], axis=-1) if model.nc else np.eye(m)
+        J = np.swapaxes(T, -1, -2) @ model.mass_matrix(q) @ T
+        return np.mean(1.0 / np.diagonal(np.linalg.inv(J), axis1=-2, axis2=-1), axis=0)
+
+    def _assembled(self, q_t: np.ndarray) -> np.ndarray:
+        """Whole configurations from the tracked coordinates ``(..., m)`` (assembled from ``guess`` with constraints)."""
+        return self.model.assemble(q_t, self.guess) if self.model.nc else np.asarray(q_t, float)
+
+    def _state_from_tracked(self, q_t: np.ndarray, v_t: np.ndarray, model: Any) -> tuple[np.ndarray, np.ndarray]:
+        if not model.nc:
+            return q_t, v_t
+        q = model.assemble(q_t, self.guess)
+        return q, model.complete_velocity(q, v_t)
+
+    def task_info(self, q, v, now, task, u) -> dict[str, Any]:
+        return {**super().task_info(q, v, now, task, u), **self.constraint_info(q, v, u)}
 
     # -- drawing -----------------------------------------------------------------------------
 
@@ -85,6 +140,11 @@ class DerivedTrackingEnv(JointTrackingEnv):
 
         plain = sp.symbols(f"p0:{len(self._coordinates)}")
         exprs = sp.Matrix([[sp.sympify(x), sp.sympify(y)] for x, y in self._points]).xreplace(dict(zip(self._coordinates, plain)))
+        values = self.model.params.as_dict()  # the model's parameters by name (the env's values, overrides included)
+        exprs = exprs.xreplace({x: values[str(x)] for x in exprs.free_symbols if str(x) in values})
+        unknown = sorted(str(x) for x in exprs.free_symbols - set(plain))
+        if unknown:
+            raise ValueError(f"points use symbols that are neither coordinates nor parameters: {unknown}")
         return sp.lambdify([plain], exprs, "numpy")
 
     def draw_points(self, q: np.ndarray) -> np.ndarray:
@@ -94,11 +154,11 @@ class DerivedTrackingEnv(JointTrackingEnv):
     def _render_extent(self) -> float:
         if not self._points:
             raise ValueError("no points to draw: pass coordinates= and points= to the env")
-        reach = np.max(np.linalg.norm(self.draw_points(np.asarray(self.center_low + self.center_high) / 2), axis=1))
+        reach = np.max(np.linalg.norm(self.draw_points(self._assembled(np.asarray(self.center_low + self.center_high) / 2)), axis=1))
         return 1.5 * float(max(reach, 1e-3))
 
     def _drawing(self, q: np.ndarray, t: float, task: Any, u: np.ndarray, trail: Any = None) -> list[Shape]:
-        ghost = self.draw_points(self.task_now(np.asarray(t), task)[0])
+        ghost = self.draw_points(self._assembled(self.task_now(np.asarray(t), task)[0]))
         return arm_shapes(self.draw_points(q), ghost, ())
 
     def __getstate__(self) -> dict:

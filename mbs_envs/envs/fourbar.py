@@ -14,6 +14,7 @@ from ..models import fourbar as _model
 from ..models.fourbar import FourBar
 from .rendering import GROUND, Dot, Line, Polygon, Shape, arm_shapes
 from . import tracking as _tracking
+from .base import checked_residual_limit
 from .engine import engine_step
 from .tracking import JointTrackingEnv
 
@@ -90,8 +91,7 @@ class FourBarEnv(JointTrackingEnv):
     """
 
     step_kernel = staticmethod(step_kernel)
-    #: validated on every assignment: 10x the start's consistency tolerance (1e-9 m) to 1 m
-    residual_limit = check.Checked(lambda x, name: check.real(x, name, 1e-8, 1.0))
+    residual_limit = checked_residual_limit()
 
     center_low = np.array([-np.pi])
     center_high = np.array([np.pi])
@@ -129,17 +129,8 @@ class FourBarEnv(JointTrackingEnv):
     def _state_from_tracked(self, q_t: np.ndarray, v_t: np.ndarray, model: FourBar) -> tuple[np.ndarray, np.ndarray]:
         return model.consistent_state(q_t[0], v_t[0], self.branch)
 
-    def state_diverged(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """Divergence, or the loop opened beyond ``residual_limit``."""
-        with np.errstate(invalid="ignore"):
-            opened = ~(np.max(np.abs(self.model.constraint_residual(q)), axis=-1) <= self.residual_limit)
-        return super().state_diverged(q, v) | opened
-
     def task_info(self, q, v, now, task, u) -> dict[str, Any]:
-        info = super().task_info(q, v, now, task, u)
-        info["constraint_residual"] = np.max(np.abs(self.model.constraint_residual(q)), axis=-1)
-        info["multipliers"] = self.model.multipliers(q, v, u, compiled=self.compiled is not None)
-        return info
+        return {**super().task_info(q, v, now, task, u), **self.constraint_info(q, v, u)}
 
     def _render_extent(self) -> float:
         p = self.model.params

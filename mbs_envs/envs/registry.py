@@ -117,6 +117,12 @@ SCENES: tuple[Scene, ...] = (
         free_motions="mbs_envs.envs.rolling_disk:free_motions", stiff_cases="mbs_envs.envs.rolling_disk:stiff_cases",
         singular_cases="mbs_envs.envs.rolling_disk:singular_cases",
     ),
+    Scene("SliderCrank", "mbs_envs/SliderCrank-v0", "mbs_envs.envs.slider_crank:SliderCrankEnv", 500,
+          model="mbs_envs.envs.slider_crank:SliderCrank", edge_parameters=(("m2", {}), ("l", {})),
+          free_motions="mbs_envs.envs.slider_crank:free_motions"),
+    Scene("CartDoublePendulum", "mbs_envs/CartDoublePendulum-v0", "mbs_envs.envs.cart_double_pendulum:CartDoublePendulumEnv", 500,
+          model="mbs_envs.envs.cart_double_pendulum:CartDoublePendulum", edge_parameters=(("m2", {}), ("l1", {})),
+          free_motions="mbs_envs.envs.cart_double_pendulum:free_motions"),
     *(
         Scene(
             name + suffix, f"mbs_envs/{name}-{version}", f"mbs_envs.envs.swingup:{name}{cls}Env", 1500,

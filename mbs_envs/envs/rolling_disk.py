@@ -376,11 +376,7 @@ class RollingDiskEnv(MBSEnv):
         return reward(self.task_params, q, v, now, task, action)
 
     def task_info(self, q, v, now, task, u) -> dict[str, Any]:
-        return {
-            "constraint_residual": np.max(np.abs(self.model.constraint_residual(q)), axis=-1),
-            "multipliers": self.model.multipliers(q, v, u, compiled=self.compiled is not None),
-            **info(self.task_params, q, v, now, task),
-        }
+        return {**self.constraint_info(q, v, u), **info(self.task_params, q, v, now, task)}
 
     # -- the compiled step (see mbs_envs.envs.engine) ----------------------------
 

@@ -89,6 +89,8 @@ class Derivation:
     Psi: Any = None
     Psidv: Any = None
     independent: tuple = ()
+    #: the validity check of each parameter (``"finite"``, ``"positive"``, ``"nonnegative"``), as ``params``
+    checks: tuple = ()
 
     @property
     def nc(self) -> int:
@@ -119,7 +121,9 @@ def derive_equations(name: str, q: Sequence[Any], T: Any, V: Any, params: Mappin
     T, V : sympy expressions
         Kinetic and potential energy [J].
     params : mapping
-        Every other symbol in ``T`` and ``V`` by name, with its default value.
+        Every other symbol in ``T`` and ``V`` by name, with its default value, or ``(default, check)`` with
+        ``check`` one of ``"finite"`` (the default), ``"positive"``, ``"nonnegative"``: what the model's parameter
+        dataclass accepts (a mass of 0 refused with a ``ValueError`` naming it, as the hand-written models').
     actuation : array_like, shape (n, nu), optional
         ``B`` (default the identity: every coordinate driven).
     damping : mapping, optional
@@ -152,12 +156,7 @@ def derive_equations(name: str, q: Sequence[Any], T: Any, V: Any, params: Mappin
     qs = sp.symbols(f"q0:{n}", real=True)
     vs = sp.symbols(f"v0:{n}", real=True)
     names = {str(s) for s in qs + vs}
-    params = dict(params)
-    for key, value in params.items():
-        if not (isinstance(key, str) and key.isidentifier()) or key in names:
-            raise ValueError(f"params: {key!r} is not a usable parameter name (identifiers other than {sorted(names)})")
-        if not np.isfinite(float(value)):
-            raise ValueError(f"params: {key!r} needs a finite default, got {value!r}")
+    params, checks = _split_params(params, names)
     T, V = sp.sympify(T), sp.sympify(V)
     unknown = sorted(str(s) for s in (T.free_symbols | V.free_symbols) - {t} if str(s) not in params)
     if unknown:
@@ -190,7 +189,8 @@ def derive_equations(name: str, q: Sequence[Any], T: Any, V: Any, params: Mappin
         if pname not in params:
             raise ValueError(f"damping: parameter {pname!r} is not in params")
         damp[q.index(coord)] = pname
-    d = Derivation(name, qs, vs, tuple((k, float(v)) for k, v in params.items()), M, Cv, G, plain(T), Vp, B, tuple(damp))
+    d = Derivation(name, qs, vs, tuple((k, float(v)) for k, v in params.items()), M, Cv, G, plain(T), Vp, B, tuple(damp),
+                   checks=checks)  # fmt: skip
     _check_mass_matrix(d)
     if not (constraints or velocity_constraints):
         if independent is not None:
@@ -199,6 +199,28 @@ def derive_equations(name: str, q: Sequence[Any], T: Any, V: Any, params: Mappin
     phi, Psi, Psidv = _constraint_rows(q, qs, vs, plain, params, constraints, velocity_constraints)
     d = dataclasses.replace(d, phi=phi, Psi=Psi, Psidv=Psidv)
     return dataclasses.replace(d, independent=_independent(d, q, independent))
+
+
+def _split_params(params: Mapping[str, Any], names: set) -> tuple[dict, tuple]:
+    """``params`` as ``{name: default}`` and the checks in its order (see :func:`derive_equations`), validated."""
+    from .base import _CHECKS
+
+    defaults, checks = {}, []
+    for key, value in dict(params).items():
+        if not (isinstance(key, str) and key.isidentifier()) or key in names:
+            raise ValueError(f"params: {key!r} is not a usable parameter name (identifiers other than {sorted(names)})")
+        default, kind = value if isinstance(value, tuple) and len(value) == 2 else (value, "finite")
+        if kind not in _CHECKS:
+            raise ValueError(f"params: {key!r} has the check {kind!r}; one of {sorted(_CHECKS)}")
+        try:
+            ok = bool(np.isfinite(float(default)) and _CHECKS[kind][0](float(default)))
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise ValueError(f"params: {key!r} needs a finite default that is {kind}, got {value!r}")
+        defaults[key] = float(default)
+        checks.append(kind)
+    return defaults, tuple(checks)
 
 
 def _numeric(d: Derivation, exprs: Any, samples: int = 3) -> list[np.ndarray]:
@@ -743,6 +765,19 @@ def _rebuild(derivation: Derivation, params: dict) -> DerivedModel:
     return model_class(derivation)(params)
 
 
+class DerivedParams(Params):
+    """The base of a derived model's parameter dataclass (made at run time, so pickled through its derivation)."""
+
+    derivation = None  # set on the subclass
+
+    def __reduce__(self):
+        return (_rebuild_params, (type(self).derivation, self.as_dict()))
+
+
+def _rebuild_params(derivation: Derivation, values: dict) -> Params:
+    return model_class(derivation).Params(**values)
+
+
 _CLASSES: dict[str, type] = {}
 
 
@@ -753,8 +788,10 @@ def model_class(d: Derivation) -> type:
     if key in _CLASSES:
         return _CLASSES[key]
     generated = load_generated(source)
-    fields = [(k, float, param(default, "finite", "", f"parameter {k} of {d.name}")) for k, default in d.params]
-    P = dataclasses.make_dataclass(f"{d.name}Params", fields, bases=(Params,), frozen=True)
+    checks = d.checks or ("finite",) * len(d.params)
+    fields = [(k, float, param(default, c, "", f"parameter {k} of {d.name}")) for (k, default), c in zip(d.params, checks)]
+    P = dataclasses.make_dataclass(f"{d.name}Params", fields, bases=(DerivedParams,), frozen=True)
+    P.derivation = d
     n, nu = len(d.q), d.B.shape[1]
     body = {
         "Params": P, "nq": n, "nv": n, "nu": nu, "derivation": d, "generated": generated,
@@ -801,7 +838,7 @@ def cached_derivation(name: str, q: Sequence[Any], T: Any, V: Any, params: Mappi
     B = None if actuation is None else np.asarray(actuation, float).tolist()
     damp = None if damping is None else sorted((sp.srepr(k), v) for k, v in damping.items())
     ind = None if independent is None else [x if isinstance(x, (int, np.integer)) else sp.srepr(x) for x in independent]
-    key = repr((FORMAT, name, [sp.srepr(x) for x in q], sp.srepr(sp.sympify(T)), sp.srepr(sp.sympify(V)), sorted((k, float(v)) for k, v in dict(params).items()),
+    key = repr((FORMAT, name, [sp.srepr(x) for x in q], sp.srepr(sp.sympify(T)), sp.srepr(sp.sympify(V)), sorted((k, repr(v)) for k, v in dict(params).items()),
                 B, damp, [sp.srepr(sp.sympify(c)) for c in constraints], [sp.srepr(sp.sympify(c)) for c in velocity_constraints], ind))  # fmt: skip
     folder = pathlib.Path(cache or CACHE)
     path = folder / f"derivation_{hashlib.sha256(key.encode()).hexdigest()[:32]}.pkl"

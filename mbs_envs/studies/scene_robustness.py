@@ -112,6 +112,9 @@ SWEEPS: Mapping[str, SceneSweep] = MappingProxyType({
     "SpatialChain": SceneSweep(("m", "l", "com", "inertia"), MappingProxyType({"b": tuple(range(10))}), tuple(range(10)),
                                pulses_per_coordinate=1, pulse_gap=0.4),
     "RollingDisk": SceneSweep(("m", "r"), MappingProxyType({"b_pivot": (3,), "b_roll": (5,)}), (3, 4, 5), pulses_per_coordinate=2),
+    "SliderCrank": SceneSweep(("m1", "m2", "m3"), MappingProxyType({"b_th": (0,), "b_s": (2,)}), (0,)),
+    "CartDoublePendulum": SceneSweep(("m0", "m1", "m2", "l1", "l2"), MappingProxyType({"b_x": (0,), "b_1": (1,), "b_2": (2,)}), (0, 1, 2),
+                                     pulses_per_coordinate=2, pulse_gap=0.5),
     "Acrobot": SceneSweep(_TWO_LINKS, _TWO_JOINTS, (0, 1)),
     "Pendubot": SceneSweep(_TWO_LINKS, _TWO_JOINTS, (0, 1)),
 })  # fmt: skip
