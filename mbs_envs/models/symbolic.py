@@ -695,27 +695,32 @@ class ConstrainedDerivedModel(DerivedModel, ConstrainedModel):
         return self._constraint_terms(q, v)[2]
 
     def assemble(self, q_ind: np.ndarray, guess: np.ndarray, tol: float = 1e-12, max_iter: int = 50) -> np.ndarray:
-        """Coordinates on the holonomic constraints with the independent ones given: Gauss-Newton (minimum-norm
-        steps) on the dependent coordinates from ``guess``, the assembly branch nearest it.
+        """Coordinates on the holonomic constraints with the independent ones given, on the assembly branch of
+        ``guess``: the guess is first closed at its own independent values, then the independent coordinates are
+        moved to ``q_ind`` in steps of at most 0.2 (continuation), Gauss-Newton (minimum-norm steps on the dependent
+        coordinates) closing the loop after each; a loop that passes no singular configuration on the way stays on
+        its branch (as :meth:`FourBar.assemble`'s ``branch``).
 
         Parameters
         ----------
         q_ind : ndarray, shape (..., n - nc)
             The independent coordinates.
         guess : ndarray, shape (..., n)
-            A configuration near the wanted one (its independent entries are replaced).
+            A configuration near the wanted branch (it need not close the loop exactly).
 
         Raises
         ------
         ValueError
-            If the residual stays above ``1e3 tol`` from ``guess`` and from 20 restarts of the dependent coordinates
-            drawn in ``[-pi, pi]`` (a fixed generator: the same answer every call).
+            If the residual stays above ``1e3 tol``, also from 20 restarts of the dependent coordinates drawn in
+            ``[-pi, pi]`` (a fixed generator: the same answer every call).
         """
         ind, dep = list(self.independent), self._dependent()
-        q = np.array(np.broadcast_to(as_vector(guess, self.nq, "guess"), np.shape(q_ind)[:-1] + (self.nq,)), float)
-        q[..., ind] = as_vector(q_ind, len(ind), "q_ind")
+        q_ind = as_vector(q_ind, len(ind), "q_ind")
+        guess = as_vector(guess, self.nq, "guess")
+        q = np.array(np.broadcast_to(guess, np.broadcast_shapes(q_ind.shape[:-1], guess.shape[:-1]) + (self.nq,)), float)
         rows = list(self._rows())
         if not rows:
+            q[..., ind] = q_ind
             return q
 
         def residual(x):
@@ -728,13 +733,20 @@ class ConstrainedDerivedModel(DerivedModel, ConstrainedModel):
             y[..., dep] = x
             return self.constraint_jacobian(y)[..., rows, :][..., dep]
 
-        x, phi = _constraints.gauss_newton_projection(q[..., dep], residual, jacobian, tol=tol, max_iter=max_iter)
+        def close(x):
+            return _constraints.gauss_newton_projection(x, residual, jacobian, tol=tol, max_iter=max_iter)
+
+        start = q[..., ind].copy()
+        x, phi = close(q[..., dep])  # the guess closed where it is
+        steps = max(1, int(np.ceil(np.max(np.abs(q_ind - start), initial=0.0) / 0.2)))
+        for k in range(1, steps + 1):
+            q[..., ind] = start + (q_ind - start) * (k / steps)
+            x, phi = close(x)
         failed = ~np.all(np.abs(phi) <= 1e3 * tol, axis=-1)
-        starts = np.random.default_rng(0).uniform(-np.pi, np.pi, (20, len(dep)))
-        for start in starts:  # Gauss-Newton stalled in a minimum of |phi| that is not an assembly: restart those
-            if not np.any(failed):
+        for trial in np.random.default_rng(0).uniform(-np.pi, np.pi, (20, len(dep))):
+            if not np.any(failed):  # Gauss-Newton stalled in a minimum of |phi| that is not an assembly: restart those
                 break
-            y, psi = _constraints.gauss_newton_projection(np.broadcast_to(start, x.shape), residual, jacobian, tol=tol, max_iter=max_iter)
+            y, psi = close(np.broadcast_to(trial, x.shape))
             fixed = failed & np.all(np.abs(psi) <= 1e3 * tol, axis=-1)
             x, phi = np.where(fixed[..., None], y, x), np.where(fixed[..., None], psi, phi)
             failed &= ~fixed
