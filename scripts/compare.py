@@ -1,7 +1,8 @@
 #!/usr/bin/env python
 """The main job: RL agents against model-based controllers on every scene.
 
-For each scene (Planar2R, FourBar, SerialChain and SpatialChain with 10 links, RollingDisk, Acrobot, Pendubot) the
+For each scene (Planar2R, FourBar, SerialChain and SpatialChain with 10 links, RollingDisk, SliderCrank and
+CartDoublePendulum (derived from their Lagrangians), Acrobot, Pendubot) the
 model-based controllers with their tuned gains (PD, PD + gravity, computed
 torque; on the disk LQR, PD steering, no control; ``scripts/tune.py``) and the
 shipped agents (``agents/<id>/<algo>/seed<k>/``: PPO, TD3 and residual PPO on

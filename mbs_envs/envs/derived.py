@@ -151,11 +151,25 @@ class DerivedTrackingEnv(JointTrackingEnv):
         """The named points at ``q`` [m], shape (k, 2)."""
         return np.asarray(self._point_function(np.asarray(q, float)), float).reshape(-1, 2)
 
-    def _render_extent(self) -> float:
+    @functools.cached_property
+    def _frame(self) -> tuple[np.ndarray, float]:
+        """The drawing's centre and half-width [m]: the bounding box of the named points over the reference range
+        (the first tracked coordinate across its range, or a whole turn when the reference turns), with a margin."""
         if not self._points:
             raise ValueError("no points to draw: pass coordinates= and points= to the env")
-        reach = np.max(np.linalg.norm(self.draw_points(self._assembled(np.asarray(self.center_low + self.center_high) / 2)), axis=1))
-        return 1.5 * float(max(reach, 1e-3))
+        centre = (self.center_low + self.center_high) / 2
+        q_t = np.array(np.broadcast_to(centre, (25, len(centre))))
+        low, high = (-np.pi, np.pi) if self.rate_range else (self.center_low[0] - self.max_amplitude[0], self.center_high[0] + self.max_amplitude[0])
+        q_t[:, 0] = np.linspace(low, high, 25)
+        P = np.concatenate([self.draw_points(q) for q in self._assembled(q_t)])
+        lo, hi = P.min(axis=0), P.max(axis=0)
+        return (lo + hi) / 2, 0.6 * float(max(np.max(hi - lo), 1e-3)) + 0.05 * float(max(np.max(np.abs(P)), 1e-3))
+
+    def _render_extent(self) -> float:
+        return self._frame[1]
+
+    def _render_center(self, q: np.ndarray) -> tuple[float, float]:
+        return tuple(self._frame[0])
 
     def _drawing(self, q: np.ndarray, t: float, task: Any, u: np.ndarray, trail: Any = None) -> list[Shape]:
         ghost = self.draw_points(self._assembled(self.task_now(np.asarray(t), task)[0]))
@@ -164,6 +178,7 @@ class DerivedTrackingEnv(JointTrackingEnv):
     def __getstate__(self) -> dict:
         state = super().__getstate__()
         state.pop("_point_function", None)  # a lambdified function: made again on demand
+        state.pop("_frame", None)
         return state
 
 
