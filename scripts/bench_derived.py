@@ -1,15 +1,18 @@
 #!/usr/bin/env python
-"""A derived scene against its hand-written twin, in one run (issue 36's step-time and first-make targets).
+"""Derived scenes against their hand-written twins, in one run (issue 36's step-time and first-make targets).
 
-The 2R arm written as a student would (centres of mass, then ``T`` and ``V``; ``mbs_envs.models.symbolic``)
-and registered by ``mbs_envs.envs.derived.register`` with Planar2R-v0's limits, reference ranges and steps,
-against ``mbs_envs/Planar2R-v0``:
+Two mechanisms written as a student would (``T`` and ``V``, and the loop closure; ``mbs_envs.models.symbolic``)
+and registered by ``mbs_envs.envs.derived.register`` with the hand-written scene's limits, reference ranges and
+steps: the 2R arm against ``mbs_envs/Planar2R-v0`` (unconstrained: the generated SIMD kernels) and the four-bar
+against ``mbs_envs/FourBar-v0`` (a closed loop: the generated member kernels on the general Schur, projection and
+multiplier loops of ``mbs_envs.dynamics.constraints``; the episodes are FourBar-v0's to 1e-10, tested):
 
 - single step [us] (median of interleaved repeats) and the batched step per env-step at ``--num-envs``
   members, and their ratios (target <= 2x);
-- the first ``gym.make`` + ``reset`` + ``step`` of the derived scene in a fresh process: with the derivation
-  cache and numba's cache empty (``MBS_ENVS_DERIVED_CACHE`` and ``NUMBA_CACHE_DIR`` new folders), then again
-  with both warm (targets <= 30 s and <= 2 s).
+- the first ``gym.make`` + ``reset`` + ``step`` in a fresh process of the derived 2R arm and of the built-in
+  derived scenes ``SliderCrank-v0`` and ``CartDoublePendulum-v0``: with the derivation cache and numba's cache
+  empty (``MBS_ENVS_DERIVED_CACHE`` and ``NUMBA_CACHE_DIR`` new folders), then again with both warm (targets
+  <= 30 s and <= 2 s).
 
     python scripts/bench_derived.py --out results/derived
 
@@ -56,47 +59,82 @@ derived.register("bench/Arm2R-v0", model, torque_limit=(40.0, 20.0), posture=cen
                  coordinates=(q1, q2), points=[(0, 0), (l1 * sp.cos(q1), l1 * sp.sin(q1)), (x2 + (l2 - r2) * sp.cos(q1 + q2), y2 + (l2 - r2) * sp.sin(q1 + q2))])
 """
 
+#: the four-bar from its Lagrangian and loop closure, registered with FourBar-v0's settings
+FOURBAR_CODE = """
+import numpy as np, sympy as sp
+from sympy.physics.mechanics import dynamicsymbols
+from mbs_envs.models import symbolic, FourBar
+from mbs_envs.envs import derived
+
+t = dynamicsymbols._t
+th1, ph2, ph1 = dynamicsymbols("th1 ph2 ph1")
+l0, l1, l2, l3, m1, m2, m3, r1, r2, r3, I1, I2, I3, g = sp.symbols("l0 l1 l2 l3 m1 m2 m3 r1 r2 r3 I1 I2 I3 g")
+x1, y1 = r1 * sp.cos(th1), r1 * sp.sin(th1)
+x2, y2 = l1 * sp.cos(th1) + r2 * sp.cos(th1 + ph2), l1 * sp.sin(th1) + r2 * sp.sin(th1 + ph2)
+d = lambda e: e.diff(t)
+T = (m1 * (d(x1)**2 + d(y1)**2) + I1 * d(th1)**2 + m2 * (d(x2)**2 + d(y2)**2) + I2 * (d(th1) + d(ph2))**2 + (I3 + m3 * r3**2) * d(ph1)**2) / 2
+V = g * (m1 * y1 + m2 * y2 + m3 * r3 * sp.sin(ph1))
+phi = [l1 * sp.cos(th1) + l2 * sp.cos(th1 + ph2) - l0 - l3 * sp.cos(ph1), l1 * sp.sin(th1) + l2 * sp.sin(th1 + ph2) - l3 * sp.sin(ph1)]
+hand = FourBar()
+params = {k: getattr(hand.params, k) for k in "l0 l1 l2 l3 m1 m2 m3 r1 r2 r3 I1 I2 I3 g b1 b2 b3".split()}
+model = symbolic.derive("FourBarD", [th1, ph2, ph1], T, V, params, [[1.0], [0.0], [0.0]], {th1: "b1", ph2: "b2", ph1: "b3"},
+                        constraints=phi, independent=[th1])
+derived.register("bench/FourBarD-v0", model, torque_limit=8.0, posture=[0.0], spread=np.pi, amplitude=0.5, rate=(1.0, 4.0),
+                 guess=hand.assemble(0.0))
+"""
+
+#: mechanism -> (user code, derived id, hand-written id)
+PAIRS = {"2R arm": (USER_CODE, "bench/Arm2R-v0", "mbs_envs/Planar2R-v0"),
+         "four-bar": (FOURBAR_CODE, "bench/FourBarD-v0", "mbs_envs/FourBar-v0")}  # fmt: skip
+
 FIRST = """
 import time
 t0 = time.perf_counter()
 import gymnasium as gym
 import mbs_envs
 {user}
-env = gym.make("bench/Arm2R-v0")
+env = gym.make("{env_id}")
 env.reset(seed=0)
 env.step(env.action_space.sample())
 print(time.perf_counter() - t0)
 """
 
 
-def first_make() -> dict:
-    """Fresh-process seconds to the first step of the derived scene: caches empty, then warm (twice, the least)."""
+#: the scenes whose first make is timed: label -> (user code to run first, id)
+FIRST_MAKES = {"2R arm (user code)": (USER_CODE, "bench/Arm2R-v0"), "SliderCrank-v0": ("", "mbs_envs/SliderCrank-v0"),
+               "CartDoublePendulum-v0": ("", "mbs_envs/CartDoublePendulum-v0")}  # fmt: skip
+
+
+def first_make(user: str, env_id: str) -> dict:
+    """Fresh-process seconds to the first step of a derived scene: caches empty, then warm (twice, the least)."""
     out = {}
     with tempfile.TemporaryDirectory() as derived_cache, tempfile.TemporaryDirectory() as numba_cache:
         env = {**os.environ, "MBS_ENVS_DERIVED_CACHE": derived_cache, "NUMBA_CACHE_DIR": numba_cache}
-        code = FIRST.format(user=USER_CODE)
+        code = FIRST.format(user=user, env_id=env_id)
         for label in ("cold", "warm", "warm again"):
             res = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True, cwd=ROOT)
             out[label] = float(res.stdout.strip().splitlines()[-1])
     return {"cold_s": out["cold"], "warm_s": min(out["warm"], out["warm again"])}
 
 
-def steps(repeats: int, n_steps: int, num_envs: int) -> dict:
+def steps(pair: str, repeats: int, n_steps: int, num_envs: int) -> dict:
     import gymnasium as gym
 
     import mbs_envs  # noqa: F401
     from mbs_envs.studies.benchmarking import time_steps
 
-    exec(USER_CODE, {})
+    user, derived_id, hand_id = PAIRS[pair]
+    exec(user, {})
     rng = np.random.default_rng(0)
-    ids = {"derived": "bench/Arm2R-v0", "hand-written": "mbs_envs/Planar2R-v0"}
+    ids = {"derived": derived_id, "hand-written": hand_id}
     singles = {k: gym.make(v) for k, v in ids.items()}
     vectors = {k: gym.make_vec(v, num_envs=num_envs, vectorization_mode="vector_entry_point", full_info=False) for k, v in ids.items()}
-    a1 = list(rng.uniform(-1, 1, (n_steps, 2)).astype(np.float32))
-    aB = list(rng.uniform(-1, 1, (max(n_steps // 10, 20), num_envs, 2)))
+    nu = singles["derived"].action_space.shape[0]
+    a1 = list(rng.uniform(-1, 1, (n_steps, nu)).astype(np.float32))
+    aB = list(rng.uniform(-1, 1, (max(n_steps // 10, 20), num_envs, nu)))
     single = {k: [] for k in ids}
     batched = {k: [] for k in ids}
-    for _ in tqdm(range(repeats), desc="interleaved repeats"):
+    for _ in tqdm(range(repeats), desc=f"{pair}: interleaved repeats"):
         for k in ids:  # interleaved: both see the same machine state
             single[k].append(time_steps(singles[k], a1, 400))
             batched[k].append(time_steps(vectors[k], aB, 10**9) / num_envs)
@@ -115,17 +153,18 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--no-cold", action="store_true", help="skip the fresh-process first-make times")
     args = p.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
-    res = steps(args.repeats, args.steps, args.num_envs)
+    res = {"steps": {pair: steps(pair, args.repeats, args.steps, args.num_envs) for pair in PAIRS}}
     if not args.no_cold:
-        res["first_make"] = first_make()
+        res["first_make"] = {label: first_make(user, env_id) for label, (user, env_id) in tqdm(FIRST_MAKES.items(), desc="first makes")}
     (args.out / "bench_derived.json").write_text(json.dumps(res, indent=2))
-    lines = ["| scene | single step [us] | batched per env-step [us] |", "|---|---|---|"]
-    for k in ("derived", "hand-written"):
-        lines.append(f"| {k} | {res['single_us'][k]:.1f} | {res['batched_us'][k]:.3f} |")
-    lines.append(f"| derived / hand-written | {res['single_ratio']:.2f}x | {res['batched_ratio']:.2f}x |")
+    lines = [f"| mechanism | scene | single step [us] | batched per env-step at {args.num_envs} [us] |", "|---|---|---|---|"]
+    for pair, r in res["steps"].items():
+        for k in ("derived", "hand-written"):
+            lines.append(f"| {pair} | {k} | {r['single_us'][k]:.1f} | {r['batched_us'][k]:.3f} |")
+        lines.append(f"| {pair} | derived / hand-written | {r['single_ratio']:.2f}x | {r['batched_ratio']:.2f}x |")
     if "first_make" in res:
-        lines.append(f"\nFirst make + reset + step of the derived scene in a fresh process: {res['first_make']['cold_s']:.1f} s with "
-                     f"empty caches, {res['first_make']['warm_s']:.2f} s warm.")  # fmt: skip
+        lines += ["", "| first make + reset + step, fresh process | empty caches [s] | warm [s] |", "|---|---|---|"]
+        lines += [f"| {label} | {r['cold_s']:.1f} | {r['warm_s']:.2f} |" for label, r in res["first_make"].items()]
     text = "\n".join(lines)
     (args.out / "bench_derived.md").write_text(text + "\n")
     print(text)
