@@ -543,3 +543,197 @@ class Stabilization:
     def gains(self) -> tuple[float, float]:
         """``(alpha, beta)`` in effect in the dynamics (zero unless Baumgarte)."""
         return (self.alpha, self.beta) if self.kind == "baumgarte" else (0.0, 0.0)
+
+
+# ---------------------------------------------------------------------------
+# The same solves over a batch in columns with the member index innermost (SIMD), for models whose terms
+# are generated as straight-line code over the batch (mbs_envs.models.symbolic). A member these cannot
+# decide (M not positive definite, S not provably well conditioned, non-finite values) is flagged, and the
+# caller recomputes it by the general member path above, so both give the general path's results.
+# ---------------------------------------------------------------------------
+
+
+@njit
+def cholesky_columns(A, ok):  # pragma: no cover - compiled
+    """``A = L L^T`` in place (the lower triangle of ``A`` (n, n, B) becomes ``L``) for every member;
+    ``ok[b]`` cleared where ``A`` is not positive definite (or not finite)."""
+    n, B = A.shape[0], A.shape[2]
+    for j in range(n):
+        for p in range(j):
+            for b in range(B):
+                A[j, j, b] -= A[j, p, b] * A[j, p, b]
+        for b in range(B):
+            ok[b] &= A[j, j, b] > 0.0
+            A[j, j, b] = np.sqrt(abs(A[j, j, b]))
+        for i in range(j + 1, n):
+            for p in range(j):
+                for b in range(B):
+                    A[i, j, b] -= A[i, p, b] * A[j, p, b]
+            for b in range(B):
+                A[i, j, b] = A[i, j, b] / A[j, j, b]
+
+
+@njit
+def cholesky_solve_columns(L, x):  # pragma: no cover - compiled
+    """``x <- (L L^T)^-1 x`` in place for every member: ``L`` (n, n, B) from :func:`cholesky_columns`, ``x`` (n, B)."""
+    n, B = L.shape[0], L.shape[2]
+    for i in range(n):
+        for p in range(i):
+            for b in range(B):
+                x[i, b] -= L[i, p, b] * x[p, b]
+        for b in range(B):
+            x[i, b] = x[i, b] / L[i, i, b]
+    for i in range(n - 1, -1, -1):
+        for p in range(i + 1, n):
+            for b in range(B):
+                x[i, b] -= L[p, i, b] * x[p, b]
+        for b in range(B):
+            x[i, b] = x[i, b] / L[i, i, b]
+
+
+@njit
+def well_conditioned_solve_columns(S, r, rcond, y, ok):  # pragma: no cover - compiled
+    """:func:`_cholesky_solve_if_well_conditioned` for every member: ``y = S^-1 r`` (``S`` (k, k, B) destroyed,
+    ``r, y`` (k, B)); ``ok[b]`` cleared where ``trace(S) trace(S^-1) < 1 / rcond`` does not hold (or ``S`` is not
+    positive definite), those members' ``y`` meaningless."""
+    k, B = S.shape[0], S.shape[2]
+    tr = np.zeros(B)
+    for j in range(k):
+        for b in range(B):
+            tr[b] += S[j, j, b]
+    cholesky_columns(S, ok)
+    Rinv = np.zeros((k, k, B))
+    tr_inv = np.zeros(B)
+    for c in range(k):
+        for i in range(c, k):
+            for b in range(B):
+                Rinv[i, c, b] = 1.0 if i == c else 0.0
+            for p in range(c, i):
+                for b in range(B):
+                    Rinv[i, c, b] -= S[i, p, b] * Rinv[p, c, b]
+            for b in range(B):
+                Rinv[i, c, b] = Rinv[i, c, b] / S[i, i, b]
+                tr_inv[b] += Rinv[i, c, b] * Rinv[i, c, b]
+    for b in range(B):
+        ok[b] &= tr[b] * tr_inv[b] * rcond < 1.0
+    for i in range(k):
+        for b in range(B):
+            y[i, b] = r[i, b]
+    cholesky_solve_columns(S, y)
+
+
+@njit
+def schur_columns(M, X, P, g, rcond, a, lam, ok):  # pragma: no cover - compiled
+    """:func:`schur_member` for every member of a batch in columns, member index innermost.
+
+    Parameters
+    ----------
+    M : ndarray, shape (n, n, B)
+        Destroyed (its Cholesky factor).
+    X : ndarray, shape (k + 1, n, B)
+        ``X[0]`` holds ``f``; written: ``M^-1 f`` and ``M^-1 Psi^T``.
+    P, g : ndarray, shape (k, n, B), (k, B)
+        ``Psi`` and ``gamma``.
+    a, lam : ndarray, shape (n, B), (k, B)
+        Written.
+    ok : ndarray of bool, shape (B,)
+        Cleared where the member must be recomputed by the general path (see above).
+    """
+    k, n, B = P.shape
+    for c in range(k):
+        for i in range(n):
+            for b in range(B):
+                X[1 + c, i, b] = P[c, i, b]
+    cholesky_columns(M, ok)
+    for c in range(k + 1):
+        cholesky_solve_columns(M, X[c])
+    S, r = np.empty((k, k, B)), np.empty((k, B))
+    for i in range(k):
+        for b in range(B):
+            r[i, b] = g[i, b]
+        for p in range(n):
+            for b in range(B):
+                r[i, b] -= P[i, p, b] * X[0, p, b]
+        for j in range(k):
+            for b in range(B):
+                S[i, j, b] = 0.0
+            for p in range(n):
+                for b in range(B):
+                    S[i, j, b] += P[i, p, b] * X[1 + j, p, b]
+    well_conditioned_solve_columns(S, r, rcond, lam, ok)
+    for i in range(n):
+        for b in range(B):
+            a[i, b] = X[0, i, b]
+        for j in range(k):
+            for b in range(B):
+                a[i, b] += X[1 + j, i, b] * lam[j, b]
+    for b in range(B):
+        fine = True
+        for i in range(n):
+            fine &= np.isfinite(a[i, b])
+        ok[b] &= fine
+
+
+@njit(cache=False, inline="always")  # takes kernels as arguments: cached inside the generated modules that call it
+def project_simd(residual_cols, jacobian_cols, mass_jacobian_cols, nh, k, q, v, theta, tol, general):  # pragma: no cover
+    """:func:`project_columns` for every member with the member index innermost: Gauss-Newton on the ``nh``
+    holonomic rows of the ``k`` rows of ``Psi`` (at most 20 steps, a member stops when ``max |phi| <= tol``), then ``v`` onto ``Psi v = 0`` in
+    the kinetic-energy metric, in place. ``residual_cols(q, theta, phi)``, ``jacobian_cols(q, theta, P)`` and
+    ``mass_jacobian_cols(q, theta, M, P)`` are the model's batch kernels; ``general[b]`` is set for members the
+    caller must project by the general member path (from their input state)."""
+    n, B = q.shape
+    P = np.empty((k, n, B))
+    phi, G, rhs, y = np.empty((nh, B)), np.empty((nh, nh, B)), np.empty((nh, B)), np.empty((nh, B))
+    active, ok = np.empty(B, np.bool_), np.empty(B, np.bool_)
+    for _ in range(20):
+        residual_cols(q, theta, phi)
+        n_active = 0
+        for b in range(B):
+            act = False
+            for i in range(nh):
+                act |= abs(phi[i, b]) > tol
+            active[b] = act & (not general[b])
+            n_active += active[b]
+        if n_active == 0:
+            break
+        jacobian_cols(q, theta, P)
+        for i in range(nh):  # G = P_h P_h^T
+            for j in range(nh):
+                for b in range(B):
+                    G[i, j, b] = 0.0
+                for c in range(n):
+                    for b in range(B):
+                        G[i, j, b] += P[i, c, b] * P[j, c, b]
+        for b in range(B):
+            ok[b] = True
+        well_conditioned_solve_columns(G, phi, RCOND, y, ok)
+        for b in range(B):
+            general[b] |= active[b] & (not ok[b])
+            active[b] &= ok[b]
+        for c in range(n):
+            for i in range(nh):
+                for b in range(B):
+                    if active[b]:
+                        q[c, b] -= P[i, c, b] * y[i, b]
+    M, X, g = np.empty((n, n, B)), np.empty((k + 1, n, B)), np.empty((k, B))
+    mass_jacobian_cols(q, theta, M, P)
+    for i in range(n):
+        for b in range(B):
+            X[0, i, b] = 0.0
+    for i in range(k):
+        for b in range(B):
+            g[i, b] = 0.0
+        for c in range(n):
+            for b in range(B):
+                g[i, b] -= P[i, c, b] * v[c, b]
+    dv, lam = np.empty((n, B)), np.empty((k, B))
+    for b in range(B):
+        ok[b] = True
+    schur_columns(M, X, P, g, RCOND, dv, lam, ok)
+    for b in range(B):
+        general[b] |= not ok[b]
+    for c in range(n):
+        for b in range(B):
+            if not general[b]:
+                v[c, b] += dv[c, b]
+

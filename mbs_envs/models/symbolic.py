@@ -318,7 +318,7 @@ def generate_source(d: Derivation) -> str:
     from sympy.printing.numpy import NumPyPrinter
 
     n = len(d.q)
-    psyms = [sp.Symbol(k, real=True) for k, _ in d.params]
+    psyms = [sp.Symbol(f"_p{k}", real=True) for k in range(len(d.params))]  # the code's names: no clash with its locals (b, A, S, C, ...)
     by_name = {k: s for (k, _), s in zip(d.params, psyms)}
 
     def plain(e):  # the parameters as the real symbols the code reads, whatever assumptions the user's carried
@@ -343,7 +343,7 @@ def generate_source(d: Derivation) -> str:
     out += [f"    E[0] = {code(reduced[m + 2 * n])}", f"    E[1] = {code(reduced[m + 2 * n + 1])}"]
     damp = [(i, [k for k, (name, _) in enumerate(d.params) if name == pname][0]) for i, pname in enumerate(d.damping) if pname]
     if d.nc:
-        columns = _constrained_body(d, plain, head, damp, code)
+        columns = _constrained_body(d, plain, head, damp, code, exprs[: m + 2 * n], psyms, upper)
         after, info = "_this.project_kernel", "_this.constraint_info_kernel"
     else:
         columns = _columns_body(d, exprs[: m + 2 * n], psyms, upper, damp, code)
@@ -357,6 +357,7 @@ def generate_source(d: Derivation) -> str:
         "from mbs_envs.dynamics import constraints as _constraints",
         "from mbs_envs.dynamics.compiled import rk_run",
         "from mbs_envs.dynamics.trig import sincos_columns",
+        "from numba import objmode",
         "from mbs_envs.envs.engine import engine_step",
         "from mbs_envs.envs import tracking as _tracking",
         "",
@@ -421,12 +422,48 @@ def generate_source(d: Derivation) -> str:
     return "\n".join(lines)
 
 
-def _constrained_body(d: Derivation, plain, head: list, damp: list, code) -> list[str]:
+def _simd_lines(d: Derivation, exprs: list, targets: list[str], code, uses_v: bool, prefix: str) -> list[str]:
+    """Lines (indented for a function body) computing ``targets[k] = exprs[k]`` for every member ``b`` of a batch in
+    columns, the member loop innermost so that it runs SIMD: the sines and cosines of each distinct argument in one
+    :func:`~mbs_envs.dynamics.trig.sincos_columns` pass, then the straight-line terms after common-subexpression
+    elimination (symbols ``<prefix>0, ...``). The caller binds the parameters and ``B``."""
+    import sympy as sp
+
+    args = sorted({f.args[0] for e in exprs for f in e.atoms(sp.sin, sp.cos)}, key=sp.default_sort_key)
+    sc = [(sp.Symbol(f"{prefix}s{k}", real=True), sp.Symbol(f"{prefix}c{k}", real=True)) for k in range(len(args))]
+    trig = {}
+    for a_, (s_, c_) in zip(args, sc):
+        trig[sp.sin(a_)], trig[sp.cos(a_)] = s_, c_
+    reps, reduced = sp.cse([e.xreplace(trig) for e in exprs], symbols=sp.numbered_symbols(prefix), optimizations="basic")
+    K = max(len(args), 1)
+    state = [f"        {x} = q[{i}, b]" for i, x in enumerate(d.q)] + ([f"        {x} = v[{i}, b]" for i, x in enumerate(d.v)] if uses_v else [])
+    return [
+        f"    A = np.empty(({K}, B))",
+        f"    S = np.empty(({K}, B))",
+        f"    C = np.empty(({K}, B))",
+        "    for b in range(B):",
+        *state,
+        *[f"        A[{k}, b] = {code(a_)}" for k, a_ in enumerate(args)],
+        "        pass",
+        *[f"    sincos_columns(A[{k}], S[{k}], C[{k}])" for k in range(len(args))],
+        "    for b in range(B):",
+        *state,
+        *[f"        {s_} = S[{k}, b]\n        {c_} = C[{k}, b]" for k, (s_, c_) in enumerate(sc)],
+        *[f"        {x} = {code(e)}" for x, e in reps],
+        *[f"        {t} = {code(e)}" for t, e in zip(targets, reduced)],
+    ]
+
+
+def _constrained_body(d: Derivation, plain, head: list, damp: list, code, dyn: list, psyms: list, upper: list) -> list[str]:
     """The constraint code of a constrained model: ``constraint_terms`` (``phi``, ``Psi``, ``Psi_dot v`` of one
     member after common-subexpression elimination), ``constraint_rows`` (the numpy path's), and the member kernels
-    (``q, v, tau`` (n, 1), ``p`` (P, 1)) that :mod:`mbs_envs.dynamics.constraints`' general column loops take:
+    (``q, v, tau`` (n, 1), ``p`` (P, 1)) that :mod:`mbs_envs.dynamics.constraints`' general column loops take; then the
+    batch kernels, SIMD over the members (the terms as straight-line code over the batch, the solves of
+    :func:`~mbs_envs.dynamics.constraints.schur_columns` and :func:`~mbs_envs.dynamics.constraints.project_simd`):
     ``acceleration_kernel`` (Schur complement), ``project_kernel`` (Gauss-Newton on ``phi``, then ``v`` onto
-    ``Psi v = 0`` in the kinetic-energy metric) and ``constraint_info_kernel`` (``max |phi|``, multipliers)."""
+    ``Psi v = 0`` in the kinetic-energy metric) and ``constraint_info_kernel`` (``max |phi|``, multipliers). A member
+    those cannot decide (see there) is recomputed by the general member path (compiled on first use, from object
+    mode), so both paths give the same results."""
     import sympy as sp
 
     n, nc, nh = len(d.q), d.nc, d.nh
@@ -435,6 +472,14 @@ def _constrained_body(d: Derivation, plain, head: list, damp: list, code) -> lis
     out = [f"    phi[{k}] = {code(reduced[k])}" for k in range(nh)]
     out += [f"    Psi[{k}, {j}] = {code(reduced[nh + k * n + j])}" for k in range(nc) for j in range(n)]
     out += [f"    Pdv[{k}] = {code(reduced[nh + nc * n + k])}" for k in range(nc)]
+    import sympy as _sp
+
+    params = [f"    {x} = theta[{k}, 0]" for k, x in enumerate(psyms)]
+    m = len(upper)
+    tau_f = [_sp.Symbol(f"tau[{i}, b]") - dyn[m + i] - dyn[m + n + i] for i in range(n)]
+    phis = exprs[:nh]
+    rows_P = exprs[nh : nh + nc * n]
+    pdv = exprs[nh + nc * n :]
     return [
         f"NC = {nc}",
         f"NH = {nh}",
@@ -502,19 +547,118 @@ def _constrained_body(d: Derivation, plain, head: list, damp: list, code) -> lis
         "",
         "",
         "@njit(cache=True)",
-        "def acceleration_kernel(q, v, tau, theta, a):",
-        '    """Forward dynamics with the constraints enforced (Schur complement), a batch in columns (n, B)."""',
+        "def general_acceleration(q, v, tau, theta, a):",
         "    _constraints.constrained_acceleration_columns(_this.terms_member, NC, q, v, tau, theta, a)",
         "",
         "",
         "@njit(cache=True)",
-        "def project_kernel(q, v, theta, tol):",
+        "def general_projection(q, v, theta, tol):",
         "    _constraints.project_columns(_this.residual_member, _this.jacobian_member, _this.mass_member, ROWS, NC, q, v, theta, tol)",
         "",
         "",
         "@njit(cache=True)",
-        "def constraint_info_kernel(q, v, tau, theta, res, lam):",
+        "def general_constraint_info(q, v, tau, theta, res, lam):",
         "    _constraints.constraint_info_columns(_this.terms_member, _this.residual_member, q, v, tau, theta, res, lam)",
+        "",
+        "",
+        "@njit(cache=True)",
+        "def dynamics_columns(q, v, tau, theta, M, X, P, g):",
+        '    """M (n, n, B), f = tau - (C v + G + F) into X[0] (n, B), Psi (nc, n, B), gamma = -Psi_dot v (nc, B)."""',
+        "    B = q.shape[1]",
+        *params,
+        *_simd_lines(d, dyn[: len(upper)] + [tau_f[i] for i in range(n)] + rows_P + [-e for e in pdv],
+                     [f"M[{i}, {j}, b]" for i, j in upper] + [f"X[0, {i}, b]" for i in range(n)]
+                     + [f"P[{k}, {j}, b]" for k in range(nc) for j in range(n)] + [f"g[{k}, b]" for k in range(nc)], code, True, "y"),
+        *[f"        M[{j}, {i}, b] = M[{i}, {j}, b]" for i, j in upper if i != j],
+        *[f"        X[0, {i}, b] -= {psyms[j]} * v[{i}, b]" for i, j in damp],
+        "",
+        "",
+        "@njit(cache=True)",
+        "def residual_columns(q, theta, phi):",
+        "    B = q.shape[1]",
+        *params,
+        *_simd_lines(d, phis, [f"phi[{k}, b]" for k in range(nh)], code, False, "y"),
+        "",
+        "",
+        "@njit(cache=True)",
+        "def jacobian_columns(q, theta, P):",
+        "    B = q.shape[1]",
+        *params,
+        *_simd_lines(d, rows_P, [f"P[{k}, {j}, b]" for k in range(nc) for j in range(n)], code, False, "y"),
+        "",
+        "",
+        "@njit(cache=True)",
+        "def mass_jacobian_columns(q, theta, M, P):",
+        "    B = q.shape[1]",
+        *params,
+        *_simd_lines(d, dyn[: len(upper)] + rows_P, [f"M[{i}, {j}, b]" for i, j in upper]
+                     + [f"P[{k}, {j}, b]" for k in range(nc) for j in range(n)], code, False, "y"),
+        *[f"        M[{j}, {i}, b] = M[{i}, {j}, b]" for i, j in upper if i != j],
+        "",
+        "",
+        "@njit(cache=True)",
+        "def acceleration_kernel(q, v, tau, theta, a):",
+        '    """Forward dynamics with the constraints enforced (Schur complement), a batch in columns (n, B), SIMD."""',
+        "    B = q.shape[1]",
+        "    M, X, P, g = np.empty((N, N, B)), np.empty((NC + 1, N, B)), np.empty((NC, N, B)), np.empty((NC, B))",
+        "    dynamics_columns(q, v, tau, theta, M, X, P, g)",
+        "    lam, ok = np.empty((NC, B)), np.ones(B, np.bool_)",
+        "    _constraints.schur_columns(M, X, P, g, _constraints.RCOND, a, lam, ok)",
+        "    for b in range(B):",
+        "        if not ok[b]:  # the general member path",
+        "            qb, vb, tb, pb = _constraints.column(q, b), _constraints.column(v, b), _constraints.column(tau, b), _constraints.column(theta, 0)",
+        "            ab = np.empty((N, 1))",
+        "            with objmode():",
+        "                _this.general_acceleration(qb, vb, tb, pb, ab)",
+        "            for i in range(N):",
+        "                a[i, b] = ab[i, 0]",
+        "",
+        "",
+        "@njit(cache=True)",
+        "def project_kernel(q, v, theta, tol):",
+        '    """Projection onto the constraints of a batch in columns, in place, SIMD (the general path for the rest)."""',
+        "    B = q.shape[1]",
+        "    q_in, v_in = q.copy(), v.copy()",
+        "    general = np.zeros(B, np.bool_)",
+        "    _constraints.project_simd(_this.residual_columns, _this.jacobian_columns, _this.mass_jacobian_columns, NH, NC, q, v, theta, tol, general)",
+        "    for b in range(B):",
+        "        if general[b]:  # from the member's state as it came in",
+        "            qb, vb, pb = _constraints.column(q_in, b), _constraints.column(v_in, b), _constraints.column(theta, 0)",
+        "            with objmode():",
+        "                _this.general_projection(qb, vb, pb, tol)",
+        "            for i in range(N):",
+        "                q[i, b], v[i, b] = qb[i, 0], vb[i, 0]",
+        "",
+        "",
+        "@njit(cache=True)",
+        "def constraint_info_kernel(q, v, tau, theta, res, lam):",
+        '    """max |phi| (B,) and the multipliers (B, nc) of a batch in columns."""',
+        "    B = q.shape[1]",
+        "    phi = np.empty((NH, B))",
+        "    residual_columns(q, theta, phi)",
+        "    for b in range(B):",
+        "        worst = 0.0",
+        "        for i in range(NH):",
+        "            x = abs(phi[i, b])",
+        "            if x > worst or x != x:  # NaN stays",
+        "                worst = x",
+        "        res[b] = worst",
+        "    M, X, P, g = np.empty((N, N, B)), np.empty((NC + 1, N, B)), np.empty((NC, N, B)), np.empty((NC, B))",
+        "    dynamics_columns(q, v, tau, theta, M, X, P, g)",
+        "    a, lc, ok = np.empty((N, B)), np.empty((NC, B)), np.ones(B, np.bool_)",
+        "    _constraints.schur_columns(M, X, P, g, _constraints.RCOND, a, lc, ok)",
+        "    for b in range(B):",
+        "        if ok[b]:",
+        "            for i in range(NC):",
+        "                lam[b, i] = lc[i, b]",
+        "        else:",
+        "            rb, lb = np.empty(1), np.empty((1, NC))",
+        "            qb, vb, tb, pb = _constraints.column(q, b), _constraints.column(v, b), _constraints.column(tau, b), _constraints.column(theta, 0)",
+        "            with objmode():",
+        "                _this.general_constraint_info(qb, vb, tb, pb, rb, lb)",
+        "            res[b] = rb[0]",
+        "            for i in range(NC):",
+        "                lam[b, i] = lb[0, i]",
     ]
 
 
@@ -672,7 +816,6 @@ class ConstrainedDerivedModel(DerivedModel, ConstrainedModel):
     onto after every step), then the non-holonomic ones; :class:`~mbs_envs.models.constrained.ConstrainedModel`'s
     Schur-complement dynamics, multipliers, projection and consistent states, on the generated code."""
 
-    shared_theta = False  # the general column loops of mbs_envs.dynamics.constraints read one column per member
 
     def _constraint_terms(self, q: np.ndarray, v: np.ndarray | None = None):
         n = self.nq
