@@ -332,3 +332,22 @@ def test_the_derived_four_bar_as_an_env_gives_fourbar_v0s_episodes(fourbars):
         o2, r2, *_ = v2.step(np.repeat(a[None], 3, axis=0))
     np.testing.assert_allclose(o1, o2, rtol=0, atol=1e-5)
     np.testing.assert_allclose(r1, r2, rtol=1e-10, atol=1e-12)
+
+
+def test_parameters_named_like_the_generated_codes_locals_are_their_own():
+    """A pendulum on a cart whose parameters are called ``b``, ``A``, ``S``, ``C``, ``g`` and ``B`` (the generated
+    kernels' loop variable and work arrays, before they named parameters ``_p<k>``): the compiled step equals the
+    numpy one and the closed form ``M``."""
+    x, th = dynamicsymbols("x th")
+    b, A, S, C, g, B = sp.symbols("b A S C g B")
+    bob = sp.Matrix([x + S * sp.sin(th), -S * sp.cos(th)])
+    T = (A * x.diff(t) ** 2 + C * bob.diff(t).dot(bob.diff(t))) / 2
+    params = {"b": 0.3, "A": 1.5, "S": 0.7, "C": 0.4, "g": 9.81, "B": 0.2}
+    d = symbolic.derive_equations("Clash", (x, th), T, g * C * bob[1], params, damping={x: "b", th: "B"})
+    model = symbolic.model_class(d)()
+    q = np.array([[0.1, 0.5], [-0.3, 2.0]])
+    np.testing.assert_allclose(model.mass_matrix(q)[0], [[1.9, 0.4 * 0.7 * np.cos(0.5)], [0.4 * 0.7 * np.cos(0.5), 0.4 * 0.49]], rtol=1e-14)
+    v, u = np.array([[1.0, -2.0], [0.5, 0.3]]), np.array([[1.0, 0.2], [-0.5, 0.0]])
+    fast = advance(model, get("rk4"), 0.0, q, v, 0.05, 5, u=u, compiled=True)
+    slow = advance(model, get("rk4"), 0.0, q, v, 0.05, 5, u=u, compiled=False)
+    assert rel(fast[0], slow[0]) < 1e-12 and rel(fast[1], slow[1]) < 1e-12
