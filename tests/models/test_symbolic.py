@@ -249,7 +249,7 @@ def test_the_derived_constrained_mechanisms_are_the_hand_written_ones(which, fou
     assert rel(lam[..., rows], hand.multipliers(qc, vc, u[:5])) < 1e-12
 
 
-@pytest.mark.parametrize("which", ["fourbar", "disk"])
+@pytest.mark.parametrize("which", ["fourbar", pytest.param("disk", marks=pytest.mark.slow)])  # the disk's compile: slow set
 def test_derived_constrained_episodes_are_the_hand_written_ones_and_hold_the_constraints(which, fourbars, disks):
     """Simulations (RK4 with projection, compiled and numpy) equal the hand-written model's to 1e-10; over 1e4
     steps the projection keeps |phi| and |Psi v| below 1e-10."""
@@ -295,6 +295,7 @@ def test_constrained_lagrangians_that_are_malformed_are_refused_by_name():
         symbolic.derive_equations("Bad", (x, y), sp.Symbol("m") * (x.diff(t) + y.diff(t)) ** 2 / 2, 0, {"m": 1.0})
 
 
+@pytest.mark.slow  # compiles the derived four-bar's env step (the default run has the 2R arm's env episodes)
 def test_the_derived_four_bar_as_an_env_gives_fourbar_v0s_episodes(fourbars):
     """The re-derived four-bar registered with FourBar-v0's torque limit and reference ranges (the crank on a rippled
     spin, starts assembled from the open branch): the same observations, rewards and multipliers as
