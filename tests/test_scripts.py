@@ -521,6 +521,7 @@ def test_robustness_script_sweeps_a_scene_and_writes_its_report(tmp_path):
     assert "| swing-up + LQR | model-based |" in (tmp_path / "report.md").read_text()
 
 
+@pytest.mark.slow  # the default run keeps the protocol's scoring (test_dfki_script_scores_the_protocol_and_writes_its_report)
 def test_dfki_script_runs_agents_trained_on_the_protocol_alone_and_with_the_lqr(tmp_path):
     """An agent under <agents>/AcrobotDFKI-v1/ppo/seed0 (a tiny one, trained on the preset) is found, run alone and as
     agent + LQR, and scored like the controllers."""

@@ -32,6 +32,7 @@ from mbs_envs.models.planar2r import Planar2R
 from mbs_envs.models.rolling_disk import RollingDisk
 from mbs_envs.models.serial_chain import SerialChain
 from mbs_envs.dynamics.simulate import simulate
+from tests.budget import examples
 
 CASES: collections.Counter = collections.Counter()
 
@@ -72,7 +73,7 @@ def _usable(env: gym.Env) -> None:
     assert np.all(np.isfinite(obs)) and np.isfinite(reward)
 
 
-@settings(max_examples=150, deadline=None, suppress_health_check=list(HealthCheck))
+@settings(max_examples=examples(150), deadline=None, suppress_health_check=list(HealthCheck))
 @given(pair=st.sampled_from(PAIRS), value=WILD)
 def test_constructor_keywords_give_a_working_env_or_a_value_error(pair, value):
     env_id, key = pair
@@ -97,7 +98,7 @@ def test_every_scene_takes_a_subnormal_or_tiny_dt(dt):
 SETTABLE = {"dt": WILD, "substeps": WILD, "start_noise": WILD, "reward_weights": WILD, "divergence_limit": WILD, "u_max": WILD}
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=list(HealthCheck))
+@settings(max_examples=examples(60), deadline=None, suppress_health_check=list(HealthCheck))
 @given(key=st.sampled_from(sorted(SETTABLE)), value=WILD)
 def test_set_attr_on_the_sb3_adapter_validates_like_the_constructor(key, value):
     from mbs_envs.envs.sb3 import make_sb3_vec_env
@@ -121,7 +122,7 @@ MODELS = {Planar2R: ["m1", "l1", "r1", "I1", "g", "b1", "f1", "v_s"], FourBar: [
 PARAM_VALUES = st.one_of(WILD, st.sampled_from([0.0, -1.0, 1e-6, 1e6, 1e12, 1e13, 1e200, -1e200, 5e-324]))
 
 
-@settings(max_examples=150, deadline=None, suppress_health_check=list(HealthCheck))
+@settings(max_examples=examples(150), deadline=None, suppress_health_check=list(HealthCheck))
 @given(model=st.sampled_from(sorted(MODELS, key=lambda c: c.__name__)), data=st.data())
 def test_model_parameters_are_validated_by_name(model, data):
     CASES["model parameters"] += 1
@@ -153,7 +154,7 @@ def test_reset_from_wild_states_refuses_or_starts_inside_the_space(env_id):
     env.reset(seed=1)
     base = env.unwrapped
 
-    @settings(max_examples=60, deadline=None, suppress_health_check=list(HealthCheck))
+    @settings(max_examples=examples(60), deadline=None, suppress_health_check=list(HealthCheck))
     @given(state=_near_singular_states(env_id))
     def run(state):
         CASES["reset start states"] += 1

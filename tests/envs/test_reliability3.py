@@ -39,6 +39,7 @@ from mbs_envs.envs.sb3 import make_sb3_vec_env
 from mbs_envs.models.planar2r import Planar2R
 from mbs_envs.models.serial_chain import SerialChain
 from mbs_envs.studies.evaluation import make_controller
+from tests.budget import examples
 
 CASES: collections.Counter = collections.Counter()
 IDS = list(mbs_envs.ENV_IDS)
@@ -111,7 +112,7 @@ def test_1_the_model_cannot_be_swapped_by_any_route(env_id):
 # -- 2. copies of vector envs --------------------------------------------------------------------
 
 
-@settings(FAST, max_examples=40)
+@settings(FAST, max_examples=examples(40))
 @given(env_id=st.sampled_from(IDS), compiled=st.booleans(), steps=st.integers(0, 12), how=st.sampled_from(["deepcopy", "pickle"]),
        seed=st.integers(0, 2**31))  # fmt: skip
 def test_2_copies_of_a_vector_env_mid_episode_step_as_the_original(env_id, compiled, steps, how, seed):
@@ -183,7 +184,7 @@ BAD_SEEDS = st.one_of(
 )
 
 
-@settings(FAST, max_examples=80)
+@settings(FAST, max_examples=examples(80))
 @given(env_id=st.sampled_from(IDS), bad=BAD_SEEDS)
 def test_4_a_bad_seed_is_a_value_error_naming_seed_everywhere(env_id, bad):
     CASES["4 bad seeds"] += 1
@@ -251,7 +252,7 @@ def test_5_the_ignored_action_of_a_member_being_reset_may_be_nan(env_id):
 CONTROLLERS = [(sc.id, dict(sc.kwargs), name, spec) for sc in SCENES for name, spec in sc.controllers.items()]
 
 
-@settings(FAST, max_examples=120)
+@settings(FAST, max_examples=examples(120))
 @given(case=st.sampled_from(CONTROLLERS), data=st.data())
 def test_6_finite_observations_give_finite_actions_and_nan_is_refused(case, data):
     env_id, kw, _, spec = case
@@ -416,7 +417,7 @@ def test_9_an_unwrapped_env_stepped_or_rendered_before_reset_says_so(env_id):
 # -- 10. the work budget -------------------------------------------------------------------------
 
 
-@settings(FAST, max_examples=40)
+@settings(FAST, max_examples=examples(40))
 @given(env_id=st.sampled_from(IDS), integrator=st.sampled_from(["rk4", "sdirk3", "implicit_euler", "midpoint"]),
        substeps=st.sampled_from([1, 10, 1000, 10**4, 10**5]))  # fmt: skip
 def test_10_a_step_beyond_the_work_budget_is_refused_at_make(env_id, integrator, substeps):
