@@ -555,8 +555,9 @@ class Stabilization:
 
 @njit
 def cholesky_columns(A, ok):  # pragma: no cover - compiled
-    """``A = L L^T`` in place (the lower triangle of ``A`` (n, n, B) becomes ``L``) for every member;
-    ``ok[b]`` cleared where ``A`` is not positive definite (or not finite)."""
+    """``A = L L^T`` in place for every member: the strict lower triangle of ``A`` (n, n, B) becomes ``L``'s, the
+    diagonal ``1 / L_jj`` (the solves multiply: a division per entry costs several multiplications' time in
+    the SIMD loops); ``ok[b]`` cleared where ``A`` is not positive definite (or not finite)."""
     n, B = A.shape[0], A.shape[2]
     for j in range(n):
         for p in range(j):
@@ -564,31 +565,32 @@ def cholesky_columns(A, ok):  # pragma: no cover - compiled
                 A[j, j, b] -= A[j, p, b] * A[j, p, b]
         for b in range(B):
             ok[b] &= A[j, j, b] > 0.0
-            A[j, j, b] = np.sqrt(abs(A[j, j, b]))
+            A[j, j, b] = 1.0 / np.sqrt(abs(A[j, j, b]))
         for i in range(j + 1, n):
             for p in range(j):
                 for b in range(B):
                     A[i, j, b] -= A[i, p, b] * A[j, p, b]
             for b in range(B):
-                A[i, j, b] = A[i, j, b] / A[j, j, b]
+                A[i, j, b] = A[i, j, b] * A[j, j, b]
 
 
 @njit
 def cholesky_solve_columns(L, x):  # pragma: no cover - compiled
-    """``x <- (L L^T)^-1 x`` in place for every member: ``L`` (n, n, B) from :func:`cholesky_columns`, ``x`` (n, B)."""
+    """``x <- (L L^T)^-1 x`` in place for every member: ``L`` (n, n, B) from :func:`cholesky_columns` (its
+    diagonal ``1 / L_jj``), ``x`` (n, B)."""
     n, B = L.shape[0], L.shape[2]
     for i in range(n):
         for p in range(i):
             for b in range(B):
                 x[i, b] -= L[i, p, b] * x[p, b]
         for b in range(B):
-            x[i, b] = x[i, b] / L[i, i, b]
+            x[i, b] = x[i, b] * L[i, i, b]
     for i in range(n - 1, -1, -1):
         for p in range(i + 1, n):
             for b in range(B):
                 x[i, b] -= L[p, i, b] * x[p, b]
         for b in range(B):
-            x[i, b] = x[i, b] / L[i, i, b]
+            x[i, b] = x[i, b] * L[i, i, b]
 
 
 @njit
@@ -612,7 +614,7 @@ def well_conditioned_solve_columns(S, r, rcond, y, ok):  # pragma: no cover - co
                 for b in range(B):
                     Rinv[i, c, b] -= S[i, p, b] * Rinv[p, c, b]
             for b in range(B):
-                Rinv[i, c, b] = Rinv[i, c, b] / S[i, i, b]
+                Rinv[i, c, b] = Rinv[i, c, b] * S[i, i, b]  # S's diagonal holds 1 / R_ii
                 tr_inv[b] += Rinv[i, c, b] * Rinv[i, c, b]
     for b in range(B):
         ok[b] &= tr[b] * tr_inv[b] * rcond < 1.0
