@@ -5,7 +5,8 @@ first at angle ``th1`` from upright (driven at the pivot), the second at ``th2``
 the elbow); gravity along -y. ``q = (x, th1, th2)``, every coordinate driven. The task tracks a random smooth
 reference about the upright posture, where gravity pulls every link away: computed torque's model of the whole
 chain against PD's springs.
-Everything below the imports is the user code (as docs/tutorial_lagrangian.md writes it): 28 lines.
+The user code (as docs/tutorial_lagrangian.md writes it) is everything above the registry hooks: 27 lines with
+its imports, blank lines not counted.
 """
 
 import sympy as sp
