@@ -25,6 +25,7 @@ from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, initialize, invariant, precondition, rule
 
 import mbs_envs
+from tests.budget import examples
 
 KWARGS = {"mbs_envs/SerialChain-v0": {"n_links": 4}}
 
@@ -107,7 +108,7 @@ def machine_for(env_id: str):
             np.testing.assert_array_equal(obs, self.obs)
 
     EnvMachine.TestCase.settings = settings(
-        max_examples=8, stateful_step_count=12, deadline=None, suppress_health_check=[HealthCheck.too_slow]
+        max_examples=examples(8), stateful_step_count=12, deadline=None, suppress_health_check=[HealthCheck.too_slow]
     )
     return EnvMachine
 
@@ -202,7 +203,7 @@ def vector_machine_for(env_id: str):
             assert np.all(np.isfinite(self.obs))
 
     VectorMachine.TestCase.settings = settings(
-        max_examples=6, stateful_step_count=12, deadline=None, suppress_health_check=[HealthCheck.too_slow]
+        max_examples=examples(6), stateful_step_count=12, deadline=None, suppress_health_check=[HealthCheck.too_slow]
     )
     return VectorMachine
 
