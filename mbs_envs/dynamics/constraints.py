@@ -676,19 +676,20 @@ def schur_columns(M, X, P, g, rcond, a, lam, ok):  # pragma: no cover - compiled
         ok[b] &= fine
 
 
-@njit(cache=False, inline="always")  # takes kernels as arguments: cached inside the generated modules that call it
-def project_simd(residual_cols, jacobian_cols, mass_jacobian_cols, nh, k, q, v, theta, tol, general):  # pragma: no cover
+@njit(cache=False, inline="always")  # takes a kernel as argument: cached inside the generated modules that call it
+def project_simd(terms_cols, nh, k, q, v, theta, tol, general):  # pragma: no cover - compiled
     """:func:`project_columns` for every member with the member index innermost: Gauss-Newton on the ``nh``
-    holonomic rows of the ``k`` rows of ``Psi`` (at most 20 steps, a member stops when ``max |phi| <= tol``), then ``v`` onto ``Psi v = 0`` in
-    the kinetic-energy metric, in place. ``residual_cols(q, theta, phi)``, ``jacobian_cols(q, theta, P)`` and
-    ``mass_jacobian_cols(q, theta, M, P)`` are the model's batch kernels; ``general[b]`` is set for members the
-    caller must project by the general member path (from their input state)."""
+    holonomic rows of the ``k`` rows of ``Psi`` (at most 20 steps, a member stops when ``max |phi| <= tol``), then
+    ``v`` onto ``Psi v = 0`` in the kinetic-energy metric, in place. ``terms_cols(q, theta, phi, P, M)`` is the
+    model's batch kernel of ``phi``, ``Psi`` and ``M`` at once (one pass of sines and cosines per iteration, the
+    last one's ``Psi`` and ``M`` serving the velocity projection); ``general[b]`` is set for members the caller must
+    project by the general member path (from their input state)."""
     n, B = q.shape
-    P = np.empty((k, n, B))
-    phi, G, rhs, y = np.empty((nh, B)), np.empty((nh, nh, B)), np.empty((nh, B)), np.empty((nh, B))
+    P, M = np.empty((k, n, B)), np.empty((n, n, B))
+    phi, G, y = np.empty((nh, B)), np.empty((nh, nh, B)), np.empty((nh, B))
     active, ok = np.empty(B, np.bool_), np.empty(B, np.bool_)
-    for _ in range(20):
-        residual_cols(q, theta, phi)
+    for it in range(21):
+        terms_cols(q, theta, phi, P, M)
         n_active = 0
         for b in range(B):
             act = False
@@ -696,9 +697,8 @@ def project_simd(residual_cols, jacobian_cols, mass_jacobian_cols, nh, k, q, v, 
                 act |= abs(phi[i, b]) > tol
             active[b] = act & (not general[b])
             n_active += active[b]
-        if n_active == 0:
+        if n_active == 0 or it == 20:
             break
-        jacobian_cols(q, theta, P)
         for i in range(nh):  # G = P_h P_h^T
             for j in range(nh):
                 for b in range(B):
@@ -717,8 +717,7 @@ def project_simd(residual_cols, jacobian_cols, mass_jacobian_cols, nh, k, q, v, 
                 for b in range(B):
                     if active[b]:
                         q[c, b] -= P[i, c, b] * y[i, b]
-    M, X, g = np.empty((n, n, B)), np.empty((k + 1, n, B)), np.empty((k, B))
-    mass_jacobian_cols(q, theta, M, P)
+    X, g = np.empty((k + 1, n, B)), np.empty((k, B))
     for i in range(n):
         for b in range(B):
             X[0, i, b] = 0.0
