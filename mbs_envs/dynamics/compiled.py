@@ -209,6 +209,51 @@ def no_constraint_info(q, v, tau, theta, residual, lam):  # pragma: no cover - c
         residual[b] = 0.0
 
 
+# Dense Cholesky over a batch in columns, member index innermost (SIMD): the generated kernels of derived
+# models (mbs_envs.models.symbolic) and the column solves of mbs_envs.dynamics.constraints.
+
+
+@njit
+def cholesky_columns(A, ok):  # pragma: no cover - compiled
+    """``A = L L^T`` in place for every member: the strict lower triangle of ``A`` (n, n, B) becomes ``L``'s, the
+    diagonal ``1 / L_jj`` (the solves multiply: a division costs several multiplications' time in the SIMD
+    loops); ``ok[b]`` cleared where ``A`` is not positive definite (or not finite)."""
+    n, B = A.shape[0], A.shape[2]
+    for j in range(n):
+        for p in range(j):
+            for b in range(B):
+                A[j, j, b] -= A[j, p, b] * A[j, p, b]
+        for b in range(B):
+            ok[b] &= A[j, j, b] > 0.0
+            A[j, j, b] = 1.0 / np.sqrt(abs(A[j, j, b]))
+        for i in range(j + 1, n):
+            for p in range(j):
+                for b in range(B):
+                    A[i, j, b] -= A[i, p, b] * A[j, p, b]
+            for b in range(B):
+                A[i, j, b] = A[i, j, b] * A[j, j, b]
+
+
+@njit
+def cholesky_solve_columns(L, x):  # pragma: no cover - compiled
+    """``x <- (L L^T)^-1 x`` in place for every member: ``L`` (n, n, B) from :func:`cholesky_columns` (its
+    diagonal ``1 / L_jj``), ``x`` (n, B)."""
+    n, B = L.shape[0], L.shape[2]
+    for i in range(n):
+        for p in range(i):
+            for b in range(B):
+                x[i, b] -= L[i, p, b] * x[p, b]
+        for b in range(B):
+            x[i, b] = x[i, b] * L[i, i, b]
+    for i in range(n - 1, -1, -1):
+        for p in range(i + 1, n):
+            for b in range(B):
+                x[i, b] -= L[p, i, b] * x[p, b]
+        for b in range(B):
+            x[i, b] = x[i, b] * L[i, i, b]
+
+
+
 def aligned(x: Any) -> np.ndarray:
     """A new C-contiguous float64 copy of ``x`` whose data starts on an :data:`ALIGN`-byte boundary
     (numpy's allocator aligns to 16 bytes): the arrays the kernels' SIMD loops read once per step

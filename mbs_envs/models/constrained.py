@@ -1,7 +1,8 @@
 """Base of models with constraints ``Psi(q) v = 0`` (holonomic rows from ``phi(q) = 0``).
 
-Only constrained mechanisms (four-bar, rolling disk) derive from this; it is the
-only model module that imports :mod:`mbs_envs.dynamics.constraints`.
+Only constrained mechanisms (four-bar, rolling disk, derived ones with constraints) derive from this.
+Serial models never import :mod:`mbs_envs.dynamics.constraints`; this base, the constrained mechanisms' modules
+and :mod:`mbs_envs.models.symbolic` (whose generated code calls its column solves) do.
 """
 
 from __future__ import annotations
