@@ -12,5 +12,6 @@ from .joint import PD, ComputedTorque, PDGravity
 from .adaptive_swingup import AdaptiveSwingUpLQR
 from .planned_swingup import PlannedSwingUp
 from .swingup import SwingUpLQR
+from .energy_swingup import EnergySwingUpLQR
 
-__all__ = ["Controller", "PD", "PDGravity", "ComputedTorque", "LQR", "SteeringPD", "NoControl", "SwingUpLQR", "AdaptiveSwingUpLQR", "PlannedSwingUp"]
+__all__ = ["Controller", "PD", "PDGravity", "ComputedTorque", "LQR", "SteeringPD", "NoControl", "SwingUpLQR", "AdaptiveSwingUpLQR", "PlannedSwingUp", "EnergySwingUpLQR"]

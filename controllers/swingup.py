@@ -86,6 +86,32 @@ def upright_lqr(model: Any, Q: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, n
     return np.asarray(K), np.asarray(S)
 
 
+def switch(x: np.ndarray, S: np.ndarray, balancing: Any, episode_start: Any, catch: float, release: float) -> np.ndarray:
+    """The switching rule with hysteresis (module docstring): whether the LQR holds each member now.
+
+    Parameters
+    ----------
+    x : ndarray, shape (..., 2 n)
+        The error state ``(e, v)`` about upright.
+    S : ndarray, shape (..., 2 n, 2 n)
+        The Riccati solution (per member if batched).
+    balancing : array_like of bool, shape (...), or None
+        The mode so far (None: nobody balancing yet); reset where ``episode_start``.
+    catch, release : float
+        Take over where ``x^T S x < catch``, hand back where ``x^T S x > release * catch``.
+
+    Returns
+    -------
+    ndarray of bool, shape (...)
+    """
+    cost = np.einsum("...i,...ij,...j->...", x, S, x)
+    lead = cost.shape
+    balancing = np.zeros(lead, bool) if balancing is None else np.array(balancing, bool).reshape(lead)
+    if episode_start is not None:
+        balancing = np.where(np.asarray(episode_start, bool).reshape(lead), False, balancing)
+    return np.where(balancing, cost <= release * catch, cost < catch)
+
+
 class SwingUpLQR(Controller):
     """Energy-based swing-up through partial feedback linearization, then LQR (module docstring).
 
@@ -162,13 +188,7 @@ class SwingUpLQR(Controller):
         K = self.K if K is None else K
         S = self.S if S is None else S
         x = np.concatenate([wrap_angle(q - Q_UP), v], axis=-1)
-        cost = np.einsum("...i,...ij,...j->...", x, S, x)
-        lead = cost.shape
-        balancing = np.zeros(lead, bool) if balancing is None else np.array(balancing, bool).reshape(lead)
-        if episode_start is not None:
-            balancing = np.where(np.asarray(episode_start, bool).reshape(lead), False, balancing)
-        balancing = np.where(balancing, cost <= release * catch, cost < catch)
-        return balancing, -np.einsum("...ij,...j->...i", K, x)[..., 0]
+        return switch(x, S, balancing, episode_start, catch, release), -np.einsum("...ij,...j->...i", K, x)[..., 0]
 
     def control(self, obs: Any, state: Any, episode_start: Any) -> tuple[np.ndarray, Any]:
         balancing, u_lqr = self.balance(obs.q, obs.v, state, episode_start)

@@ -37,7 +37,73 @@ from .tracking import JointTrackingEnv
 ENTRY_POINT = "mbs_envs.envs.derived:DerivedTrackingEnv"
 
 
-class DerivedTrackingEnv(JointTrackingEnv):
+def coordinate_index(c: Any, coordinates: Sequence[Any], n: int, name: str) -> int:
+    """The index of coordinate ``c``: an int in ``[0, n)``, or an entry of ``coordinates`` (the user's symbols)."""
+    if isinstance(c, (int, np.integer)) and not isinstance(c, bool):
+        if 0 <= c < n:
+            return int(c)
+        raise ValueError(f"{name}: coordinate index {c} is not in [0, {n})")
+    for i, x in enumerate(coordinates):
+        if x == c:
+            return i
+    raise ValueError(f"{name}: {c!r} is not one of the coordinates {list(coordinates)} (pass coordinates=..., or indices)")
+
+
+class NamedPoints:
+    """The drawing of a derived scene: a line through the points the user names, ``(x, y)`` expressions in the
+    coordinates and the model's parameters (by name); framed by the points over :meth:`_frame_configurations`."""
+
+    def set_points(self, n: int, coordinates: Sequence[Any], points: Sequence[Any]) -> None:
+        """Keep the user's ``coordinates`` (``n`` of them where points are named) and ``points``."""
+        self._coordinates, self._points = tuple(coordinates), tuple(points)
+        if self._points and len(self._coordinates) != n:
+            raise ValueError(f"points need the {n} coordinates they are written in (coordinates=...)")
+
+    def _frame_configurations(self) -> np.ndarray:
+        """Configurations ``(k, n)`` the picture must hold."""
+        raise NotImplementedError
+
+    @functools.cached_property
+    def _point_function(self):
+        import sympy as sp
+
+        plain = sp.symbols(f"p0:{len(self._coordinates)}")
+        exprs = sp.Matrix([[sp.sympify(x), sp.sympify(y)] for x, y in self._points]).xreplace(dict(zip(self._coordinates, plain)))
+        values = self.model.params.as_dict()  # the model's parameters by name (the env's values, overrides included)
+        exprs = exprs.xreplace({x: values[str(x)] for x in exprs.free_symbols if str(x) in values})
+        unknown = sorted(str(x) for x in exprs.free_symbols - set(plain))
+        if unknown:
+            raise ValueError(f"points use symbols that are neither coordinates nor parameters: {unknown}")
+        return sp.lambdify([plain], exprs, "numpy")
+
+    def draw_points(self, q: np.ndarray) -> np.ndarray:
+        """The named points at ``q`` [m], shape (k, 2)."""
+        return np.asarray(self._point_function(np.asarray(q, float)), float).reshape(-1, 2)
+
+    @functools.cached_property
+    def _frame(self) -> tuple[np.ndarray, float]:
+        """The drawing's centre and half-width [m]: the bounding box of the named points over
+        :meth:`_frame_configurations`, with a margin."""
+        if not self._points:
+            raise ValueError("no points to draw: pass coordinates= and points= to the env")
+        P = np.concatenate([self.draw_points(q) for q in self._frame_configurations()])
+        lo, hi = P.min(axis=0), P.max(axis=0)
+        return (lo + hi) / 2, 0.6 * float(max(np.max(hi - lo), 1e-3)) + 0.05 * float(max(np.max(np.abs(P)), 1e-3))
+
+    def _render_extent(self) -> float:
+        return self._frame[1]
+
+    def _render_center(self, q: np.ndarray) -> tuple[float, float]:
+        return tuple(self._frame[0])
+
+    def __getstate__(self) -> dict:
+        state = super().__getstate__()
+        state.pop("_point_function", None)  # a lambdified function: made again on demand
+        state.pop("_frame", None)
+        return state
+
+
+class DerivedTrackingEnv(NamedPoints, JointTrackingEnv):
     """Joint tracking on a derived model (module docstring).
 
     Parameters
@@ -96,9 +162,7 @@ class DerivedTrackingEnv(JointTrackingEnv):
             raise ValueError("guess: only a constrained model assembles its starts from a guess")
         self.guess = np.zeros(n) if guess is None else check.vector(guess, "guess", n, broadcast=False)
         self.residual_limit = residual_limit
-        self._coordinates, self._points = tuple(coordinates), tuple(points)
-        if self._points and len(self._coordinates) != n:
-            raise ValueError(f"points need the {n} coordinates they are written in (coordinates=...)")
+        self.set_points(n, coordinates, points)
         if model.nc:
             kwargs.setdefault("stabilization", "projection")
         super().__init__(model, torque_limit, **kwargs)
@@ -134,62 +198,38 @@ class DerivedTrackingEnv(JointTrackingEnv):
 
     # -- drawing -----------------------------------------------------------------------------
 
-    @functools.cached_property
-    def _point_function(self):
-        import sympy as sp
-
-        plain = sp.symbols(f"p0:{len(self._coordinates)}")
-        exprs = sp.Matrix([[sp.sympify(x), sp.sympify(y)] for x, y in self._points]).xreplace(dict(zip(self._coordinates, plain)))
-        values = self.model.params.as_dict()  # the model's parameters by name (the env's values, overrides included)
-        exprs = exprs.xreplace({x: values[str(x)] for x in exprs.free_symbols if str(x) in values})
-        unknown = sorted(str(x) for x in exprs.free_symbols - set(plain))
-        if unknown:
-            raise ValueError(f"points use symbols that are neither coordinates nor parameters: {unknown}")
-        return sp.lambdify([plain], exprs, "numpy")
-
-    def draw_points(self, q: np.ndarray) -> np.ndarray:
-        """The named points at ``q`` [m], shape (k, 2)."""
-        return np.asarray(self._point_function(np.asarray(q, float)), float).reshape(-1, 2)
-
-    @functools.cached_property
-    def _frame(self) -> tuple[np.ndarray, float]:
-        """The drawing's centre and half-width [m]: the bounding box of the named points over the reference range
-        (the first tracked coordinate across its range, or a whole turn when the reference turns), with a margin."""
-        if not self._points:
-            raise ValueError("no points to draw: pass coordinates= and points= to the env")
+    def _frame_configurations(self) -> np.ndarray:
+        """The first tracked coordinate across its reference range (a whole turn when the reference turns), assembled."""
         centre = (self.center_low + self.center_high) / 2
         q_t = np.array(np.broadcast_to(centre, (25, len(centre))))
         low, high = (-np.pi, np.pi) if self.rate_range else (self.center_low[0] - self.max_amplitude[0], self.center_high[0] + self.max_amplitude[0])
         q_t[:, 0] = np.linspace(low, high, 25)
-        P = np.concatenate([self.draw_points(q) for q in self._assembled(q_t)])
-        lo, hi = P.min(axis=0), P.max(axis=0)
-        return (lo + hi) / 2, 0.6 * float(max(np.max(hi - lo), 1e-3)) + 0.05 * float(max(np.max(np.abs(P)), 1e-3))
-
-    def _render_extent(self) -> float:
-        return self._frame[1]
-
-    def _render_center(self, q: np.ndarray) -> tuple[float, float]:
-        return tuple(self._frame[0])
+        return self._assembled(q_t)
 
     def _drawing(self, q: np.ndarray, t: float, task: Any, u: np.ndarray, trail: Any = None) -> list[Shape]:
         ghost = self.draw_points(self._assembled(self.task_now(np.asarray(t), task)[0]))
         return arm_shapes(self.draw_points(q), ghost, ())
 
-    def __getstate__(self) -> dict:
-        state = super().__getstate__()
-        state.pop("_point_function", None)  # a lambdified function: made again on demand
-        state.pop("_frame", None)
-        return state
+
+#: the tasks a derived model is registered with, by name: the env's entry point
+TASKS = {"tracking": ENTRY_POINT, "swing-up": "mbs_envs.envs.derived_swingup:DerivedSwingUpEnv"}
 
 
-def register(env_id: str, model: DerivedModel, max_episode_steps: int = 500, **kwargs: Any) -> None:
-    """Register ``env_id`` for ``gym.make`` and ``gym.make_vec(..., vectorization_mode="vector_entry_point")``:
-    :class:`DerivedTrackingEnv` on ``model`` with ``kwargs`` (its parameters) as defaults."""
+def register(env_id: str, model: DerivedModel, max_episode_steps: int = 500, task: str = "tracking", **kwargs: Any) -> None:
+    """Register ``env_id`` for ``gym.make`` and ``gym.make_vec(..., vectorization_mode="vector_entry_point")``: the
+    ``task`` (:data:`TASKS`: :class:`DerivedTrackingEnv`, or
+    :class:`~mbs_envs.envs.derived_swingup.DerivedSwingUpEnv` with ``horizon = max_episode_steps``) on ``model``
+    with ``kwargs`` (its parameters) as defaults."""
     import gymnasium as gym
 
     from .vector import make_vector
 
     if not isinstance(model, DerivedModel):
         raise ValueError(f"model must be a model from mbs_envs.models.symbolic.derive, got {type(model).__name__}")
-    gym.register(id=env_id, entry_point=ENTRY_POINT, vector_entry_point=functools.partial(make_vector, ENTRY_POINT),
+    if task not in TASKS:
+        raise ValueError(f"task must be one of {sorted(TASKS)}, got {task!r}")
+    if task == "swing-up":
+        kwargs.setdefault("horizon", max_episode_steps)
+    entry = TASKS[task]
+    gym.register(id=env_id, entry_point=entry, vector_entry_point=functools.partial(make_vector, entry),
                  max_episode_steps=max_episode_steps, kwargs={"model": model, **kwargs})  # fmt: skip

@@ -123,6 +123,11 @@ SCENES: tuple[Scene, ...] = (
     Scene("CartDoublePendulum", "mbs_envs/CartDoublePendulum-v0", "mbs_envs.envs.cart_double_pendulum:CartDoublePendulumEnv", 500,
           model="mbs_envs.envs.cart_double_pendulum:CartDoublePendulum", edge_parameters=(("m2", {}), ("l1", {})),
           free_motions="mbs_envs.envs.cart_double_pendulum:free_motions"),
+    Scene("CartPoleSwingUp", "mbs_envs/CartPoleSwingUp-v0", "mbs_envs.envs.cart_pole:CartPoleSwingUpEnv", 1000,
+          controllers=MappingProxyType({"energy swing-up + LQR": "controllers:EnergySwingUpLQR"}),
+          residual_base="controllers:EnergySwingUpLQR", sizing=False, scoring="swing-up",
+          model="mbs_envs.envs.cart_pole:CartPole", edge_parameters=(("m", {}), ("l", {})),
+          free_motions="mbs_envs.envs.cart_pole:free_motions"),
     *(
         Scene(
             name + suffix, f"mbs_envs/{name}-{version}", f"mbs_envs.envs.swingup:{name}{cls}Env", 1500,

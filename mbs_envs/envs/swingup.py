@@ -123,7 +123,7 @@ _this = sys.modules[__name__]
 
 @dataclasses.dataclass(frozen=True)
 class SwingUpObservation:
-    """A decoded swing-up observation: ``q, v`` of shape ``(..., 2)`` (``q`` in ``[-pi, pi]``)."""
+    """A decoded swing-up observation: ``q, v`` of shape ``(..., n)`` (``n = 2`` for the arm; angles in ``[-pi, pi]``)."""
 
     q: np.ndarray
     v: np.ndarray

@@ -370,6 +370,7 @@ def generate_source(d: Derivation) -> str:
         "from numba import objmode",
         "from mbs_envs.envs.engine import engine_step",
         "from mbs_envs.envs import tracking as _tracking",
+        "from mbs_envs.envs import derived_swingup as _swingup",
         "",
         f"N = {n}",
         f"DAMPING = {tuple(damp)!r}",
@@ -428,8 +429,40 @@ def generate_source(d: Derivation) -> str:
         f"    engine_step(_this.advance_kernel, _this.energy_kernel, {info}, _compiled.never_singular,",
         "                _tracking.tracking_task, theta, stepper, control, task, state, out)",
         "",
+        "",
+        *_swingup_body(d, plain, psyms, code, info),
     ]
     return "\n".join(lines)
+
+
+def _swingup_body(d: Derivation, plain, psyms: list, code, info: str) -> list[str]:
+    """The swing-up scene's kernels (:mod:`mbs_envs.envs.derived_swingup`, compiled on first use):
+    ``potential_columns(q, theta, V)`` (``V(q)`` of a batch in columns, SIMD by :func:`_simd_lines`), the task
+    kernel ``swingup_task`` (its height from ``V``) and ``swingup_step_kernel``."""
+    return [
+        "@njit(cache=True)",
+        "def potential_columns(q, theta, V):",
+        '    """V(q) [J] of a batch in columns (n, B), theta (P, 1)."""',
+        "    B = q.shape[1]",
+        *[f"    {x} = theta[{k}, 0]" for k, x in enumerate(psyms)],
+        *_simd_lines(d, [plain(d.V)], ["V[b]"], code, False, "z"),
+        "",
+        "",
+        "@njit(cache=True)",
+        "def swingup_task(q, v, t, action, task, obs, info, terminated):",
+        '    """The derived swing-up task kernel: the potential energy at the task\'s parameters, then its rows."""',
+        "    V = np.empty(q.shape[1])",
+        "    potential_columns(q, task[0], V)",
+        "    _swingup.swingup_columns(q, v, t, action, V, task, obs, info, terminated)",
+        "",
+        "",
+        "@njit(cache=True)",
+        "def swingup_step_kernel(theta, stepper, control, task, state, out):",
+        '    """The swing-up scene\'s compiled step on this model (mbs_envs.envs.derived_swingup)."""',
+        f"    engine_step(_this.advance_kernel, _this.energy_kernel, {info}, _compiled.never_singular,",
+        "                _this.swingup_task, theta, stepper, control, task, state, out)",
+        "",
+    ]
 
 
 def _simd_lines(d: Derivation, exprs: list, targets: list[str], code, uses_v: bool, prefix: str) -> list[str]:

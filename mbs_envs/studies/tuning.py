@@ -36,6 +36,9 @@ between themselves, are ranked by the error over the conditions they do win
   {1, 3, 10, 30, ..., 1e8} (``x^T S x`` grows with ``R``): 128 candidates, among them the first
   pick (runs of this stage with ``R`` up to 1e3, then 1e4, picked the largest on the pendubot,
   so it was widened).
+- energy swing-up + LQR (derived mechanisms with one input: the cart-pole): ``k_q`` in {1, 2, 5, 10, 20} 1/s^2,
+  ``k_v`` in {1, 2, 5, 10} 1/s, ``k_E`` in {30, 100, ..., 3000}, the catch level in {1, 3, 10, 30, 100} (500
+  candidates), then swing-up + LQR's second stage;
 - adaptive swing-up + LQR: the same two grids. The shipped entry ran the second stage only, from
   swing-up + LQR's first-stage pick (``scripts/tune.py --refine-only``; a first stage for it, about an
   hour per scene on one core, crashed on a singular Riccati step, since fixed, and was not repeated): its pumping gains are
@@ -108,6 +111,18 @@ def swing_up_grid() -> list[dict[str, float]]:
     ]
 
 
+def energy_swing_up_grid() -> list[dict[str, float]]:
+    """Gain candidates of the energy swing-up + LQR controller (a derived mechanism with one input, e.g. the
+    cart-pole): the pumping gain's scale is the passive part's momentum ``M_ap v_p`` times its energy error (about
+    0.05 kg m/s times 1 J for the cart-pole), so its grid sits far above the arm's."""
+    return [
+        {"k_q": kq, "k_v": kv, "k_E": kE, "catch": c}
+        for kq, kv, kE, c in itertools.product(
+            (1.0, 2.0, 5.0, 10.0, 20.0), (1.0, 2.0, 5.0, 10.0), (30.0, 100.0, 300.0, 1000.0, 3000.0), (1.0, 3.0, 10.0, 30.0, 100.0)
+        )
+    ]
+
+
 def swing_up_refine_grid(best: dict[str, Any]) -> list[dict[str, Any]]:
     """The second stage of the swing-up + LQR search: ``best``'s pumping gains with the LQR's input
     weight and the catch level (module docstring)."""
@@ -128,6 +143,7 @@ def planner_grid(best: dict[str, Any]) -> list[dict[str, Any]]:
 #: controller display name -> the grid of a second stage around the first stage's pick
 REFINE: dict[str, Callable[[dict[str, Any]], list[dict[str, Any]]]] = {"swing-up + LQR": swing_up_refine_grid,
                                                                      "adaptive swing-up + LQR": swing_up_refine_grid,
+                                                                     "energy swing-up + LQR": swing_up_refine_grid,
                                                                      "identified iLQR + TVLQR": planner_grid}
 
 #: controller display name -> its grid
@@ -140,6 +156,7 @@ GRIDS: dict[str, Callable[[], list[dict[str, Any]]]] = {
     "swing-up + LQR": swing_up_grid,
     "adaptive swing-up + LQR": swing_up_grid,
     "identified iLQR + TVLQR": swing_up_grid,
+    "energy swing-up + LQR": energy_swing_up_grid,
 }
 
 
