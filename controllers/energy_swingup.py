@@ -125,10 +125,18 @@ class EnergySwingUpLQR(Controller):
         y = -self.k_q * e_a - self.k_v * v[..., a] + self.k_E * (E_p - self.E_up) * np.einsum("...i,...i->...", M[..., a, p], v_p)
         return collocated_input(self.model, q, v, y, a)[0]
 
+    def balance(self, q: np.ndarray, v: np.ndarray, balancing: Any, episode_start: Any, catch: float | None = None,
+                release: float | None = None) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+        """The switching rule (:func:`controllers.swingup.switch`) at ``catch`` and ``release`` (default the
+        controller's own) and the LQR's input ``-K x`` [N or N m], shapes ``(...)``."""
+        x = np.concatenate([upright_error(q, self.q_up, self.angle), v], axis=-1)
+        catch = self.catch if catch is None else catch
+        release = self.release if release is None else release
+        return switch(x, self.S, balancing, episode_start, catch, release), -np.einsum("ij,...j->...i", self.K, x)[..., 0]
+
     def control(self, obs: Any, state: Any, episode_start: Any) -> tuple[np.ndarray, Any]:
-        x = np.concatenate([upright_error(obs.q, self.q_up, self.angle), obs.v], axis=-1)
-        balancing = switch(x, self.S, state, episode_start, self.catch, self.release)
-        u = np.where(balancing, -np.einsum("ij,...j->...i", self.K, x)[..., 0], self.swing_up(obs.q, obs.v))
+        balancing, u_lqr = self.balance(obs.q, obs.v, state, episode_start)
+        u = np.where(balancing, u_lqr, self.swing_up(obs.q, obs.v))
         return u[..., None], balancing
 
     def input(self, obs: Any) -> np.ndarray:

@@ -15,7 +15,8 @@ What is derived, and how:
 - ``M`` is LagrangesMethod's mass matrix, ``-(C v + G)`` its forcing with no applied forces; ``G = dV/dq``
   is differentiated directly and ``C v`` is the rest (so ``coriolis`` and ``gravity`` are separate, as in
   the hand-written models). Viscous joint friction ``F_i = b_i v_i`` with ``b_i`` a parameter named per
-  coordinate; the inputs enter through a constant actuation matrix ``B``.
+  coordinate (``damping``), and any friction law of the rates as an expression (``friction``: Coulomb smoothed by
+  ``tanh``, a Stribeck peak, ...), generated with the rest; the inputs enter through a constant actuation matrix ``B``.
 - Code generation: SymPy's common-subexpression elimination over ``M`` (upper triangle), ``C v``, ``G``,
   ``T`` and ``V`` together, printed as straight-line Python of one member's scalars, compiled by numba in a
   module written to a cache folder and named by the SHA-256 of its source: a second process imports it
@@ -36,7 +37,7 @@ What is derived, and how:
 Refused with a ``ValueError`` naming the culprit: a coordinate whose rate does not appear in ``T`` (its row
 of ``M`` is zero), a mass matrix that depends on the rates or is singular at the defaults, parameters without
 defaults, with names that clash with the coordinates or with an unknown check, an actuation matrix of the wrong
-shape, and constraints that hold rates (holonomic) or are not linear in them (non-holonomic), that are dependent,
+shape, friction laws that hold coordinates or unknown symbols, and constraints that hold rates (holonomic) or are not linear in them (non-holonomic), that are dependent,
 or whose ``independent`` coordinates do not fix the others' rates.
 """
 
@@ -97,6 +98,8 @@ class Derivation:
     independent: tuple = ()
     #: the validity check of each parameter (``"finite"``, ``"positive"``, ``"nonnegative"``), as ``params``
     checks: tuple = ()
+    #: the friction law's generalized forces ``F_i(v)`` (sympy.Matrix (n, 1) in the rates and parameters), or None
+    F: Any = None
 
     @property
     def nc(self) -> int:
@@ -110,12 +113,13 @@ class Derivation:
 
 
 #: the version of what a cached derivation holds (part of the cache key)
-FORMAT = 2
+FORMAT = 3
 
 
 def derive_equations(name: str, q: Sequence[Any], T: Any, V: Any, params: Mapping[str, float],
                      actuation: Any = None, damping: Mapping[Any, str] | None = None, constraints: Sequence[Any] = (),
-                     velocity_constraints: Sequence[Any] = (), independent: Sequence[Any] | None = None) -> Derivation:  # fmt: skip
+                     velocity_constraints: Sequence[Any] = (), independent: Sequence[Any] | None = None, *,
+                     friction: Mapping[Any, Any] | None = None) -> Derivation:  # fmt: skip
     """Lagrange's equations of ``L = T - V`` by :class:`sympy.physics.mechanics.LagrangesMethod`.
 
     Parameters
@@ -134,6 +138,10 @@ def derive_equations(name: str, q: Sequence[Any], T: Any, V: Any, params: Mappin
         ``B`` (default the identity: every coordinate driven).
     damping : mapping, optional
         Coordinate -> name of its viscous friction parameter (a key of ``params``).
+    friction : mapping, optional
+        Coordinate -> its friction law, the generalized force ``F_i`` opposing the motion [N m or N] as an expression
+        in the rates ``q_j.diff(t)`` and the parameters (e.g. Coulomb smoothed and a Stribeck peak,
+        ``f tanh(w / v_s) + df exp(-(w / v_st)^2) tanh(w / v_s)`` with ``w = q_i.diff(t)``); added to ``damping``'s.
     constraints : sequence of sympy expressions, optional
         Holonomic constraints ``phi_k(q) = 0`` [m or rad] (loop closures): functions of the coordinates alone.
         Their Jacobian ``d phi / d q`` is the first rows of ``Psi``.
@@ -196,7 +204,7 @@ def derive_equations(name: str, q: Sequence[Any], T: Any, V: Any, params: Mappin
             raise ValueError(f"damping: parameter {pname!r} is not in params")
         damp[q.index(coord)] = pname
     d = Derivation(name, qs, vs, tuple((k, float(v)) for k, v in params.items()), M, Cv, G, plain(T), Vp, B, tuple(damp),
-                   checks=checks)  # fmt: skip
+                   checks=checks, F=_friction_rows(q, qs, vs, plain, params, friction))  # fmt: skip
     _check_mass_matrix(d)
     if not (constraints or velocity_constraints):
         if independent is not None:
@@ -205,6 +213,31 @@ def derive_equations(name: str, q: Sequence[Any], T: Any, V: Any, params: Mappin
     phi, Psi, Psidv = _constraint_rows(q, qs, vs, plain, params, constraints, velocity_constraints)
     d = dataclasses.replace(d, phi=phi, Psi=Psi, Psidv=Psidv)
     return dataclasses.replace(d, independent=_independent(d, q, independent))
+
+
+def _friction_rows(q, qs, vs, plain, params, friction) -> Any:
+    """The friction law's ``F (n, 1)`` in plain symbols (zero where no law), or None without laws; refuses a law on
+    a non-coordinate, one that holds a coordinate (a law of the rates alone), or unknown symbols, by name."""
+    import sympy as sp
+    from sympy.physics.mechanics import dynamicsymbols
+
+    if not friction:
+        return None
+    if not isinstance(friction, Mapping):
+        raise ValueError(f"friction must be a mapping of coordinates to expressions, got {type(friction).__name__}")
+    F = [sp.Integer(0)] * len(q)
+    for coord, law in friction.items():
+        if coord not in q:
+            raise ValueError(f"friction: {coord} is not a coordinate")
+        e = plain(law)
+        held = sorted(str(q[i]) for i, x in enumerate(qs) if x in e.free_symbols)
+        if held:
+            raise ValueError(f"friction: the law of {coord} is not a function of the rates alone: it holds {held}")
+        unknown = sorted(str(x) for x in e.free_symbols - set(vs) - {dynamicsymbols._t} if str(x) not in params)
+        if unknown:
+            raise ValueError(f"friction: the law of {coord} uses symbols without a value in params: {unknown}")
+        F[q.index(coord)] = e
+    return sp.Matrix(F)
 
 
 def _split_params(params: Mapping[str, Any], names: set) -> tuple[dict, tuple]:
@@ -352,6 +385,8 @@ def generate_source(d: Derivation) -> str:
     damp = [(i, [k for k, (name, _) in enumerate(d.params) if name == pname][0]) for i, pname in enumerate(d.damping) if pname]
     mass = exprs[:m]
     force = [sp.Symbol(f"tau[{i}, b]") - exprs[m + i] - exprs[m + n + i] for i in range(n)]  # tau - C v - G of member b
+    if d.F is not None:  # the friction law's forces, after the viscous damping
+        force = [f - plain(e) for f, e in zip(force, d.F)]
     if d.nc:
         columns = _constrained_body(d, plain, head, damp, code, mass, force, psyms, upper)
         after, info = "_this.project_kernel", "_this.constraint_info_kernel"
@@ -395,6 +430,7 @@ def generate_source(d: Derivation) -> str:
         "    return M, Cv, G, E",
         "",
         "",
+        *_friction_body(d, plain, psyms, code),
         *columns,
         "",
         "",
@@ -461,6 +497,36 @@ def _swingup_body(d: Derivation, plain, psyms: list, code, info: str) -> list[st
         '    """The swing-up scene\'s compiled step on this model (mbs_envs.envs.derived_swingup)."""',
         f"    engine_step(_this.advance_kernel, _this.energy_kernel, {info}, _compiled.never_singular,",
         "                _this.swingup_task, theta, stepper, control, task, state, out)",
+        "",
+    ]
+
+
+def _friction_body(d: Derivation, plain, psyms: list, code) -> list[str]:
+    """With a friction law: ``friction_member(v, p, F)`` (one member's ``F``, straight-line after common-subexpression
+    elimination) and ``friction_rows(v, p)`` over rows (the numpy path's); nothing without one."""
+    import sympy as sp
+
+    if d.F is None:
+        return []
+    reps, reduced = sp.cse([plain(e) for e in d.F], symbols=sp.numbered_symbols("w"), optimizations="basic")
+    return [
+        "@njit(cache=True, inline='always')",
+        "def friction_member(v, p, F):",
+        '    """The friction law\'s forces F (n,) of one member at rates v (n,)."""',
+        *[f"    {s} = v[{i}]" for i, s in enumerate(d.v)],
+        *[f"    {s} = p[{k}]" for k, s in enumerate(psyms)],
+        *[f"    {s} = {code(e)}" for s, e in reps],
+        *[f"    F[{i}] = {code(e)}" for i, e in enumerate(reduced)],
+        "",
+        "",
+        "@njit(cache=True)",
+        "def friction_rows(v, p):",
+        '    """friction_member() of rows (B, n)."""',
+        "    F = np.empty(v.shape)",
+        "    for b in range(v.shape[0]):",
+        "        friction_member(v[b], p, F[b])",
+        "    return F",
+        "",
         "",
     ]
 
@@ -582,6 +648,7 @@ def _constrained_body(d: Derivation, plain, head: list, damp: list, code, mass: 
         "    for i in range(N):",
         "        f[i] = tau[i, 0] - Cv[i] - G[i]",
         *[f"    f[{i}] -= pk[{j}] * vk[{i}]" for i, j in damp],
+        *(["    F = np.empty(N)", "    friction_member(vk, pk, F)", "    for i in range(N):", "        f[i] -= F[i]"] if d.F is not None else []),
         "    for i in range(NC):",
         "        gamma[i] = -Pdv[i]",
         "",
@@ -795,10 +862,14 @@ class DerivedModel(Model):
         return self._terms(q)[4]
 
     def friction(self, v: np.ndarray) -> np.ndarray:
-        """Viscous friction ``b_i v_i`` on the coordinates with a damping parameter."""
+        """Viscous friction ``b_i v_i`` on the coordinates with a damping parameter, plus the friction law's ``F(v)``
+        where the derivation has one (by its generated code)."""
         v = as_vector(v, self.nv, "v")
         b = np.array([0.0 if k is None else getattr(self.params, k) for k in self.derivation.damping])
-        return b * v
+        if self.derivation.F is None:
+            return b * v
+        rows = np.ascontiguousarray(np.reshape(v, (-1, self.nv)), float)
+        return b * v + self.generated.friction_rows(rows, self.kernel_params()).reshape(np.shape(v))
 
     def bias(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         _, Cv, G, _, _ = self._terms(q, v)
@@ -958,7 +1029,7 @@ def model_class(d: Derivation) -> type:
 def derive(name: str, q: Sequence[Any], T: Any, V: Any, params: Mapping[str, float], actuation: Any = None,
            damping: Mapping[Any, str] | None = None, **constraints: Any) -> DerivedModel:  # fmt: skip
     """A model from its Lagrangian: :func:`derive_equations` (``constraints``: its ``constraints``,
-    ``velocity_constraints`` and ``independent``), then :func:`model_class`, at the default parameters.
+    ``velocity_constraints``, ``independent`` and ``friction``), then :func:`model_class`, at the default parameters.
 
     Example (a pendulum of mass ``m`` on a massless rod ``l``, ``q`` from hanging)::
 
@@ -975,7 +1046,7 @@ def derive(name: str, q: Sequence[Any], T: Any, V: Any, params: Mapping[str, flo
 def cached_derivation(name: str, q: Sequence[Any], T: Any, V: Any, params: Mapping[str, float], actuation: Any = None,
                       damping: Mapping[Any, str] | None = None, cache: pathlib.Path | None = None, *,
                       constraints: Sequence[Any] = (), velocity_constraints: Sequence[Any] = (),
-                      independent: Sequence[Any] | None = None) -> Derivation:  # fmt: skip
+                      independent: Sequence[Any] | None = None, friction: Mapping[Any, Any] | None = None) -> Derivation:  # fmt: skip
     """:func:`derive_equations`, kept on disk (a pickle in ``cache``, default :data:`CACHE`) under the SHA-256 of the
     inputs' exact SymPy form (``srepr``): a second process with the same Lagrangian does not derive again."""
     import pickle
@@ -985,8 +1056,9 @@ def cached_derivation(name: str, q: Sequence[Any], T: Any, V: Any, params: Mappi
     B = None if actuation is None else np.asarray(actuation, float).tolist()
     damp = None if damping is None else sorted((sp.srepr(k), v) for k, v in damping.items())
     ind = None if independent is None else [x if isinstance(x, (int, np.integer)) else sp.srepr(x) for x in independent]
+    fric = None if not friction else sorted((sp.srepr(k), sp.srepr(sp.sympify(e))) for k, e in dict(friction).items())
     key = repr((FORMAT, name, [sp.srepr(x) for x in q], sp.srepr(sp.sympify(T)), sp.srepr(sp.sympify(V)), sorted((k, repr(v)) for k, v in dict(params).items()),
-                B, damp, [sp.srepr(sp.sympify(c)) for c in constraints], [sp.srepr(sp.sympify(c)) for c in velocity_constraints], ind))  # fmt: skip
+                B, damp, [sp.srepr(sp.sympify(c)) for c in constraints], [sp.srepr(sp.sympify(c)) for c in velocity_constraints], ind, fric))  # fmt: skip
     folder = pathlib.Path(cache or CACHE)
     path = folder / f"derivation_{hashlib.sha256(key.encode()).hexdigest()[:32]}.pkl"
     if path.exists():
@@ -996,7 +1068,7 @@ def cached_derivation(name: str, q: Sequence[Any], T: Any, V: Any, params: Mappi
                 return stored[1]
         except Exception:  # a damaged or foreign file: derive again and overwrite it
             pass
-    d = derive_equations(name, q, T, V, params, actuation, damping, constraints, velocity_constraints, independent)
+    d = derive_equations(name, q, T, V, params, actuation, damping, constraints, velocity_constraints, independent, friction=friction)
     folder.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(f".{os.getpid()}.tmp")
     tmp.write_bytes(pickle.dumps((key, d)))

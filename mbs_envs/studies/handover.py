@@ -2,7 +2,7 @@
 
 The evaluated policy acts as the agent until the state enters the catch level of the
 scene's model-based controller, ``x^T S x < catch`` (``x = (wrap(q - q_up), v)``; ``K, S`` the
-upright LQR of :class:`controllers.swingup.SwingUpLQR` with its tuned gains and level), and as
+upright LQR of the scene's swing-up controller, :func:`catching_controller`, with its tuned gains and level), and as
 the LQR from then on; it hands back to the agent only when the state leaves
 ``release * catch`` (the same hysteresis as the model-based controller, whose energy pump the
 agent replaces). The mode and the agent's own state travel in SB3's ``state``, so any rollout
@@ -34,12 +34,23 @@ from .. import validation as check
 TUNED_NAME = "RL + LQR"
 
 
+def catching_controller(env: Any) -> Any:
+    """The scene's model-based swing-up controller whose LQR catches: :class:`controllers.swingup.SwingUpLQR` on the
+    arm, :class:`controllers.energy_swingup.EnergySwingUpLQR` on a derived mechanism (with its tuned gains)."""
+    from controllers.energy_swingup import EnergySwingUpLQR
+
+    for cls in (SwingUpLQR, EnergySwingUpLQR):
+        if isinstance(env.unwrapped, cls.fits):
+            return cls(env)
+    raise ValueError(f"no swing-up controller catches on {type(env.unwrapped).__name__}")
+
+
 def hand_over(agent: Any, env: Any, catch: float | None = None, release: float | None = None) -> "HandOverPolicy":
     """``agent`` with the scene's upright LQR catching at the pair's tuned level (module docstring),
     or at ``catch`` / ``release`` where given."""
     from controllers.tuned import tuned_gains
 
-    lqr = SwingUpLQR(env)
+    lqr = catching_controller(env)
     entry = tuned_gains(env, TUNED_NAME) or {}
     catch = entry.get("catch", lqr.catch) if catch is None else catch
     release = entry.get("release", lqr.release) if release is None else release
@@ -96,7 +107,7 @@ class HandOverPolicy:
     Parameters
     ----------
     agent : object with ``predict``
-    lqr : SwingUpLQR
+    lqr : SwingUpLQR or EnergySwingUpLQR
         Its switching rule, ``K``, ``S``, torque limit and decoding are used (not its swing-up law).
     level : float
         The catch level of ``x^T S x``.
@@ -104,7 +115,7 @@ class HandOverPolicy:
         Hysteresis factor (> 1).
     """
 
-    def __init__(self, agent: Any, lqr: SwingUpLQR, level: float, release: float = 4.0):
+    def __init__(self, agent: Any, lqr: Any, level: float, release: float = 4.0):
         self.agent, self.lqr = agent, lqr
         self.level = check.positive(level, "level")
         self.release = check.real(release, "release", 1.0, np.inf, low_open=True)

@@ -102,7 +102,8 @@ _TWO_JOINTS = MappingProxyType({"b1": (0,), "b2": (1,)})
 #: the sweep of each compared scene. FourBar keeps its lengths (they are the loop the reference lives on);
 #: the chains (5 s episodes, ten joints) get one pulse per joint, 0.4 s apart at least; the disk's radius also moves
 #: its critical spin, against which each episode's commanded spin is drawn (the task changes with the plant, as
-#: under the comparison's mismatch)
+#: under the comparison's mismatch); the cart-pole's pulses push the cart (a pulse of the undriven pole's torque
+#: scale, the cart's 10 N taken as N m, would throw its 0.03 kg m^2 about at tens of rad/s)
 SWEEPS: Mapping[str, SceneSweep] = MappingProxyType({
     "Planar2R": SceneSweep(_TWO_LINKS, _TWO_JOINTS, (0, 1), pulse_gap=0.5),
     "FourBar": SceneSweep(("m1", "m2", "m3", "r1", "r2", "r3", "I1", "I2", "I3"),
@@ -115,6 +116,7 @@ SWEEPS: Mapping[str, SceneSweep] = MappingProxyType({
     "SliderCrank": SceneSweep(("m1", "m2", "m3"), MappingProxyType({"b_th": (0,), "b_s": (2,)}), (0,)),
     "CartDoublePendulum": SceneSweep(("m0", "m1", "m2", "l1", "l2"), MappingProxyType({"b_x": (0,), "b_1": (1,), "b_2": (2,)}), (0, 1, 2),
                                      pulses_per_coordinate=2, pulse_gap=0.5),
+    "CartPoleSwingUp": SceneSweep(("m0", "m", "l"), MappingProxyType({"b_x": (0,), "b_th": (1,)}), (0,)),
     "Acrobot": SceneSweep(_TWO_LINKS, _TWO_JOINTS, (0, 1)),
     "Pendubot": SceneSweep(_TWO_LINKS, _TWO_JOINTS, (0, 1)),
 })  # fmt: skip
