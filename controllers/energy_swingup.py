@@ -9,11 +9,16 @@ Let ``a`` be the driven coordinate and ``p`` the passive ones. With ``M q'' + h 
 
 toward ``E_up = V(q_up)`` while a PD brings the driven coordinate back to its upright value:
 
-    y = -k_q e_a - k_v v_a + k_E (E_p - E_up) (M_ap v_p).
+    y = -k_q e_a - k_v v_a + sat_{a_max}(k_E (E_p - E_up) (M_ap v_p)),
+
+the pumping term saturated at ``a_max`` (Astrom and Furuta's bound on the pump, ``n g`` in their paper: with a large
+``k_E`` the pump is bang-bang, near the fastest energy gain the bound allows, while the PD keeps its share of the
+input to bring the cart back; ``a_max = inf`` is the linear law).
 
 For a driven base that carries the rest (a cart: ``M`` and ``V`` free of ``x``, and the passive rows' velocity terms
-then free of ``v_a``) without friction, ``dE_p/dt = -(M_ap v_p) y``, so the pumping term alone gives
-``dE_p/dt = -k_E (E_p - E_up) (M_ap v_p)^2``: ``E_p`` goes to ``E_up`` from either side (Astrom and Furuta 2000's law,
+then free of ``v_a``) without friction, ``dE_p/dt = -(M_ap v_p) y``, so the (unsaturated) pumping term alone gives
+``dE_p/dt = -k_E (E_p - E_up) (M_ap v_p)^2``, and saturated still ``dE_p/dt <= 0`` for ``E_p > E_up`` (and
+``>= 0`` below): ``E_p`` goes to ``E_up`` from either side (Astrom and Furuta 2000's law,
 written on the derived model). On other mechanisms it is a heuristic.
 
 Near upright an LQR balances, ``u = -K x`` with ``x = (e, v)`` (``e = q - q_up``, angles wrapped) and ``K`` from
@@ -84,6 +89,8 @@ class EnergySwingUpLQR(Controller):
         Swing-up resumes above ``release * catch`` (> 1).
     lqr_r : float, optional
         The LQR's input weight [(N or N m)^-2]; default the tuned one (1 if none).
+    a_max : float, optional
+        Bound on the pumping term [m/s^2 or rad/s^2]; default the tuned one (none if absent: the linear law).
     """
 
     fits = (DerivedSwingUpEnv,)
@@ -91,7 +98,7 @@ class EnergySwingUpLQR(Controller):
     tuned_name = "energy swing-up + LQR"
 
     def __init__(self, env: Any, k_q: Any = None, k_v: Any = None, k_E: Any = None, catch: Any = None, release: float = 4.0,
-                 lqr_r: Any = None):  # fmt: skip
+                 lqr_r: Any = None, a_max: Any = None):  # fmt: skip
         super().__init__(env)
         base = env.unwrapped
         base = getattr(base, "env", base)
@@ -104,6 +111,8 @@ class EnergySwingUpLQR(Controller):
         self.catch = check.positive(tuned["catch"] if catch is None else catch, "catch")
         self.release = check.real(release, "release", 1.0, np.inf, low_open=True)
         self.lqr_r = check.positive(tuned.get("lqr_r", 1.0) if lqr_r is None else lqr_r, "lqr_r")
+        bound = tuned.get("a_max") if a_max is None else a_max
+        self.a_max = np.inf if bound is None else check.positive(bound, "a_max")
         self.q_up, self.angle = np.array(base.upright, float), np.array(base.angle, bool)
         self.driven = int(base.actuated[0])
         self.E_up = float(self.model.potential_energy(self.q_up))
@@ -122,7 +131,8 @@ class EnergySwingUpLQR(Controller):
         v_p = v[..., p]
         E_p = 0.5 * np.einsum("...i,...ij,...j->...", v_p, M[..., p][..., p, :], v_p) + self.model.potential_energy(q)
         e_a = upright_error(q, self.q_up, self.angle)[..., a]
-        y = -self.k_q * e_a - self.k_v * v[..., a] + self.k_E * (E_p - self.E_up) * np.einsum("...i,...i->...", M[..., a, p], v_p)
+        pump = self.k_E * (E_p - self.E_up) * np.einsum("...i,...i->...", M[..., a, p], v_p)
+        y = -self.k_q * e_a - self.k_v * v[..., a] + np.clip(pump, -self.a_max, self.a_max)
         return collocated_input(self.model, q, v, y, a)[0]
 
     def balance(self, q: np.ndarray, v: np.ndarray, balancing: Any, episode_start: Any, catch: float | None = None,

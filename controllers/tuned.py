@@ -41,7 +41,7 @@ FALLBACK: dict[str, dict[str, Any]] = {
     "LQR": {"Q": [10.0, 10.0, 1.0, 1.0, 0.1], "R": [1.0, 1.0], "q_integral": 1.0},
     "PD steering": {"k_dlean": 0.3, "k_lean": 0.05, "k_h": 0.5, "k_r": 0.0, "k_w": 0.05},
     "swing-up + LQR": {"k_q": 40.0, "k_v": 10.0, "k_E": 4.0, "catch": 100.0},
-    "energy swing-up + LQR": {"k_q": 10.0, "k_v": 5.0, "k_E": 10.0, "catch": 10.0},
+    "energy swing-up + LQR": {"k_q": 10.0, "k_v": 5.0, "k_E": 10.0, "catch": 10.0},  # a_max: none (the linear law)
     "RL + LQR": {},  # empty: the pair catches at the swing-up + LQR's own level
 }
 

@@ -3,14 +3,16 @@
 
 Two mechanisms written as a student would (``T`` and ``V``, and the loop closure; ``mbs_envs.models.symbolic``)
 and registered by ``mbs_envs.envs.derived.register`` with the hand-written scene's limits, reference ranges and
-steps: the 2R arm against ``mbs_envs/Planar2R-v0`` (unconstrained: the generated SIMD kernels) and the four-bar
-against ``mbs_envs/FourBar-v0`` (a closed loop: the generated member kernels on the general Schur, projection and
-multiplier loops of ``mbs_envs.dynamics.constraints``; the episodes are FourBar-v0's to 1e-10, tested):
+steps: the 2R arm against ``mbs_envs/Planar2R-v0`` (unconstrained: the generated SIMD kernels), the four-bar
+against ``mbs_envs/FourBar-v0`` (a closed loop: the generated SIMD batch kernels, the general member loops of
+``mbs_envs.dynamics.constraints`` behind them; the episodes are FourBar-v0's to 1e-10, tested) and the 2R arm with
+only the elbow driven on the derived swing-up task against ``mbs_envs/Acrobot-v1`` (the same plant and starts; the
+task's height is the potential energy instead of the tip's: tested):
 
 - single step [us] (median of interleaved repeats) and the batched step per env-step at ``--num-envs``
   members, and their ratios (target <= 2x);
 - the first ``gym.make`` + ``reset`` + ``step`` in a fresh process of the derived 2R arm and of the built-in
-  derived scenes ``SliderCrank-v0`` and ``CartDoublePendulum-v0``: with the derivation cache and numba's cache
+  derived scenes ``SliderCrank-v0``, ``CartDoublePendulum-v0`` and ``CartPoleSwingUp-v0``: with the derivation cache and numba's cache
   empty (``MBS_ENVS_DERIVED_CACHE`` and ``NUMBA_CACHE_DIR`` new folders), then again with both warm (targets
   <= 30 s and <= 2 s).
 
@@ -83,9 +85,17 @@ derived.register("bench/FourBarD-v0", model, torque_limit=8.0, posture=[0.0], sp
                  guess=hand.assemble(0.0))
 """
 
+#: the 2R arm with only the elbow driven, registered with the swing-up task and Acrobot-v1's settings
+ACROBOT_CODE = USER_CODE.split("model = symbolic.derive")[0] + """
+model = symbolic.derive("Acrobot2R", [q1, q2], T, V, params, actuation=[[0.0], [1.0]])
+derived.register("bench/Acrobot2R-v0", model, task="swing-up", max_episode_steps=1500, torque_limit=10.0, substeps=2,
+                 upright=(np.pi / 2, 0.0), hanging=(-np.pi / 2, 0.0))
+"""
+
 #: mechanism -> (user code, derived id, hand-written id)
 PAIRS = {"2R arm": (USER_CODE, "bench/Arm2R-v0", "mbs_envs/Planar2R-v0"),
-         "four-bar": (FOURBAR_CODE, "bench/FourBarD-v0", "mbs_envs/FourBar-v0")}  # fmt: skip
+         "four-bar": (FOURBAR_CODE, "bench/FourBarD-v0", "mbs_envs/FourBar-v0"),
+         "acrobot (swing-up task)": (ACROBOT_CODE, "bench/Acrobot2R-v0", "mbs_envs/Acrobot-v1")}  # fmt: skip
 
 FIRST = """
 import time
@@ -102,7 +112,7 @@ print(time.perf_counter() - t0)
 
 #: the scenes whose first make is timed: label -> (user code to run first, id)
 FIRST_MAKES = {"2R arm (user code)": (USER_CODE, "bench/Arm2R-v0"), "SliderCrank-v0": ("", "mbs_envs/SliderCrank-v0"),
-               "CartDoublePendulum-v0": ("", "mbs_envs/CartDoublePendulum-v0")}  # fmt: skip
+               "CartDoublePendulum-v0": ("", "mbs_envs/CartDoublePendulum-v0"), "CartPoleSwingUp-v0": ("", "mbs_envs/CartPoleSwingUp-v0")}  # fmt: skip
 
 
 def first_make(user: str, env_id: str) -> dict:

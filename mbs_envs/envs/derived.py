@@ -18,6 +18,10 @@ Unconstrained, every coordinate is tracked and driven. With constraints (a deriv
 from ``guess`` (:meth:`~mbs_envs.models.symbolic.ConstrainedDerivedModel.assemble`), steps project onto them, a
 loop opened beyond ``residual_limit`` ends the episode as diverged, and ``info`` holds ``constraint_residual`` and
 the ``multipliers``.
+
+An underactuated model (fewer inputs than coordinates) takes the swing-up task instead: ``register(...,
+task="swing-up", upright=..., hanging=..., angles=..., bounds=...)``
+(:class:`~mbs_envs.envs.derived_swingup.DerivedSwingUpEnv`); both tasks draw the same way (:class:`NamedPoints`).
 """
 
 from __future__ import annotations
