@@ -88,6 +88,12 @@ def test_the_cart_poles_height_is_its_closed_form_and_observations_decode():
     np.testing.assert_allclose(dec.q[:, 0], q[:, 0], rtol=1e-6)
     np.testing.assert_allclose(dec.v, v, rtol=1e-6, atol=1e-6)
     assert obs.shape == (500, 5) and env.observation_space.shape == (5,)
+    p = env.model.params  # docs/physics.md §6c's closed forms
+    c, sn = np.cos(q[:, 1]), np.sin(q[:, 1])
+    M = np.stack([np.stack([np.full(500, p.m0 + p.m), p.m * p.l / 2 * c], -1), np.stack([p.m * p.l / 2 * c, np.full(500, p.m * p.l**2 / 3)], -1)], -2)
+    np.testing.assert_allclose(env.model.mass_matrix(q), M, rtol=1e-12, atol=1e-15)
+    h = np.stack([-p.m * p.l / 2 * sn * v[:, 1] ** 2 + p.b_x * v[:, 0], -p.m * p.g * p.l / 2 * sn + p.b_th * v[:, 1]], -1)
+    np.testing.assert_allclose(env.model.bias(q, v), h, rtol=1e-12, atol=1e-12)
 
 
 def test_running_off_the_rail_terminates_and_costs_at_least_what_staying_on_it_could():
@@ -108,6 +114,11 @@ def test_running_off_the_rail_terminates_and_costs_at_least_what_staying_on_it_c
     (k, total, info), (k2, total2, info2) = results
     assert k == k2 and abs(total - total2) <= 1e-9 * abs(total2)
     assert info["out_of_bounds"] and not info["diverged"]
+    assert envs[0].observation_space.contains(envs[0].unwrapped._observation())  # the last observation, off the rail
+    before = envs[0].unwrapped.np_random.bit_generator.state
+    with pytest.raises(ValueError, match="outside bounds"):
+        envs[0].reset(options={"q": [2.5, np.pi]})
+    assert envs[0].unwrapped.np_random.bit_generator.state == before
     p = envs[0].unwrapped.task_params
     assert info["reward_bound"] == pytest.approx(-p.step_loss * (1000 - k), rel=1e-12)
     assert total <= -p.step_loss * (1000 - k) + (k - 1) * (p.weights[0] + p.weights[3])  # the worst continuation
@@ -167,7 +178,7 @@ def test_the_pumping_law_drives_the_poles_energy_to_upright():
     from controllers.energy_swingup import EnergySwingUpLQR
 
     env = gym.make(ID, params={"b_x": 0.0, "b_th": 0.0})
-    c = EnergySwingUpLQR(env, k_q=0.0, k_v=0.0, k_E=50.0)
+    c = EnergySwingUpLQR(env, k_q=0.0, k_v=0.0, k_E=50.0, a_max=1e9)
     model, rng = env.unwrapped.model, np.random.default_rng(5)
     q, v = rng.uniform(-3, 3, (300, 2)), rng.normal(size=(300, 2)) * 3
 
@@ -182,6 +193,12 @@ def test_the_pumping_law_drives_the_poles_energy_to_upright():
     M = model.mass_matrix(q)
     expected = -50.0 * (E_p(q, v) - c.E_up) * (M[:, 0, 1] * v[:, 1]) ** 2
     np.testing.assert_allclose(rate, expected, rtol=1e-6, atol=1e-7)  # central differences: O(h^2) and 1e-10 / h round-off
+    sat = EnergySwingUpLQR(env, k_q=0.0, k_v=0.0, k_E=50.0, a_max=2.0)  # saturated: the same sign, the pump bounded
+    a = model.forward_dynamics(q, v, sat.swing_up(q, v)[:, None])
+    rate = (E_p(q + h * v, v + h * a) - E_p(q - h * v, v - h * a)) / (2 * h)
+    momentum = M[:, 0, 1] * v[:, 1]
+    bounded = -momentum * np.clip(50.0 * (E_p(q, v) - c.E_up) * momentum, -2.0, 2.0)  # dE_p/dt = -(M_ap v_p) y
+    np.testing.assert_allclose(rate, bounded, rtol=1e-6, atol=1e-7)
 
 
 def test_the_energy_controller_swings_the_cart_pole_up_and_holds_it():
