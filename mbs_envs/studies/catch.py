@@ -1,6 +1,6 @@
 """What physics allows on the swing-up scenes: the saturation bound beside the LQR's measured catch.
 
-For each swing-up scene and comparison condition, along each state coordinate about upright
+For each swing-up scene of the 2R arm (:func:`applies`) and comparison condition, along each state coordinate about upright
 (the others zero): the largest offset the torque limit allows on that condition's plant
 (:func:`controllers.region.saturation_bound`, on the plant's own linearization, shrunk by the
 input delay), and the largest offset from which the scene's LQR (the balancing part of its
@@ -29,6 +29,14 @@ from .evaluation import HOLD
 
 #: the coordinates of the table
 AXES = ("q1 [rad]", "q2 [rad]", "v1 [rad/s]", "v2 [rad/s]")
+
+
+def applies(scene: str) -> bool:
+    """Whether the table covers ``scene``: the arm's swing-up scenes (Acrobot, Pendubot). A derived swing-up
+    (``mbs_envs.envs.derived_swingup``: the cart-pole) has other coordinates and its own LQR; not covered yet."""
+    from ..envs.swingup import SwingUpEnv
+
+    return isinstance(gym.make(SCENES[scene][0]).unwrapped, SwingUpEnv)
 
 
 def catch_rows(scene: str, conditions: list[Condition]) -> list[dict[str, Any]]:
