@@ -366,10 +366,8 @@ def coulomb_stribeck(w, f, df):
 def test_a_coulomb_and_stribeck_friction_law_derives_as_the_hand_written_one(tmp_path):
     """The 2R arm with ``friction={q_i: law}`` next to its viscous ``damping``: friction, forward dynamics and inverse
     dynamics equal Planar2R's Coulomb + Stribeck law to 1e-12 (rates near the smoothing speed, where the law is
-    steep, and far beyond it), the compiled step the numpy one to 1e-12, the episodes the hand-written ones to 1e-10;
-    the four-bar's crank friction likewise through the constrained path."""
-    from mbs_envs.models import FourBar
-
+    steep, and far beyond it), the compiled step the numpy one to 1e-12, the episodes the hand-written ones to 1e-10
+    (the four-bar's crank friction likewise through the constrained path: the slow set)."""
     (q1, q2), T, V = arm_lagrangian()
     f1, f2, df1, df2 = sp.symbols("f1 f2 df1 df2")
     hand = Planar2R(m1=1.3, m2=0.7, l1=0.9, l2=1.1, r1=0.4, r2=0.6, I1=0.08, I2=0.05, b1=0.2, b2=0.1, f1=0.5, f2=0.3,
@@ -391,6 +389,16 @@ def test_a_coulomb_and_stribeck_friction_law_derives_as_the_hand_written_one(tmp
     a = simulate(derived, [0.3, -0.4], [0.0, 1.0], 1.0, dt=0.001, integrator="rk4", u=np.array([0.5, -0.2]))
     b = simulate(hand, [0.3, -0.4], [0.0, 1.0], 1.0, dt=0.001, integrator="rk4", u=np.array([0.5, -0.2]))
     assert rel(a.q, b.q) < 1e-10 and rel(a.v, b.v) < 1e-10
+
+
+@pytest.mark.slow  # another generated module to compile (about 15 s cold): the default run has the arm's law above
+def test_a_friction_law_on_a_closed_loop_derives_as_the_hand_written_one(tmp_path):
+    """The four-bar's crank with FourBar's Coulomb + Stribeck law: forward dynamics and multipliers to 1e-12, episodes
+    to 1e-10, through the constrained path."""
+    from mbs_envs.models import FourBar
+
+    f1, df1 = sp.symbols("f1 df1")
+    rng = np.random.default_rng(8)
     (th1, ph2, ph1), T4, V4, phi = fourbar_lagrangian()
     hand4 = FourBar(b1=0.1, f1=0.3, df1=0.2)
     params4 = {k: getattr(hand4.params, k) for k in FOURBAR + ("f1", "df1", "v_s", "v_st")}
