@@ -297,12 +297,23 @@ class DerivedSwingUpEnv(NamedPoints, MBSEnv):
 
     # -- the task ------------------------------------------------------------------------------
 
+    def _task_cache(self) -> tuple:
+        """``(key, task_params, kernel arguments)``, built again only when a setting they hold changes (a step reads
+        them; building them is most of a single step's Python time)."""
+        key = (self.reward_weights.tobytes(), self.hold_bonus, self.u_max.tobytes(), self.upright_tolerance, self.start_noise,
+               self.horizon, self.dt, self.model.kernel_params().tobytes())  # fmt: skip
+        cached = self.__dict__.get("_task_params")
+        if cached is None or cached[0] != key:
+            p = SwingUpTask(np.append(self.reward_weights, self.hold_bonus), self.upright, self.hanging, self.angle, self.low,
+                            self.high, self.V_range, self.upright_tolerance, self.u_max, self.actuated, self.horizon, self.dt,
+                            self.start_noise)  # fmt: skip
+            cached = self._task_params = (key, p, p.kernel_arguments(self.model.kernel_params()))
+        return cached
+
     @property
     def task_params(self) -> SwingUpTask:
         """This env's task parameters, from its current settings."""
-        return SwingUpTask(np.append(self.reward_weights, self.hold_bonus), self.upright, self.hanging, self.angle, self.low,
-                           self.high, self.V_range, self.upright_tolerance, self.u_max, self.actuated, self.horizon, self.dt,
-                           self.start_noise)  # fmt: skip
+        return self._task_cache()[1]
 
     def _initial_state(self, task: Any, rng: np.random.Generator, model: Any) -> tuple[np.ndarray, np.ndarray]:
         s, n = self.start_noise, model.nq
@@ -354,7 +365,7 @@ class DerivedSwingUpEnv(NamedPoints, MBSEnv):
     # -- the compiled step (see mbs_envs.envs.engine) ------------------------------------------
 
     def task_arguments(self) -> tuple:
-        return self.task_params.kernel_arguments(self.model.kernel_params())
+        return self._task_cache()[2]
 
     def task_layout(self) -> tuple[tuple[str, int | None, bool], ...]:
         return tuple((k, None, False) for k in TERMS) + (
