@@ -294,6 +294,11 @@ class DerivedSwingUpEnv(NamedPoints, MBSEnv):
         high = np.concatenate([np.ones(2 * int(angle.sum())), np.full(2 * n - int(angle.sum()), self.divergence_limit)]).astype(np.float32)
         self.observation_space = gym.spaces.Box(-high, high, dtype=np.float32)
         self._check_start_bound(float(np.max(np.abs(self.hanging))) + self.start_noise)
+        reach = (self.hanging - self.start_noise < self.low) | (self.hanging + self.start_noise > self.high)
+        if np.any(reach):
+            i = int(np.argmax(reach))
+            raise ValueError(f"start_noise = {self.start_noise:g} reaches beyond bounds of coordinate {i} ({self.low[i]:g}, {self.high[i]:g}) "
+                             f"from hanging = {self.hanging[i]:g}: sampled starts would be refused")
 
     # -- the task ------------------------------------------------------------------------------
 

@@ -146,6 +146,8 @@ def test_bad_swing_up_settings_are_refused_by_name(derived_acrobot):
         DerivedSwingUpEnv(gym.make("mbs_envs/CartDoublePendulum-v0").unwrapped.model, torque_limit=1.0, upright=[0, 0, 0], hanging=[0, np.pi, 0])
     with pytest.raises(ValueError, match="task must be one of"):
         derived_env.register("mbs_envs_test/Bad-v0", model, task="balance", torque_limit=1.0)
+    with pytest.raises(ValueError, match="start_noise = 3 reaches beyond bounds of coordinate 0"):
+        DerivedSwingUpEnv(model, angles=[th], bounds={x: (-2.4, 2.4)}, start_noise=3.0, **kw)
     with pytest.raises(ValueError, match="bounds must be a mapping"):
         DerivedSwingUpEnv(model, angles=[th], bounds=[(x, 2.4)], **kw)
 
