@@ -230,7 +230,9 @@ class DerivedSwingUpEnv(NamedPoints, MBSEnv):
     start_noise : float
         ``s`` [rad, m, or per second].
     horizon : int
-        Control steps of an episode (``register`` sets it to ``max_episode_steps``).
+        Control steps of an episode (``register`` sets it to ``max_episode_steps``; ``gym.make(id,
+        max_episode_steps=k)`` leaves it, so pass ``horizon=k`` too: a longer horizon only makes leaving the bounds
+        cost more, never less).
     coordinates, points, params, **kwargs
         As :class:`~mbs_envs.envs.derived.DerivedTrackingEnv`'s.
     """
