@@ -3,7 +3,7 @@ through collocated partial feedback linearization, then LQR about upright.
 
 Let ``a`` be the driven coordinate and ``p`` the passive ones. With ``M q'' + h = B u`` the passive rows give
 ``q_p'' = -M_pp^-1 (M_pa y + h_p)`` for a commanded ``q_a'' = y``, and the driven row the input that produces it
-(Spong 1994), ``u = M_aa y + M_ap q_p'' + h_a``. The outer loop pumps the energy of the passive part,
+(Spong 1994; :func:`controllers.swingup.collocated_pfl`), ``u = M_aa y + M_ap q_p'' + h_a``. The outer loop pumps the energy of the passive part,
 
     E_p = 1/2 v_p^T M_pp v_p + V(q),
 
@@ -23,7 +23,7 @@ written on the derived model). On other mechanisms it is a heuristic.
 
 Near upright an LQR balances, ``u = -K x`` with ``x = (e, v)`` (``e = q - q_up``, angles wrapped) and ``K`` from
 ``control.lqr`` on the model's linearization about upright (central differences of its ``forward_dynamics``),
-``Q = diag(10 I, I)``, ``R = lqr_r``; the switch is :func:`controllers.swingup.switch`'s (the cost-to-go
+``Q = diag(10 I, I)``, ``R = lqr_r``; the switch is :class:`controllers.swingup.CatchingSwingUp`'s (the cost-to-go
 ``x^T S x`` below ``catch`` to take over, above ``release * catch`` to hand back), the mode kept in SB3's ``state``.
 """
 
@@ -37,8 +37,8 @@ import numpy as np
 from mbs_envs import validation as check
 from mbs_envs.envs.derived_swingup import DerivedSwingUpEnv
 
-from .base import Controller, linearize, solve_rows
-from .swingup import switch
+from .base import linearize
+from .swingup import CatchingSwingUp, collocated_pfl
 from .tuned import tuned_gains
 
 
@@ -48,31 +48,7 @@ def upright_error(q: np.ndarray, q_up: np.ndarray, angle: np.ndarray) -> np.ndar
     return np.where(angle, (e + np.pi) % (2 * np.pi) - np.pi, e)
 
 
-def collocated_input(model: Any, q: np.ndarray, v: np.ndarray, y: np.ndarray, a: int) -> tuple[np.ndarray, np.ndarray]:
-    """The input on coordinate ``a`` that gives it the acceleration ``y`` (module docstring), and ``M``.
-
-    Parameters
-    ----------
-    model : a model with ``mass_matrix`` and ``bias``
-    q, v : ndarray, shape (..., n)
-    y : ndarray, shape (...)
-        Commanded acceleration of coordinate ``a``.
-    a : int
-
-    Returns
-    -------
-    u : ndarray, shape (...)
-        [N or N m].
-    M : ndarray, shape (..., n, n)
-    """
-    M, h = model.mass_matrix(q), model.bias(q, v)
-    p = np.arange(q.shape[-1]) != a
-    M_pp, M_pa = M[..., p][..., p, :], M[..., p, a]
-    a_p = -solve_rows(M_pp, (M_pa * y[..., None] + h[..., p])[..., None])[..., 0]
-    return M[..., a, a] * y + np.einsum("...i,...i->...", M[..., a, p], a_p) + h[..., a], M
-
-
-class EnergySwingUpLQR(Controller):
+class EnergySwingUpLQR(CatchingSwingUp):
     """Energy-based swing-up through collocated partial feedback linearization, then LQR (module docstring).
 
     Parameters
@@ -127,28 +103,14 @@ class EnergySwingUpLQR(Controller):
         """The swing-up input ``u`` [N or N m], shape ``(...)``."""
         a = self.driven
         p = np.arange(q.shape[-1]) != a
-        M = self.model.mass_matrix(q)
+        M, h = self.model.mass_matrix(q), self.model.bias(q, v)
         v_p = v[..., p]
         E_p = 0.5 * np.einsum("...i,...ij,...j->...", v_p, M[..., p][..., p, :], v_p) + self.model.potential_energy(q)
         e_a = upright_error(q, self.q_up, self.angle)[..., a]
         pump = self.k_E * (E_p - self.E_up) * np.einsum("...i,...i->...", M[..., a, p], v_p)
         y = -self.k_q * e_a - self.k_v * v[..., a] + np.clip(pump, -self.a_max, self.a_max)
-        return collocated_input(self.model, q, v, y, a)[0]
+        return collocated_pfl(self.model, q, v, y, a, M, h)
 
-    def balance(self, q: np.ndarray, v: np.ndarray, balancing: Any, episode_start: Any, catch: float | None = None,
-                release: float | None = None) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
-        """The switching rule (:func:`controllers.swingup.switch`) at ``catch`` and ``release`` (default the
-        controller's own) and the LQR's input ``-K x`` [N or N m], shapes ``(...)``."""
-        x = np.concatenate([upright_error(q, self.q_up, self.angle), v], axis=-1)
-        catch = self.catch if catch is None else catch
-        release = self.release if release is None else release
-        return switch(x, self.S, balancing, episode_start, catch, release), -np.einsum("ij,...j->...i", self.K, x)[..., 0]
-
-    def control(self, obs: Any, state: Any, episode_start: Any) -> tuple[np.ndarray, Any]:
-        balancing, u_lqr = self.balance(obs.q, obs.v, state, episode_start)
-        u = np.where(balancing, u_lqr, self.swing_up(obs.q, obs.v))
-        return u[..., None], balancing
-
-    def input(self, obs: Any) -> np.ndarray:
-        """Inputs without memory (swing-up unless already inside the catch region)."""
-        return self.control(obs, None, None)[0]
+    def upright_state(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``x = (e, v)``, ``e`` of :func:`upright_error`, shape ``(..., 2 n)``."""
+        return np.concatenate([upright_error(q, self.q_up, self.angle), v], axis=-1)

@@ -41,31 +41,39 @@ from mbs_envs import validation as check
 from mbs_envs.envs.swingup import Q_UP, SwingUpEnv
 from mbs_envs.envs.tracking import wrap_angle
 
-from .base import Controller, linearize
+from .base import Controller, linearize, solve_rows
 from .tuned import tuned_gains
 
 
-def collocated_pfl(model: Any, q: np.ndarray, v: np.ndarray, y: np.ndarray, a: int) -> np.ndarray:
-    """The driven joint's torque that gives it the acceleration ``y`` (module docstring).
+def collocated_pfl(model: Any, q: np.ndarray, v: np.ndarray, y: np.ndarray, a: int, M: Any = None, h: Any = None) -> np.ndarray:
+    """The driven coordinate's input that gives it the acceleration ``y`` (module docstring): the passive rows give
+    ``q_p'' = -M_pp^-1 (M_pa y + h_p)``, the driven row ``u = M_aa y + M_ap q_p'' + h_a``.
 
     Parameters
     ----------
-    model : Planar2R
-    q, v : ndarray, shape (..., 2)
+    model : a model with ``mass_matrix`` and ``bias`` (the arm; any one-input derived model)
+    q, v : ndarray, shape (..., n)
     y : ndarray, shape (...)
-        Commanded acceleration of joint ``a`` [rad/s^2].
-    a : {0, 1}
-        The driven joint.
+        Commanded acceleration of coordinate ``a`` [rad/s^2 or m/s^2].
+    a : int
+        The driven coordinate.
+    M, h : ndarray, shapes (..., n, n) and (..., n), optional
+        ``M(q)`` and ``h(q, v)`` where the caller has them already (default: from ``model``).
 
     Returns
     -------
     ndarray, shape (...)
-        ``u`` [N m].
+        ``u`` [N m or N].
     """
-    M, h = model.mass_matrix(q), model.bias(q, v)
-    p = 1 - a
-    a_p = -(M[..., p, a] * y + h[..., p]) / M[..., p, p]
-    return M[..., a, a] * y + M[..., a, p] * a_p + h[..., a]
+    M = model.mass_matrix(q) if M is None else M
+    h = model.bias(q, v) if h is None else h
+    p = np.arange(np.shape(q)[-1]) != a
+    M_pa, h_p = M[..., p, a], h[..., p]
+    if p.sum() == 1:  # one passive coordinate (the arm): a division
+        a_p = -(M_pa * y[..., None] + h_p) / M[..., p, :][..., p][..., 0]
+    else:
+        a_p = -solve_rows(M[..., p, :][..., p], (M_pa * y[..., None] + h_p)[..., None])[..., 0]
+    return M[..., a, a] * y + np.einsum("...i,...i->...", M[..., a, p], a_p) + h[..., a]
 
 
 def upright_linearization(model: Any, lead: tuple[int, ...] = ()) -> tuple[np.ndarray, np.ndarray]:
@@ -112,7 +120,63 @@ def switch(x: np.ndarray, S: np.ndarray, balancing: Any, episode_start: Any, cat
     return np.where(balancing, cost <= release * catch, cost < catch)
 
 
-class SwingUpLQR(Controller):
+class CatchingSwingUp(Controller):
+    """A swing-up law with an LQR that catches near upright: the switching rule (:func:`switch`), its mode kept in SB3's
+    ``state``. Subclasses give ``swing_up(q, v)``, ``upright_state(q, v)`` (the LQR's error state ``x``) and set
+    ``K``, ``S``, ``catch``, ``release``."""
+
+    K: np.ndarray
+    S: np.ndarray
+    catch: float
+    release: float
+
+    def swing_up(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """The swing-up input ``u``, shape ``(...)``."""
+        raise NotImplementedError
+
+    def upright_state(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """The LQR's error state ``x = (e, v)`` about upright, shape ``(..., 2 n)``."""
+        raise NotImplementedError
+
+    def balance(self, q: np.ndarray, v: np.ndarray, balancing: Any, episode_start: Any, catch: float | None = None,
+                release: float | None = None, K: Any = None, S: Any = None) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+        """The switching rule (:func:`switch`) and the LQR's input.
+
+        Parameters
+        ----------
+        q, v : ndarray, shape (..., n)
+        balancing : array_like of bool, shape (...), or None
+            The mode so far (None: nobody balancing yet); reset where ``episode_start``.
+        catch, release : float, optional
+            The level and hysteresis; default the controller's own.
+        K, S : ndarray, shapes (..., 1, 2 n) and (..., 2 n, 2 n), optional
+            The LQR's gain and Riccati solution; default the controller's own (per member if batched).
+
+        Returns
+        -------
+        balancing : ndarray of bool, shape (...)
+            Whether the LQR holds each member now.
+        u_lqr : ndarray, shape (...)
+            ``-K x`` [N m or N], ``x`` of :meth:`upright_state`.
+        """
+        catch = self.catch if catch is None else catch
+        release = self.release if release is None else release
+        K = self.K if K is None else K
+        S = self.S if S is None else S
+        x = self.upright_state(q, v)
+        return switch(x, S, balancing, episode_start, catch, release), -np.einsum("...ij,...j->...i", K, x)[..., 0]
+
+    def control(self, obs: Any, state: Any, episode_start: Any) -> tuple[np.ndarray, Any]:
+        balancing, u_lqr = self.balance(obs.q, obs.v, state, episode_start)
+        u = np.where(balancing, u_lqr, self.swing_up(obs.q, obs.v))
+        return u[..., None], balancing
+
+    def input(self, obs: Any) -> np.ndarray:
+        """Inputs without memory (swing-up unless already inside the catch region)."""
+        return self.control(obs, None, None)[0]
+
+
+class SwingUpLQR(CatchingSwingUp):
     """Energy-based swing-up through partial feedback linearization, then LQR (module docstring).
 
     Parameters
@@ -162,39 +226,6 @@ class SwingUpLQR(Controller):
         y = -self.k_q * wrap_angle(q[..., a] - Q_UP[a]) - self.k_v * v[..., a] + pump
         return collocated_pfl(model, q, v, y, a)
 
-    def balance(self, q: np.ndarray, v: np.ndarray, balancing: Any, episode_start: Any, catch: float | None = None,
-                release: float | None = None, K: Any = None, S: Any = None) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
-        """The switching rule (module docstring) and the LQR's input.
-
-        Parameters
-        ----------
-        q, v : ndarray, shape (..., 2)
-        balancing : array_like of bool, shape (...), or None
-            The mode so far (None: nobody balancing yet); reset where ``episode_start``.
-        catch, release : float, optional
-            The level and hysteresis; default the controller's own.
-        K, S : ndarray, shapes (..., 1, 4) and (..., 4, 4), optional
-            The LQR's gain and Riccati solution; default the controller's own (per member if batched).
-
-        Returns
-        -------
-        balancing : ndarray of bool, shape (...)
-            Whether the LQR holds each member now.
-        u_lqr : ndarray, shape (...)
-            ``-K x`` [N m], ``x = (wrap(q - q_up), v)``.
-        """
-        catch = self.catch if catch is None else catch
-        release = self.release if release is None else release
-        K = self.K if K is None else K
-        S = self.S if S is None else S
-        x = np.concatenate([wrap_angle(q - Q_UP), v], axis=-1)
-        return switch(x, S, balancing, episode_start, catch, release), -np.einsum("...ij,...j->...i", K, x)[..., 0]
-
-    def control(self, obs: Any, state: Any, episode_start: Any) -> tuple[np.ndarray, Any]:
-        balancing, u_lqr = self.balance(obs.q, obs.v, state, episode_start)
-        u = np.where(balancing, u_lqr, self.swing_up(obs.q, obs.v))
-        return u[..., None], balancing
-
-    def input(self, obs: Any) -> np.ndarray:
-        """Inputs without memory (swing-up unless already inside the catch region)."""
-        return self.control(obs, None, None)[0]
+    def upright_state(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``x = (wrap(q - q_up), v)``, shape ``(..., 4)``."""
+        return np.concatenate([wrap_angle(q - Q_UP), v], axis=-1)

@@ -163,12 +163,12 @@ def test_the_cart_pole_renders_and_pickles():
 
 
 def test_the_collocated_input_gives_the_commanded_acceleration():
-    from controllers.energy_swingup import collocated_input
+    from controllers.swingup import collocated_pfl
 
     model = CartPole()
     rng = np.random.default_rng(4)
     q, v, y = rng.normal(size=(200, 2)) * 3, rng.normal(size=(200, 2)) * 3, rng.normal(size=200) * 10
-    u, _ = collocated_input(model, q, v, y, 0)
+    u = collocated_pfl(model, q, v, y, 0)
     a = model.forward_dynamics(q, v, u[:, None])
     np.testing.assert_allclose(a[:, 0], y, rtol=1e-12, atol=1e-11)
 
