@@ -44,7 +44,7 @@ import numpy as np
 
 from .. import validation as check
 from ..dynamics.jit import njit
-from ..dynamics.trig import wrap
+from ..dynamics.trig import sincos_columns, wrap
 from ..models.symbolic import DerivedModel
 from .base import MBSEnv
 from .derived import NamedPoints, coordinate_index
@@ -85,6 +85,15 @@ def swingup_columns(q, v, t, action, V, task, obs, info, terminated):  # pragma:
     for i in range(n):
         na += angle[i]
     nl = n - na
+    sn, cs = np.empty(B), np.empty(B)
+    ka = 0
+    for i in range(n):  # the angles' cosines and sines: one SIMD pass per angle (mbs_envs.dynamics.trig)
+        if angle[i]:
+            sincos_columns(q[i], sn, cs)
+            for b in range(B):
+                obs[ka, b] = cs[b]
+                obs[na + ka, b] = sn[b]
+            ka += 1
     for b in range(B):
         e2, up, out = 0.0, True, False
         ka, kl = 0, 0
@@ -94,8 +103,6 @@ def swingup_columns(q, v, t, action, V, task, obs, info, terminated):  # pragma:
                 e = wrap(x - q_up[i])
                 up &= abs(e) <= tol
                 info[6 + ka, b] = e
-                obs[ka, b] = np.cos(x)
-                obs[na + ka, b] = np.sin(x)
                 ka += 1
             else:
                 e = x - q_up[i]
