@@ -535,3 +535,18 @@ def test_dfki_script_runs_agents_trained_on_the_protocol_alone_and_with_the_lqr(
     assert [r["controller"] for r in record["rows"]] == ["PPO seed0", "PPO + LQR seed0"]
     assert all(r["success"] in (0.0, 1.0) and 0.0 <= r["score"] <= 1.0 for r in record["rows"])
     assert "ours: PPO + LQR seed0" in (tmp_path / "out" / "report.md").read_text()
+
+
+def test_bench_resets_times_both_ways_of_drawing_starts_against_cartpole(tmp_path):
+    """A tiny run of ``scripts/bench_resets.py``: a scene with falls and one with swing-up episodes, both
+    ways of drawing the starts, both kinds of action, ratios to CartPole's vector env."""
+    script = load_script("bench_resets.py")
+    script["main"](["--out", str(tmp_path), "--num-envs", "32", "--steps", "30", "--repeats", "1",
+                    "--scenes", "RollingDisk-v0", "CartPoleSwingUp-v0"])  # fmt: skip
+    result = json.loads((tmp_path / "resets.json").read_text())
+    rows = {(r["scene"], r["actions"], r["starts"]): r for r in result["rows"]}
+    assert set(rows) == {(s, m, v) for s in ("RollingDisk-v0", "CartPoleSwingUp-v0") for m in ("zero", "random")
+                         for v in ("drawn ahead", "drawn at the reset")} | {("CartPole-v1", m, "gymnasium") for m in ("zero", "random")}  # fmt: skip
+    assert all(r["per_env_step_us"] > 0 and np.isfinite(r["ratio_to_cartpole"]) for r in rows.values())
+    assert rows[("CartPole-v1", "zero", "gymnasium")]["ratio_to_cartpole"] == 1.0
+    assert "RollingDisk-v0 | random" in (tmp_path / "resets.md").read_text()

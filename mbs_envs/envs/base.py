@@ -24,6 +24,7 @@ from ..dynamics.compiled import TableauArrays, batch_theta, compiled_stepping, p
 from ..models.base import Model, as_vector
 from ..dynamics.simulate import DIVERGENCE_LIMIT, advance, diverged
 from .rendering import PlanarRenderer, Shape, Text
+from .stacking import tree_pick
 
 
 def _scalar(x: Any) -> Any:
@@ -482,12 +483,15 @@ class MBSEnv(gym.Env):
     # with a batch, shape (N, n). ``task`` is what an episode draws at reset (e.g. a
     # reference), stacked member-wise in the vector env; ``now`` is what the task needs at time t.
 
-    def _reset_task(self, options: dict, rng: np.random.Generator) -> Any:
-        """Draw the episode's task from ``rng`` (default: none)."""
+    def _draw_tasks(self, options: dict, rngs: list[np.random.Generator]) -> Any:
+        """The episode's task of ``L = len(rngs)`` members, member ``i`` drawn from ``rngs[i]``, stacked
+        (:mod:`mbs_envs.envs.stacking`; default: none). Only the random numbers are drawn per member."""
         return None
 
-    def _initial_state(self, task: Any, rng: np.random.Generator, model: Model) -> tuple[np.ndarray, np.ndarray]:
-        """Draw ``(q0, v0)`` from ``rng`` for ``model`` (a vector env's member may have its own parameters)."""
+    def _draw_states(self, task: Any, rngs: list[np.random.Generator], model: Model) -> tuple[np.ndarray, np.ndarray]:
+        """Start states ``q0 (L, nq)``, ``v0 (L, nv)`` of the members of the stacked ``task``, member ``i``'s
+        random numbers from ``rngs[i]`` (after its task's), for ``model`` (parameters scalar or ``(L,)``:
+        a vector env's members may have their own)."""
         raise NotImplementedError
 
     def task_now(self, t: np.ndarray, task: Any) -> Any:
@@ -636,18 +640,42 @@ class MBSEnv(gym.Env):
     def draw_start(
         self, options: dict, rng: np.random.Generator | None = None, model: Model | None = None
     ) -> tuple[Any, np.ndarray, np.ndarray]:
-        """:meth:`sample_start` without the check (:meth:`_check_start`, which the vector env makes
-        once for all the members it resets)."""
-        rng = self.np_random if rng is None else rng
+        """:meth:`sample_start` without the check: member 0 of :meth:`draw_starts` with one generator."""
+        task, q0, v0 = self.draw_starts(options, [self.np_random if rng is None else rng], model)
+        return tree_pick(task, 0), q0[0], v0[0]
+
+    def draw_starts(
+        self, options: dict, rngs: list[np.random.Generator], model: Model | None = None
+    ) -> tuple[Any, np.ndarray, np.ndarray]:
+        """Draw ``(task, q0, v0)`` of ``L = len(rngs)`` members, member ``i``'s random numbers from
+        ``rngs[i]`` (its task's first, then its state's: the same draws whatever ``L``), the rest
+        computed for all members at once; unchecked (:meth:`_check_start`, which the vector env makes
+        once for all the members it resets).
+
+        Parameters
+        ----------
+        options : dict
+            Checked reset options; ``q``, ``v`` fix every member's start.
+        rngs : list of numpy.random.Generator
+        model : Model, optional
+            Default this env's; a vector env passes its members' parameters, shape ``(L,)``.
+
+        Returns
+        -------
+        task : stacked task (``L`` members) or None
+        q0 : ndarray, shape (L, nq)
+        v0 : ndarray, shape (L, nv)
+        """
         model = self.model if model is None else model
-        task = self._reset_task(options, rng)
+        L = len(rngs)
+        task = self._draw_tasks(options, rngs)
         q0, v0 = options.get("q"), options.get("v")
         if q0 is None:
-            q_s, v_s = self._initial_state(task, rng, model)
-            q0 = q_s
-            v0 = v_s if v0 is None else v0
-        elif v0 is None:
-            v0 = np.zeros(model.nv)
+            q0, v_s = self._draw_states(task, rngs, model)
+            v0 = v_s if v0 is None else np.broadcast_to(v0, (L, model.nv))
+        else:
+            q0 = np.broadcast_to(q0, (L, model.nq))
+            v0 = np.zeros((L, model.nv)) if v0 is None else np.broadcast_to(v0, (L, model.nv))
         q0, v0 = model.make_consistent(q0, v0, self.consistency_tol)  # constrained scenes project (or refuse)
         return task, q0, v0
 
@@ -660,11 +688,11 @@ class MBSEnv(gym.Env):
                 f"(|q|, |v| entries up to {bound:.3g}); raise it"
             )
 
-    def _check_start(self, q0: np.ndarray, v0: np.ndarray, task: Any, given: bool) -> None:
+    def _check_start(self, q0: np.ndarray, v0: np.ndarray, task: Any, given: bool) -> np.ndarray:
         """Refuse a start state the episode cannot begin from: non-finite, beyond
-        ``divergence_limit``, singular, or whose observation leaves ``observation_space``.
-        Batched: ``q0 (..., nq)``, ``v0 (..., nv)`` with ``task`` stacked alike (the vector env's
-        members checked at once; the message names the first refused).
+        ``divergence_limit``, singular, or whose observation leaves ``observation_space``; else return
+        that observation. Batched: ``q0 (..., nq)``, ``v0 (..., nv)`` with ``task`` stacked alike (the
+        vector env's members checked at once; the message names the first refused).
 
         Raises
         ------
@@ -691,6 +719,7 @@ class MBSEnv(gym.Env):
                 f"{source} (q = {q0[i].tolist()}, v = {v0[i].tolist()}) gives an observation "
                 f"outside observation_space: {np.asarray(obs)[i].tolist()}"
             )
+        return obs
 
     @staticmethod
     def _checked_state(options: dict, key: str, n: int) -> np.ndarray | None:

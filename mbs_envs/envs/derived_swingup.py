@@ -48,6 +48,7 @@ from ..dynamics.trig import sincos_columns, wrap
 from ..models.symbolic import DerivedModel
 from .base import MBSEnv
 from .derived import NamedPoints, coordinate_index
+from .draws import uniform_of
 from .rendering import Shape, arm_shapes
 from .swingup import SwingUpObservation
 from .tracking import _as_columns
@@ -329,18 +330,20 @@ class DerivedSwingUpEnv(NamedPoints, MBSEnv):
         """This env's task parameters, from its current settings."""
         return self._task_cache()[1]
 
-    def _initial_state(self, task: Any, rng: np.random.Generator, model: Any) -> tuple[np.ndarray, np.ndarray]:
+    def _draw_states(self, task: Any, rngs: list, model: Any) -> tuple[np.ndarray, np.ndarray]:
         s, n = self.start_noise, model.nq
-        return self.hanging + rng.uniform(-s, s, n), rng.uniform(-s, s, n)
+        noise = uniform_of(np.array([rng.random(2 * n) for rng in rngs]), -s, s)  # :mod:`mbs_envs.envs.draws`
+        return self.hanging + noise[:, :n], noise[:, n:]
 
-    def _check_start(self, q0: np.ndarray, v0: np.ndarray, task: Any, given: bool) -> None:
+    def _check_start(self, q0: np.ndarray, v0: np.ndarray, task: Any, given: bool) -> np.ndarray:
         """The base rule (finite, within ``divergence_limit``, observable), and inside ``bounds``."""
-        super()._check_start(q0, v0, task, given)
+        obs = super()._check_start(q0, v0, task, given)
         out = np.any((np.asarray(q0) < self.low) | (np.asarray(q0) > self.high), axis=-1)
         if np.any(out):
             i = np.unravel_index(np.argmax(out), out.shape) if out.ndim else ()
             source = "the start state given in options" if given else "a sampled start state"
             raise ValueError(f"{source} (q = {np.asarray(q0)[i].tolist()}) is outside bounds (low {self.low.tolist()}, high {self.high.tolist()})")
+        return obs
 
     def task_now(self, t: np.ndarray, task: Any) -> np.ndarray:
         return np.asarray(t, float)

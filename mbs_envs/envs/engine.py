@@ -14,12 +14,13 @@ The sequence is :meth:`MBSEnv.step`'s numpy one:
 4. ``t += dt``; the task's kernel writes the observation, the reward and its
    terms, its ``info`` quantities and its termination;
 5. the model's energy (unless ``full`` is False), and for constrained models the constraint residual and
-   the multipliers, complete ``info``.
+   the multipliers (unless ``full`` is False), complete ``info``.
 
 Arguments are packed tuples (no long positional lists):
 
 - ``control = (dt, limit, residual_limit, u_max, actuated, nc, full)``; ``full`` False skips the
-  energy (its ``info`` column NaN), which no step needs;
+  energy and the multipliers (their ``info`` columns NaN), which no step needs (the constraint-info
+  kernel is then given ``lam`` with no rows: it computes the residual only);
 - ``task``: the task's own tuple (its static arguments, then its per-member
   columns; see the task's ``task_arguments`` and ``task_columns``);
 - ``state = (q, v, t, action)``: columns ``(n, B)``, ``(n, B)`` (C-contiguous) and ``(B,)``, updated
@@ -74,7 +75,7 @@ def engine_step(advance, energy, constraint_info, singular, task_step, theta, st
             uk[b] = x
             tk[b] = x
     advance(theta, stepper, q, v, tau)
-    residual, lam = np.empty(B), np.empty((B, nc))
+    residual, lam = np.empty(B), np.empty((B if full else 0, nc))  # lam without rows: the residual only
     constraint_info(q, v, tau, theta, residual, lam)
     flags = np.zeros(B, np.bool_)
     singular(q, flags)
@@ -113,4 +114,4 @@ def engine_step(advance, energy, constraint_info, singular, task_step, theta, st
         for i in range(nc):
             li = info[c + 2 + i]
             for b in range(B):
-                li[b] = lam[b, i]
+                li[b] = lam[b, i] if full else np.nan

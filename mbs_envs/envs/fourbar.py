@@ -127,7 +127,7 @@ class FourBarEnv(JointTrackingEnv):
         self.pd_gains = (100.0 * self.mean_crank_inertia, 20.0 * self.mean_crank_inertia)
 
     def _state_from_tracked(self, q_t: np.ndarray, v_t: np.ndarray, model: FourBar) -> tuple[np.ndarray, np.ndarray]:
-        return model.consistent_state(q_t[0], v_t[0], self.branch)
+        return model.consistent_state(q_t[..., 0], v_t[..., 0], self.branch)
 
     def task_info(self, q, v, now, task, u) -> dict[str, Any]:
         return {**super().task_info(q, v, now, task, u), **self.constraint_info(q, v, u)}

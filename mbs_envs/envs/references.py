@@ -17,6 +17,8 @@ import dataclasses
 from ..dynamics.compiled import aligned
 from ..dynamics.jit import njit
 from ..dynamics.trig import in_range, sincos, sincos_libm
+from .draws import dirichlet_ones_of, uniform_of
+from .stacking import tree_pick
 import numpy as np
 
 
@@ -121,10 +123,17 @@ class SumOfSines:
         t = np.asarray(t, float)
         columns = self.columns(t.shape)
         lead = np.broadcast_shapes(t.shape, self.center.shape[:-1])
+        times = np.empty(lead)  # the times of every member, a new contiguous array
+        times[...] = t
         out = np.empty((3,) + columns[0].shape)
-        sum_of_sines_columns(np.require(np.broadcast_to(t, lead).reshape(-1), requirements=("C", "W")), *columns, *out)
+        sum_of_sines_columns(times.reshape(-1), *columns, *out)
         n = self.center.shape[-1]
         return tuple(x.T.reshape(lead + (n,)) for x in out)
+
+    #: batches of at least this many members get their columns on a 64-byte boundary
+    #: (:func:`~mbs_envs.dynamics.compiled.aligned`: read by SIMD loops every step); smaller ones
+    #: (resets of a few members, single envs) a plain copy
+    ALIGN_FROM = 64
 
     def columns(self, shape: tuple = ()) -> tuple[np.ndarray, ...]:
         """``(center, rate, amplitude, omega, phase)`` broadcast to times of ``shape``,
@@ -132,17 +141,20 @@ class SumOfSines:
         ``(n, K, L)`` as :func:`sum_of_sines_columns` reads them (a zero rate when there is none);
         new, writable arrays."""
         n, K = self.amplitude.shape[-2:]
-        rate = np.zeros(n) if self.rate is None else self.rate
-        if not shape and self.center.ndim == 1:  # one reference at one time (resets, single envs): no broadcasting
-            return tuple(np.array(x, float)[..., None] for x in (self.center, rate, self.amplitude, self.omega, self.phase))
-        lead = np.broadcast_shapes(shape, self.center.shape[:-1])
+        own = self.center.shape[:-1]  # the references' own leading shape (members)
+        rate = np.zeros(own + (n,)) if self.rate is None else self.rate
+        fields = (self.center, rate, self.amplitude, self.omega, self.phase)
+        lead = np.broadcast_shapes(shape, own)
+        if lead != own:  # times beyond the references' shape (a reference at many times): broadcast
+            fields = tuple(np.broadcast_to(x, lead + x.shape[len(own):]) for x in fields)
+        L = int(np.prod(lead, dtype=np.int64))
+        copy = aligned if L >= self.ALIGN_FROM else (lambda x: np.array(x, float, order="C"))
 
-        def columns(x, tail):
-            rows = np.broadcast_to(x, lead + tail).reshape((-1,) + tail)
-            return aligned(np.moveaxis(rows, 0, -1))  # on a 64-byte boundary: read by SIMD loops every step
+        def columns(x):
+            rows = x.reshape((L,) + x.shape[len(lead):])
+            return copy(rows.transpose(tuple(range(1, rows.ndim)) + (0,)))  # members last
 
-        return (*(columns(x, (n,)) for x in (self.center, rate)),
-                *(columns(x, (n, K)) for x in (self.amplitude, self.omega, self.phase)))  # fmt: skip
+        return tuple(columns(x) for x in fields)
 
 
 def sample_sum_of_sines(
@@ -154,34 +166,57 @@ def sample_sum_of_sines(
     n_components: int = 3,
     rate_range: tuple[float, float] | None = None,
 ) -> SumOfSines:
-    """Draw a :class:`SumOfSines` reference.
+    """Draw a :class:`SumOfSines` reference: :func:`sample_sums_of_sines` with one generator."""
+    return tree_pick(sample_sums_of_sines([rng], center_low, center_high, max_amplitude, omega_range, n_components, rate_range), 0)
+
+
+def sample_sums_of_sines(
+    rngs: list[np.random.Generator],
+    center_low: np.ndarray,
+    center_high: np.ndarray,
+    max_amplitude: np.ndarray,
+    omega_range: tuple[float, float],
+    n_components: int = 3,
+    rate_range: tuple[float, float] | None = None,
+) -> SumOfSines:
+    """Draw ``L = len(rngs)`` :class:`SumOfSines` references, stacked, member ``i`` from ``rngs[i]``.
 
     The centre is uniform in ``[center_low, center_high]``; each coordinate's
     total amplitude ``sum_k |A_k|`` is uniform in ``[max_amplitude / 2,
     max_amplitude]``, split among the components by Dirichlet(1) weights;
     frequencies are uniform in ``omega_range`` [rad/s]; phases uniform; the
-    mean rate, if ``rate_range`` is given, uniform in it [rad/s].
+    mean rate, if ``rate_range`` is given, uniform in it [rad/s]. Each member's
+    numbers are drawn in that order from its own generator (the same draws
+    whatever ``L``, and numpy's ``uniform`` and ``dirichlet`` draws bit for bit:
+    :mod:`mbs_envs.envs.draws`); the rest is computed for all members at once.
 
     Parameters
     ----------
-    rng : numpy.random.Generator
+    rngs : list of numpy.random.Generator
     center_low, center_high, max_amplitude : array_like, shape (n,)
     omega_range : (float, float)
     n_components : int
+    rate_range : (float, float), optional
 
     Returns
     -------
     SumOfSines
+        Fields of shape ``(L, n)`` and ``(L, n, n_components)``.
     """
     center_low = np.asarray(center_low, float)
     center_high = np.asarray(center_high, float)
     max_amplitude = np.asarray(max_amplitude, float)
-    n = center_low.shape[0]
-    center = rng.uniform(center_low, center_high)
-    total = rng.uniform(0.5, 1.0, size=n) * max_amplitude
-    weights = rng.dirichlet(np.ones(n_components), size=n)
-    amplitude = total[:, None] * weights
-    omega = rng.uniform(omega_range[0], omega_range[1], size=(n, n_components))
-    phase = rng.uniform(0.0, 2 * np.pi, size=(n, n_components))
-    rate = None if rate_range is None else rng.uniform(rate_range[0], rate_range[1], size=n)
+    L, n, K = len(rngs), center_low.shape[0], n_components
+    nr = 0 if rate_range is None else n
+    first, exps, last = np.empty((L, 2 * n)), np.empty((L, n, K)), np.empty((L, 2 * n * K + nr))
+    for i, rng in enumerate(rngs):  # numpy's draws (:mod:`mbs_envs.envs.draws`), three calls a member
+        first[i] = rng.random(2 * n)  # centre, total amplitude
+        exps[i] = rng.standard_exponential((n, K))  # the Dirichlet(1) weights
+        last[i] = rng.random(2 * n * K + nr)  # frequencies, phases, rates
+    center = uniform_of(first[:, :n], center_low, center_high)
+    total = uniform_of(first[:, n:], 0.5, 1.0) * max_amplitude
+    amplitude = total[..., None] * dirichlet_ones_of(exps)
+    omega = uniform_of(last[:, : n * K].reshape(L, n, K), omega_range[0], omega_range[1])
+    phase = uniform_of(last[:, n * K : 2 * n * K].reshape(L, n, K), 0.0, 2 * np.pi)
+    rate = None if rate_range is None else uniform_of(last[:, 2 * n * K :], rate_range[0], rate_range[1])
     return SumOfSines(center, amplitude, omega, phase, rate)

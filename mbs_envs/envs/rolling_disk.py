@@ -16,7 +16,8 @@ from ..dynamics.jit import njit
 from ..dynamics.trig import wrap
 from ..models import rolling_disk as _model
 from ..models.rolling_disk import RollingDisk
-from .references import SumOfSines, sample_sum_of_sines, sum_of_sines_columns
+from .draws import uniform_of
+from .references import SumOfSines, sample_sums_of_sines, sum_of_sines_columns
 from .base import MBSEnv
 from .engine import engine_step
 from .rendering import GHOST, GROUND, LINK, Arrow, Dot, Inset, Line, Polygon, Shape, Text, oblique
@@ -150,22 +151,25 @@ class DiskTaskParams:
         return (np.asarray(self.weights, float), float(self.critical_spin), float(self.lean_limit))
 
 
-def sample(p: DiskTaskParams, rng: np.random.Generator, spin_ref: Any = None) -> DiskTask:
-    """An episode's commands: a spin rate in ``spin_range`` (or ``spin_ref`` [rad/s], checked; the
-    draw is made either way) and a heading reference."""
-    spin = float(rng.uniform(*p.spin_range) * p.critical_spin)
+def sample(p: DiskTaskParams, rngs: list[np.random.Generator], spin_ref: Any = None) -> DiskTask:
+    """The episode's commands of ``L = len(rngs)`` members, stacked, member ``i``'s from ``rngs[i]``: a
+    spin rate in ``spin_range`` (or ``spin_ref`` [rad/s], checked; the draw is made either way), then a
+    heading reference."""
+    spin = uniform_of(np.array([rng.random() for rng in rngs]), *p.spin_range) * p.critical_spin
     if spin_ref is not None:
         W_max = p.spin_range[1] * p.critical_spin
-        spin = check.real(spin_ref, "options['spin_ref']", -W_max, W_max)
-    heading = sample_sum_of_sines(rng, [-np.pi], [np.pi], [p.heading_amplitude], p.heading_omega, n_components=2)
-    return DiskTask(heading=heading, spin_ref=np.asarray(spin))
+        spin[:] = check.real(spin_ref, "options['spin_ref']", -W_max, W_max)
+    heading = sample_sums_of_sines(rngs, [-np.pi], [np.pi], [p.heading_amplitude], p.heading_omega, n_components=2)
+    return DiskTask(heading=heading, spin_ref=spin)
 
 
-def start(p: DiskTaskParams, task: DiskTask, rng: np.random.Generator, model: RollingDisk) -> tuple[np.ndarray, np.ndarray]:
-    """Upright rolling at the commanded spin, heading near the reference's, small lean and lean rate."""
-    heading0 = float(task.heading(0.0)[0][0] + rng.uniform(-0.1, 0.1))
-    return model.rolling_state(heading=heading0, lean=float(rng.uniform(-0.05, 0.05)), dlean=float(rng.uniform(-0.1, 0.1)),
-                               dspin=float(task.spin_ref))  # fmt: skip
+def start(p: DiskTaskParams, task: DiskTask, rngs: list[np.random.Generator], model: RollingDisk) -> tuple[np.ndarray, np.ndarray]:
+    """Upright rolling at the commanded spin, heading near the reference's, small lean and lean rate:
+    ``(q0, v0)``, shape ``(L, 6)`` each, member ``i``'s noise from ``rngs[i]``."""
+    d = np.array([rng.random(3) for rng in rngs])  # heading, lean, lean rate (:mod:`mbs_envs.envs.draws`)
+    noise = uniform_of(d, np.array([-0.1, -0.05, -0.1]), np.array([0.1, 0.05, 0.1]))
+    heading0 = task.heading(0.0)[0][:, 0] + noise[:, 0]
+    return model.rolling_state(heading=heading0, lean=noise[:, 1], dlean=noise[:, 2], dspin=task.spin_ref)
 
 
 def reference(task: DiskTask, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -335,11 +339,11 @@ class RollingDiskEnv(MBSEnv):
         """This env's task parameters, from its current settings."""
         return self._task_cache()[1]
 
-    def _reset_task(self, options: dict, rng: np.random.Generator) -> DiskTask:
-        return sample(self.task_params, rng, options.get("spin_ref"))
+    def _draw_tasks(self, options: dict, rngs: list) -> DiskTask:
+        return sample(self.task_params, rngs, options.get("spin_ref"))
 
-    def _initial_state(self, task: DiskTask, rng: np.random.Generator, model: RollingDisk) -> tuple[np.ndarray, np.ndarray]:
-        return start(self.task_params, task, rng, model)
+    def _draw_states(self, task: DiskTask, rngs: list, model: RollingDisk) -> tuple[np.ndarray, np.ndarray]:
+        return start(self.task_params, task, rngs, model)
 
     @property
     def spin_ref(self) -> float:

@@ -33,6 +33,7 @@ from ..dynamics.trig import sincos_columns, wrap
 from ..models import planar2r as _model
 from ..models.planar2r import Planar2R
 from .base import MBSEnv
+from .draws import uniform_of
 from .engine import engine_step
 from .presets import with_preset
 from .rendering import Shape, arm_shapes
@@ -179,13 +180,16 @@ class SwingUpTaskParams:
         return (np.array(self.weights, float), np.array(self.u_max, float), np.array([self.driven], np.int64), float(self.tolerance))
 
 
-def start(p: SwingUpTaskParams, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """A start ``(q0, v0)``, shape ``(2,)`` each (the task has no other episode state): near hanging,
-    or near upright with probability ``p.start_upright`` (drawn first, and only when that share is
-    positive, so the hanging task's starts are the same draws as without the option)."""
-    s = p.start_noise
-    centre = Q_UP if p.start_upright > 0.0 and rng.uniform() < p.start_upright else Q_DOWN
-    return centre + rng.uniform(-s, s, 2), rng.uniform(-s, s, 2)
+def start(p: SwingUpTaskParams, rngs: list[np.random.Generator]) -> tuple[np.ndarray, np.ndarray]:
+    """Starts ``(q0, v0)``, shape ``(L, 2)`` each, member ``i`` from ``rngs[i]`` (the task has no other
+    episode state): near hanging, or near upright with probability ``p.start_upright`` (drawn first,
+    and only when that share is positive, so the hanging task's starts are the same draws as without
+    the option)."""
+    s, k = p.start_noise, int(p.start_upright > 0.0)
+    d = np.array([rng.random(k + 4) for rng in rngs])  # (the choice), q noise, v noise (:mod:`mbs_envs.envs.draws`)
+    upright = (d[:, 0] < p.start_upright) if k else np.zeros(len(rngs), bool)
+    noise = uniform_of(d[:, k:], -s, s)
+    return np.where(upright[:, None], Q_UP, Q_DOWN) + noise[:, :2], noise[:, 2:]
 
 
 def task_rows(p: SwingUpTaskParams, q: np.ndarray, v: np.ndarray, action: np.ndarray) -> np.ndarray:
@@ -312,8 +316,8 @@ class SwingUpEnv(MBSEnv):
         """This env's task parameters, from its current settings."""
         return self._task_cache()[1]
 
-    def _initial_state(self, task: Any, rng: np.random.Generator, model: Planar2R) -> tuple[np.ndarray, np.ndarray]:
-        return start(self.task_params, rng)
+    def _draw_states(self, task: Any, rngs: list, model: Planar2R) -> tuple[np.ndarray, np.ndarray]:
+        return start(self.task_params, rngs)
 
     def observe(self, q, v, now, task) -> np.ndarray:
         return encode_swingup(q, v)

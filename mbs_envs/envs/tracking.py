@@ -24,7 +24,8 @@ import gymnasium as gym
 from ..dynamics.jit import njit
 import numpy as np
 
-from .references import SumOfSines, sample_sum_of_sines, sum_of_sines_columns
+from .draws import uniform_of
+from .references import SumOfSines, sample_sums_of_sines, sum_of_sines_columns
 from ..dynamics.trig import sincos_columns, wrap, wrap_fast
 from .. import validation as check
 from .base import MBSEnv
@@ -139,9 +140,10 @@ def _as_columns(*arrays: np.ndarray) -> tuple[tuple, list[np.ndarray]]:
     members and lay each out in contiguous columns ``(k_i, L)``."""
     arrays = [np.asarray(x, float) for x in arrays]
     lead = np.broadcast_shapes(*(x.shape[:-1] for x in arrays))
-    # writable as well as contiguous: the kernels' calls from compiled code pass writable arrays, and a
-    # read-only argument (a no-op broadcast's view) would compile every kernel a second time
-    return lead, [np.require(np.broadcast_to(x, lead + x.shape[-1:]).reshape(-1, x.shape[-1]).T, requirements=("C", "W")) for x in arrays]
+    # new arrays, writable as well as contiguous: the kernels' calls from compiled code pass writable arrays,
+    # and a read-only argument (a no-op broadcast's view) would compile every kernel a second time
+    return lead, [np.array((x if x.shape[:-1] == lead else np.broadcast_to(x, lead + x.shape[-1:])).reshape(-1, x.shape[-1]).T, order="C")
+                  for x in arrays]  # fmt: skip
 
 
 @njit
@@ -275,17 +277,19 @@ class TrackingTaskParams:
     start_noise: float
 
 
-def sample(p: TrackingTaskParams, rng: np.random.Generator) -> SumOfSines:
-    """An episode's task state: its reference (:func:`sample_sum_of_sines`)."""
-    return sample_sum_of_sines(rng, p.center_low, p.center_high, p.max_amplitude, p.omega_range, p.n_components, p.rate_range)
+def sample(p: TrackingTaskParams, rngs: list[np.random.Generator]) -> SumOfSines:
+    """The episode's task state of ``L = len(rngs)`` members, stacked: their references
+    (:func:`sample_sums_of_sines`)."""
+    return sample_sums_of_sines(rngs, p.center_low, p.center_high, p.max_amplitude, p.omega_range, p.n_components, p.rate_range)
 
 
-def start_tracked(p: TrackingTaskParams, reference: SumOfSines, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """The tracked coordinates' start ``(q_t, v_t)``, shape ``(m,)`` each: the reference at 0 plus noise
-    (a scene completes the rest of the state)."""
+def start_tracked(p: TrackingTaskParams, reference: SumOfSines, rngs: list[np.random.Generator]) -> tuple[np.ndarray, np.ndarray]:
+    """The tracked coordinates' start ``(q_t, v_t)``, shape ``(L, m)`` each: the stacked references at 0
+    plus noise, member ``i``'s from ``rngs[i]`` (a scene completes the rest of the state)."""
     q_ref, v_ref, _ = reference(0.0)
     s, m = p.start_noise, len(p.tracked)
-    return q_ref + rng.uniform(-s, s, m), v_ref + rng.uniform(-s, s, m)
+    noise = uniform_of(np.array([rng.random(2 * m) for rng in rngs]), -s, s)  # :mod:`mbs_envs.envs.draws`
+    return q_ref + noise[:, :m], v_ref + noise[:, m:]
 
 
 def observe(p: TrackingTaskParams, q: np.ndarray, v: np.ndarray, now: tuple) -> np.ndarray:
@@ -412,14 +416,14 @@ class JointTrackingEnv(MBSEnv):
             np.asarray(self.max_amplitude, float), self.omega_range, self.rate_range, self.n_components, self.start_noise,
         )  # fmt: skip
 
-    def _reset_task(self, options: dict, rng: np.random.Generator) -> SumOfSines:
-        return sample(self.task_params, rng)
+    def _draw_tasks(self, options: dict, rngs: list) -> SumOfSines:
+        return sample(self.task_params, rngs)
 
-    def _initial_state(self, task: SumOfSines, rng: np.random.Generator, model) -> tuple[np.ndarray, np.ndarray]:
-        return self._state_from_tracked(*start_tracked(self.task_params, task, rng), model)
+    def _draw_states(self, task: SumOfSines, rngs: list, model) -> tuple[np.ndarray, np.ndarray]:
+        return self._state_from_tracked(*start_tracked(self.task_params, task, rngs), model)
 
     def _state_from_tracked(self, q_t: np.ndarray, v_t: np.ndarray, model) -> tuple[np.ndarray, np.ndarray]:
-        """Whole state from the tracked coordinates (identity when all are tracked)."""
+        """Whole states ``(L, nq)``, ``(L, nv)`` from the tracked coordinates ``(L, m)`` (identity when all are tracked)."""
         return q_t, v_t
 
     def task_now(self, t: np.ndarray, task: SumOfSines) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -5,9 +5,11 @@ task as one batch: the physics step is a single batched :func:`mbs_envs.dynamics
 call, and observation, reward, termination and info come from the same task
 functions the single environment uses (``task_now``, ``observe``, ``reward``,
 ``terminated``, ``state_diverged``, ``task_info``), called with ``(N, ...)``
-arrays. Resets draw from each member's own generator through the single env's
-``sample_start``, so member ``i`` seeded with ``seed + i`` reproduces
-``gym.make(id).reset(seed=seed + i)`` and its episode.
+arrays. Resets draw through the single env's ``draw_starts``: each member's random numbers from its
+own generator, the rest for all the members reset at once, so member ``i`` seeded with ``seed + i``
+reproduces ``gym.make(id).reset(seed=seed + i)`` and its episode. Autoresets take each member's next
+start from a batch drawn ahead (:mod:`mbs_envs.envs.lookahead`: the same starts; ``draw_ahead=False``
+draws them at the autoreset).
 
 Every registered id has it as ``vector_entry_point``::
 
@@ -40,7 +42,6 @@ batch of a few thousand members can fault its work arrays in afresh at every ste
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any
 
 import gymnasium as gym
@@ -52,6 +53,8 @@ from gymnasium.vector.utils import batch_space
 from .. import validation as check
 from ..dynamics.memory import keep_freed_memory
 from .base import MBSEnv, check_work_budget, validate_action
+from .lookahead import StartsAhead
+from .stacking import tree_assign, tree_pick
 
 
 def _same(a: Any, b: Any) -> bool:
@@ -60,27 +63,6 @@ def _same(a: Any, b: Any) -> bool:
         return bool(np.array_equal(np.asarray(a), np.asarray(b))) if isinstance(a, np.ndarray) or isinstance(b, np.ndarray) else bool(a == b)
     except Exception:
         return a is b
-
-
-def tree_stack(items: list[Any]) -> Any:
-    """Stack per-member task objects (dataclasses of arrays, possibly None) along a new axis 0."""
-    first = items[0]
-    if first is None:
-        return None
-    if dataclasses.is_dataclass(first):
-        return type(first)(**{f.name: tree_stack([getattr(x, f.name) for x in items]) for f in dataclasses.fields(first)})
-    return np.stack([np.asarray(x, float) for x in items])
-
-
-def tree_set(batch: Any, i: int, item: Any) -> None:
-    """Write member ``i`` of a stacked task in place."""
-    if batch is None:
-        return
-    if dataclasses.is_dataclass(batch):
-        for f in dataclasses.fields(batch):
-            tree_set(getattr(batch, f.name), i, getattr(item, f.name))
-        return
-    batch[i] = item
 
 
 class MBSVectorEnv(VectorEnv):
@@ -101,6 +83,10 @@ class MBSVectorEnv(VectorEnv):
     full_info : bool
         ``info`` carries everything the single env's does (energy, reward
         terms, task quantities); False keeps ``t`` and ``diverged`` only (faster).
+    draw_ahead : bool
+        Autoresets take each member's next start from a batch drawn ahead
+        (:mod:`mbs_envs.envs.lookahead`; the same starts, drawn in bulk); False draws
+        them at the autoreset, the members reset in a step as one batch.
     **env_kwargs
         The single env's constructor arguments (``params``, ``dt``, ...).
     """
@@ -117,6 +103,7 @@ class MBSVectorEnv(VectorEnv):
         randomize: dict[str, float] | None = None,
         member_params: Any = None,
         full_info: bool = True,
+        draw_ahead: bool = True,
         render_mode: str | None = None,
         **env_kwargs: Any,
     ):
@@ -141,6 +128,7 @@ class MBSVectorEnv(VectorEnv):
         self.member_params = None if member_params is None else tuple(dict(m) for m in member_params)
         self.max_episode_steps = max_episode_steps
         self.full_info = bool(full_info)
+        self.draw_ahead = check.boolean(draw_ahead, "draw_ahead")
         self.render_mode = render_mode
         self.single_observation_space = self.env.observation_space
         self.single_action_space = self.env.action_space
@@ -159,6 +147,7 @@ class MBSVectorEnv(VectorEnv):
         self._scales: dict[str, np.ndarray] = {k: np.ones(n) for k in self.randomize}
         self._apply_scales()  # fixed per-member parameters from the start
         self._autoreset = np.zeros(n, bool)
+        self._ahead = StartsAhead(n)  # the members' next starts, drawn in batches (autoresets take them)
         self._started = False
 
     @property
@@ -260,40 +249,58 @@ class MBSVectorEnv(VectorEnv):
             return None
         return [g if s is None else seeding.np_random(s)[0] for g, s in zip(self._rngs, seeds)]
 
-    def _reset_members(self, idx: np.ndarray, options: dict, rngs: list[np.random.Generator] | None = None) -> None:
-        """Draw task and start state of members ``idx`` with the task's code, each from its own generator
-        (``rngs``: every member's generator to draw from and keep; default the current ones).
-        Every start is drawn before any is assigned: a refused one (``ValueError``) leaves the batch as it was."""
-        env = self.env
+    def _draw_member_params(self, idx: np.ndarray, rngs: list[np.random.Generator] | None = None) -> tuple[dict[str, np.ndarray], Any]:
+        """The randomization scales ``{name: (len(idx),)}`` of members ``idx``, drawn from their generators
+        (``rngs``, default the current ones; the first draws of a reset: start states may depend on the
+        parameters), and the model with those members' parameters."""
         rngs = self._rngs if rngs is None else rngs
-        saved = [rngs[i].bit_generator.state for i in idx]  # restored if a start is refused
         scales = {k: s.copy() for k, s in self._scales.items()}
-        drawn = []
+        for i in idx:
+            for k, s in self.randomize.items():
+                scales[k][i] = rngs[i].uniform(1 - s, 1 + s)
+        model = self.nominal_model
+        if self.randomize or self._fixed:
+            model = self.nominal_model.with_params(self.nominal_params.batched(**self._member_values(idx, scales)))
+        return {k: s[idx] for k, s in scales.items()}, model
+
+    def _reset_members(self, idx: np.ndarray, options: dict, rngs: list[np.random.Generator] | None = None) -> np.ndarray:
+        """Draw task and start state of members ``idx`` with the task's code, each from its own generator
+        (``rngs``: every member's generator to draw from and keep; default the current ones), and return
+        their first observations, ``(len(idx), obs_dim)``. The random numbers are drawn member by member,
+        everything else for the members at once (:meth:`MBSEnv.draw_starts`); all are checked before any
+        is assigned: a refused start (``ValueError``) leaves the batch and every generator as they were.
+        Members with a start drawn ahead (:mod:`mbs_envs.envs.lookahead`) must have been rewound."""
+        env = self.env
+        if len(idx) == 0:  # e.g. an all-False reset_mask: nothing is drawn
+            return np.empty((0,) + self.single_observation_space.shape, self.single_observation_space.dtype)
+        rngs = self._rngs if rngs is None else rngs
+        members = [rngs[i] for i in idx]
+        saved = [g.bit_generator.state for g in members]  # restored if a start is refused
         try:
-            for i in idx:
-                model = self.nominal_model
-                for k, s in self.randomize.items():  # the member's parameters first: start states may depend on them
-                    scales[k][i] = rngs[i].uniform(1 - s, 1 + s)
-                if self.randomize or self._fixed:
-                    model = self._member_model(i, scales)
-                drawn.append(env.draw_start(options, rngs[i], model))
-            if drawn:  # every drawn start checked at once (the single env's rule, batched)
-                env._check_start(np.stack([d[1] for d in drawn]), np.stack([d[2] for d in drawn]), tree_stack([d[0] for d in drawn]),
-                                 env.start_given(options))  # fmt: skip
+            drawn, model = self._draw_member_params(idx, rngs)
+            task, q0, v0 = env.draw_starts(options, members, model)
+            obs = env._check_start(q0, v0, task, env.start_given(options))  # the single env's rule, batched
         except ValueError:
-            for i, state in zip(idx, saved):
-                rngs[i].bit_generator.state = state
+            for g, state in zip(members, saved):
+                g.bit_generator.state = state
             raise
         self._rngs = list(rngs)
-        self._scales = scales
-        for i, (task, q0, v0) in zip(idx, drawn):
-            if self._task is None:
-                self._task = tree_stack([task] * self.num_envs)
-            tree_set(self._task, i, task)
-            if self._task_columns is not None:
-                for whole, member in zip(self._task_columns, self.env.task_columns(task)):
-                    whole[..., i] = member[..., 0]
-            self._q[i], self._v[i] = q0, v0
+        self._scales = {k: s.copy() for k, s in self._scales.items()}
+        for k, x in drawn.items():
+            self._scales[k][idx] = x
+        if self._task is None:  # the first reset: every member
+            self._task = task
+        else:
+            tree_assign(self._task, idx, task)
+        if self._task_columns is not None:
+            for whole, part in zip(self._task_columns, env.task_columns(task)):
+                whole[..., idx] = part
+        self._qc[:, idx], self._vc[:, idx] = q0.T, v0.T
+        self._restarted(idx)
+        return obs
+
+    def _restarted(self, idx: np.ndarray) -> None:
+        """Members ``idx`` begin an episode (their task, state and parameters set)."""
         self._t[idx] = 0.0
         self._u[idx] = 0.0
         self._elapsed[idx] = 0
@@ -321,7 +328,12 @@ class MBSVectorEnv(VectorEnv):
             if not self._started and not mask.all():
                 raise ValueError("the first reset must reset every member")
             idx = np.flatnonzero(mask)
-        self._reset_members(idx, options, rngs)
+        undo = self._ahead.rewind(self, idx)  # their generators as if nothing had been drawn ahead
+        try:
+            self._reset_members(idx, options, rngs)
+        except ValueError:
+            self._ahead.unrewind(self, undo)
+            raise
         self._autoreset[idx] = False
         self._started = True
         now = self.env.task_now(self._t, self._task)
@@ -335,7 +347,10 @@ class MBSVectorEnv(VectorEnv):
         env = self.env
         pending = self.autoreset_mode == AutoresetMode.NEXT_STEP and self._autoreset.any()
         if pending:  # the members being reset ignore their action: any real number will do, NaN included
-            a = check.reals(actions, "actions", bools=True)
+            if type(actions) is np.ndarray and actions.dtype.kind == "f":
+                a = actions.astype(float)  # a native float64 copy (what check.reals gives, without its checks of other types)
+            else:
+                a = check.reals(actions, "actions", bools=True)
             if self.model.nu == 1 and a.shape == (self.num_envs,):
                 a = a[:, None]
             if a.shape == (self.num_envs, self.model.nu):
@@ -414,7 +429,7 @@ class MBSVectorEnv(VectorEnv):
         """The reset ``info`` entries (:meth:`_info`) of members ``idx``, one row each."""
         out: dict[str, Any] = {"t": self._t[idx], "diverged": np.zeros(len(idx), bool)}
         if self.full_info:
-            q, v, u, task = self._q[idx], self._v[idx], self._u[idx], self._pick(self._task, idx)
+            q, v, u, task = self._q[idx], self._v[idx], self._u[idx], tree_pick(self._task, idx)
             model = self.model
             if self.randomize or self._fixed:  # the members' own parameters
                 model = self.nominal_model.with_params(self.nominal_params.batched(**self._member_values(idx)))
@@ -424,19 +439,26 @@ class MBSVectorEnv(VectorEnv):
         return out
 
     def _restart(self, idx: np.ndarray) -> np.ndarray:
-        """Reset members ``idx`` (autoreset) and return their first observations."""
-        self._reset_members(idx, {})
-        task = self._pick(self._task, idx)
-        return self.env.observe(self._q[idx], self._v[idx], self.env.task_now(self._t[idx], task), task)
-
-    @staticmethod
-    def _pick(task: Any, idx: np.ndarray | int) -> Any:
-        """Members ``idx`` of a stacked task (an int gives one member in the single env's shapes)."""
-        if task is None:
-            return None
-        if dataclasses.is_dataclass(task):
-            return type(task)(**{f.name: MBSVectorEnv._pick(getattr(task, f.name), idx) for f in dataclasses.fields(task)})
-        return task[idx]
+        """Reset members ``idx`` (autoreset) and return their first observations: from their starts drawn
+        ahead (:mod:`mbs_envs.envs.lookahead`), or, for a start the task refuses, drawn now (raising as
+        a reset does). The same starts either way."""
+        if not self.draw_ahead:
+            return self._reset_members(idx, {})
+        ahead = self._ahead
+        ready = ahead.ready(self, idx)
+        if ready.all():
+            obs = ahead.take(self, idx)
+            self._restarted(idx)
+        else:
+            obs = np.empty((len(idx),) + self.single_observation_space.shape, self.single_observation_space.dtype)
+            later = idx[~ready]  # first: a refusal leaves the members taken below as they were
+            ahead.rewind(self, later)
+            obs[~ready] = self._reset_members(later, {})
+            if ready.any():
+                obs[ready] = ahead.take(self, idx[ready])
+                self._restarted(idx[ready])
+        ahead.top_up(self)
+        return obs
 
     def _info(self, now: Any, bad: np.ndarray, terms: dict | None = None) -> dict[str, Any]:
         info: dict[str, Any] = {"t": self._t.copy(), "diverged": np.asarray(bad, bool).copy()}
@@ -509,7 +531,7 @@ class MBSVectorEnv(VectorEnv):
             return None
         env = self.env
         env.render_mode = "rgb_array"
-        return tuple(env.render_state(self._q[i], float(self._t[i]), self._pick(self._task, i), self._v[i], self._u[i])
+        return tuple(env.render_state(self._q[i], float(self._t[i]), tree_pick(self._task, i), self._v[i], self._u[i])
                      for i in range(self.num_envs))  # fmt: skip
 
     def close_extras(self, **kwargs: Any) -> None:

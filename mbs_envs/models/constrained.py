@@ -210,11 +210,13 @@ class ConstrainedModel(Model):
             If the projection is not finite or leaves a constraint residual above ``tol`` [m].
         """
         q_p, v_p = self.project_compiled(q, v)
-        residual = np.max(np.abs(self.constraint_residual(q_p)))
-        if not np.all(np.isfinite(q_p)) or residual > tol:
+        residual = np.max(np.abs(self.constraint_residual(q_p)), axis=-1)  # per state, shape (...)
+        bad = ~(np.all(np.isfinite(q_p), axis=-1) & (residual <= tol))
+        if np.any(bad):
+            i = np.unravel_index(np.argmax(bad), bad.shape) if bad.ndim else ()  # the first refused
             raise ValueError(
-                f"start state q = {np.asarray(q).tolist()} cannot be made consistent with the constraints "
-                f"(residual {residual:.3g} after projection)"
+                f"start state q = {np.asarray(q)[i].tolist()} cannot be made consistent with the constraints "
+                f"(residual {residual[i]:.3g} after projection)"
             )
         return q_p, v_p
 

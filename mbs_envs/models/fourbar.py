@@ -396,13 +396,17 @@ def project_kernel(q, v, theta, tol):  # pragma: no cover - compiled
 
 @njit
 def constraint_info_kernel(q, v, tau, theta, res, lam):  # pragma: no cover - compiled
-    """``max |phi|`` and the multipliers (B, 2) of a batch in columns."""
+    """``max |phi|`` and the multipliers (B, 2) of a batch in columns (``lam`` without rows: ``max |phi|`` only)."""
     B = q.shape[1]
-    T, F = _trig_columns(q), _friction_columns(v, theta)
+    T = _trig_columns(q)
     for b in range(B):
         phi0, phi1 = _residual_closed(T, theta, b)
         x0, x1 = abs(phi0), abs(phi1)
         res[b] = x0 if (x0 > x1 or x0 != x0) else x1
+    if lam.shape[0] == 0:
+        return
+    F = _friction_columns(v, theta)
+    for b in range(B):
         m11, m12, m22, m33 = _mass_closed(T, theta, b)
         f1, f2, f3 = _force_closed(T, v, tau, F, theta, b)
         P0, P1 = _jacobian_closed(T, theta, b)

@@ -437,11 +437,14 @@ def project_kernel(q, v, theta, tol):  # pragma: no cover - compiled
 
 @njit
 def constraint_info_kernel(q, v, tau, theta, res, lam):  # pragma: no cover - compiled
-    """``|phi|`` and the contact force (B, 3) of a batch in columns."""
+    """``|phi|`` and the contact force (B, 3) of a batch in columns (``lam`` without rows: ``|phi|`` only)."""
     B = q.shape[1]
     T = _trig_columns(q)
     for b in range(B):
         res[b] = abs(_residual_closed(T, q, theta, b))
+    if lam.shape[0] == 0:
+        return
+    for b in range(B):
         m, A, C, M33, M35 = _mass_closed(T, theta, b)
         f = _force_closed(T, v, tau, theta, b, A, C)
         _, lb, ok = _schur_closed(m, A, C, M33, M35, f, _jacobian_closed(T, theta, b), _bias_closed(T, v, theta, b))
@@ -632,16 +635,19 @@ class RollingDisk(ConstrainedModel):
         y: float = 0.0,
     ) -> tuple[np.ndarray, np.ndarray]:
         """A consistent state: the disk on the ground (``z = r cos lean``) with the
-        centre's velocity from the rolling constraints.
+        centre's velocity from the rolling constraints. Batched: every argument a float or an array
+        of shape ``(...)`` (broadcast together, and with per-member parameters).
 
         Returns
         -------
-        q, v : ndarray, shape (6,)
+        q, v : ndarray, shape (..., 6)
         """
-        if not abs(lean) < self.flat_lean:
-            raise ValueError(f"lean must be within +-{self.flat_lean:.3f} rad of upright, got {lean!r}")
-        q = np.array([x, y, self.params.r * np.cos(lean), heading, lean, spin], float)
-        v = self.complete_velocity(q, np.array([dheading, dlean, dspin], float))
+        lean = np.asarray(lean, float)
+        inside = np.abs(lean) < self.flat_lean
+        if not np.all(inside):
+            raise ValueError(f"lean must be within +-{self.flat_lean:.3f} rad of upright, got {float(lean[~inside].flat[0])!r}")
+        q = np.stack(np.broadcast_arrays(*(np.asarray(c, float) for c in (x, y, self.params.r * np.cos(lean), heading, lean, spin))), axis=-1)
+        v = self.complete_velocity(q, np.stack(np.broadcast_arrays(*(np.asarray(c, float) for c in (dheading, dlean, dspin))), axis=-1))
         return q, v
 
     def singular(self, q: np.ndarray) -> np.ndarray:

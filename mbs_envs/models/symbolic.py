@@ -733,7 +733,7 @@ def _constrained_body(d: Derivation, plain, head: list, damp: list, code, mass: 
         "",
         "@njit(cache=True)",
         "def constraint_info_kernel(q, v, tau, theta, res, lam):",
-        '    """max |phi| (B,) and the multipliers (B, nc) of a batch in columns."""',
+        '    """max |phi| (B,) and the multipliers (B, nc) of a batch in columns (lam without rows: max |phi| only)."""',
         "    B = q.shape[1]",
         "    phi = np.empty((NH, B))",
         "    residual_columns(q, theta, phi)",
@@ -744,6 +744,8 @@ def _constrained_body(d: Derivation, plain, head: list, damp: list, code, mass: 
         "            if x > worst or x != x:  # NaN stays",
         "                worst = x",
         "        res[b] = worst",
+        "    if lam.shape[0] == 0:",
+        "        return",
         "    M, X, P, g = np.empty((N, N, B)), np.empty((NC + 1, N, B)), np.empty((NC, N, B)), np.empty((NC, B))",
         "    dynamics_columns(q, v, tau, theta, M, X, P, g)",
         "    a, lc, ok = np.empty((N, B)), np.empty((NC, B)), np.ones(B, np.bool_)",
@@ -944,9 +946,11 @@ class ConstrainedDerivedModel(DerivedModel, ConstrainedModel):
 
         start = q[..., ind].copy()
         x, phi = close(q[..., dep])  # the guess closed where it is
-        steps = max(1, int(np.ceil(np.max(np.abs(q_ind - start), initial=0.0) / 0.2)))
-        for k in range(1, steps + 1):
-            q[..., ind] = start + (q_ind - start) * (k / steps)
+        # each member's own number of steps (a batch's members take the steps each would take alone; a member
+        # done early stays at its target, where Gauss-Newton changes nothing more once converged)
+        steps = np.maximum(1, np.ceil(np.max(np.abs(q_ind - start), axis=-1, initial=0.0) / 0.2))[..., None]
+        for k in range(1, int(np.max(steps, initial=1)) + 1):
+            q[..., ind] = start + (q_ind - start) * (np.minimum(k, steps) / steps)
             x, phi = close(x)
         failed = ~np.all(np.abs(phi) <= 1e3 * tol, axis=-1)
         for trial in np.random.default_rng(0).uniform(-np.pi, np.pi, (20, len(dep))):

@@ -10,6 +10,7 @@ import numpy as np
 import mbs_envs  # noqa: F401  (registers the ids)
 from mbs_envs.envs import rolling_disk as disk
 from mbs_envs.envs import swingup, tracking
+from mbs_envs.envs.stacking import tree_pick
 
 
 def test_tracking_task_functions_replay_a_planar2r_episode():
@@ -22,8 +23,9 @@ def test_tracking_task_functions_replay_a_planar2r_episode():
     assert all(np.array_equal(getattr(env.task_params, f), getattr(p, f)) for f in vars(p)), "the env holds these parameters"
     obs, _ = env.reset(seed=4)
     rng = np.random.default_rng(4)  # what reset(seed=4) seeds
-    ref = tracking.sample(p, rng)
-    q, v = tracking.start_tracked(p, ref, rng)
+    refs = tracking.sample(p, [rng])  # a batch of one member, drawn from its generator
+    q, v = (x[0] for x in tracking.start_tracked(p, refs, [rng]))
+    ref = tree_pick(refs, 0)
     np.testing.assert_array_equal(obs, tracking.observe(p, q, v, ref(0.0)))
     for k, a in enumerate(np.random.default_rng(0).uniform(-1, 1, (20, 2)).astype(np.float32)):
         obs, r, terminated, _, info = env.step(a)
@@ -40,7 +42,7 @@ def test_swing_up_task_functions_replay_an_acrobot_episode():
     p = swingup.SwingUpTaskParams(weights=np.array([1.0, 0.05, 0.01]), u_max=np.array([10.0]), driven=1, tolerance=0.1, start_noise=0.1)
     env = gym.make("mbs_envs/Acrobot-v0").unwrapped
     obs, _ = env.reset(seed=2)
-    q, v = swingup.start(p, np.random.default_rng(2))
+    q, v = (x[0] for x in swingup.start(p, [np.random.default_rng(2)]))
     np.testing.assert_array_equal(obs, swingup.encode_swingup(q, v))
     for a in np.random.default_rng(1).uniform(-1, 1, (20, 1)).astype(np.float32):
         obs, r, *_, info = env.step(a)
@@ -59,8 +61,9 @@ def test_disk_task_functions_replay_a_rolling_disk_episode():
                             heading_amplitude=0.6, heading_omega=(0.2, 0.8))  # fmt: skip
     obs, _ = env.reset(seed=6)
     rng = np.random.default_rng(6)
-    task = disk.sample(p, rng)
-    q, v = env.model.make_consistent(*disk.start(p, task, rng, env.model))
+    tasks = disk.sample(p, [rng])
+    q, v = (x[0] for x in env.model.make_consistent(*disk.start(p, tasks, [rng], env.model)))
+    task = tree_pick(tasks, 0)
     np.testing.assert_array_equal(obs, disk.observe(p, q, v, disk.reference(task, 0.0), task))
     for a in np.random.default_rng(3).uniform(-1, 1, (20, 2)).astype(np.float32):
         obs, r, terminated, _, info = env.step(a)
