@@ -235,6 +235,9 @@ class MBSEnv(gym.Env):
     #: kernels, or None (numpy path). It applies to the class that declares it: a subclass
     #: steps compiled only if it declares one too (its task may differ).
     step_kernel: ClassVar[Any] = None
+    #: a scene's step kernel for batches of more than one member, if it has its own (the same bits per member;
+    #: compiled only where a batch is stepped)
+    batched_step_kernel: ClassVar[Any] = None
     #: the largest constraint residual [m] of a state that has not diverged (constrained scenes; a scene
     #: whose loop can open declares ``residual_limit = checked_residual_limit()``)
     residual_limit: float = np.inf
@@ -339,7 +342,8 @@ class MBSEnv(gym.Env):
         obs = np.empty(self.observation_space.shape + (B,), np.float32)
         flags = np.zeros((2, B), bool)
         bad, terminated = flags[0], flags[1]
-        self.step_kernel(  # compiled code raises no floating-point warnings
+        kernel = self.step_kernel if B == 1 or self.batched_step_kernel is None else self.batched_step_kernel
+        kernel(  # compiled code raises no floating-point warnings
             batch_theta(model, B), stepper, control, self.task_arguments() + task_columns,
             (q, v, t, action), (u, obs, info, bad, terminated),
         )

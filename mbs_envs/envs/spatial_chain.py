@@ -25,6 +25,16 @@ def step_kernel(theta, stepper, control, task, state, out):  # pragma: no cover 
     )
 
 
+@njit
+def batched_step_kernel(theta, stepper, control, task, state, out):  # pragma: no cover - compiled
+    """:func:`step_kernel` of a batch: the ABA in SIMD tiles of members (:func:`~mbs_envs.models.spatial_chain.aba_tiles`;
+    each member's bits those of :func:`step_kernel`)."""
+    engine_step(
+        _model.tiled_advance_kernel, _model.energy_kernel, _compiled.no_constraint_info, _compiled.never_singular, _tracking.tracking_task,
+        theta, stepper, control, task, state, out,
+    )
+
+
 def reach_gravity_torque(model: SpatialChain) -> np.ndarray:
     """The largest gravity torque joint ``i`` can feel [N m], shape (N,).
 
@@ -118,6 +128,7 @@ class SpatialChainEnv(ChainTrackingEnv):
     """
 
     step_kernel = staticmethod(step_kernel)
+    batched_step_kernel = staticmethod(batched_step_kernel)
     Model = SpatialChain
     wide_joints = 2
 

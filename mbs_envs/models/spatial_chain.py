@@ -63,27 +63,32 @@ MAX_SPATIAL_LINKS = 10_000
 
 
 @njit(inline="always")
-def _rot_into(a, s, c, R):  # pragma: no cover - compiled
-    """Rodrigues, written into ``R (3, 3)``: the rotation about the unit axis ``a`` by the angle whose sine
-    and cosine are ``s, c``."""
-    x, y, z = a[0], a[1], a[2]
+def _rot_entries(x, y, z, s, c):  # pragma: no cover - compiled
+    """Rodrigues: the rotation about the unit axis ``(x, y, z)`` by the angle whose sine and cosine are ``s, c``,
+    its nine entries by rows."""
     C = 1.0 - c
-    R[0, 0], R[0, 1], R[0, 2] = c + x * x * C, x * y * C - z * s, x * z * C + y * s
-    R[1, 0], R[1, 1], R[1, 2] = y * x * C + z * s, c + y * y * C, y * z * C - x * s
-    R[2, 0], R[2, 1], R[2, 2] = z * x * C - y * s, z * y * C + x * s, c + z * z * C
+    return (c + x * x * C, x * y * C - z * s, x * z * C + y * s,
+            y * x * C + z * s, c + y * y * C, y * z * C - x * s,
+            z * x * C - y * s, z * y * C + x * s, c + z * z * C)  # fmt: skip
+
+
+@njit(inline="always")
+def _rot_into(a, s, c, R):  # pragma: no cover - compiled
+    """:func:`_rot_entries` written into ``R (3, 3)``."""
+    R[0, 0], R[0, 1], R[0, 2], R[1, 0], R[1, 1], R[1, 2], R[2, 0], R[2, 1], R[2, 2] = _rot_entries(a[0], a[1], a[2], s, c)
+
+
+@njit(inline="always")
+def _cross_motion_entries(w0, w1, w2, v0, v1, v2, a0, a1, a2, b0, b1, b2):  # pragma: no cover - compiled
+    """``V x M`` of two motion vectors ``V = (w, v)``, ``M = (a, b)``: ``(w x a, w x b + v x a)``, six entries."""
+    return (w1 * a2 - w2 * a1, w2 * a0 - w0 * a2, w0 * a1 - w1 * a0,
+            w1 * b2 - w2 * b1 + v1 * a2 - v2 * a1, w2 * b0 - w0 * b2 + v2 * a0 - v0 * a2, w0 * b1 - w1 * b0 + v0 * a1 - v1 * a0)  # fmt: skip
 
 
 @njit
 def _cross_motion_into(V, M, out):  # pragma: no cover - compiled
-    """``out = V x M`` of two motion vectors: ``(w x m_w, w x m_v + v x m_w)``."""
-    w0, w1, w2, v0, v1, v2 = V[0], V[1], V[2], V[3], V[4], V[5]
-    a0, a1, a2, b0, b1, b2 = M[0], M[1], M[2], M[3], M[4], M[5]
-    out[0] = w1 * a2 - w2 * a1
-    out[1] = w2 * a0 - w0 * a2
-    out[2] = w0 * a1 - w1 * a0
-    out[3] = w1 * b2 - w2 * b1 + v1 * a2 - v2 * a1
-    out[4] = w2 * b0 - w0 * b2 + v2 * a0 - v0 * a2
-    out[5] = w0 * b1 - w1 * b0 + v0 * a1 - v1 * a0
+    """``out = V x M`` of two motion vectors (:func:`_cross_motion_entries`)."""
+    out[0], out[1], out[2], out[3], out[4], out[5] = _cross_motion_entries(V[0], V[1], V[2], V[3], V[4], V[5], M[0], M[1], M[2], M[3], M[4], M[5])
 
 
 @njit
@@ -183,25 +188,34 @@ def spatial_inertia_into(mi, c, Ic, I):  # pragma: no cover - compiled
 
 
 @njit(inline="always")
-def _body_force(mi, c, Ic, w0, w1, w2, v0, v1, v2, al0, al1, al2, a0, a1, a2, F):  # pragma: no cover - compiled
-    """``F = I A + V x* I V`` of one body (written into ``F (6,)``) from its mass, centre ``c`` and world
-    inertia ``Ic`` about it, in 3 x 3 form: the centre's velocity ``v_c = v_O + w x c`` and acceleration
-    ``a_c = a_O + al x c + w x v_c`` (``(al, a_O)`` the spatial acceleration), ``f = m a_c``,
+def _body_force_entries(mi, cx, cy, cz, I00, I01, I02, I10, I11, I12, I20, I21, I22,
+                        w0, w1, w2, v0, v1, v2, al0, al1, al2, a0, a1, a2):  # fmt: skip  # pragma: no cover - compiled
+    """``F = I A + V x* I V`` of one body, its six entries, from its mass, centre ``(cx, cy, cz)`` and world
+    inertia ``Ic`` about it (entries ``I_rk``), in 3 x 3 form: the centre's velocity ``v_c = v_O + w x c`` and
+    acceleration ``a_c = a_O + al x c + w x v_c`` (``(al, a_O)`` the spatial acceleration), ``f = m a_c``,
     ``n_O = c x f + Ic al + w x (Ic w)``."""
-    cx, cy, cz = c[0], c[1], c[2]
     vc0 = v0 + w1 * cz - w2 * cy
     vc1 = v1 + w2 * cx - w0 * cz
     vc2 = v2 + w0 * cy - w1 * cx
     f0 = mi * (a0 + al1 * cz - al2 * cy + w1 * vc2 - w2 * vc1)
     f1 = mi * (a1 + al2 * cx - al0 * cz + w2 * vc0 - w0 * vc2)
     f2 = mi * (a2 + al0 * cy - al1 * cx + w0 * vc1 - w1 * vc0)
-    h0 = Ic[0, 0] * w0 + Ic[0, 1] * w1 + Ic[0, 2] * w2
-    h1 = Ic[1, 0] * w0 + Ic[1, 1] * w1 + Ic[1, 2] * w2
-    h2 = Ic[2, 0] * w0 + Ic[2, 1] * w1 + Ic[2, 2] * w2
-    F[0] = cy * f2 - cz * f1 + Ic[0, 0] * al0 + Ic[0, 1] * al1 + Ic[0, 2] * al2 + w1 * h2 - w2 * h1
-    F[1] = cz * f0 - cx * f2 + Ic[1, 0] * al0 + Ic[1, 1] * al1 + Ic[1, 2] * al2 + w2 * h0 - w0 * h2
-    F[2] = cx * f1 - cy * f0 + Ic[2, 0] * al0 + Ic[2, 1] * al1 + Ic[2, 2] * al2 + w0 * h1 - w1 * h0
-    F[3], F[4], F[5] = f0, f1, f2
+    h0 = I00 * w0 + I01 * w1 + I02 * w2
+    h1 = I10 * w0 + I11 * w1 + I12 * w2
+    h2 = I20 * w0 + I21 * w1 + I22 * w2
+    return (cy * f2 - cz * f1 + I00 * al0 + I01 * al1 + I02 * al2 + w1 * h2 - w2 * h1,
+            cz * f0 - cx * f2 + I10 * al0 + I11 * al1 + I12 * al2 + w2 * h0 - w0 * h2,
+            cx * f1 - cy * f0 + I20 * al0 + I21 * al1 + I22 * al2 + w0 * h1 - w1 * h0,
+            f0, f1, f2)  # fmt: skip
+
+
+@njit(inline="always")
+def _body_force(mi, c, Ic, w0, w1, w2, v0, v1, v2, al0, al1, al2, a0, a1, a2, F):  # pragma: no cover - compiled
+    """:func:`_body_force_entries` of one body written into ``F (6,)``, from its centre ``c (3,)`` and ``Ic (3, 3)``."""
+    F[0], F[1], F[2], F[3], F[4], F[5] = _body_force_entries(
+        mi, c[0], c[1], c[2], Ic[0, 0], Ic[0, 1], Ic[0, 2], Ic[1, 0], Ic[1, 1], Ic[1, 2], Ic[2, 0], Ic[2, 1], Ic[2, 2],
+        w0, w1, w2, v0, v1, v2, al0, al1, al2, a0, a1, a2,
+    )  # fmt: skip
 
 
 @njit
@@ -471,6 +485,161 @@ def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
             a[i, k] = acc[i]
 
 
+#: members per tile of :func:`aba_tiles` (the tile's work arrays, about 53 N TILE doubles, stay in L2 to N ~ 100)
+TILE = 32
+
+
+@njit
+def aba_tiles(q, v, tau, axis, offset, com, inertia, m, armature, b, g_vec, a):  # pragma: no cover - compiled
+    """:func:`aba_into` of a batch in columns with shared parameters, ``TILE`` members at a time with the member
+    index innermost (SIMD across members): every member's arithmetic is :func:`aba_into`'s, expression by
+    expression (the same bits; tested), on the net torque ``tau - b v``.
+
+    Parameters
+    ----------
+    q, v, tau : ndarray, shape (N, B)
+    axis, offset, com : ndarray, shape (N, 3)
+    inertia : ndarray, shape (N, 3, 3)
+    m, armature, b : ndarray, shape (N,)
+    g_vec : ndarray, shape (3,)
+    a : ndarray, shape (N, B)
+        Written.
+    """
+    N, B = q.shape
+    W = TILE
+    sn, cs, net = np.empty((N, W)), np.empty((N, W)), np.empty((N, W))
+    R, Ic = np.empty((N, 3, 3, W)), np.empty((N, 3, 3, W))
+    p, z, c = np.empty((N, 3, W)), np.empty((N, 3, W)), np.empty((N, 3, W))
+    S, pA, cb, U = np.empty((N, 6, W)), np.empty((N, 6, W)), np.empty((N, 6, W)), np.empty((N, 6, W))
+    D, u = np.empty((N, W)), np.empty((N, W))
+    J, T = np.empty((3, 3, W)), np.empty((3, 3, W))
+    V, Sv, pa, Ac, A = np.empty((6, W)), np.empty((6, W)), np.empty((6, W)), np.empty((6, W)), np.empty((6, W))
+    IA, Ia = np.empty((6, 6, W)), np.empty((6, 6, W))
+    for b0 in range(0, B, W):
+        L = min(W, B - b0)
+        for i in range(N):
+            sincos_columns(q[i, b0 : b0 + L], sn[i, :L], cs[i, :L])
+            for l in range(L):
+                net[i, l] = tau[i, b0 + l] - b[i] * v[i, b0 + l]
+        # frames_into, lane by lane
+        for i in range(N):
+            x, y, zz = axis[i, 0], axis[i, 1], axis[i, 2]
+            for l in range(L):
+                (J[0, 0, l], J[0, 1, l], J[0, 2, l], J[1, 0, l], J[1, 1, l], J[1, 2, l],
+                 J[2, 0, l], J[2, 1, l], J[2, 2, l]) = _rot_entries(x, y, zz, sn[i, l], cs[i, l])  # fmt: skip
+            for r in range(3):
+                if i == 0:
+                    for l in range(L):
+                        p[i, r, l] = offset[i, r]
+                        z[i, r, l] = axis[i, r]
+                        for k in range(3):
+                            R[i, r, k, l] = J[r, k, l]
+                else:
+                    for l in range(L):
+                        a0, a1, a2 = R[i - 1, r, 0, l], R[i - 1, r, 1, l], R[i - 1, r, 2, l]
+                        p[i, r, l] = p[i - 1, r, l] + a0 * offset[i, 0] + a1 * offset[i, 1] + a2 * offset[i, 2]
+                        z[i, r, l] = a0 * axis[i, 0] + a1 * axis[i, 1] + a2 * axis[i, 2]
+                        for k in range(3):
+                            R[i, r, k, l] = a0 * J[0, k, l] + a1 * J[1, k, l] + a2 * J[2, k, l]
+            for r in range(3):
+                for l in range(L):
+                    c[i, r, l] = p[i, r, l] + R[i, r, 0, l] * com[i, 0] + R[i, r, 1, l] * com[i, 1] + R[i, r, 2, l] * com[i, 2]
+            for l in range(L):
+                S[i, 0, l], S[i, 1, l], S[i, 2, l] = z[i, 0, l], z[i, 1, l], z[i, 2, l]
+                S[i, 3, l] = p[i, 1, l] * z[i, 2, l] - p[i, 2, l] * z[i, 1, l]
+                S[i, 4, l] = p[i, 2, l] * z[i, 0, l] - p[i, 0, l] * z[i, 2, l]
+                S[i, 5, l] = p[i, 0, l] * z[i, 1, l] - p[i, 1, l] * z[i, 0, l]
+            for r in range(3):
+                for k in range(3):
+                    for l in range(L):
+                        T[r, k, l] = inertia[i, r, 0] * R[i, k, 0, l] + inertia[i, r, 1] * R[i, k, 1, l] + inertia[i, r, 2] * R[i, k, 2, l]
+            for r in range(3):
+                for k in range(3):
+                    for l in range(L):
+                        Ic[i, r, k, l] = R[i, r, 0, l] * T[0, k, l] + R[i, r, 1, l] * T[1, k, l] + R[i, r, 2, l] * T[2, k, l]
+        # aba_into: velocities, velocity products and bias forces outwards
+        V[:, :L] = 0.0
+        for i in range(N):
+            mi = m[i]
+            for l in range(L):
+                for k in range(6):
+                    Sv[k, l] = S[i, k, l] * v[i, b0 + l]
+                    V[k, l] += Sv[k, l]
+                w0, w1, w2, v0, v1, v2 = V[0, l], V[1, l], V[2, l], V[3, l], V[4, l], V[5, l]
+                cb[i, 0, l], cb[i, 1, l], cb[i, 2, l], cb[i, 3, l], cb[i, 4, l], cb[i, 5, l] = _cross_motion_entries(
+                    w0, w1, w2, v0, v1, v2, Sv[0, l], Sv[1, l], Sv[2, l], Sv[3, l], Sv[4, l], Sv[5, l])
+                # the bias force V x* I V: the body's force at zero spatial acceleration
+                pA[i, 0, l], pA[i, 1, l], pA[i, 2, l], pA[i, 3, l], pA[i, 4, l], pA[i, 5, l] = _body_force_entries(
+                    mi, c[i, 0, l], c[i, 1, l], c[i, 2, l], Ic[i, 0, 0, l], Ic[i, 0, 1, l], Ic[i, 0, 2, l], Ic[i, 1, 0, l],
+                    Ic[i, 1, 1, l], Ic[i, 1, 2, l], Ic[i, 2, 0, l], Ic[i, 2, 1, l], Ic[i, 2, 2, l],
+                    w0, w1, w2, v0, v1, v2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+                )  # fmt: skip
+        # articulated inertias and bias forces inwards
+        Ia[:, :, :L] = 0.0
+        pa[:, :L] = 0.0
+        for i in range(N - 1, -1, -1):
+            mi = m[i]
+            for l in range(L):  # spatial_inertia_into, then + the child's
+                cx, cy, cz = c[i, 0, l], c[i, 1, l], c[i, 2, l]
+                cc = cx * cx + cy * cy + cz * cz
+                for r in range(3):
+                    for k in range(3):
+                        IA[r, k, l] = Ic[i, r, k, l] + mi * ((cc if r == k else 0.0) - c[i, r, l] * c[i, k, l])
+                        IA[3 + r, 3 + k, l] = mi if r == k else 0.0
+                IA[0, 3, l], IA[0, 4, l], IA[0, 5, l] = 0.0, -mi * cz, mi * cy
+                IA[1, 3, l], IA[1, 4, l], IA[1, 5, l] = mi * cz, 0.0, -mi * cx
+                IA[2, 3, l], IA[2, 4, l], IA[2, 5, l] = -mi * cy, mi * cx, 0.0
+                for r in range(3):
+                    for k in range(3):
+                        IA[3 + k, r, l] = IA[r, 3 + k, l]
+            for r in range(6):
+                for k in range(6):
+                    for l in range(L):
+                        IA[r, k, l] += Ia[r, k, l]
+            for r in range(6):
+                for l in range(L):
+                    x = 0.0
+                    y = 0.0
+                    for k in range(6):
+                        x += IA[r, k, l] * S[i, k, l]
+                        y += IA[r, k, l] * cb[i, k, l]
+                    U[i, r, l] = x
+                    Ac[r, l] = y
+            for l in range(L):
+                D[i, l] = (S[i, 0, l] * U[i, 0, l] + S[i, 1, l] * U[i, 1, l] + S[i, 2, l] * U[i, 2, l] + S[i, 3, l] * U[i, 3, l]
+                           + S[i, 4, l] * U[i, 4, l] + S[i, 5, l] * U[i, 5, l]) + armature[i]  # fmt: skip
+                for k in range(6):
+                    pA[i, k, l] += pa[k, l]
+                u[i, l] = net[i, l] - (S[i, 0, l] * pA[i, 0, l] + S[i, 1, l] * pA[i, 1, l] + S[i, 2, l] * pA[i, 2, l]
+                                       + S[i, 3, l] * pA[i, 3, l] + S[i, 4, l] * pA[i, 4, l] + S[i, 5, l] * pA[i, 5, l])  # fmt: skip
+            if i > 0:
+                for l in range(L):
+                    inv = 1.0 / D[i, l]
+                    for r in range(6):
+                        ur = U[i, r, l] * inv
+                        for k in range(r, 6):
+                            x = IA[r, k, l] - ur * U[i, k, l]
+                            Ia[r, k, l] = x
+                            Ia[k, r, l] = x
+                    s_ = ((U[i, 0, l] * cb[i, 0, l] + U[i, 1, l] * cb[i, 1, l] + U[i, 2, l] * cb[i, 2, l] + U[i, 3, l] * cb[i, 3, l]
+                           + U[i, 4, l] * cb[i, 4, l] + U[i, 5, l] * cb[i, 5, l]) - u[i, l]) * inv  # fmt: skip
+                    for k in range(6):
+                        pa[k, l] = pA[i, k, l] + Ac[k, l] - U[i, k, l] * s_
+        # accelerations outwards
+        for l in range(L):
+            A[0, l], A[1, l], A[2, l] = 0.0, 0.0, 0.0
+            A[3, l], A[4, l], A[5, l] = -g_vec[0], -g_vec[1], -g_vec[2]
+        for i in range(N):
+            for l in range(L):
+                for k in range(6):
+                    A[k, l] += cb[i, k, l]
+                acc = (u[i, l] - (U[i, 0, l] * A[0, l] + U[i, 1, l] * A[1, l] + U[i, 2, l] * A[2, l] + U[i, 3, l] * A[3, l]
+                                  + U[i, 4, l] * A[4, l] + U[i, 5, l] * A[5, l])) / D[i, l]  # fmt: skip
+                a[i, b0 + l] = acc
+                for k in range(6):
+                    A[k, l] += S[i, k, l] * acc
+
+
 @njit
 def energy_kernel(q, v, theta, E):  # pragma: no cover - compiled
     """``E = T + V`` [J] of a batch in columns (:func:`energy_member`); ``E`` shape ``(B,)``, written."""
@@ -496,6 +665,25 @@ _this = sys.modules[__name__]
 def advance_kernel(theta, stepper, q, v, tau):  # pragma: no cover - compiled
     """:func:`mbs_envs.dynamics.compiled.rk_run` with this model's :func:`acceleration_kernel` (cached on disk)."""
     rk_run(_this.acceleration_kernel, _compiled.no_projection, theta, stepper, q, v, tau)
+
+
+@njit
+def tiled_acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
+    """:func:`acceleration_kernel` for batches: with shared parameters by :func:`aba_tiles` (SIMD across members,
+    each member's bits those of :func:`acceleration_kernel`), else member by member. Its own kernel, so that a
+    single env compiles no tile code (the first step's compile time)."""
+    N = q.shape[0]
+    if theta.shape[1] == 1:
+        axis, offset, com, inertia, m, arm, b, g = _unpack(theta[:, 0], N)
+        aba_tiles(q, v, tau, axis, offset, com, inertia, m, arm, b, g, a)
+    else:
+        acceleration_kernel(q, v, tau, theta, a)
+
+
+@njit
+def tiled_advance_kernel(theta, stepper, q, v, tau):  # pragma: no cover - compiled
+    """:func:`advance_kernel` with :func:`tiled_acceleration_kernel` (the vector env's step)."""
+    rk_run(_this.tiled_acceleration_kernel, _compiled.no_projection, theta, stepper, q, v, tau)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -228,3 +228,27 @@ def test_aba_and_rnea_scale_linearly():
                     median_time(lambda: chain.aba(Q, V, A), repeats=5), median_time(lambda: chain.rnea(Q, V, A), repeats=5)]  # fmt: skip
     ratios = np.array(times[500]) / np.array(times[50])
     assert np.all(ratios <= 12), ratios
+
+
+@pytest.mark.parametrize("n", [1, 2, 7, 10, 50])
+def test_tiled_aba_gives_each_member_the_bits_of_the_member_by_member_aba(n):
+    """The vector env's kernel with shared parameters runs members in SIMD tiles (``aba_tiles``); each member's
+    result is the member-by-member ``aba_into``'s bit for bit, for batches that fill tiles and leave a remainder, at states
+    beyond the fast sine's range (its libm fallback) and with damping."""
+    from mbs_envs.dynamics.compiled import batch_theta
+    from mbs_envs.models.spatial_chain import TILE, acceleration_kernel, tiled_acceleration_kernel
+
+    rng = np.random.default_rng(n)
+    chain = SpatialChain(n_links=n, params={"b": 0.3})
+    theta = batch_theta(chain, 1)
+    for B in (2, TILE, 2 * TILE + 5):
+        q = rng.uniform(-4, 4, (n, B))
+        q[0, 0] = 3e5  # beyond the SIMD sincos's range
+        v, tau = rng.uniform(-3, 3, (n, B)), rng.uniform(-9, 9, (n, B))
+        a = np.empty((n, B))
+        tiled_acceleration_kernel(q, v, tau, theta, a)
+        for k in range(B):
+            one = np.empty((n, 1))
+            acceleration_kernel(*(np.ascontiguousarray(x[:, k : k + 1]) for x in (q, v, tau)), theta, one)
+            assert np.array_equal(a[:, k], one[:, 0]), (B, k)
+        np.testing.assert_allclose(a, chain.forward_dynamics(q.T, v.T, tau.T).T, rtol=1e-9, atol=1e-9)
