@@ -45,6 +45,9 @@ class StartsAhead:
     #: the members without a start ahead are drawn as one batch once this many (or a quarter of all)
     #: have none, or sooner when an autoreset needs one
     BATCH = 256
+    #: at most this many starts are drawn ahead in one call (a batch of a million members draws as its
+    #: autoresets need, not a million starts at the first)
+    MOST = 4096
 
     def __init__(self, n: int):
         self.n = n
@@ -148,15 +151,21 @@ class StartsAhead:
         self.validate(venv)
         status = self.status[idx]
         if np.any(status == NONE):
-            self.fill(venv, np.flatnonzero(self.status == NONE))
+            self.fill(venv, self._none_first(idx[status == NONE]))
             status = self.status[idx]
         return status == READY
+
+    def _none_first(self, needed: np.ndarray) -> np.ndarray:
+        """``needed`` and other members without a start ahead, at most :attr:`MOST` in all (``needed`` always)."""
+        others = np.flatnonzero(self.status == NONE)
+        others = others[~np.isin(others, needed)][: max(0, self.MOST - len(needed))]
+        return np.sort(np.concatenate([needed, others]))
 
     def top_up(self, venv: Any) -> None:
         """Draw ahead for the members without a start once there are enough of them for one batch."""
         if self.n_none >= min(self.BATCH, max(1, self.n // 4)):
             self.validate(venv)
-            self.fill(venv, np.flatnonzero(self.status == NONE))
+            self.fill(venv, np.flatnonzero(self.status == NONE)[: self.MOST])
 
     # -- taking ----------------------------------------------------------------------
 

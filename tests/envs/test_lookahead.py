@@ -171,3 +171,34 @@ def test_a_start_the_task_refuses_raises_at_the_same_step_as_without_drawing_ahe
 def test_draw_ahead_is_validated():
     with pytest.raises(ValueError, match="draw_ahead"):
         gym.make_vec("mbs_envs/Planar2R-v0", num_envs=2, vectorization_mode="vector_entry_point", draw_ahead="yes")
+
+
+def test_a_large_batch_draws_ahead_at_most_a_bounded_number_of_starts_per_call(monkeypatch):
+    """``StartsAhead.MOST`` bounds one call's draws (a batch of a million members must not draw a million starts at
+    its first autoreset); the members an autoreset needs are always among them, and the starts stay the single envs'."""
+    from mbs_envs.envs.lookahead import NONE, READY, StartsAhead
+
+    monkeypatch.setattr(StartsAhead, "MOST", 8)
+    monkeypatch.setattr(StartsAhead, "BATCH", 4)
+    venv = gym.make_vec("mbs_envs/Acrobot-v1", num_envs=40, vectorization_mode="vector_entry_point", max_episode_steps=3).unwrapped
+    venv.reset(seed=2)
+    ahead = venv._ahead
+    assert ahead.ready(venv, np.array([33])).all()  # needed, and 7 others
+    assert np.count_nonzero(ahead.status == READY) == 8 and ahead.status[33] == READY
+    ahead.top_up(venv)  # 32 without: at most 8 more
+    assert np.count_nonzero(ahead.status == READY) == 16
+    needed = np.arange(20, 40)  # more than MOST needed at once: all of them
+    assert ahead.ready(venv, needed).all() and np.count_nonzero(ahead.status == NONE) == 40 - 16 - 19  # 33 was ready
+    consistent(ahead)
+    singles = [gym.make("mbs_envs/Acrobot-v1", max_episode_steps=3) for _ in range(40)]
+    for i, e in enumerate(singles):
+        e.reset(seed=2 + i)
+    rng = np.random.default_rng(1)
+    done = np.zeros(40, bool)
+    for _ in range(10):  # every member truncates at once: each autoreset needs 40 starts
+        a = rng.uniform(-1, 1, venv.action_space.shape)
+        obs, _, term, trunc, _ = venv.step(a)
+        ref = [e.reset()[0] if done[i] else e.step(a[i])[0] for i, e in enumerate(singles)]
+        np.testing.assert_allclose(obs, np.stack(ref), rtol=0, atol=1e-12)
+        done = term | trunc
+        consistent(ahead)
