@@ -202,3 +202,20 @@ def test_a_large_batch_draws_ahead_at_most_a_bounded_number_of_starts_per_call(m
         np.testing.assert_allclose(obs, np.stack(ref), rtol=0, atol=1e-12)
         done = term | trunc
         consistent(ahead)
+
+
+@pytest.mark.parametrize("kw", [{"randomize": {"m2": 0.3, "l1": 0.2}}, {"member_params": [{"m2": 0.8 + 0.1 * i} for i in range(6)]}])
+def test_randomized_members_draw_their_parameters_ahead_with_their_starts(kw):
+    """Domain randomization draws each member's parameters first at a reset (its start may depend on them): drawn
+    ahead, the parameters come with the start, and the run equals the one that draws at the autoreset."""
+    make = lambda ahead: gym.make_vec("mbs_envs/Planar2R-v0", num_envs=6, vectorization_mode="vector_entry_point",  # noqa: E731
+                                      max_episode_steps=5, draw_ahead=ahead, **kw).unwrapped  # fmt: skip
+    fast, slow = make(True), make(False)
+    fast.reset(seed=9)
+    slow.reset(seed=9)
+    rng = np.random.default_rng(2)
+    for _ in range(40):
+        a = rng.uniform(-1, 1, fast.action_space.shape)
+        assert np.array_equal(fast.step(a)[0], slow.step(a)[0])
+        assert np.array_equal(fast.model.params.m2, slow.model.params.m2)
+    assert fast._ahead.taken > 30
