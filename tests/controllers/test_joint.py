@@ -103,6 +103,8 @@ def test_evaluate_policy_scores_controllers_like_agents():
     env = Monitor(gym.make(ENV_ID))
     rewards = {}
     for C in (PD, ComputedTorque):
+        env.reset(seed=0)  # both on the same two episodes (unseeded, each drew its own: computed torque's hardest
+        # references score below PD's typical ones, so the comparison failed now and then)
         mean, std = evaluate_policy(C(env), env, n_eval_episodes=2, deterministic=True)
         assert np.isfinite(mean) and np.isfinite(std)
         rewards[C.__name__] = mean
