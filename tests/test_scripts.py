@@ -548,5 +548,5 @@ def test_bench_resets_times_both_ways_of_drawing_starts_against_cartpole(tmp_pat
     assert set(rows) == {(s, m, v) for s in ("RollingDisk-v0", "CartPoleSwingUp-v0") for m in ("zero", "random")
                          for v in ("drawn ahead", "drawn at the reset")} | {("CartPole-v1", m, "gymnasium") for m in ("zero", "random")}  # fmt: skip
     assert all(r["per_env_step_us"] > 0 and np.isfinite(r["ratio_to_cartpole"]) for r in rows.values())
-    assert rows[("CartPole-v1", "zero", "gymnasium")]["ratio_to_cartpole"] == 1.0
+    assert rows[("CartPole-v1", "zero", "gymnasium")]["episodes_ended_per_step"] > 0  # the timed runs hold episode ends
     assert "RollingDisk-v0 | random" in (tmp_path / "resets.md").read_text()

@@ -113,5 +113,9 @@ def engine_step(advance, energy, constraint_info, singular, task_step, theta, st
             r[b] = residual[b]
         for i in range(nc):
             li = info[c + 2 + i]
-            for b in range(B):
-                li[b] = lam[b, i] if full else np.nan
+            if full:
+                for b in range(B):
+                    li[b] = lam[b, i]
+            else:  # not computed (lam has no rows)
+                for b in range(B):
+                    li[b] = np.nan

@@ -146,8 +146,8 @@ class StartsAhead:
             self.before[i] = state
 
     def ready(self, venv: Any, idx: np.ndarray) -> np.ndarray:
-        """Make sure members ``idx`` have had their start drawn ahead (filling every member without one
-        in the same batch); return the mask of those whose start is ready."""
+        """Make sure members ``idx`` have had their start drawn ahead (filling them, with up to :attr:`MOST`
+        other members without one, in one batch); return the mask of those whose start is ready."""
         self.validate(venv)
         status = self.status[idx]
         if np.any(status == NONE):
@@ -194,13 +194,21 @@ class StartsAhead:
             if venv._task_columns is not None and self.columns is None:
                 self.columns = venv.env.task_columns(self.task)
             n = self.n
-            rows = [(w.reshape(n, -1), a.reshape(n, -1)) for w, a in zip(tree_leaves(venv._task), tree_leaves(self.task))]
-            rows += [(venv._scales[k].reshape(n, 1), self.scales[k].reshape(n, 1)) for k in venv._scales]
+            rows = [(_view(w, (n, -1)), _view(a, (n, -1))) for w, a in zip(tree_leaves(venv._task), tree_leaves(self.task))]
+            rows += [(_view(venv._scales[k], (n, 1)), _view(self.scales[k], (n, 1))) for k in venv._scales]
             columns = [(venv._qc, self.q), (venv._vc, self.v)]
             if venv._task_columns is not None:
-                columns += [(w.reshape(-1, n), a.reshape(-1, n)) for w, a in zip(venv._task_columns, self.columns)]
+                columns += [(_view(w, (-1, n)), _view(a, (-1, n))) for w, a in zip(venv._task_columns, self.columns)]
             c = self._pairs_cache = (key, (rows, columns))
         return c[1]
+
+
+def _view(x: np.ndarray, shape: tuple) -> np.ndarray:
+    """``x.reshape(shape)``, which must be a view (a copy would take the starts' values and drop them)."""
+    v = x.reshape(shape)
+    if not np.may_share_memory(v, x):
+        raise RuntimeError(f"a per-member array of shape {x.shape} is not contiguous: its 2-D form would be a copy")
+    return v
 
 
 @njit

@@ -14,16 +14,6 @@ from typing import Any
 import numpy as np
 
 
-def tree_stack(items: list[Any]) -> Any:
-    """Stack per-member task objects (dataclasses of arrays, possibly None) along a new axis 0."""
-    first = items[0]
-    if first is None:
-        return None
-    if dataclasses.is_dataclass(first):
-        return type(first)(**{f.name: tree_stack([getattr(x, f.name) for x in items]) for f in dataclasses.fields(first)})
-    return np.stack([np.asarray(x, float) for x in items])
-
-
 def tree_pick(task: Any, idx: np.ndarray | int) -> Any:
     """Members ``idx`` (an index array) of a stacked task, or one member in the single env's shapes
     (an int: its leaves new arrays, 0-d where the batch's are 1-d)."""

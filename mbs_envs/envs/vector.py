@@ -271,9 +271,10 @@ class MBSVectorEnv(VectorEnv):
         is assigned: a refused start (``ValueError``) leaves the batch and every generator as they were.
         Members with a start drawn ahead (:mod:`mbs_envs.envs.lookahead`) must have been rewound."""
         env = self.env
-        if len(idx) == 0:  # e.g. an all-False reset_mask: nothing is drawn
-            return np.empty((0,) + self.single_observation_space.shape, self.single_observation_space.dtype)
         rngs = self._rngs if rngs is None else rngs
+        if len(idx) == 0:  # e.g. an all-False reset_mask: nothing is drawn (new seeds still replace the generators)
+            self._rngs = list(rngs)
+            return np.empty((0,) + self.single_observation_space.shape, self.single_observation_space.dtype)
         members = [rngs[i] for i in idx]
         saved = [g.bit_generator.state for g in members]  # restored if a start is refused
         try:
@@ -306,11 +307,6 @@ class MBSVectorEnv(VectorEnv):
         self._elapsed[idx] = 0
         self._apply_scales()
 
-    def _member_model(self, i: int, scales: dict[str, np.ndarray] | None = None):
-        """The model with member ``i``'s parameters (``scales``, default the current ones; for start states that use the model)."""
-        values = {k: float(v) for k, v in self._member_values(int(i), scales).items()}
-        return self.nominal_model.with_params(self.nominal_params.replace(**values))
-
     def reset(self, *, seed: int | list | None = None, options: dict | None = None):
         """Reset all members (or those in ``options["reset_mask"]``).
 
@@ -328,7 +324,10 @@ class MBSVectorEnv(VectorEnv):
             if not self._started and not mask.all():
                 raise ValueError("the first reset must reset every member")
             idx = np.flatnonzero(mask)
-        undo = self._ahead.rewind(self, idx)  # their generators as if nothing had been drawn ahead
+        # the members reset, and those given a new generator (a seed for a member the mask leaves running):
+        # none keeps a start drawn from its generator as it was (their generators as if nothing had been drawn ahead)
+        reseeded = np.flatnonzero([g is not old for g, old in zip(rngs, self._rngs)]) if rngs is not None else idx[:0]
+        undo = self._ahead.rewind(self, np.union1d(idx, reseeded))
         try:
             self._reset_members(idx, options, rngs)
         except ValueError:

@@ -11,6 +11,7 @@ import copy
 import pickle
 
 import gymnasium as gym
+import gymnasium.utils.seeding
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -39,7 +40,7 @@ def consistent(ahead) -> None:
     assert all((b is not None) == (s == READY) for b, s in zip(ahead.before, ahead.status))
 
 
-ops = st.lists(st.sampled_from(["step"] * 8 + ["seed", "mask", "options", "setting", "deepcopy", "pickle"]), min_size=10, max_size=60)
+ops = st.lists(st.sampled_from(["step"] * 8 + ["seed", "mask", "seed mask", "options", "setting", "deepcopy", "pickle"]), min_size=10, max_size=60)
 
 
 @pytest.mark.parametrize("env_id", IDS)
@@ -72,6 +73,15 @@ def test_autoresets_from_starts_drawn_ahead_are_the_single_envs_resets(env_id, c
             obs, _ = venv.reset(seed=s)
             ref = np.stack([e.reset(seed=s + i)[0] for i, e in enumerate(singles)])
             done[:] = False
+        elif call == "seed mask":  # every member gets a new generator, the masked ones are reset: the others run on
+            s, mask = int(rng.integers(0, 2**31)), rng.random(N) < 0.5
+            obs, _ = venv.reset(seed=s, options={"reset_mask": mask})
+            for i, e in enumerate(singles):
+                if mask[i]:
+                    ref[i] = e.reset(seed=s + i)[0]
+                else:  # what reset(seed=s + i) seeds, for its next reset
+                    e.unwrapped.np_random = gym.utils.seeding.np_random(s + i)[0]
+            done[mask] = False
         elif call in ("mask", "options"):
             mask = rng.random(N) < 0.5
             options = {"reset_mask": mask}
