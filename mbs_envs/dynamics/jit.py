@@ -74,6 +74,29 @@ def _install_package_locators() -> bool:
 
 _install_package_locators()
 
+#: LLVM's limit on the runtime overlap checks a vectorized loop may need (its default: 128)
+MEMORY_CHECKS = 1000
+
+
+def _allow_memory_checks(limit: int = MEMORY_CHECKS) -> None:
+    """Let LLVM vectorize loops that need up to ``limit`` runtime checks that their arrays do not overlap.
+
+    numba cannot say that two array arguments never alias (C's ``restrict``), so LLVM vectorizes a loop
+    over many arrays only behind checks, at loop entry, that the ranges it reads and writes are disjoint,
+    and gives up beyond 128 of them (``-vectorize-memory-check-threshold``). The closed-form kernels of the
+    constrained models (one loop over the members reading a dozen rows and writing the accelerations and
+    a flag per member) need more, and ran scalar. A vectorized loop computes every element as the scalar
+    one does (no reassociation without fast-math), so results keep their bits; a batch shorter than a
+    vector skips the checks. The option is LLVM's, so it holds for all numba code in the process: it can
+    only let more loops vectorize.
+    """
+    import llvmlite.binding as llvm
+
+    llvm.set_option("", f"-vectorize-memory-check-threshold={int(limit)}")
+
+
+_allow_memory_checks()
+
 
 def njit(f=None, *, cache: bool = True, **options):
     """``numba.njit`` with the project's options; usable as ``@njit`` or ``@njit(cache=False)``.

@@ -178,7 +178,7 @@ def _friction_columns(v, theta):  # pragma: no cover - compiled
     return F
 
 
-@njit(inline="always")
+@njit
 def _mass_closed(T, theta, b):  # pragma: no cover - compiled
     """``(M11, M12, M22, M33)`` of member ``b``."""
     m11, m12, m22 = _p2r._mass_entries(
@@ -187,13 +187,13 @@ def _mass_closed(T, theta, b):  # pragma: no cover - compiled
     return m11, m12, m22, theta[_I3, b] + theta[_M3, b] * theta[_R3, b] ** 2
 
 
-@njit(inline="always")
+@njit
 def _jacobian_closed(T, theta, b):  # pragma: no cover - compiled
     """The rows of ``Psi`` of member ``b``."""
     return _closure_jacobian(T[0, b], T[1, b], T[2, b], T[3, b], T[4, b], T[5, b], theta[_L1, b], theta[_L2, b], theta[_L3, b])
 
 
-@njit(inline="always")
+@njit
 def _force_closed(T, v, tau, F, theta, b):  # pragma: no cover - compiled
     """``f = tau - (C v + G + F)`` of member ``b`` (as :func:`terms_member`)."""
     h1, h2 = _p2r._coriolis_entries(T[7, b], v[0, b], v[1, b], theta[_M2, b], theta[_L1, b], theta[_R2, b])
@@ -204,7 +204,7 @@ def _force_closed(T, v, tau, F, theta, b):  # pragma: no cover - compiled
     return tau[0, b] - (h1 + g1 + F[0, b]), tau[1, b] - (h2 + g2 + F[1, b]), tau[2, b] - (0.0 + g3 + F[2, b])
 
 
-@njit(inline="always")
+@njit
 def _bias_closed(T, v, theta, b):  # pragma: no cover - compiled
     """``gamma = -dPsi v`` of member ``b``."""
     w12 = v[0, b] + v[1, b]
@@ -215,7 +215,7 @@ def _bias_closed(T, v, theta, b):  # pragma: no cover - compiled
     return -d0, -d1
 
 
-@njit(inline="always")
+@njit
 def _residual_closed(T, theta, b):  # pragma: no cover - compiled
     """``phi`` of member ``b``."""
     return _closure_residual(
@@ -260,7 +260,7 @@ def terms_member(q, v, tau, p, M, f, Psi, gamma):  # pragma: no cover - compiled
     gamma[0], gamma[1] = _bias_closed(T, v, p, 0)
 
 
-@njit(inline="always")
+@njit(forceinline=True)
 def _schur_closed(m11, m12, m22, m33, f1, f2, f3, P0, P1, g0, g1):  # pragma: no cover - compiled
     """``M a = f + Psi^T lam``, ``Psi a = gamma`` for ``M = blockdiag([[m11, m12], [m12, m22]], m33)``
     and ``Psi`` rows ``P0, P1``; returns ``(a1, a2, a3, lam0, lam1, ok)``, ``ok`` False where the
@@ -351,42 +351,45 @@ def project_kernel(q, v, theta, tol):  # pragma: no cover - compiled
     B = q.shape[1]
     q_in, v_in = q.copy(), v.copy()
     general = np.zeros(B, np.bool_)
-    active = np.empty(B, np.bool_)
-    for it in range(21):
+    for it in range(20):
         T = _trig_columns(q)
         n_active = 0
-        for b in range(B):
+        for b in range(B):  # selects, not branches: one SIMD pass
             phi0, phi1 = _residual_closed(T, theta, b)
-            active[b] = ((abs(phi0) > tol) | (abs(phi1) > tol)) & (not general[b]) & (it < 20)
-            n_active += active[b]
-            if active[b]:  # q -= P^T (P P^T)^-1 phi
-                P0, P1 = _jacobian_closed(T, theta, b)
-                G00 = P0[0] * P0[0] + P0[1] * P0[1] + P0[2] * P0[2]
-                G01 = P0[0] * P1[0] + P0[1] * P1[1] + P0[2] * P1[2]
-                G11 = P1[0] * P1[0] + P1[1] * P1[1] + P1[2] * P1[2]
-                dG = G00 * G11 - G01 * G01
-                trG = G00 + G11
-                if dG > 0.0 and trG * trG * _constraints.RCOND < dG:
-                    y0 = (G11 * phi0 - G01 * phi1) / dG
-                    y1 = (G00 * phi1 - G01 * phi0) / dG
-                    for i in range(3):
-                        q[i, b] -= P0[i] * y0 + P1[i] * y1
-                else:
-                    general[b] = True
-        if n_active == 0:
+            active = ((abs(phi0) > tol) | (abs(phi1) > tol)) & (not general[b])
+            P0, P1 = _jacobian_closed(T, theta, b)  # q -= P^T (P P^T)^-1 phi
+            G00 = P0[0] * P0[0] + P0[1] * P0[1] + P0[2] * P0[2]
+            G01 = P0[0] * P1[0] + P0[1] * P1[1] + P0[2] * P1[2]
+            G11 = P1[0] * P1[0] + P1[1] * P1[1] + P1[2] * P1[2]
+            dG = G00 * G11 - G01 * G01
+            trG = G00 + G11
+            good = (dG > 0.0) & (trG * trG * _constraints.RCOND < dG)
+            y0 = (G11 * phi0 - G01 * phi1) / dG
+            y1 = (G00 * phi1 - G01 * phi0) / dG
+            step = active & good
+            q[0, b] = q[0, b] - (P0[0] * y0 + P1[0] * y1) if step else q[0, b]
+            q[1, b] = q[1, b] - (P0[1] * y0 + P1[1] * y1) if step else q[1, b]
+            q[2, b] = q[2, b] - (P0[2] * y0 + P1[2] * y1) if step else q[2, b]
+            general[b] = general[b] | (active & (not good))
+            n_active += active
+        if n_active == 0:  # q unchanged since T
             break
-    T = _trig_columns(q)
+    if n_active > 0:
+        T = _trig_columns(q)
+    ok = np.empty(B, np.bool_)
     for b in range(B):
         m11, m12, m22, m33 = _mass_closed(T, theta, b)
         P0, P1 = _jacobian_closed(T, theta, b)
         g0 = -(P0[0] * v[0, b] + P0[1] * v[1, b] + P0[2] * v[2, b])
         g1 = -(P1[0] * v[0, b] + P1[1] * v[1, b] + P1[2] * v[2, b])
-        d1, d2, d3, _, _, ok = _schur_closed(m11, m12, m22, m33, 0.0, 0.0, 0.0, P0, P1, g0, g1)
-        if ok and not general[b]:
-            v[0, b] += d1
-            v[1, b] += d2
-            v[2, b] += d3
-        else:  # the general member path, from the member's state as it came in
+        d1, d2, d3, _, _, okb = _schur_closed(m11, m12, m22, m33, 0.0, 0.0, 0.0, P0, P1, g0, g1)
+        okb = okb & (not general[b])
+        ok[b] = okb
+        v[0, b] = v[0, b] + d1 if okb else v[0, b]
+        v[1, b] = v[1, b] + d2 if okb else v[1, b]
+        v[2, b] = v[2, b] + d3 if okb else v[2, b]
+    for b in range(B):
+        if not ok[b]:  # the general member path, from the member's state as it came in
             qb, vb, pb = _constraints.column(q_in, b), _constraints.column(v_in, b), _constraints.column(theta, b)
             with objmode():
                 _this.general_projection(qb, vb, pb, tol)
@@ -406,13 +409,15 @@ def constraint_info_kernel(q, v, tau, theta, res, lam):  # pragma: no cover - co
     if lam.shape[0] == 0:
         return
     F = _friction_columns(v, theta)
+    ok = np.empty(B, np.bool_)
     for b in range(B):
         m11, m12, m22, m33 = _mass_closed(T, theta, b)
         f1, f2, f3 = _force_closed(T, v, tau, F, theta, b)
         P0, P1 = _jacobian_closed(T, theta, b)
         g0, g1 = _bias_closed(T, v, theta, b)
-        _, _, _, lam[b, 0], lam[b, 1], ok = _schur_closed(m11, m12, m22, m33, f1, f2, f3, P0, P1, g0, g1)
-        if not ok:
+        _, _, _, lam[b, 0], lam[b, 1], ok[b] = _schur_closed(m11, m12, m22, m33, f1, f2, f3, P0, P1, g0, g1)
+    for b in range(B):
+        if not ok[b]:  # the general member path
             rb, lb = np.empty(1), np.empty((1, 2))
             qb, vb, tb, pb = _constraints.column(q, b), _constraints.column(v, b), _constraints.column(tau, b), _constraints.column(theta, b)
             with objmode():

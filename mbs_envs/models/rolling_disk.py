@@ -196,7 +196,7 @@ def _trig_columns(q):  # pragma: no cover - compiled
     return sincos_rows(q, 3, 2)
 
 
-@njit(inline="always")
+@njit
 def _mass_closed(T, theta, b):  # pragma: no cover - compiled
     """``(m, A, C, M33, M35)`` of member ``b``."""
     A, C = _disk_inertias(theta[_M, b], theta[_R, b])
@@ -204,7 +204,7 @@ def _mass_closed(T, theta, b):  # pragma: no cover - compiled
     return theta[_M, b], A, C, M33, M35
 
 
-@njit(inline="always")
+@njit
 def _jacobian_closed(T, theta, b):  # pragma: no cover - compiled
     """The angular block ``J`` of ``Psi = [I3, J]`` (rows) of member ``b``."""
     s1, c1, s2, c2 = T[0, b], T[1, b], T[2, b], T[3, b]
@@ -212,7 +212,7 @@ def _jacobian_closed(T, theta, b):  # pragma: no cover - compiled
     return _rolling_jacobian_entries(s1, c1, s2, c2, x, y, z)
 
 
-@njit(inline="always")
+@njit
 def _force_closed(T, v, tau, theta, b, A, C):  # pragma: no cover - compiled
     """``f = tau - (C v + G + F)`` of member ``b`` (as :func:`terms_member`)."""
     h3, h4, h5 = _disk_coriolis_entries(T[2, b], T[3, b], v[3, b], v[4, b], v[5, b], A, C)
@@ -222,7 +222,7 @@ def _force_closed(T, v, tau, theta, b, A, C):  # pragma: no cover - compiled
     )  # fmt: skip
 
 
-@njit(inline="always")
+@njit
 def _bias_closed(T, v, theta, b):  # pragma: no cover - compiled
     """``gamma = -dPsi v`` of member ``b``."""
     s1, c1, s2, c2 = T[0, b], T[1, b], T[2, b], T[3, b]
@@ -232,7 +232,7 @@ def _bias_closed(T, v, theta, b):  # pragma: no cover - compiled
     return -g0, -g1, -g2
 
 
-@njit(inline="always")
+@njit
 def _residual_closed(T, q, theta, b):  # pragma: no cover - compiled
     """``phi = z - r cos th2`` of member ``b``."""
     return q[2, b] - theta[_R, b] * T[3, b]
@@ -279,14 +279,14 @@ def terms_member(q, v, tau, p, M, f, Psi, gamma):  # pragma: no cover - compiled
     gamma[0], gamma[1], gamma[2] = _bias_closed(T, v, p, 0)
 
 
-@njit(inline="always")
+@njit
 def _n_inv(M33, M35, A, C, y0, y1, y2):  # pragma: no cover - compiled
     """``N^-1 y`` (heading, lean, spin)."""
     d = M33 * C - M35 * M35
     return (C * y0 - M35 * y2) / d, y1 / A, (M33 * y2 - M35 * y0) / d
 
 
-@njit(inline="always")
+@njit(forceinline=True)
 def _schur_closed(m, A, C, M33, M35, f, J, g):  # pragma: no cover - compiled
     """``M a = f + Psi^T lam``, ``Psi a = gamma``; returns ``(a (6-tuple), lam (3-tuple), ok)``."""
     xa = _n_inv(M33, M35, A, C, f[3], f[4], f[5])
@@ -400,21 +400,24 @@ def project_kernel(q, v, theta, tol):  # pragma: no cover - compiled
     20 iterations), then ``v`` onto ``Psi v = 0`` in the kinetic-energy metric, closed form."""
     B = q.shape[1]
     q_in, v_in = q.copy(), v.copy()
-    for it in range(21):
+    for it in range(20):
         T = _trig_columns(q)
         n_active = 0
-        for b in range(B):
+        for b in range(B):  # selects, not branches: one SIMD pass
             phi = _residual_closed(T, q, theta, b)
-            if abs(phi) > tol and it < 20:
-                n_active += 1
-                J2 = _jacobian_closed(T, theta, b)[2]  # the height row: (0, 0, 1, J2)
-                y = phi / (1.0 + (J2[0] * J2[0] + J2[1] * J2[1] + J2[2] * J2[2]))
-                q[2, b] -= y
-                for i in range(3):
-                    q[3 + i, b] -= J2[i] * y
-        if n_active == 0:
+            J2 = _jacobian_closed(T, theta, b)[2]  # the height row: (0, 0, 1, J2)
+            active = abs(phi) > tol
+            y = phi / (1.0 + (J2[0] * J2[0] + J2[1] * J2[1] + J2[2] * J2[2]))
+            q[2, b] = q[2, b] - y if active else q[2, b]
+            q[3, b] = q[3, b] - J2[0] * y if active else q[3, b]
+            q[4, b] = q[4, b] - J2[1] * y if active else q[4, b]
+            q[5, b] = q[5, b] - J2[2] * y if active else q[5, b]
+            n_active += active
+        if n_active == 0:  # q unchanged since T
             break
-    T = _trig_columns(q)
+    if n_active > 0:
+        T = _trig_columns(q)
+    ok = np.empty(B, np.bool_)
     for b in range(B):
         m, A, C, M33, M35 = _mass_closed(T, theta, b)
         J = _jacobian_closed(T, theta, b)
@@ -423,11 +426,16 @@ def project_kernel(q, v, theta, tol):  # pragma: no cover - compiled
             -(v[1, b] + (J[1][0] * v[3, b] + J[1][1] * v[4, b] + J[1][2] * v[5, b])),
             -(v[2, b] + (J[2][0] * v[3, b] + J[2][1] * v[4, b] + J[2][2] * v[5, b])),
         )
-        dv, _, ok = _schur_closed(m, A, C, M33, M35, (0.0, 0.0, 0.0, 0.0, 0.0, 0.0), J, g)
-        if ok:
-            for i in range(6):
-                v[i, b] += dv[i]
-        else:  # the general member path, from the member's state as it came in
+        dv, _, okb = _schur_closed(m, A, C, M33, M35, (0.0, 0.0, 0.0, 0.0, 0.0, 0.0), J, g)
+        ok[b] = okb
+        v[0, b] = v[0, b] + dv[0] if okb else v[0, b]
+        v[1, b] = v[1, b] + dv[1] if okb else v[1, b]
+        v[2, b] = v[2, b] + dv[2] if okb else v[2, b]
+        v[3, b] = v[3, b] + dv[3] if okb else v[3, b]
+        v[4, b] = v[4, b] + dv[4] if okb else v[4, b]
+        v[5, b] = v[5, b] + dv[5] if okb else v[5, b]
+    for b in range(B):
+        if not ok[b]:  # the general member path, from the member's state as it came in
             qb, vb, pb = _constraints.column(q_in, b), _constraints.column(v_in, b), _constraints.column(theta, b)
             with objmode():
                 _this.general_projection(qb, vb, pb, tol)
@@ -444,12 +452,14 @@ def constraint_info_kernel(q, v, tau, theta, res, lam):  # pragma: no cover - co
         res[b] = abs(_residual_closed(T, q, theta, b))
     if lam.shape[0] == 0:
         return
+    ok = np.empty(B, np.bool_)
     for b in range(B):
         m, A, C, M33, M35 = _mass_closed(T, theta, b)
         f = _force_closed(T, v, tau, theta, b, A, C)
-        _, lb, ok = _schur_closed(m, A, C, M33, M35, f, _jacobian_closed(T, theta, b), _bias_closed(T, v, theta, b))
+        _, lb, ok[b] = _schur_closed(m, A, C, M33, M35, f, _jacobian_closed(T, theta, b), _bias_closed(T, v, theta, b))
         lam[b, 0], lam[b, 1], lam[b, 2] = lb
-        if not ok:
+    for b in range(B):
+        if not ok[b]:  # the general member path
             rb, lb2 = np.empty(1), np.empty((1, 3))
             qb, vb, tb, pb = _constraints.column(q, b), _constraints.column(v, b), _constraints.column(tau, b), _constraints.column(theta, b)
             with objmode():
