@@ -125,9 +125,10 @@ def work_arrays(N):  # pragma: no cover - compiled
     motion subspaces ``S (N, 6)``; the ABA's articulated inertia and the child's ``(2, 6, 6)``, bias forces
     ``pA``, velocity products ``cb``, ``U (N, 6)``, ``D``, ``u (N,)``; RNEA's forces ``F (N, 6)``; the joint
     angles' sines and cosines ``(N,)``; the ABA's child bias force and ``IA c`` ``(2, 6)``."""
-    return (np.empty((N, 3, 3)), np.empty((N, 3)), np.empty((N, 3)), np.empty((N, 3)), np.empty((N, 3, 3)), np.empty((N, 6)),
-            np.empty((2, 6, 6)), np.empty((N, 6)), np.empty((N, 6)), np.empty((N, 6)), np.empty(N), np.empty(N),
-            np.empty((N, 6)), np.empty(N), np.empty(N), np.empty((2, 6)))  # fmt: skip
+    R, P, F, s = np.empty((2, N, 3, 3)), np.empty((3, N, 3)), np.empty((5, N, 6)), np.empty((4, N))  # views of four allocations
+    return (R[0], P[0], P[1], P[2], R[1], F[0],
+            np.empty((2, 6, 6)), F[1], F[2], F[3], s[0], s[1],
+            F[4], s[2], s[3], np.empty((2, 6)))  # fmt: skip
 
 
 @njit
@@ -138,8 +139,8 @@ def frames_into(q, axis, offset, com, inertia, w):  # pragma: no cover - compile
     the sines and cosines of ``q`` by :func:`mbs_envs.dynamics.trig.sincos_columns` (1 ulp of libm's)."""
     R, p, z, c, Ic, S, sn, cs = w[0], w[1], w[2], w[3], w[4], w[5], w[13], w[14]
     N = q.shape[0]
-    J = np.empty((3, 3))
-    T = np.empty((3, 3))
+    JT = np.empty((2, 3, 3))
+    J, T = JT[0], JT[1]
     sincos_columns(q, sn, cs)  # one SIMD pass (libm for arguments out of its range)
     for i in range(N):
         _rot_into(axis[i], sn[i], cs[i], J)
@@ -225,11 +226,10 @@ def rnea_into(q, v, a, axis, offset, com, inertia, m, armature, g_vec, gravity, 
     N = q.shape[0]
     frames_into(q, axis, offset, com, inertia, w)
     c, Ic, S, F = w[3], w[4], w[5], w[12]
-    V = np.zeros(6)
-    A = np.zeros(6)
+    VA = np.zeros((4, 6))
+    V, A, Sv, tmp = VA[0], VA[1], VA[2], VA[3]
     if gravity:
         A[3], A[4], A[5] = -g_vec[0], -g_vec[1], -g_vec[2]
-    Sv, tmp = np.empty(6), np.empty(6)
     for i in range(N):
         for k in range(6):
             Sv[k] = S[i, k] * v[i]
@@ -277,8 +277,8 @@ def aba_into(q, v, tau, axis, offset, com, inertia, m, armature, g_vec, w, acc):
     N = q.shape[0]
     frames_into(q, axis, offset, com, inertia, w)
     c, Ic, S, pA, cb, U, D, u = w[3], w[4], w[5], w[7], w[8], w[9], w[10], w[11]
-    V = np.zeros(6)
-    Sv = np.empty(6)
+    VA = np.zeros((3, 6))
+    V, Sv, A = VA[0], VA[1], VA[2]
     for i in range(N):
         for k in range(6):
             Sv[k] = S[i, k] * v[i]
@@ -320,7 +320,6 @@ def aba_into(q, v, tau, axis, offset, com, inertia, m, armature, g_vec, w, acc):
             s_ = (_dot6(Ui, ci) - u[i]) * inv
             for k in range(6):
                 pa[k] = pi[k] + Ac[k] - Ui[k] * s_
-    A = np.zeros(6)
     A[3], A[4], A[5] = -g_vec[0], -g_vec[1], -g_vec[2]
     for i in range(N):
         for k in range(6):
@@ -436,9 +435,10 @@ def _rows_kinematics(q, theta):  # pragma: no cover - compiled
 @njit
 def _unpack(th, N):  # pragma: no cover - compiled
     """The per-link arrays of one parameter column ``th`` (``(21 N + 3,)``), copied out (no reshape)."""
-    axis, offset, com = np.empty((N, 3)), np.empty((N, 3)), np.empty((N, 3))
+    P, L = np.empty((3, N, 3)), np.empty((3, N))  # views of four allocations
+    axis, offset, com = P[0], P[1], P[2]
     inertia = np.empty((N, 3, 3))
-    m, arm, b = np.empty(N), np.empty(N), np.empty(N)
+    m, arm, b = L[0], L[1], L[2]
     g = np.empty(3)
     for i in range(N):
         for r in range(3):
@@ -471,7 +471,8 @@ def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
     N, B = q.shape
     C = theta.shape[1]
     axis, offset, com, inertia, m, arm, b, g = _unpack(theta[:, 0], N)
-    qk, vk, net, acc = np.empty(N), np.empty(N), np.empty(N), np.empty(N)
+    x = np.empty((4, N))
+    qk, vk, net, acc = x[0], x[1], x[2], x[3]
     w = work_arrays(N)
     for k in range(B):
         if C > 1 and k > 0:
@@ -646,7 +647,8 @@ def energy_kernel(q, v, theta, E):  # pragma: no cover - compiled
     N, B = q.shape
     C = theta.shape[1]
     axis, offset, com, inertia, m, arm, b, g = _unpack(theta[:, 0], N)
-    qk, vk = np.empty(N), np.empty(N)
+    x = np.empty((2, N))
+    qk, vk = x[0], x[1]
     w = work_arrays(N)
     for k in range(B):
         if C > 1 and k > 0:
