@@ -566,3 +566,33 @@ def test_a_setting_changed_after_steps_reaches_the_compiled_step(setting, value)
     assert changed.compiled is not None
     np.testing.assert_array_equal(o1, o2)
     assert r1 == r2
+
+
+def test_a_member_loop_over_many_rows_vectorizes():
+    """The disk's and four-bar's closed-form kernels loop over the members reading a dozen rows of four arrays
+    and writing six rows and a flag: more runtime overlap checks than LLVM's default 128, so that such a loop
+    ran scalar until ``mbs_envs.dynamics.jit`` raised the limit. The same shape of loop, compiled uncached
+    (inspectable), must contain vector arithmetic."""
+    import re
+
+    from mbs_envs.dynamics.jit import njit
+
+    @njit(cache=False)
+    def loop(T, v, tau, theta, a, ok):  # pragma: no cover - compiled
+        for b in range(v.shape[1]):
+            s = theta[0, b] * T[0, b] + theta[1, b] * T[1, b]
+            d = theta[2, b] * T[2, b] - theta[3, b] * T[3, b] + theta[4, b]
+            x = (v[0, b] * s + v[1, b] * d + tau[0, b]) / d
+            y = (v[2, b] * d - v[3, b] * s + tau[1, b]) / s
+            z = (v[4, b] * s * d + v[5, b] + tau[2, b] * tau[3, b]) / (s + d)
+            a[0, b], a[1, b], a[2, b] = x + tau[4, b], y + tau[5, b], z
+            a[3, b], a[4, b], a[5, b] = x * y, y * z, z * x
+            ok[b] = (d > 0.0) & (s > 0.0) & np.isfinite(x + y + z)
+
+    B = 64
+    rng = np.random.default_rng(0)
+    T, v, tau, theta = rng.random((4, B)), rng.random((6, B)), rng.random((6, B)), rng.random((5, B))
+    a, ok = np.empty((6, B)), np.empty(B, np.bool_)
+    loop(T, v, tau, theta, a, ok)
+    ir = loop.inspect_llvm(loop.signatures[0])
+    assert re.search(r"fdiv[^\n]*<\d+ x double>", ir), "the member loop compiled to scalar code"
