@@ -516,7 +516,7 @@ def aba_tiles(q, v, tau, axis, offset, com, inertia, m, armature, b, g_vec, a): 
     p, z, c = np.empty((N, 3, W)), np.empty((N, 3, W)), np.empty((N, 3, W))
     S, pA, cb, U = np.empty((N, 6, W)), np.empty((N, 6, W)), np.empty((N, 6, W)), np.empty((N, 6, W))
     D, u = np.empty((N, W)), np.empty((N, W))
-    J, T = np.empty((3, 3, W)), np.empty((3, 3, W))
+    T = np.empty((3, 3, W))
     V, Sv, pa, Ac, A = np.empty((6, W)), np.empty((6, W)), np.empty((6, W)), np.empty((6, W)), np.empty((6, W))
     IA, Ia = np.empty((6, 6, W)), np.empty((6, 6, W))
     for b0 in range(0, B - B % W, W):
@@ -524,41 +524,40 @@ def aba_tiles(q, v, tau, axis, offset, com, inertia, m, armature, b, g_vec, a): 
             sincos_columns(q[i, b0 : b0 + W], sn[i], cs[i])
             for l in range(W):
                 net[i, l] = tau[i, b0 + l] - b[i] * v[i, b0 + l]
-        # frames_into, lane by lane
+        # frames_into, lane by lane: one pass per link for the frame, one for what follows from it
         for i in range(N):
             x, y, zz = axis[i, 0], axis[i, 1], axis[i, 2]
-            for l in range(W):
-                (J[0, 0, l], J[0, 1, l], J[0, 2, l], J[1, 0, l], J[1, 1, l], J[1, 2, l],
-                 J[2, 0, l], J[2, 1, l], J[2, 2, l]) = _rot_entries(x, y, zz, sn[i, l], cs[i, l])  # fmt: skip
-            for r in range(3):
-                if i == 0:
-                    for l in range(W):
-                        p[i, r, l] = offset[i, r]
-                        z[i, r, l] = axis[i, r]
-                        for k in range(3):
-                            R[i, r, k, l] = J[r, k, l]
-                else:
-                    for l in range(W):
-                        a0, a1, a2 = R[i - 1, r, 0, l], R[i - 1, r, 1, l], R[i - 1, r, 2, l]
-                        p[i, r, l] = p[i - 1, r, l] + a0 * offset[i, 0] + a1 * offset[i, 1] + a2 * offset[i, 2]
-                        z[i, r, l] = a0 * axis[i, 0] + a1 * axis[i, 1] + a2 * axis[i, 2]
-                        for k in range(3):
-                            R[i, r, k, l] = a0 * J[0, k, l] + a1 * J[1, k, l] + a2 * J[2, k, l]
-            for r in range(3):
+            if i == 0:
                 for l in range(W):
-                    c[i, r, l] = p[i, r, l] + R[i, r, 0, l] * com[i, 0] + R[i, r, 1, l] * com[i, 1] + R[i, r, 2, l] * com[i, 2]
+                    J00, J01, J02, J10, J11, J12, J20, J21, J22 = _rot_entries(x, y, zz, sn[i, l], cs[i, l])
+                    p[i, 0, l], p[i, 1, l], p[i, 2, l] = offset[i, 0], offset[i, 1], offset[i, 2]
+                    z[i, 0, l], z[i, 1, l], z[i, 2, l] = x, y, zz
+                    R[i, 0, 0, l], R[i, 0, 1, l], R[i, 0, 2, l] = J00, J01, J02
+                    R[i, 1, 0, l], R[i, 1, 1, l], R[i, 1, 2, l] = J10, J11, J12
+                    R[i, 2, 0, l], R[i, 2, 1, l], R[i, 2, 2, l] = J20, J21, J22
+            else:
+                o0, o1, o2 = offset[i, 0], offset[i, 1], offset[i, 2]
+                for l in range(W):
+                    J00, J01, J02, J10, J11, J12, J20, J21, J22 = _rot_entries(x, y, zz, sn[i, l], cs[i, l])
+                    for r in range(3):
+                        a0, a1, a2 = R[i - 1, r, 0, l], R[i - 1, r, 1, l], R[i - 1, r, 2, l]
+                        p[i, r, l] = p[i - 1, r, l] + a0 * o0 + a1 * o1 + a2 * o2
+                        z[i, r, l] = a0 * x + a1 * y + a2 * zz
+                        R[i, r, 0, l] = a0 * J00 + a1 * J10 + a2 * J20
+                        R[i, r, 1, l] = a0 * J01 + a1 * J11 + a2 * J21
+                        R[i, r, 2, l] = a0 * J02 + a1 * J12 + a2 * J22
             for l in range(W):
+                for r in range(3):
+                    c[i, r, l] = p[i, r, l] + R[i, r, 0, l] * com[i, 0] + R[i, r, 1, l] * com[i, 1] + R[i, r, 2, l] * com[i, 2]
                 S[i, 0, l], S[i, 1, l], S[i, 2, l] = z[i, 0, l], z[i, 1, l], z[i, 2, l]
                 S[i, 3, l] = p[i, 1, l] * z[i, 2, l] - p[i, 2, l] * z[i, 1, l]
                 S[i, 4, l] = p[i, 2, l] * z[i, 0, l] - p[i, 0, l] * z[i, 2, l]
                 S[i, 5, l] = p[i, 0, l] * z[i, 1, l] - p[i, 1, l] * z[i, 0, l]
-            for r in range(3):
-                for k in range(3):
-                    for l in range(W):
+                for r in range(3):
+                    for k in range(3):
                         T[r, k, l] = inertia[i, r, 0] * R[i, k, 0, l] + inertia[i, r, 1] * R[i, k, 1, l] + inertia[i, r, 2] * R[i, k, 2, l]
-            for r in range(3):
-                for k in range(3):
-                    for l in range(W):
+                for r in range(3):
+                    for k in range(3):
                         Ic[i, r, k, l] = R[i, r, 0, l] * T[0, k, l] + R[i, r, 1, l] * T[1, k, l] + R[i, r, 2, l] * T[2, k, l]
         # aba_into: velocities, velocity products and bias forces outwards
         V[:, :] = 0.0
@@ -582,23 +581,23 @@ def aba_tiles(q, v, tau, axis, offset, com, inertia, m, armature, b, g_vec, a): 
         pa[:, :] = 0.0
         for i in range(N - 1, -1, -1):
             mi = m[i]
-            for l in range(W):  # spatial_inertia_into, then + the child's
+            for l in range(W):  # spatial_inertia_into, then + the child's, in one pass
                 cx, cy, cz = c[i, 0, l], c[i, 1, l], c[i, 2, l]
                 cc = cx * cx + cy * cy + cz * cz
                 for r in range(3):
                     for k in range(3):
-                        IA[r, k, l] = Ic[i, r, k, l] + mi * ((cc if r == k else 0.0) - c[i, r, l] * c[i, k, l])
-                        IA[3 + r, 3 + k, l] = mi if r == k else 0.0
-                IA[0, 3, l], IA[0, 4, l], IA[0, 5, l] = 0.0, -mi * cz, mi * cy
-                IA[1, 3, l], IA[1, 4, l], IA[1, 5, l] = mi * cz, 0.0, -mi * cx
-                IA[2, 3, l], IA[2, 4, l], IA[2, 5, l] = -mi * cy, mi * cx, 0.0
-                for r in range(3):
-                    for k in range(3):
-                        IA[3 + k, r, l] = IA[r, 3 + k, l]
-            for r in range(6):
-                for k in range(6):
-                    for l in range(W):
-                        IA[r, k, l] += Ia[r, k, l]
+                        IA[r, k, l] = (Ic[i, r, k, l] + mi * ((cc if r == k else 0.0) - c[i, r, l] * c[i, k, l])) + Ia[r, k, l]
+                        IA[3 + r, 3 + k, l] = (mi if r == k else 0.0) + Ia[3 + r, 3 + k, l]
+                B0 = (0.0, -mi * cz, mi * cy)  # the block m [c]x, by rows; its transpose below (Ia is symmetric)
+                B1 = (mi * cz, 0.0, -mi * cx)
+                B2 = (-mi * cy, mi * cx, 0.0)
+                for k in range(3):
+                    IA[0, 3 + k, l] = B0[k] + Ia[0, 3 + k, l]
+                    IA[1, 3 + k, l] = B1[k] + Ia[1, 3 + k, l]
+                    IA[2, 3 + k, l] = B2[k] + Ia[2, 3 + k, l]
+                    IA[3 + k, 0, l] = B0[k] + Ia[3 + k, 0, l]
+                    IA[3 + k, 1, l] = B1[k] + Ia[3 + k, 1, l]
+                    IA[3 + k, 2, l] = B2[k] + Ia[3 + k, 2, l]
             for r in range(6):
                 for l in range(W):
                     x = 0.0
