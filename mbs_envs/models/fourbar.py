@@ -351,45 +351,43 @@ def project_kernel(q, v, theta, tol):  # pragma: no cover - compiled
     B = q.shape[1]
     q_in, v_in = q.copy(), v.copy()
     general = np.zeros(B, np.bool_)
-    for it in range(20):
+    active = np.empty(B, np.bool_)
+    for it in range(21):
         T = _trig_columns(q)
         n_active = 0
-        for b in range(B):  # selects, not branches: one SIMD pass
+        for b in range(B):
             phi0, phi1 = _residual_closed(T, theta, b)
-            active = ((abs(phi0) > tol) | (abs(phi1) > tol)) & (not general[b])
-            P0, P1 = _jacobian_closed(T, theta, b)  # q -= P^T (P P^T)^-1 phi
-            G00 = P0[0] * P0[0] + P0[1] * P0[1] + P0[2] * P0[2]
-            G01 = P0[0] * P1[0] + P0[1] * P1[1] + P0[2] * P1[2]
-            G11 = P1[0] * P1[0] + P1[1] * P1[1] + P1[2] * P1[2]
-            dG = G00 * G11 - G01 * G01
-            trG = G00 + G11
-            good = (dG > 0.0) & (trG * trG * _constraints.RCOND < dG)
-            y0 = (G11 * phi0 - G01 * phi1) / dG
-            y1 = (G00 * phi1 - G01 * phi0) / dG
-            step = active & good
-            q[0, b] = q[0, b] - (P0[0] * y0 + P1[0] * y1) if step else q[0, b]
-            q[1, b] = q[1, b] - (P0[1] * y0 + P1[1] * y1) if step else q[1, b]
-            q[2, b] = q[2, b] - (P0[2] * y0 + P1[2] * y1) if step else q[2, b]
-            general[b] = general[b] | (active & (not good))
-            n_active += active
+            active[b] = ((abs(phi0) > tol) | (abs(phi1) > tol)) & (not general[b]) & (it < 20)
+            n_active += active[b]
+            if active[b]:  # q -= P^T (P P^T)^-1 phi
+                P0, P1 = _jacobian_closed(T, theta, b)
+                G00 = P0[0] * P0[0] + P0[1] * P0[1] + P0[2] * P0[2]
+                G01 = P0[0] * P1[0] + P0[1] * P1[1] + P0[2] * P1[2]
+                G11 = P1[0] * P1[0] + P1[1] * P1[1] + P1[2] * P1[2]
+                dG = G00 * G11 - G01 * G01
+                trG = G00 + G11
+                if dG > 0.0 and trG * trG * _constraints.RCOND < dG:
+                    y0 = (G11 * phi0 - G01 * phi1) / dG
+                    y1 = (G00 * phi1 - G01 * phi0) / dG
+                    for i in range(3):
+                        q[i, b] -= P0[i] * y0 + P1[i] * y1
+                else:
+                    general[b] = True
         if n_active == 0:  # q unchanged since T
             break
     if n_active > 0:
         T = _trig_columns(q)
-    ok = np.empty(B, np.bool_)
     for b in range(B):
         m11, m12, m22, m33 = _mass_closed(T, theta, b)
         P0, P1 = _jacobian_closed(T, theta, b)
         g0 = -(P0[0] * v[0, b] + P0[1] * v[1, b] + P0[2] * v[2, b])
         g1 = -(P1[0] * v[0, b] + P1[1] * v[1, b] + P1[2] * v[2, b])
-        d1, d2, d3, _, _, okb = _schur_closed(m11, m12, m22, m33, 0.0, 0.0, 0.0, P0, P1, g0, g1)
-        okb = okb & (not general[b])
-        ok[b] = okb
-        v[0, b] = v[0, b] + d1 if okb else v[0, b]
-        v[1, b] = v[1, b] + d2 if okb else v[1, b]
-        v[2, b] = v[2, b] + d3 if okb else v[2, b]
-    for b in range(B):
-        if not ok[b]:  # the general member path, from the member's state as it came in
+        d1, d2, d3, _, _, ok = _schur_closed(m11, m12, m22, m33, 0.0, 0.0, 0.0, P0, P1, g0, g1)
+        if ok and not general[b]:
+            v[0, b] += d1
+            v[1, b] += d2
+            v[2, b] += d3
+        else:  # the general member path, from the member's state as it came in
             qb, vb, pb = _constraints.column(q_in, b), _constraints.column(v_in, b), _constraints.column(theta, b)
             with objmode():
                 _this.general_projection(qb, vb, pb, tol)
