@@ -582,6 +582,7 @@ def agent_tuning_section(folder: pathlib.Path, agents: pathlib.Path = ROOT / "ag
 
 
 def main(argv: list[str] | None = None) -> int:
+    provenance.pin_numerics()  # before torch loads, here and in the workers (mbs_envs/studies/provenance.py)
     run(parse_args(argv))
     return 0
 

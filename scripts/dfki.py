@@ -28,6 +28,7 @@ import mbs_envs  # noqa: F401
 from mbs_envs.envs.presets import PROTOCOL_IDS
 from mbs_envs.envs.registry import SWING_UP_CONTROLLERS
 from mbs_envs.studies import dfki
+from mbs_envs.studies import provenance
 from mbs_envs.studies.parallel import run_tasks
 from mbs_envs.studies.robustness import plot_success
 from mbs_envs.studies.plotting import pyplot, save
@@ -189,6 +190,7 @@ def report(rows: list[dict], args: argparse.Namespace) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    provenance.pin_numerics()  # before torch loads, here and in the workers (mbs_envs/studies/provenance.py)
     run(parse_args(argv))
     return 0
 

@@ -23,6 +23,7 @@ import time
 
 import mbs_envs  # noqa: F401
 from mbs_envs.studies import scene_robustness as sr
+from mbs_envs.studies import provenance
 from mbs_envs.studies.parallel import run_tasks
 from mbs_envs.studies.comparison import find_agents
 
@@ -82,6 +83,7 @@ def report(record: dict) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    provenance.pin_numerics()  # before torch loads, here and in the workers (mbs_envs/studies/provenance.py)
     run(parse_args(argv))
     return 0
 

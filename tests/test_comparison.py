@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import pathlib
 
 import gymnasium as gym
@@ -239,8 +240,38 @@ def test_the_run_records_what_its_numbers_depend_on():
     from mbs_envs.studies import provenance
 
     rec = provenance.record()
-    assert set(rec) == {"python", "platform", "cpu", "libraries"} and set(rec["libraries"]) == set(provenance.LIBRARIES)
+    assert set(rec) == {"python", "platform", "cpu", "libraries", "pinned"} and set(rec["libraries"]) == set(provenance.LIBRARIES)
     import numpy
 
     assert rec["libraries"]["numpy"] == numpy.__version__ and f"numpy {numpy.__version__}" in provenance.summary_line(rec)
     assert set(rec["cpu"]["flags"]) <= set(provenance.CPU_FLAGS)
+    assert set(rec["pinned"]) == set(provenance.PINNED)
+
+
+def test_the_evaluation_scripts_pin_mkl_before_torch_loads_and_keep_what_the_user_set():
+    """issue 37: the agents' actions differed in their last bits between MKL's AVX-512 and AVX2 code (96 of 450 summary
+    values of two scenes); the scripts pin MKL's reproducible mode, in a fresh process before torch is imported."""
+    import subprocess
+    import sys
+
+    from mbs_envs.studies import provenance
+
+    code = (
+        "import os, sys\n"
+        "from mbs_envs.studies import provenance\n"
+        "print(provenance.pin_numerics())\n"
+        "import torch\n"
+        "print(os.environ['MKL_CBWR'], os.environ['ATEN_CPU_CAPABILITY'])\n"
+        "print(provenance.summary_line(provenance.record()))\n"
+        "try:\n"
+        "    provenance.pin_numerics()\n"
+        "except RuntimeError as e:\n"
+        "    print('refused:', e)\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k not in provenance.PINNED}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True).stdout.splitlines()
+    assert out[0] == str(provenance.PINNED) and out[1] == "COMPATIBLE avx2"
+    assert "MKL_CBWR=COMPATIBLE" in out[2] and out[3].startswith("refused: pin_numerics() must run before torch")
+    env["MKL_CBWR"] = "AVX2"  # a user's own choice stays
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True).stdout.splitlines()
+    assert out[1] == "AVX2 avx2"
