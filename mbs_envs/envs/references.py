@@ -13,6 +13,7 @@ smooth (C-infinity); ``|q_ref - c - s t| <= sum_k |A_k|``. The mean rate ``s``
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 from ..dynamics.compiled import aligned
 from ..dynamics.jit import njit
@@ -157,17 +158,10 @@ class SumOfSines:
         return tuple(columns(x) for x in fields)
 
 
-def sample_sum_of_sines(
-    rng: np.random.Generator,
-    center_low: np.ndarray,
-    center_high: np.ndarray,
-    max_amplitude: np.ndarray,
-    omega_range: tuple[float, float],
-    n_components: int = 3,
-    rate_range: tuple[float, float] | None = None,
-) -> SumOfSines:
-    """Draw a :class:`SumOfSines` reference: :func:`sample_sums_of_sines` with one generator."""
-    return tree_pick(sample_sums_of_sines([rng], center_low, center_high, max_amplitude, omega_range, n_components, rate_range), 0)
+def sample_sum_of_sines(rng: np.random.Generator, *args: Any, **kwargs: Any) -> SumOfSines:
+    """Draw one :class:`SumOfSines` reference from ``rng``: :func:`sample_sums_of_sines` with one generator (the
+    other arguments as there)."""
+    return tree_pick(sample_sums_of_sines([rng], *args, **kwargs), 0)
 
 
 def sample_sums_of_sines(

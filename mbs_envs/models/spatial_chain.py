@@ -588,16 +588,16 @@ def aba_tiles(q, v, tau, axis, offset, com, inertia, m, armature, b, g_vec, a): 
                     for k in range(3):
                         IA[r, k, l] = (Ic[i, r, k, l] + mi * ((cc if r == k else 0.0) - c[i, r, l] * c[i, k, l])) + Ia[r, k, l]
                         IA[3 + r, 3 + k, l] = (mi if r == k else 0.0) + Ia[3 + r, 3 + k, l]
-                B0 = (0.0, -mi * cz, mi * cy)  # the block m [c]x, by rows; its transpose below (Ia is symmetric)
-                B1 = (mi * cz, 0.0, -mi * cx)
-                B2 = (-mi * cy, mi * cx, 0.0)
+                mc0 = (0.0, -mi * cz, mi * cy)  # the block m [c]x, by rows; its transpose below (Ia is symmetric)
+                mc1 = (mi * cz, 0.0, -mi * cx)
+                mc2 = (-mi * cy, mi * cx, 0.0)
                 for k in range(3):
-                    IA[0, 3 + k, l] = B0[k] + Ia[0, 3 + k, l]
-                    IA[1, 3 + k, l] = B1[k] + Ia[1, 3 + k, l]
-                    IA[2, 3 + k, l] = B2[k] + Ia[2, 3 + k, l]
-                    IA[3 + k, 0, l] = B0[k] + Ia[3 + k, 0, l]
-                    IA[3 + k, 1, l] = B1[k] + Ia[3 + k, 1, l]
-                    IA[3 + k, 2, l] = B2[k] + Ia[3 + k, 2, l]
+                    IA[0, 3 + k, l] = mc0[k] + Ia[0, 3 + k, l]
+                    IA[1, 3 + k, l] = mc1[k] + Ia[1, 3 + k, l]
+                    IA[2, 3 + k, l] = mc2[k] + Ia[2, 3 + k, l]
+                    IA[3 + k, 0, l] = mc0[k] + Ia[3 + k, 0, l]
+                    IA[3 + k, 1, l] = mc1[k] + Ia[3 + k, 1, l]
+                    IA[3 + k, 2, l] = mc2[k] + Ia[3 + k, 2, l]
             for r in range(6):
                 for l in range(W):
                     x = 0.0
