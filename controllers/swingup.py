@@ -16,7 +16,16 @@ keeps the driven joint near its upright value, with ``E~ = E - E_up``:
 
 (for the pendubot ``dE/dt = dth1 u`` with the friction-free arm, so ``-E~ dth1`` feeds
 energy in while ``E < E_up``; for the acrobot the elbow's motion pumps through the
-coupling, and ``+E~ dth1`` is the sign of Spong's law). Near upright an LQR balances:
+coupling, and ``+E~ dth1`` is the sign of Spong's law).
+
+**The kick.** For the acrobot the hanging rest is an equilibrium of this closed loop: every
+term of ``y`` vanishes there, and so does ``h_a`` (no motion, gravity's moment zero at hanging).
+An arm started exactly at rest (the DFKI benchmark's protocol, ``preset="dfki_c1"``) would never
+move. Where the arm is within :data:`REST_TOL` of the hanging rest (every angle and rate), the
+PD aims the driven joint at an offset of :data:`KICK` rad from its upright value instead
+(``y = -k_q (wrap(th_a - th_a,up) - KICK) - k_v dth_a``): one control step's push, after which
+the pumping grows the motion. The scenes' own starts (uniform within 0.1 of hanging in each of the
+four entries) come that close with probability 1e-8, so the law is unchanged there. Near upright an LQR balances:
 ``u = -K x`` with ``x = (wrap(q - q_up), v)`` and ``K`` from ``control.lqr`` on the
 model's linearization about upright (central finite differences of the same
 ``forward_dynamics`` the simulation uses), ``Q = diag(10, 10, 1, 1)``, ``R = lqr_r``
@@ -38,11 +47,16 @@ import control
 import numpy as np
 
 from mbs_envs import validation as check
-from mbs_envs.envs.swingup import Q_UP, SwingUpEnv
+from mbs_envs.envs.swingup import Q_DOWN, Q_UP, SwingUpEnv
 from mbs_envs.envs.tracking import wrap_angle
 
 from .base import Controller, linearize, solve_rows
 from .tuned import tuned_gains
+
+#: a state within this of the hanging rest (each angle [rad] and rate [rad/s]) is at rest there (the kick)
+REST_TOL = 1e-3
+#: the driven joint's setpoint offset [rad] the swing-up's PD aims at from the hanging rest (module docstring)
+KICK = 0.1
 
 
 def collocated_pfl(model: Any, q: np.ndarray, v: np.ndarray, y: np.ndarray, a: int, M: Any = None, h: Any = None) -> np.ndarray:
@@ -74,6 +88,12 @@ def collocated_pfl(model: Any, q: np.ndarray, v: np.ndarray, y: np.ndarray, a: i
     else:
         a_p = -solve_rows(M[..., p, :][..., p], (M_pa * y[..., None] + h_p)[..., None])[..., 0]
     return M[..., a, a] * y + np.einsum("...i,...i->...", M[..., a, p], a_p) + h[..., a]
+
+
+def at_rest(q: np.ndarray, v: np.ndarray, tol: float = REST_TOL) -> np.ndarray:
+    """Whether the arm is at rest hanging: every angle within ``tol`` [rad] of :data:`~mbs_envs.envs.swingup.Q_DOWN`
+    (wrapped) and every rate within ``tol`` [rad/s] of zero; ``q, v`` shape ``(..., 2)``, result ``(...)``."""
+    return (np.abs(wrap_angle(q - Q_DOWN)).max(axis=-1) < tol) & (np.abs(v).max(axis=-1) < tol)
 
 
 def upright_linearization(model: Any, lead: tuple[int, ...] = ()) -> tuple[np.ndarray, np.ndarray]:
@@ -223,7 +243,8 @@ class SwingUpLQR(CatchingSwingUp):
         E_up = self.E_up if model is self.model else model.potential_energy(np.broadcast_to(Q_UP, q.shape))
         E_err = model.energy(q, v) - E_up
         pump = self.k_E * E_err * v[..., 0] * (1.0 if a == 1 else -1.0)
-        y = -self.k_q * wrap_angle(q[..., a] - Q_UP[a]) - self.k_v * v[..., a] + pump
+        kick = np.where(at_rest(q, v), KICK, 0.0)
+        y = -self.k_q * (wrap_angle(q[..., a] - Q_UP[a]) - kick) - self.k_v * v[..., a] + pump
         return collocated_pfl(model, q, v, y, a)
 
     def upright_state(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:

@@ -20,6 +20,9 @@ and length mismatch). Each entry is keyed by env id and controller name:
 - ``RL + LQR`` (Acrobot, Pendubot): ``catch, release``, where an RL agent's swing-up hands over to
   the LQR (written by ``scripts/tune_handover.py``; :mod:`mbs_envs.studies.handover`).
 
+The DFKI protocol ids (``mbs_envs/AcrobotDFKI-v1``, ``mbs_envs/PendubotDFKI-v1``) carry the energy controllers'
+entries tuned on the protocol itself (``scripts/dfki.py --tune --write``; :mod:`mbs_envs.studies.dfki_tuning`).
+
 Ids or controllers without an entry get :data:`FALLBACK` (the pre-tuning
 defaults: bandwidth 10 rad/s, critical damping).
 """
@@ -75,17 +78,24 @@ def tuned_gains(env: Any, controller: str) -> dict[str, Any]:
     for a controller without an entry, those of the controller whose laws it shares: :data:`SAME_LAWS`)."""
     if controller not in FALLBACK:
         raise ValueError(f"no tuned gains for controller {controller!r}; known: {sorted(FALLBACK)}")
-    key = env_id(env) or ""
+    entry = stored_entry(env_id(env) or "", controller)
+    return copy.deepcopy(FALLBACK[controller]) if entry is None else entry
+
+
+def stored_entry(key: str, controller: str) -> dict[str, Any] | None:
+    """The entry of ``tuned.json`` that ``controller`` takes on the env id ``key``: its own, else along the chain of
+    controllers whose laws it shares (:data:`SAME_LAWS`), each on ``key`` or on the version whose plant it shares
+    (:data:`SAME_PLANT`); None where no entry is stored (a copy otherwise)."""
     table = _table()
-    name = controller
-    while name is not None:  # its own entry, else along the chain of controllers whose laws it shares
+    name: str | None = controller
+    while name is not None:
         entry = table.get(key, {}).get(name)
         if entry is None:  # a reward-only version: the gains tuned on the version whose plant it shares
             entry = table.get(SAME_PLANT.get(key, ""), {}).get(name)
         if entry is not None:
             return copy.deepcopy(entry)
         name = SAME_LAWS.get(name)
-    return copy.deepcopy(FALLBACK[controller])
+    return None
 
 
 def clear_cache() -> None:

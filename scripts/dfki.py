@@ -12,6 +12,11 @@ controller and one robustness plot per scene to ``--out``::
 
     python scripts/dfki.py --out results/dfki                      # the protocol: about a minute
     python scripts/dfki.py --out results/dfki --robustness         # and the sweep: minutes per controller
+    python scripts/dfki.py --out results/dfki_tune --tune --write  # tune the energy controllers on the protocol
+
+The energy controllers run with the gains tuned on the protocol where ``controllers/tuned.json`` has them (``--tune``:
+:mod:`mbs_envs.studies.dfki_tuning`, a few minutes; ``--write`` stores the picks), else with those tuned on our own
+scene of the same task (``mbs_envs/<scene>-v1``).
 """
 
 from __future__ import annotations
@@ -51,6 +56,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--seed", type=int, default=0, help="seeds the sweep's noise and pulses")
     p.add_argument("--workers", type=int, default=None, help="local processes (default: one per core, at most one per controller)")
     p.add_argument("--ray", nargs="?", const="local", default=None, help="run the controllers on Ray (cluster ADDRESS, or a local instance)")
+    p.add_argument("--tune", action="store_true", help="tune the energy controllers' gains on the protocol instead (mbs_envs.studies.dfki_tuning)")
+    p.add_argument("--write", action="store_true", help="with --tune: store the picks in controllers/tuned.json under the protocol ids")
     return p.parse_args(argv)
 
 
@@ -63,12 +70,13 @@ def run(args: argparse.Namespace) -> dict:
             if (not args.controller or n in args.controller) and not (args.no_controllers and n in SWING_UP_CONTROLLERS)]  # fmt: skip
     if not jobs:
         raise SystemExit("dfki.py: no controller or agent matches --controller")
-    tasks = [{"env_id": SCENES[s], "spec": specs[s][n], "gains": own_scene_gains(s, n) if n in SWING_UP_CONTROLLERS else None,
+    gains = {(s, n): protocol_gains(s, n) if n in SWING_UP_CONTROLLERS else (None, "") for s, n in jobs}
+    tasks = [{"env_id": SCENES[s], "spec": specs[s][n], "gains": gains[s, n][0],
               "robustness": args.robustness, "values": args.values, "seed": args.seed} for s, n in jobs]  # fmt: skip
     results = run_tasks(dfki.controller_job, tasks, ray_address=args.ray, max_workers=args.workers, progress="DFKI protocol")
     for (scene, name), res in zip(jobs, results):
         c = res["criteria"]
-        row = {"scene": scene, "controller": name, **c, "wall_s": res["wall_s"]}
+        row = {"scene": scene, "controller": name, "gains": gains[scene, name][1], **c, "wall_s": res["wall_s"]}
         plot_run(res["run"], gym.make(SCENES[scene]).unwrapped.model.params, f"{scene}: {name}", args.out / f"run_{scene}_{slug(name)}.png")
         if args.robustness:
             sweeps[(scene, name)] = res["sweep"]
@@ -112,14 +120,62 @@ def policies(scene: str, agents: pathlib.Path | None) -> dict[str, str]:
     return out
 
 
-def own_scene_gains(scene: str, name: str) -> dict | None:
-    """The gains the project's tuning picked for this controller on our own scene of the same task
-    (``mbs_envs/<scene>-v1``): none was tuned on the protocol's plant."""
-    from controllers.tuned import tuned_gains
+def protocol_gains(scene: str, name: str) -> tuple[dict | None, str]:
+    """The gains this controller runs with on the protocol and where they come from: those tuned on the protocol id
+    where ``controllers/tuned.json`` has them (``--tune --write``; for a controller without an entry of its own, that
+    of the controller whose laws it shares; ``"protocol"``), else those the project's tuning picked on our own scene
+    of the same task (``mbs_envs/<scene>-v1``; ``"own scene"``)."""
+    from controllers.tuned import stored_entry, tuned_gains
     from mbs_envs.studies.evaluation import controller_class
 
     tuned_name = getattr(controller_class(SWING_UP_CONTROLLERS[name]), "tuned_name", None)
-    return None if tuned_name is None else tuned_gains(gym.make(f"mbs_envs/{scene}-v1"), tuned_name)
+    if tuned_name is None:
+        return None, ""
+    entry = stored_entry(SCENES[scene], tuned_name)
+    if entry is not None:
+        return entry, "protocol"
+    return tuned_gains(gym.make(f"mbs_envs/{scene}-v1"), tuned_name), "own scene"
+
+
+def tune(args: argparse.Namespace) -> dict:
+    """``--tune``: :func:`mbs_envs.studies.dfki_tuning.tune` per scene; ``tuning.json`` (and ``tuning.csv``) to ``--out``,
+    and with ``--write`` the picks into ``controllers/tuned.json`` under the protocol ids (other entries kept)."""
+    from controllers import tuned
+    from mbs_envs.studies import dfki_tuning, tuning
+
+    args.out.mkdir(parents=True, exist_ok=True)
+    command = "python scripts/dfki.py " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("dfki.py") else None
+    record: dict = {"procedure": dfki_tuning.__doc__, "command": command, "gains": {}, "scores": {}}
+    rows = []
+    scenes = args.scene or sorted(SCENES)
+    results = run_tasks(dfki_tuning.tune_job, [{"env_id": SCENES[s]} for s in scenes], ray_address=args.ray, max_workers=args.workers,
+                        progress="scenes tuned on the protocol")  # fmt: skip
+    for scene, result in zip(scenes, results):
+        env_id = SCENES[scene]
+        for name, res in result.items():
+            chosen = next(r for r in res["rows"] if r["entry"] == res["best"])
+            grid = dfki_tuning.protocol_grid() + tuning.swing_up_refine_grid(res["best"])
+            record["gains"].setdefault(env_id, {})[name] = res["best"]
+            record["scores"].setdefault(env_id, {})[name] = {**{k: v for k, v in chosen.items() if k != "entry"}, "candidates": len(res["rows"]),
+                                                             "at_grid_edge": tuning.at_grid_edge(res["best"], grid), "wall_s": res["wall_s"],
+                                                             "command": command}  # fmt: skip
+            rows += [{"scene": scene, "controller": name, **r, "entry": json.dumps(r["entry"])} for r in res["rows"]]
+            print(f"{scene}, {name}: {res['best']} ({len(res['rows'])} candidates, {res['wall_s']:.0f} s): "
+                  + ", ".join(f"{k} {v:.3g}" for k, v in chosen.items() if k != "entry"))  # fmt: skip
+    with open(args.out / "tuning.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    (args.out / "tuning.json").write_text(json.dumps(record, indent=2))
+    if args.write:
+        stored = json.loads(tuned.PATH.read_text())
+        for key in ("gains", "scores"):
+            for env_id, entries in record[key].items():
+                stored.setdefault(key, {}).setdefault(env_id, {}).update(entries)
+        tuned.PATH.write_text(json.dumps(stored, indent=2) + "\n")
+        tuned.clear_cache()
+    print(f"written {args.out}")
+    return record
 
 
 def slug(name: str) -> str:
@@ -148,12 +204,25 @@ def plot_run(run_: dict, p, title: str, path: pathlib.Path) -> None:
     save(fig, path)
 
 
+def gains_sentence(rows: list[dict]) -> str:
+    """Which controllers ran with gains tuned on the protocol and which with those of our own scene."""
+    by = {src: sorted({f"{r['controller']} ({r['scene']})" for r in rows if r.get("gains") == src}) for src in ("protocol", "own scene")}
+    parts = []
+    if by["protocol"]:
+        parts.append("tuned on the protocol itself (`scripts/dfki.py --tune`, `mbs_envs/studies/dfki_tuning.py`; the identified planner "
+                     "pumps with the adaptive controller's entry for its first seconds) for " + ", ".join(by["protocol"]))
+    if by["own scene"]:
+        parts.append("those the project's tuning picked on our own scene of the same task (`mbs_envs/<scene>-v1`, `controllers/tuned.json`; "
+                     "none tuned on this plant) for " + ", ".join(by["own scene"]))
+    return "; ".join(parts) + "." if parts else "none (agents only)."
+
+
 def report(rows: list[dict], args: argparse.Namespace) -> str:
     out = ["# The DFKI double-pendulum benchmark: our controllers beside the leaderboards", "",
            "Protocol: `mbs_envs/AcrobotDFKI-v1` / `mbs_envs/PendubotDFKI-v1` (design C.1, model 1.0 as the leaderboard "
            "simulates it: 6 N m on the driven joint, RK4 at 2 ms, 10 s from hanging at rest); success and score "
-           "(simulation v2) as `mbs_envs/studies/dfki.py` computes them. Our controllers run with the gains the project's tuning picked for them on our own "
-           "scene of the same task (`mbs_envs/<scene>-v1`, `controllers/tuned.json`): none was tuned on this plant.", ""]  # fmt: skip
+           "(simulation v2) as `mbs_envs/studies/dfki.py` computes them. Our controllers' gains: "
+           + gains_sentence(rows), ""]  # fmt: skip
     for scene in dict.fromkeys(r["scene"] for r in rows):
         out += [f"## {scene}: simulation v2", "", "| controller | success | swing-up time [s] | energy [J] | torque cost | smoothness [N m] | velocity cost | score |",
                 "|---|---|---|---|---|---|---|---|"]  # fmt: skip
@@ -191,7 +260,10 @@ def report(rows: list[dict], args: argparse.Namespace) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     provenance.pin_numerics()  # before torch loads, here and in the workers (mbs_envs/studies/provenance.py)
-    run(parse_args(argv))
+    args = parse_args(argv)
+    if args.write and not args.tune:
+        raise SystemExit("dfki.py: --write stores the picks of --tune; give both")
+    (tune if args.tune else run)(args)
     return 0
 
 

@@ -1,0 +1,162 @@
+"""The energy-pumping controllers' gains tuned on the DFKI protocol itself, as the leaderboard's entries are tuned on
+its plant (``scripts/dfki.py --tune``).
+
+The swing-up scenes' gains (:mod:`mbs_envs.studies.tuning`) were picked for our 1 m, 10 / 5 N m arm; on the protocol's
+0.3 / 0.2 m plant with 6 N m the acrobot's energy controllers never swung up with them. Here the same grids run on the
+protocol id (``mbs_envs/AcrobotDFKI-v1``, ``mbs_envs/PendubotDFKI-v1``):
+
+- **swing-up + LQR**: the first grid (:func:`protocol_grid`: swing-up + LQR's, :func:`~mbs_envs.studies.tuning.swing_up_grid`,
+  widened upward in ``k_q, k_v, k_E``, where a first run's picks sat at its edges; 2,560 candidates), then the second around its pick (:func:`~mbs_envs.studies.tuning.swing_up_refine_grid`:
+  the LQR's input weight with the catch level, 128);
+- **adaptive swing-up + LQR**: the first grid with the LQR's input weight of swing-up + LQR's pick (its LQR is solved
+  again per member as its identification moves, with one weight for the batch). The planner (identified iLQR +
+  TVLQR) pumps with this entry for its first seconds (:data:`controllers.tuned.SAME_LAWS`).
+
+Every candidate is one member of a single batched rollout per plant (the laws broadcast over members: the gains as
+arrays of shape ``(n,)``, the LQR's gain and cost-to-go per member; :func:`with_member_gains`; the tests hold this
+equal to one rollout per candidate). The plants: the protocol's, and its masses and lengths x 0.8 and x 1.2 (the
+tuning's conditions, :data:`~mbs_envs.studies.tuning.TUNING_CONDITIONS`). A candidate ranks by its failures under
+the protocol's success rule over the three (:func:`mbs_envs.studies.dfki.evaluate`), then by its mean simulation-v2
+score over them (higher first). The protocol starts at rest, so one episode per plant is the whole of it.
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+from typing import Any, Callable, Mapping
+
+import gymnasium as gym
+import numpy as np
+
+from . import dfki
+from .comparison import scaled_params
+from .tuning import TUNING_CONDITIONS, swing_up_refine_grid
+
+#: the controllers tuned on the protocol, by display name: (``"module:Class"``, whether the LQR's input weight is
+#: searched per member in a second stage)
+TUNED = {"swing-up + LQR": ("controllers:SwingUpLQR", True), "adaptive swing-up + LQR": ("controllers:AdaptiveSwingUpLQR", False)}
+#: the gains a member may carry (:func:`with_member_gains`)
+MEMBER_GAINS = ("k_q", "k_v", "k_E", "catch")
+
+
+def protocol_grid() -> list[dict[str, float]]:
+    """The first stage's candidates on the protocol: swing-up + LQR's grid (:func:`~mbs_envs.studies.tuning.swing_up_grid`)
+    with ``k_q`` up to 200 1/s^2, ``k_v`` up to 40 1/s and ``k_E`` up to 64 1/(J s) (a run on that grid picked its top
+    ``k_E`` on both protocols and its top ``k_q`` and ``k_v`` on the pendubot's), the catch level as there."""
+    return [
+        {"k_q": kq, "k_v": kv, "k_E": kE, "catch": c}
+        for kq, kv, kE, c in itertools.product((1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0), (0.25, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 40.0),
+                                               (0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0), (1.0, 3.0, 10.0, 30.0, 100.0))
+    ]
+
+
+def with_member_gains(controller: Any, entries: list[dict[str, Any]]) -> Any:
+    """``controller`` (built with ``entries[0]``) carrying each entry's gains as member ``i`` of a batch.
+
+    The pumping gains and the catch level become arrays of shape ``(n,)``; where the entries' ``lqr_r`` differ, the
+    LQR's ``K`` ``(n, 1, 4)`` and ``S`` ``(n, 4, 4)`` are solved per member on the controller's model. Valid for
+    :class:`controllers.swingup.SwingUpLQR` and, with one ``lqr_r`` for all, its adaptive subclass (whose LQR is
+    solved per member from its identified model with the controller's one weight).
+
+    Raises
+    ------
+    ValueError
+        Where the entries' ``lqr_r`` differ on a controller that solves its LQR online.
+    """
+    from controllers.adaptive_swingup import AdaptiveSwingUpLQR
+    from controllers.swingup import upright_lqr
+
+    for key in MEMBER_GAINS:
+        setattr(controller, key, np.array([float(e[key]) for e in entries]))
+    r = [float(e.get("lqr_r", controller.lqr_r)) for e in entries]
+    if len(set(r)) > 1:
+        if isinstance(controller, AdaptiveSwingUpLQR):
+            raise ValueError("with_member_gains: entries' lqr_r differ, but an adaptive controller solves its LQR with one weight")
+        gains = [upright_lqr(controller.model, controller.Q, np.full((1, 1), ri)) for ri in r]
+        controller.K = np.stack([K for K, _ in gains])
+        controller.S = np.stack([S for _, S in gains])
+    return controller
+
+
+def plant_kwargs(env_id: str, scale: float) -> dict[str, Any]:
+    """``gym.make`` keywords of the protocol's plant with masses and lengths times ``scale`` (the preset's actuators)."""
+    if scale == 1.0:
+        return {}
+    params = scaled_params(gym.make(env_id).unwrapped.model, scale)
+    return {"params": {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in params.items()}}
+
+
+def scores(env_id: str, spec: str, entries: list[dict[str, Any]], max_episode_steps: int | None = None) -> dict[str, np.ndarray]:
+    """Success and simulation-v2 score of every candidate under each tuning plant, one batched rollout per plant.
+
+    Returns
+    -------
+    dict
+        Condition name -> array ``(len(entries), 2)`` of (success, score).
+    """
+    from .evaluation import make_controller
+
+    env = gym.make(env_id)
+    p = env.unwrapped.model.params
+    out = {}
+    extra = {} if max_episode_steps is None else {"max_episode_steps": max_episode_steps}
+    for cond in TUNING_CONDITIONS:
+        policy = with_member_gains(make_controller(spec, env, entries[0]), entries)
+        venv = gym.make_vec(env_id, num_envs=len(entries), vectorization_mode="vector_entry_point", autoreset_mode="Disabled",
+                            **plant_kwargs(env_id, cond.scale), **extra)  # fmt: skip
+        runs = dfki.record(venv, policy, list(range(len(entries))))
+        venv.close()
+        out[cond.name] = np.array([(c["success"], c["score"]) for c in dfki.evaluate(runs, p.l1, p.l2)])
+    return out
+
+
+def rank(per_condition: dict[str, np.ndarray]) -> np.ndarray:
+    """Candidate indices best first: fewest failures over the conditions, then the highest mean score."""
+    s = np.stack(list(per_condition.values()))  # (conditions, n, 2)
+    failures = (s[:, :, 0] < 1.0).sum(axis=0)
+    return np.lexsort((-s[:, :, 1].mean(axis=0), failures))
+
+
+def stage(env_id: str, spec: str, entries: list[dict[str, Any]], **kwargs: Any) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """Score ``entries`` (:func:`scores`) and return the best entry and one row per candidate."""
+    per = scores(env_id, spec, entries, **kwargs)
+    rows = [{"entry": e, **{f"{c} success": float(v[i, 0]) for c, v in per.items()}, **{f"{c} score": float(v[i, 1]) for c, v in per.items()}}
+            for i, e in enumerate(entries)]  # fmt: skip
+    return entries[int(rank(per)[0])], rows
+
+
+def tune(env_id: str, start: dict[str, Any] | None = None, grid: Callable[[], list[dict[str, Any]]] = protocol_grid,
+         **kwargs: Any) -> dict[str, dict[str, Any]]:  # fmt: skip
+    """Both controllers of :data:`TUNED` on the protocol id ``env_id`` (module docstring).
+
+    Parameters
+    ----------
+    start : dict, optional
+        Skip swing-up + LQR's first stage and refine from this entry.
+    grid : callable
+        The first stage's candidates (default :func:`protocol_grid`; the tests pass a small one).
+
+    Returns
+    -------
+    dict
+        Controller name -> ``{"best": entry, "rows": [...], "wall_s": float}``.
+    """
+    out = {}
+    tic = time.perf_counter()
+    spec, _ = TUNED["swing-up + LQR"]
+    rows: list[dict[str, Any]] = []
+    if start is None:
+        start, rows = stage(env_id, spec, grid(), **kwargs)
+    best, refined = stage(env_id, spec, swing_up_refine_grid(start), **kwargs)
+    out["swing-up + LQR"] = {"best": best, "rows": rows + refined, "wall_s": time.perf_counter() - tic}
+    tic = time.perf_counter()
+    spec, _ = TUNED["adaptive swing-up + LQR"]
+    best_a, rows_a = stage(env_id, spec, [{**e, "lqr_r": best.get("lqr_r", 1.0)} for e in grid()], **kwargs)
+    out["adaptive swing-up + LQR"] = {"best": best_a, "rows": rows_a, "wall_s": time.perf_counter() - tic}
+    return out
+
+
+def tune_job(task: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
+    """:func:`tune` of ``task["env_id"]`` (a picklable task for :func:`mbs_envs.studies.parallel.run_tasks`)."""
+    return tune(task["env_id"])

@@ -1,0 +1,99 @@
+"""Tuning the energy controllers on the DFKI protocol (mbs_envs.studies.dfki_tuning), the kick from the hanging rest
+(controllers.swingup), and where the protocol's gains come from (controllers.tuned.stored_entry)."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import mbs_envs  # noqa: F401
+from controllers import tuned
+from controllers.swingup import KICK, REST_TOL, SwingUpLQR, at_rest, collocated_pfl
+from mbs_envs.envs.swingup import Q_DOWN
+from mbs_envs.studies import dfki, dfki_tuning
+from mbs_envs.studies.evaluation import make_controller
+
+ACRO = "mbs_envs/AcrobotDFKI-v1"
+ENTRIES = [{"k_q": 20.0, "k_v": 5.0, "k_E": 16.0, "catch": 30.0, "lqr_r": 1.0},
+           {"k_q": 5.0, "k_v": 1.0, "k_E": 2.0, "catch": 3.0, "lqr_r": 100.0},
+           {"k_q": 50.0, "k_v": 10.0, "k_E": 0.5, "catch": 100.0, "lqr_r": 1e4}]  # fmt: skip
+
+
+def run(venv_members, policy, steps):
+    venv = gym.make_vec(ACRO, num_envs=venv_members, vectorization_mode="vector_entry_point", autoreset_mode="Disabled",
+                        max_episode_steps=steps)  # fmt: skip
+    return dfki.record(venv, policy, list(range(venv_members)))
+
+
+@pytest.mark.parametrize("spec, entries", [("controllers:SwingUpLQR", ENTRIES),
+                                           ("controllers:AdaptiveSwingUpLQR", [dict(e, lqr_r=10.0) for e in ENTRIES])])  # fmt: skip
+def test_member_gains_reproduce_one_rollout_per_candidate(spec, entries):
+    """Every candidate as a member of one batch moves exactly as the candidate alone (the laws broadcast)."""
+    env = gym.make(ACRO)
+    batched = run(len(entries), dfki_tuning.with_member_gains(make_controller(spec, env, entries[0]), entries), 400)
+    for e, b in zip(entries, batched):
+        alone = run(1, make_controller(spec, env, e), 400)[0]
+        np.testing.assert_allclose(b["q"], alone["q"], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(b["u"], alone["u"], rtol=0, atol=1e-12)
+    assert np.abs(batched[0]["u"]).max() > 0.1  # the kick started the motion: the comparison is not of rest with rest
+
+
+def test_member_gains_refuse_per_member_weights_on_the_adaptive_controller():
+    env = gym.make(ACRO)
+    c = make_controller("controllers:AdaptiveSwingUpLQR", env, ENTRIES[0])
+    with pytest.raises(ValueError, match="lqr_r"):
+        dfki_tuning.with_member_gains(c, ENTRIES)
+
+
+def test_rank_puts_failures_first_then_the_mean_score():
+    per = {"a": np.array([[1, 0.5], [1, 0.2], [0, 0.0], [1, 0.4]]), "b": np.array([[1, 0.1], [1, 0.3], [1, 0.9], [1, 0.3]])}
+    # failures: 0, 0, 1, 0; mean scores 0.3, 0.25, 0.45, 0.35
+    assert dfki_tuning.rank(per).tolist() == [3, 0, 1, 2]
+
+
+def test_tune_returns_a_candidate_of_each_stage():
+    grid = ENTRIES[:2]
+    out = dfki_tuning.tune(ACRO, grid=lambda: [{k: v for k, v in e.items() if k != "lqr_r"} for e in grid], max_episode_steps=20)
+    first = {k: out["swing-up + LQR"]["best"][k] for k in ("k_q", "k_v", "k_E")}
+    assert first in [{k: e[k] for k in ("k_q", "k_v", "k_E")} for e in grid]
+    assert len(out["swing-up + LQR"]["rows"]) == 2 + 128  # both stages' candidates
+    assert len(out["adaptive swing-up + LQR"]["rows"]) == 2
+    assert out["adaptive swing-up + LQR"]["best"]["lqr_r"] == out["swing-up + LQR"]["best"]["lqr_r"]
+
+
+def test_the_kick_moves_an_acrobot_at_rest_and_only_there():
+    env = gym.make(ACRO)
+    c = SwingUpLQR(env)
+    q, v = np.array([Q_DOWN]), np.zeros((1, 2))
+    u = c.swing_up(q, v)
+    assert abs(u[0]) > 0.01  # at rest hanging the law pushes
+    # the push is the PD toward the offset KICK (every other term of y vanishes at rest)
+    np.testing.assert_allclose(u, collocated_pfl(c.model, q, v, np.array([c.k_q * KICK]), 1), rtol=1e-13, atol=1e-13)
+    # one entry just outside the rest set (the others inside), or a start of the scenes' own: the law without the kick
+    rng = np.random.default_rng(0)
+    for k in range(60):
+        if k % 2:
+            x = rng.uniform(-0.9, 0.9, 4) * REST_TOL
+            x[rng.integers(4)] = rng.choice([-1.0, 1.0]) * 1.01 * REST_TOL
+        else:
+            x = rng.uniform(-0.1, 0.1, 4)
+        qq, vv = (Q_DOWN + x[:2])[None], x[None, 2:]
+        assert not at_rest(qq, vv)[0]
+        E_err = c.model.energy(qq, vv) - c.E_up
+        y = -c.k_q * qq[0, 1] - c.k_v * vv[0, 1] + c.k_E * E_err * vv[0, 0]
+        np.testing.assert_allclose(c.swing_up(qq, vv), collocated_pfl(c.model, qq, vv, y, 1), rtol=1e-13, atol=1e-13)
+    # the episode starts moving: the elbow is off rest after the first step
+    venv = gym.make_vec(ACRO, num_envs=1, vectorization_mode="vector_entry_point", autoreset_mode="Disabled", max_episode_steps=5)
+    r = dfki.record(venv, c, [0])[0]
+    assert np.abs(r["v"][-1]).max() > REST_TOL
+
+
+def test_stored_entry_walks_the_chains_and_says_when_there_is_none(monkeypatch):
+    table = {"mbs_envs/Acrobot-v0": {"swing-up + LQR": {"k_q": 1.0}}, "mbs_envs/AcrobotDFKI-v1": {"adaptive swing-up + LQR": {"k_q": 2.0}}}
+    monkeypatch.setattr(tuned, "_table", lambda: table)
+    assert tuned.stored_entry("mbs_envs/Acrobot-v1", "adaptive swing-up + LQR") == {"k_q": 1.0}  # plant, then laws
+    assert tuned.stored_entry("mbs_envs/AcrobotDFKI-v1", "identified iLQR + TVLQR") == {"k_q": 2.0}
+    assert tuned.stored_entry("mbs_envs/AcrobotDFKI-v1", "swing-up + LQR") is None
+    assert tuned.stored_entry("mbs_envs/Planar2R-v0", "PD") is None
+    got = tuned.stored_entry("mbs_envs/Acrobot-v0", "swing-up + LQR")
+    got["k_q"] = 5.0  # a copy: the table is untouched
+    assert table["mbs_envs/Acrobot-v0"]["swing-up + LQR"] == {"k_q": 1.0}
