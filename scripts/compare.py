@@ -52,6 +52,7 @@ from controllers import tuned
 from mbs_envs import comparison as cmp
 from mbs_envs import seeds as seed_ranges
 from mbs_envs.envs import registry
+from mbs_envs.envs.presets import PROTOCOL_IDS
 from mbs_envs.studies.catch import applies, catch_rows, catch_table
 from mbs_envs.studies.handover import TUNED_NAME as HAND_OVER_NAME
 from mbs_envs.studies import scene_robustness as sr
@@ -456,9 +457,13 @@ def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: 
               "Score: failure rate, then mean settled error over the conditions. Commands: "
               + "; ".join(sorted({f"`{c}`" for by_c in tuned_record["scores"].values() for sc in by_c.values()
                                   for c in (sc.get("first_stage", {}).get("command"), sc.get("command")) if c})) + ".", "",
+              "(The DFKI protocol ids' entries are tuned and scored on the protocol: `scripts/dfki.py --tune`, `docs/figures/dfki_tuning/`.)", "",
               "| env | controller | tuned gains | tuned: failures / error | pre-tuning default | pre-tuning: failures / error | at grid edge |", "|---|---|---|---|---|---|---|"]  # fmt: skip
         pairs = []
+        protocol = {entry[0] for entry in PROTOCOL_IDS}  # tuned on the DFKI protocol (scripts/dfki.py --tune), scored there
         for env_id, by_c in tuned_record["gains"].items():
+            if env_id in protocol:
+                continue
             for name, entry in by_c.items():
                 sc = tuned_record["scores"][env_id][name]
                 if name == HAND_OVER_NAME:  # scored differently: below

@@ -154,7 +154,7 @@ def tune(args: argparse.Namespace) -> dict:
         env_id = SCENES[scene]
         for name, res in result.items():
             chosen = next(r for r in res["rows"] if r["entry"] == res["best"])
-            grid = dfki_tuning.protocol_grid() + tuning.swing_up_refine_grid(res["best"])
+            grid = dfki_tuning.protocol_grid() + tuning.swing_up_refine_grid(res["best"]) if name != "identified iLQR + TVLQR" else []
             record["gains"].setdefault(env_id, {})[name] = res["best"]
             record["scores"].setdefault(env_id, {})[name] = {**{k: v for k, v in chosen.items() if k != "entry"}, "candidates": len(res["rows"]),
                                                              "at_grid_edge": tuning.at_grid_edge(res["best"], grid), "wall_s": res["wall_s"],
@@ -209,8 +209,8 @@ def gains_sentence(rows: list[dict]) -> str:
     by = {src: sorted({f"{r['controller']} ({r['scene']})" for r in rows if r.get("gains") == src}) for src in ("protocol", "own scene")}
     parts = []
     if by["protocol"]:
-        parts.append("tuned on the protocol itself (`scripts/dfki.py --tune`, `mbs_envs/studies/dfki_tuning.py`; the identified planner "
-                     "pumps with the adaptive controller's entry for its first seconds) for " + ", ".join(by["protocol"]))
+        parts.append("tuned on the protocol itself (`scripts/dfki.py --tune`, `mbs_envs/studies/dfki_tuning.py`; the identified planner's "
+                     "entry picked there between its own scene's and the adaptive controller's pick) for " + ", ".join(by["protocol"]))
     if by["own scene"]:
         parts.append("those the project's tuning picked on our own scene of the same task (`mbs_envs/<scene>-v1`, `controllers/tuned.json`; "
                      "none tuned on this plant) for " + ", ".join(by["own scene"]))

@@ -9,8 +9,11 @@ protocol id (``mbs_envs/AcrobotDFKI-v1``, ``mbs_envs/PendubotDFKI-v1``):
   widened upward in ``k_q, k_v, k_E``, where a first run's picks sat at its edges; 2,560 candidates), then the second around its pick (:func:`~mbs_envs.studies.tuning.swing_up_refine_grid`:
   the LQR's input weight with the catch level, 128);
 - **adaptive swing-up + LQR**: the first grid with the LQR's input weight of swing-up + LQR's pick (its LQR is solved
-  again per member as its identification moves, with one weight for the batch). The planner (identified iLQR +
-  TVLQR) pumps with this entry for its first seconds (:data:`controllers.tuned.SAME_LAWS`).
+  again per member as its identification moves, with one weight for the batch);
+- **identified iLQR + TVLQR**: its pumping serves the identification of its first seconds, not a swing-up, so the
+  adaptive controller's pick is not necessarily right for it: two candidates, its entry tuned on our own scene of
+  the task (``mbs_envs/<scene>-v1``) and the adaptive controller's pick on the protocol, one rollout each (the
+  planner's LQR weights differ, and it solves them online).
 
 Every candidate is one member of a single batched rollout per plant (the laws broadcast over members: the gains as
 arrays of shape ``(n,)``, the LQR's gain and cost-to-go per member; :func:`with_member_gains`; the tests hold this
@@ -35,7 +38,10 @@ from .tuning import TUNING_CONDITIONS, swing_up_refine_grid
 
 #: the controllers tuned on the protocol, by display name: (``"module:Class"``, whether the LQR's input weight is
 #: searched per member in a second stage)
-TUNED = {"swing-up + LQR": ("controllers:SwingUpLQR", True), "adaptive swing-up + LQR": ("controllers:AdaptiveSwingUpLQR", False)}
+TUNED = {"swing-up + LQR": ("controllers:SwingUpLQR", True), "adaptive swing-up + LQR": ("controllers:AdaptiveSwingUpLQR", False),
+         "identified iLQR + TVLQR": ("controllers:PlannedSwingUp", False)}
+#: the LQR's input weight [(N m)^-2] of the first stage's candidates (the scenes' first stage, :mod:`mbs_envs.studies.tuning`)
+FIRST_STAGE_R = 1.0
 #: the gains a member may carry (:func:`with_member_gains`)
 MEMBER_GAINS = ("k_q", "k_v", "k_E", "catch")
 
@@ -87,8 +93,10 @@ def plant_kwargs(env_id: str, scale: float) -> dict[str, Any]:
     return {"params": {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in params.items()}}
 
 
-def scores(env_id: str, spec: str, entries: list[dict[str, Any]], max_episode_steps: int | None = None) -> dict[str, np.ndarray]:
-    """Success and simulation-v2 score of every candidate under each tuning plant, one batched rollout per plant.
+def scores(env_id: str, spec: str, entries: list[dict[str, Any]], max_episode_steps: int | None = None,
+           batched: bool = True) -> dict[str, np.ndarray]:  # fmt: skip
+    """Success and simulation-v2 score of every candidate under each tuning plant, one batched rollout per plant
+    (``batched=False``: one rollout per candidate and plant).
 
     Returns
     -------
@@ -97,12 +105,17 @@ def scores(env_id: str, spec: str, entries: list[dict[str, Any]], max_episode_st
     """
     from .evaluation import make_controller
 
+    if not batched:
+        each = [scores(env_id, spec, [e], max_episode_steps) for e in entries]
+        return {c: np.concatenate([r[c] for r in each]) for c in each[0]}
     env = gym.make(env_id)
     p = env.unwrapped.model.params
     out = {}
     extra = {} if max_episode_steps is None else {"max_episode_steps": max_episode_steps}
     for cond in TUNING_CONDITIONS:
-        policy = with_member_gains(make_controller(spec, env, entries[0]), entries)
+        policy = make_controller(spec, env, entries[0])
+        if len(entries) > 1:
+            policy = with_member_gains(policy, entries)
         venv = gym.make_vec(env_id, num_envs=len(entries), vectorization_mode="vector_entry_point", autoreset_mode="Disabled",
                             **plant_kwargs(env_id, cond.scale), **extra)  # fmt: skip
         runs = dfki.record(venv, policy, list(range(len(entries))))
@@ -127,8 +140,8 @@ def stage(env_id: str, spec: str, entries: list[dict[str, Any]], **kwargs: Any) 
 
 
 def tune(env_id: str, start: dict[str, Any] | None = None, grid: Callable[[], list[dict[str, Any]]] = protocol_grid,
-         **kwargs: Any) -> dict[str, dict[str, Any]]:  # fmt: skip
-    """Both controllers of :data:`TUNED` on the protocol id ``env_id`` (module docstring).
+         planner_own: dict[str, Any] | None = None, **kwargs: Any) -> dict[str, dict[str, Any]]:  # fmt: skip
+    """The controllers of :data:`TUNED` on the protocol id ``env_id`` (module docstring).
 
     Parameters
     ----------
@@ -136,6 +149,9 @@ def tune(env_id: str, start: dict[str, Any] | None = None, grid: Callable[[], li
         Skip swing-up + LQR's first stage and refine from this entry.
     grid : callable
         The first stage's candidates (default :func:`protocol_grid`; the tests pass a small one).
+    planner_own : dict, optional
+        The planner's entry tuned on our own scene of the task (its first candidate); default
+        :func:`own_scene_entry`.
 
     Returns
     -------
@@ -146,15 +162,28 @@ def tune(env_id: str, start: dict[str, Any] | None = None, grid: Callable[[], li
     tic = time.perf_counter()
     spec, _ = TUNED["swing-up + LQR"]
     rows: list[dict[str, Any]] = []
-    if start is None:
-        start, rows = stage(env_id, spec, grid(), **kwargs)
+    if start is None:  # the first stage with the LQR's input weight 1, as the scenes' first stage (not a stored pick's)
+        start, rows = stage(env_id, spec, [{"lqr_r": FIRST_STAGE_R, **e} for e in grid()], **kwargs)
     best, refined = stage(env_id, spec, swing_up_refine_grid(start), **kwargs)
     out["swing-up + LQR"] = {"best": best, "rows": rows + refined, "wall_s": time.perf_counter() - tic}
     tic = time.perf_counter()
     spec, _ = TUNED["adaptive swing-up + LQR"]
     best_a, rows_a = stage(env_id, spec, [{**e, "lqr_r": best.get("lqr_r", 1.0)} for e in grid()], **kwargs)
     out["adaptive swing-up + LQR"] = {"best": best_a, "rows": rows_a, "wall_s": time.perf_counter() - tic}
+    tic = time.perf_counter()
+    spec, _ = TUNED["identified iLQR + TVLQR"]
+    own = own_scene_entry(env_id, "identified iLQR + TVLQR") if planner_own is None else planner_own
+    best_p, rows_p = stage(env_id, spec, [own, best_a], batched=False, **kwargs)
+    out["identified iLQR + TVLQR"] = {"best": best_p, "rows": rows_p, "wall_s": time.perf_counter() - tic}
     return out
+
+
+def own_scene_entry(env_id: str, name: str) -> dict[str, Any]:
+    """The entry ``name`` takes on our own scene of the protocol's task (``mbs_envs/AcrobotDFKI-v1`` ->
+    ``mbs_envs/Acrobot-v1``)."""
+    from controllers.tuned import tuned_gains
+
+    return tuned_gains(gym.make(env_id.replace("DFKI-v1", "-v1")), name)
 
 
 def tune_job(task: Mapping[str, Any]) -> dict[str, dict[str, Any]]:

@@ -50,14 +50,22 @@ def test_rank_puts_failures_first_then_the_mean_score():
     assert dfki_tuning.rank(per).tolist() == [3, 0, 1, 2]
 
 
-def test_tune_returns_a_candidate_of_each_stage():
+def test_tune_returns_a_candidate_of_each_stage(monkeypatch):
     grid = ENTRIES[:2]
+    # a stored pick's weight must not leak into the first stage (it did: the candidates took the stored lqr_r)
+    table = {ACRO: {"swing-up + LQR": {"k_q": 1.0, "k_v": 1.0, "k_E": 1.0, "catch": 1.0, "lqr_r": 1e5}}}
+    monkeypatch.setattr(tuned, "_table", lambda: table)
     out = dfki_tuning.tune(ACRO, grid=lambda: [{k: v for k, v in e.items() if k != "lqr_r"} for e in grid], max_episode_steps=20)
     first = {k: out["swing-up + LQR"]["best"][k] for k in ("k_q", "k_v", "k_E")}
     assert first in [{k: e[k] for k in ("k_q", "k_v", "k_E")} for e in grid]
     assert len(out["swing-up + LQR"]["rows"]) == 2 + 128  # both stages' candidates
+    assert [r["entry"]["lqr_r"] for r in out["swing-up + LQR"]["rows"][:2]] == [dfki_tuning.FIRST_STAGE_R] * 2
     assert len(out["adaptive swing-up + LQR"]["rows"]) == 2
     assert out["adaptive swing-up + LQR"]["best"]["lqr_r"] == out["swing-up + LQR"]["best"]["lqr_r"]
+    own = dfki_tuning.own_scene_entry(ACRO, "identified iLQR + TVLQR")
+    assert own == tuned.tuned_gains(gym.make("mbs_envs/Acrobot-v1"), "identified iLQR + TVLQR")
+    assert [r["entry"] for r in out["identified iLQR + TVLQR"]["rows"]] == [own, out["adaptive swing-up + LQR"]["best"]]
+    assert out["identified iLQR + TVLQR"]["best"] in (own, out["adaptive swing-up + LQR"]["best"])
 
 
 def test_the_kick_moves_an_acrobot_at_rest_and_only_there():
