@@ -83,6 +83,11 @@ def plant_kwargs(scene: str, condition: Condition) -> dict[str, Any]:
     return model_kwargs(scene, scaled_params(gym.make(env_id, **kwargs).unwrapped.model, condition.scale))
 
 
+def listed(params: dict[str, Any]) -> dict[str, Any]:
+    """``params`` with arrays as lists (``gym.make`` keywords that survive JSON and pickling as they are)."""
+    return {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in params.items()}
+
+
 def model_kwargs(scene: str, params: dict[str, Any]) -> dict[str, Any]:
     """Env arguments of the scene's plant with the parameters ``params`` changed and the actuators nominal
     (the torque limits and the drives' armature, which some scenes derive from the parameters)."""
@@ -91,7 +96,7 @@ def model_kwargs(scene: str, params: dict[str, Any]) -> dict[str, Any]:
     params = dict(params)
     if hasattr(nominal.model.params, "armature"):
         params["armature"] = nominal.model.params.armature
-    return {**kwargs, "params": {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in params.items()},
+    return {**kwargs, "params": listed(params),
             "torque_limit": nominal.u_max.tolist()}  # fmt: skip
 
 

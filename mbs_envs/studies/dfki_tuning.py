@@ -25,7 +25,6 @@ score over them (higher first). The protocol starts at rest, so one episode per 
 
 from __future__ import annotations
 
-import itertools
 import time
 from typing import Any, Callable, Mapping
 
@@ -33,13 +32,12 @@ import gymnasium as gym
 import numpy as np
 
 from . import dfki
-from .comparison import scaled_params
-from .tuning import TUNING_CONDITIONS, swing_up_refine_grid
+from .comparison import listed, scaled_params
+from .tuning import TUNING_CONDITIONS, swing_up_grid, swing_up_refine_grid
 
-#: the controllers tuned on the protocol, by display name: (``"module:Class"``, whether the LQR's input weight is
-#: searched per member in a second stage)
-TUNED = {"swing-up + LQR": ("controllers:SwingUpLQR", True), "adaptive swing-up + LQR": ("controllers:AdaptiveSwingUpLQR", False),
-         "identified iLQR + TVLQR": ("controllers:PlannedSwingUp", False)}
+#: the controllers tuned on the protocol: display name -> ``"module:Class"``
+TUNED = {"swing-up + LQR": "controllers:SwingUpLQR", "adaptive swing-up + LQR": "controllers:AdaptiveSwingUpLQR",
+         "identified iLQR + TVLQR": "controllers:PlannedSwingUp"}
 #: the LQR's input weight [(N m)^-2] of the first stage's candidates (the scenes' first stage, :mod:`mbs_envs.studies.tuning`)
 FIRST_STAGE_R = 1.0
 #: the gains a member may carry (:func:`with_member_gains`)
@@ -50,11 +48,8 @@ def protocol_grid() -> list[dict[str, float]]:
     """The first stage's candidates on the protocol: swing-up + LQR's grid (:func:`~mbs_envs.studies.tuning.swing_up_grid`)
     with ``k_q`` up to 200 1/s^2, ``k_v`` up to 40 1/s and ``k_E`` up to 64 1/(J s) (a run on that grid picked its top
     ``k_E`` on both protocols and its top ``k_q`` and ``k_v`` on the pendubot's), the catch level as there."""
-    return [
-        {"k_q": kq, "k_v": kv, "k_E": kE, "catch": c}
-        for kq, kv, kE, c in itertools.product((1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0), (0.25, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 40.0),
-                                               (0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0), (1.0, 3.0, 10.0, 30.0, 100.0))
-    ]
+    return swing_up_grid(k_q=(1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0), k_v=(0.25, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 40.0),
+                         k_E=(0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0))
 
 
 def with_member_gains(controller: Any, entries: list[dict[str, Any]]) -> Any:
@@ -89,8 +84,7 @@ def plant_kwargs(env_id: str, scale: float) -> dict[str, Any]:
     """``gym.make`` keywords of the protocol's plant with masses and lengths times ``scale`` (the preset's actuators)."""
     if scale == 1.0:
         return {}
-    params = scaled_params(gym.make(env_id).unwrapped.model, scale)
-    return {"params": {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in params.items()}}
+    return {"params": listed(scaled_params(gym.make(env_id).unwrapped.model, scale))}
 
 
 def scores(env_id: str, spec: str, entries: list[dict[str, Any]], max_episode_steps: int | None = None,
@@ -112,10 +106,10 @@ def scores(env_id: str, spec: str, entries: list[dict[str, Any]], max_episode_st
     p = env.unwrapped.model.params
     out = {}
     extra = {} if max_episode_steps is None else {"max_episode_steps": max_episode_steps}
+    policy = make_controller(spec, env, entries[0])  # its memory is in SB3's state: one object serves every plant
+    if len(entries) > 1:
+        policy = with_member_gains(policy, entries)
     for cond in TUNING_CONDITIONS:
-        policy = make_controller(spec, env, entries[0])
-        if len(entries) > 1:
-            policy = with_member_gains(policy, entries)
         venv = gym.make_vec(env_id, num_envs=len(entries), vectorization_mode="vector_entry_point", autoreset_mode="Disabled",
                             **plant_kwargs(env_id, cond.scale), **extra)  # fmt: skip
         runs = dfki.record(venv, policy, list(range(len(entries))))
@@ -160,18 +154,18 @@ def tune(env_id: str, start: dict[str, Any] | None = None, grid: Callable[[], li
     """
     out = {}
     tic = time.perf_counter()
-    spec, _ = TUNED["swing-up + LQR"]
+    spec = TUNED["swing-up + LQR"]
     rows: list[dict[str, Any]] = []
     if start is None:  # the first stage with the LQR's input weight 1, as the scenes' first stage (not a stored pick's)
         start, rows = stage(env_id, spec, [{"lqr_r": FIRST_STAGE_R, **e} for e in grid()], **kwargs)
     best, refined = stage(env_id, spec, swing_up_refine_grid(start), **kwargs)
     out["swing-up + LQR"] = {"best": best, "rows": rows + refined, "wall_s": time.perf_counter() - tic}
     tic = time.perf_counter()
-    spec, _ = TUNED["adaptive swing-up + LQR"]
-    best_a, rows_a = stage(env_id, spec, [{**e, "lqr_r": best.get("lqr_r", 1.0)} for e in grid()], **kwargs)
+    spec = TUNED["adaptive swing-up + LQR"]
+    best_a, rows_a = stage(env_id, spec, [{**e, "lqr_r": best["lqr_r"]} for e in grid()], **kwargs)
     out["adaptive swing-up + LQR"] = {"best": best_a, "rows": rows_a, "wall_s": time.perf_counter() - tic}
     tic = time.perf_counter()
-    spec, _ = TUNED["identified iLQR + TVLQR"]
+    spec = TUNED["identified iLQR + TVLQR"]
     own = own_scene_entry(env_id, "identified iLQR + TVLQR") if planner_own is None else planner_own
     best_p, rows_p = stage(env_id, spec, [own, best_a], batched=False, **kwargs)
     out["identified iLQR + TVLQR"] = {"best": best_p, "rows": rows_p, "wall_s": time.perf_counter() - tic}

@@ -109,14 +109,11 @@ def steering_grid() -> list[dict[str, float]]:
     ]
 
 
-def swing_up_grid() -> list[dict[str, float]]:
-    """Gain candidates of the swing-up + LQR controller (acrobot and pendubot)."""
-    return [
-        {"k_q": kq, "k_v": kv, "k_E": kE, "catch": c}
-        for kq, kv, kE, c in itertools.product(
-            (1.0, 2.0, 5.0, 10.0, 20.0, 50.0), (0.25, 0.5, 1.0, 2.0, 5.0, 10.0), (0.5, 1.0, 2.0, 4.0, 8.0, 16.0), (1.0, 3.0, 10.0, 30.0, 100.0)
-        )
-    ]
+def swing_up_grid(k_q: tuple = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0), k_v: tuple = (0.25, 0.5, 1.0, 2.0, 5.0, 10.0),
+                  k_E: tuple = (0.5, 1.0, 2.0, 4.0, 8.0, 16.0), catch: tuple = (1.0, 3.0, 10.0, 30.0, 100.0)) -> list[dict[str, float]]:  # fmt: skip
+    """Gain candidates of the swing-up + LQR controller (acrobot and pendubot): every combination of the values given
+    (default the scenes' grid, module docstring)."""
+    return [{"k_q": kq, "k_v": kv, "k_E": kE, "catch": c} for kq, kv, kE, c in itertools.product(k_q, k_v, k_E, catch)]
 
 
 def energy_swing_up_grid() -> list[dict[str, float]]:
