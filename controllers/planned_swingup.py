@@ -60,7 +60,7 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
 
     Parameters
     ----------
-    env, k_q, k_v, k_E, lqr_r, window, prior, obs_noise, process_noise
+    env, k_q, k_v, k_E, lqr_r, window, prior, obs_noise, process_noise, gate
         As :class:`AdaptiveSwingUpLQR` (the pumping of phase 0, the LQR's input weight, the identification
         and the filter); by default from the ``"identified iLQR + TVLQR"`` entry of ``controllers/tuned.json``
         (its own ``lqr_r`` picked by ``scripts/tune.py``, :func:`mbs_envs.studies.tuning.planner_grid`).
@@ -109,11 +109,11 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
                  plan_time: float = 3.0, horizon: float = 10.0, tail: float = 0.5, iterations: int = 100, refine_iterations: int = 10,
                  w_u: float = 0.1, w_T: float = 1e4, margin: float = 0.85, accept: float = 0.05, retry: float = 1.0,
                  refine_every: float = 0.5, funnel: float = 0.5, drop: float = 0.3, patience: float = 5.0, track_r: float = 1.0, w_x: float = 0.0, catch_time: float = 3.0,
-                 catch_tol: float = 0.01):  # fmt: skip
+                 catch_tol: float = 0.01, gate: Any = None):  # fmt: skip
         # a catch level only for the inherited switching rule, which this controller does not use (module docstring)
         catch = 1.0 if catch is None else catch
         super().__init__(env, k_q=k_q, k_v=k_v, k_E=k_E, catch=catch, release=release, lqr_r=lqr_r, window=window, prior=prior, obs_noise=obs_noise,
-                         process_noise=process_noise)  # fmt: skip
+                         process_noise=process_noise, gate=gate)  # fmt: skip
         def steps(t: Any, name: str, positive: bool = False) -> int:  # a duration [s] in control steps
             return int(round(check.real(t, name, 0.0, 1e4, low_open=positive) / self.dt))
 

@@ -153,7 +153,7 @@ def tune(args: argparse.Namespace) -> dict:
     for scene, result in zip(scenes, results):
         env_id = SCENES[scene]
         for name, res in result.items():
-            chosen = next(r for r in res["rows"] if r["entry"] == res["best"])
+            chosen = [r for r in res["rows"] if r["entry"] == res["best"]][-1]  # its last stage's row
             record["gains"].setdefault(env_id, {})[name] = res["best"]
             record["scores"].setdefault(env_id, {})[name] = {**{k: v for k, v in chosen.items() if k != "entry"}, "candidates": len(res["rows"]),
                                                              "at_grid_edge": tuning.at_grid_edge(res["best"], [r["entry"] for r in res["rows"]]), "wall_s": res["wall_s"],
@@ -161,8 +161,8 @@ def tune(args: argparse.Namespace) -> dict:
             rows += [{"scene": scene, "controller": name, **r, "entry": json.dumps(r["entry"])} for r in res["rows"]]
             print(f"{scene}, {name}: {res['best']} ({len(res['rows'])} candidates, {res['wall_s']:.0f} s): "
                   + ", ".join(f"{k} {v:.3g}" for k, v in chosen.items() if k != "entry"))  # fmt: skip
-    with open(args.out / "tuning.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+    with open(args.out / "tuning.csv", "w", newline="") as f:  # a stage's own columns empty in the others' rows
+        w = csv.DictWriter(f, fieldnames=list(dict.fromkeys(k for r in rows for k in r)))
         w.writeheader()
         w.writerows(rows)
     (args.out / "tuning.json").write_text(json.dumps(record, indent=2))

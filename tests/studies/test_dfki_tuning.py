@@ -55,12 +55,17 @@ def test_tune_returns_a_candidate_of_each_stage(monkeypatch):
     # a stored pick's weight must not leak into the first stage (it did: the candidates took the stored lqr_r)
     table = {ACRO: {"swing-up + LQR": {"k_q": 1.0, "k_v": 1.0, "k_E": 1.0, "catch": 1.0, "lqr_r": 1e5}}}
     monkeypatch.setattr(tuned, "_table", lambda: table)
-    out = dfki_tuning.tune(ACRO, grid=lambda: [{k: v for k, v in e.items() if k != "lqr_r"} for e in grid], max_episode_steps=20)
+    out = dfki_tuning.tune(ACRO, grid=lambda: [{k: v for k, v in e.items() if k != "lqr_r"} for e in grid], max_episode_steps=20,
+                           gates=(None, 0.1), pulse_episodes=2)  # fmt: skip
     first = {k: out["swing-up + LQR"]["best"][k] for k in ("k_q", "k_v", "k_E")}
     assert first in [{k: e[k] for k in ("k_q", "k_v", "k_E")} for e in grid]
     assert len(out["swing-up + LQR"]["rows"]) == 2 + 128  # both stages' candidates
     assert [r["entry"]["lqr_r"] for r in out["swing-up + LQR"]["rows"][:2]] == [dfki_tuning.FIRST_STAGE_R] * 2
-    assert len(out["adaptive swing-up + LQR"]["rows"]) == 2
+    adaptive = out["adaptive swing-up + LQR"]["rows"]
+    assert len(adaptive) == 2 + 2  # the first grid, then the gates with its pick
+    assert [r["entry"].get("gate") for r in adaptive[2:]] == [None, 0.1]
+    assert all("pulses success" in r for r in adaptive[2:]) and not any("pulses success" in r for r in adaptive[:2])
+    assert {k: v for k, v in out["adaptive swing-up + LQR"]["best"].items() if k != "gate"} == adaptive[2]["entry"]
     assert out["adaptive swing-up + LQR"]["best"]["lqr_r"] == out["swing-up + LQR"]["best"]["lqr_r"]
     own = dfki_tuning.own_scene_entry(ACRO, "identified iLQR + TVLQR")
     assert own == tuned.tuned_gains(gym.make("mbs_envs/Acrobot-v1"), "identified iLQR + TVLQR")
