@@ -210,7 +210,7 @@ def tune(env_id: str, start: dict[str, Any] | None = None, grid: Callable[[], li
     spec = TUNED["adaptive swing-up + LQR"]
     best_a, rows_a = stage(env_id, spec, [{**e, "lqr_r": best["lqr_r"]} for e in grid()], **kwargs)
     if gates:  # the identification's outlier gate, on the plants and the benchmark's pulses (module docstring)
-        best_a, rows_g = stage(env_id, spec, [{**best_a, **({} if g is None else {"gate": g})} for g in gates], pulses=pulse_episodes, **kwargs)
+        best_a, rows_g = stage(env_id, spec, [{**best_a, "gate": g} for g in gates], pulses=pulse_episodes, **kwargs)
         rows_a = rows_a + rows_g
     out["adaptive swing-up + LQR"] = {"best": best_a, "rows": rows_a, "wall_s": time.perf_counter() - tic}
     tic = time.perf_counter()

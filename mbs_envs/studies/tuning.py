@@ -255,7 +255,8 @@ def at_grid_edge(best: dict[str, Any], grid: list[dict[str, Any]]) -> list[str]:
     edges = []
     for key, value in best.items():  # a setting with two values is a choice, not a range
         if isinstance(value, (int, float)):
-            values = [g[key] for g in grid if isinstance(g.get(key), (int, float))]  # absent from an earlier stage's grid
+            # absent from an earlier stage's grid; None: the setting off, beyond its largest value (the identification's gate)
+            values = [np.inf if g[key] is None else g[key] for g in grid if key in g and (g[key] is None or isinstance(g[key], (int, float)))]
             if len(set(values)) > 2 and value in (min(values), max(values)):
                 edges.append(key)
         elif isinstance(value, list):
