@@ -596,3 +596,61 @@ def test_a_member_loop_over_many_rows_vectorizes():
     loop(T, v, tau, theta, a, ok)
     ir = loop.inspect_llvm(loop.signatures[0])
     assert re.search(r"fdiv[^\n]*<\d+ x double>", ir), "the member loop compiled to scalar code"
+
+
+def test_direct_calls_the_overload_of_the_arguments_types_and_compiles_a_new_one():
+    from mbs_envs.dynamics.jit import direct, njit
+
+    @njit(cache=False)
+    def axpy(a, x, y):
+        for i in range(len(x)):
+            y[i] += a * x[i]
+
+    x, y = np.arange(4.0), np.ones(4)
+    f = direct(axpy, (2.0, x, y))
+    assert len(axpy.overloads) == 1 and f is direct(axpy, (3.0, x, np.zeros(4)))  # the same types: the same overload
+    f(2.0, x, y)
+    np.testing.assert_array_equal(y, 1 + 2 * x)
+    g = direct(axpy, (2.0, x.astype(np.float32), y))  # another type: its own overload, compiled
+    assert g is not f and len(axpy.overloads) == 2
+    y32 = y.copy()
+    g(2.0, x.astype(np.float32), y32)
+    np.testing.assert_array_equal(y32, 1 + 4 * x)
+
+
+def test_a_single_envs_direct_step_follows_its_settings_model_and_task_and_survives_copies():
+    """The single env's step calls its kernel's overload directly (mbs_envs.dynamics.jit.direct), looked up again when an
+    argument object changes: the episode after a setting, a parameter or the task changed, or after a pickle or a deep
+    copy, is bit for bit a fresh env's with that setting, parameter or task."""
+    import copy
+    import pickle
+
+    def run(env, steps, seed=0):
+        rng = np.random.default_rng(seed)
+        out = []
+        for _ in range(steps):
+            obs, r, *_ = env.step(rng.uniform(-1, 1, env.action_space.shape).astype(np.float32))
+            out.append(np.r_[obs, r])
+        return np.array(out)
+
+    env = gym.make("mbs_envs/SerialChain-v0", n_links=3).unwrapped
+    env.reset(seed=1)
+    run(env, 5)
+    first = env._direct_call
+    env.substeps = 2  # a setting: new stepper arguments
+    fresh = gym.make("mbs_envs/SerialChain-v0", n_links=3).unwrapped
+    fresh.substeps = 2
+    fresh.reset(seed=1)
+    run(fresh, 5)
+    fresh._q[:], fresh._v[:], fresh._t = env._q, env._v, env._t
+    np.testing.assert_array_equal(run(env, 20, seed=2), run(fresh, 20, seed=2))
+    assert env._direct_call is not first
+    env.reset(seed=4)  # a new episode's task
+    fresh.reset(seed=4)
+    np.testing.assert_array_equal(run(env, 20), run(fresh, 20))
+    twin = pickle.loads(pickle.dumps(env))
+    deep = copy.deepcopy(env)
+    assert "_direct_call" not in twin.__dict__ and "_direct_call" not in deep.__dict__
+    a, b, c = run(env, 30), run(twin, 30), run(deep, 30)
+    np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(a, c)

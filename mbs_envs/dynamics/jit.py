@@ -110,3 +110,20 @@ def njit(f=None, *, cache: bool = True, **options):
     """
     decorate = numba.njit(cache=cache, error_model="numpy", **options)
     return decorate if f is None else decorate(f)
+
+
+def direct(kernel, args: tuple):
+    """The compiled overload of the numba dispatcher ``kernel`` for the types of ``args`` (compiled, or loaded from the
+    cache, if it is new), as a function that takes the arguments without the dispatcher's resolution of their types.
+
+    The dispatcher types every argument at every call (for a scene's step kernel, two dozen arrays in nested tuples:
+    about a sixth of a single env's step); the overload's entry point unboxes them by its signature alone. numba's
+    unboxing does not check an array's dtype, dimensions or layout, so the caller must pass arguments of the types of
+    ``args`` only: arrays it builds the same way every call, and the same objects otherwise (a single env's step,
+    :meth:`mbs_envs.envs.base.MBSEnv.run_step_kernel`, keys it on those objects). ``args`` are only typed here, not
+    passed to the kernel.
+    """
+    sig = tuple(kernel.typeof_pyval(a) for a in args)
+    if sig not in kernel.overloads:
+        kernel.compile(sig)
+    return kernel.overloads[sig].entry_point

@@ -15,7 +15,7 @@ from typing import Any, ClassVar
 
 import gymnasium as gym
 from gymnasium.utils import seeding
-from ..dynamics.jit import njit
+from ..dynamics.jit import direct, njit
 import numpy as np
 
 from ..dynamics import integrators
@@ -342,11 +342,20 @@ class MBSEnv(gym.Env):
         obs = np.empty(self.observation_space.shape + (B,), np.float32)
         flags = np.zeros((2, B), bool)
         bad, terminated = flags[0], flags[1]
-        kernel = self.step_kernel if B == 1 or self.batched_step_kernel is None else self.batched_step_kernel
-        kernel(  # compiled code raises no floating-point warnings
-            batch_theta(model, B), stepper, control, self.task_arguments() + task_columns,
-            (q, v, t, action), (u, obs, info, bad, terminated),
-        )
+        theta, task = batch_theta(model, B), self.task_arguments()
+        state, out = (q, v, t, action), (u, obs, info, bad, terminated)
+        if B > 1:  # compiled code raises no floating-point warnings
+            kernel = self.step_kernel if self.batched_step_kernel is None else self.batched_step_kernel
+            kernel(theta, stepper, control, task + task_columns, state, out)
+            return obs.T, info.T, u.T, bad, terminated
+        # a single env: its overload called directly (:func:`mbs_envs.dynamics.jit.direct`), looked up again when an
+        # argument object changes (a setting, the model's parameters, the episode's task); the state and the outputs
+        # are built above the same way every step, so their types repeat
+        c = self.__dict__.get("_direct_call")
+        if c is None or c[0] is not theta or c[1] is not stepper or c[2] is not control or c[3] is not task or c[4] is not task_columns:
+            head = (theta, stepper, control, task + task_columns)
+            c = self._direct_call = (theta, stepper, control, task, task_columns, head, direct(self.step_kernel, head + (state, out)))
+        c[6](*c[5], state, out)
         return obs.T, info.T, u.T, bad, terminated
 
     def _step_arguments(self, tab: TableauArrays, nc: int, full_info: bool) -> tuple:
@@ -841,4 +850,5 @@ class MBSEnv(gym.Env):
     def __getstate__(self) -> dict:
         state = self.__dict__.copy()
         state["_renderer"] = None  # a pygame window is not picklable; reopened on demand
+        state.pop("_direct_call", None)  # nor a compiled entry point; looked up again
         return state
