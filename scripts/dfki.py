@@ -15,7 +15,7 @@ controller and one robustness plot per scene to ``--out``::
     python scripts/dfki.py --out results/dfki_tune --tune --write  # tune the energy controllers on the protocol
 
 The energy controllers run with the gains tuned on the protocol where ``controllers/tuned.json`` has them (``--tune``:
-:mod:`mbs_envs.studies.dfki_tuning`, 13-17 minutes per scene on one core; ``--write`` stores the picks), else with those tuned on our own
+:mod:`mbs_envs.studies.dfki_tuning`, 8-9 minutes per scene on one core in the last run; ``--write`` stores the picks), else with those tuned on our own
 scene of the same task (``mbs_envs/<scene>-v1``).
 """
 
