@@ -94,7 +94,8 @@ class AdaptiveSwingUpLQR(SwingUpLQR):
         balance misses by more than ``gate`` times its gross energy exchange is left out (> 0; None: every window is
         taken, the default: on our acrobot's -20 % plant a gate of 0.25 held 27.5 % of the tuning episodes against
         47.5 % without, 40 seeds; the DFKI protocol's entries pick theirs, :mod:`mbs_envs.studies.dfki_tuning`).
-        An array of shape ``(n,)`` gives each member of a batch its own (``inf``: none).
+        Set as an attribute to an array of shape ``(n,)``, it gives each member of a batch its own (``inf``: none;
+        :func:`mbs_envs.studies.dfki_tuning.with_member_gains`).
     """
 
     tuned_name = "adaptive swing-up + LQR"
