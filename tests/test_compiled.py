@@ -621,7 +621,8 @@ def test_direct_calls_the_overload_of_the_arguments_types_and_compiles_a_new_one
 def test_a_single_envs_direct_step_follows_its_settings_model_and_task_and_survives_copies():
     """The single env's step calls its kernel's overload directly (mbs_envs.dynamics.jit.direct), looked up again when an
     argument object changes: the episode after a setting, a parameter or the task changed, or after a pickle or a deep
-    copy, is bit for bit a fresh env's with that setting, parameter or task."""
+    copy, is bit for bit a fresh env's with that setting, parameter or task; a vector env of one member (the same
+    path) steps as the single env."""
     import copy
     import pickle
 
@@ -648,9 +649,29 @@ def test_a_single_envs_direct_step_follows_its_settings_model_and_task_and_survi
     env.reset(seed=4)  # a new episode's task
     fresh.reset(seed=4)
     np.testing.assert_array_equal(run(env, 20), run(fresh, 20))
+    before = env._direct_call
+    env.model.params = env.model.params.replace(m=np.array([0.5, 0.3, 0.2]))  # a parameter: new kernel parameters
+    heavy = gym.make("mbs_envs/SerialChain-v0", n_links=3).unwrapped  # the same drives; its first step after the change
+    heavy.substeps = 2
+    heavy.reset(seed=4)
+    heavy.model.params = env.model.params
+    heavy._q[:], heavy._v[:], heavy._t, heavy._task = env._q, env._v, env._t, env._task
+    np.testing.assert_array_equal(run(env, 20, seed=3), run(heavy, 20, seed=3))
+    assert env._direct_call is not before
     twin = pickle.loads(pickle.dumps(env))
     deep = copy.deepcopy(env)
     assert "_direct_call" not in twin.__dict__ and "_direct_call" not in deep.__dict__
     a, b, c = run(env, 30), run(twin, 30), run(deep, 30)
     np.testing.assert_array_equal(a, b)
     np.testing.assert_array_equal(a, c)
+    single = gym.make("mbs_envs/SerialChain-v0", n_links=3).unwrapped
+    one = gym.make_vec("mbs_envs/SerialChain-v0", num_envs=1, vectorization_mode="vector_entry_point", n_links=3)
+    single.reset(seed=6)
+    one.reset(seed=[6])
+    rng = np.random.default_rng(7)
+    for _ in range(50):
+        act = rng.uniform(-1, 1, (1, 3)).astype(np.float32)
+        o1, r1, *_ = single.step(act[0])
+        o2, r2, *_ = one.step(act)
+        np.testing.assert_array_equal(o1, o2[0])
+        assert r1 == r2[0]

@@ -191,6 +191,12 @@ def final_success(q: np.ndarray, v: np.ndarray, eps: tuple = FINAL_EPS) -> np.nd
     return (np.abs(e) < eps[:2]).all(-1) & (np.abs(np.asarray(v, float)) < eps[2:]).all(-1)
 
 
+def run_success(res: Mapping[str, Any]) -> np.ndarray:
+    """Per member of a perturbed batch (:func:`mbs_envs.studies.robustness.run`'s result): it ended by
+    :func:`final_success` and did not diverge, ``(n,)`` bool."""
+    return final_success(res["q"], res["v"]) & ~res["terminated"]
+
+
 def model_variations(p: Any = None, n: int = N_VALUES) -> list[tuple[str, float, dict[str, float] | None]]:
     """The model axis as ``(parameter, value, Planar2R params or None)``: their variations of ``p`` (default
     :data:`~mbs_envs.envs.presets.DFKI_C1`) converted with :func:`~mbs_envs.envs.presets.planar2r_params`;
@@ -268,7 +274,7 @@ def sweep(env_id: str, make_policy: Any, n: int = N_VALUES, seed: int = 0, axes:
         venv = gym.make_vec(env_id, num_envs=members, vectorization_mode="vector_entry_point", autoreset_mode="Disabled", **vec_kwargs)
         res = run(venv, make_policy(nominal), list(range(members)), p, noise_seed=int(rng.integers(2**31)))
         venv.close()
-        return final_success(res["q"], res["v"]) & ~res["terminated"]
+        return run_success(res)
 
     for axis in axes:
         if axis == "model":

@@ -147,8 +147,7 @@ def pulse_success(env_id: str, spec: str, entries: list[dict[str, Any]], episode
     venv = gym.make_vec(env_id, num_envs=len(members), vectorization_mode="vector_entry_point", autoreset_mode="Disabled")
     res = run(venv, policy, list(range(len(members))), Perturbation(pulses=np.tile(pulses, (len(entries), 1, 1))), noise_seed=seed)
     venv.close()
-    ok = dfki.final_success(res["q"], res["v"]) & ~res["terminated"]
-    return ok.reshape(len(entries), episodes).mean(axis=1)
+    return dfki.run_success(res).reshape(len(entries), episodes).mean(axis=1)
 
 
 def rank(per_condition: dict[str, np.ndarray], episodes: Mapping[str, int] | None = None) -> np.ndarray:
