@@ -33,7 +33,7 @@ set has the same dynamics.
 
 **Work the balance does not model.** An external torque (a push on a link, the DFKI benchmark's perturbation
 pulses) adds work that no parameter set explains; its windows bias every parameter at once (measured on the DFKI
-pendubot under its pulses: base parameters down to 0.35-0.6 of the true ones after 10 s). With a gate ``rho``
+pendubot under its pulses: the worst base parameter of each failed episode at 0.3-0.7 of its true value after 10 s). With a gate ``rho``
 (:func:`explained`), a window whose residual under the estimate so far exceeds ``rho`` times its gross energy
 exchange is left out: a plant within ``rho`` of the estimate in every base parameter never misses by more.
 The gate trades the speed of identifying a plant far from the prior (its first windows miss by more) for immunity
