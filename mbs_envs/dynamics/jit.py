@@ -26,6 +26,8 @@ import pathlib
 
 import numba
 
+from . import background
+
 #: the package's root directory
 PACKAGE = pathlib.Path(__file__).resolve().parent.parent
 
@@ -107,9 +109,14 @@ def njit(f=None, *, cache: bool = True, **options):
     inside the module-level bindings that call them (``advance_kernel``, a scene's
     ``step_kernel``); closures over kernels would compile again in every process.
     ``options`` go to ``numba.njit`` (e.g. ``inline="always"``).
+
+    A call from Python with argument types not compiled yet runs the kernel's Python (the same bits) while a
+    thread compiles it (:mod:`mbs_envs.dynamics.background`).
     """
     decorate = numba.njit(cache=cache, error_model="numpy", **options)
-    return decorate if f is None else decorate(f)
+    if f is None:
+        return lambda g: background.install(decorate(g))
+    return background.install(decorate(f))
 
 
 def direct(kernel, args: tuple):

@@ -15,7 +15,8 @@ from typing import Any, ClassVar
 
 import gymnasium as gym
 from gymnasium.utils import seeding
-from ..dynamics.jit import direct, njit
+from ..dynamics import background
+from ..dynamics.jit import njit
 import numpy as np
 
 from ..dynamics import integrators
@@ -344,17 +345,23 @@ class MBSEnv(gym.Env):
         bad, terminated = flags[0], flags[1]
         theta, task = batch_theta(model, B), self.task_arguments()
         state, out = (q, v, t, action), (u, obs, info, bad, terminated)
-        if B > 1:  # compiled code raises no floating-point warnings
+        if B > 1:  # compiled before the first step (its Python would loop over the members); no floating-point warnings
             kernel = self.step_kernel if self.batched_step_kernel is None else self.batched_step_kernel
-            kernel(theta, stepper, control, task + task_columns, state, out)
+            with background.synchronous():
+                kernel(theta, stepper, control, task + task_columns, state, out)
             return obs.T, info.T, u.T, bad, terminated
         # a single env: its overload called directly (:func:`mbs_envs.dynamics.jit.direct`), looked up again when an
         # argument object changes (a setting, the model's parameters, the episode's task); the state and the outputs
-        # are built above the same way every step, so their types repeat
+        # are built above the same way every step, so their types repeat. Until the kernel is compiled, its Python
+        # (the same bits, :mod:`mbs_envs.dynamics.background`), looked up again once the compiling thread moved on
         c = self.__dict__.get("_direct_call")
-        if c is None or c[0] is not theta or c[1] is not stepper or c[2] is not control or c[3] is not task or c[4] is not task_columns:
+        if (
+            c is None or c[0] is not theta or c[1] is not stepper or c[2] is not control or c[3] is not task
+            or c[4] is not task_columns or (c[7] is not None and c[7] != background.generation())
+        ):  # fmt: skip
             head = (theta, stepper, control, task + task_columns)
-            c = self._direct_call = (theta, stepper, control, task, task_columns, head, direct(self.step_kernel, head + (state, out)))
+            f, compiled = background.entry(self.step_kernel, head + (state, out))
+            c = self._direct_call = (theta, stepper, control, task, task_columns, head, f, None if compiled else background.generation())
         c[6](*c[5], state, out)
         return obs.T, info.T, u.T, bad, terminated
 

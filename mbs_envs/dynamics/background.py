@@ -1,0 +1,468 @@
+"""Compile in the background; until a kernel is compiled, run its Python source, which gives the same bits.
+
+A fresh install's first step used to wait for numba to compile a scene's kernels: 12-26 s per scene
+with an empty cache (docs/performance.md). The package's kernels are plain Python that numba compiles
+without fast-math, so every floating-point operation is one IEEE 754 operation in both (LLVM neither
+reassociates nor contracts them; a vectorized loop computes each element as the scalar one), and
+the functions they call are the same libm's: run as Python, a kernel computes the very bits it computes
+compiled. So a package kernel called from Python with argument types it has not been compiled for now
+
+1. runs as Python (:func:`interpreted`: its source, with every numba kernel it calls replaced by that
+   kernel's Python, and the one intrinsic, :func:`mbs_envs.dynamics.trig.fma`, by an exact Python
+   version), under ``np.errstate(all="ignore")`` (compiled code raises no floating-point warnings);
+2. while a daemon thread compiles it for those types (loading it from numba's disk cache where it is
+   there), after which the call takes the compiled code, as every call did before.
+
+Every scene's episodes are bit for bit the same either way (``tests/test_background.py``), so nothing
+an env returns depends on when the switch happens. Should a kernel's Python raise where the compiled
+code does not (a float division by zero, ``math.exp`` overflowing: compiled code gives inf or NaN), the
+call's arrays are put back as they were, the kernel is compiled there and then, and the call runs
+compiled. A vector env of more than one member compiles its step before its first step, as before
+(its Python would loop over every member; :func:`synchronous`).
+
+``MBS_ENVS_JIT`` (environment variable, read at each decision) chooses: ``background`` (the default),
+``sync`` (compile before the first call, numba's own behaviour) or ``python`` (never compile what is
+not compiled yet: every new call runs as Python, e.g. to step through a kernel in a debugger).
+
+Fork safety: a process forked while the thread compiles would inherit numba's compiler lock held by a
+thread that does not exist in the child, and a half-built compilation. A fork therefore waits for the
+kernel being compiled (``os.register_at_fork``), and the child starts with no thread and no queue.
+"""
+
+from __future__ import annotations
+
+import ast
+import contextlib
+import inspect
+import math
+import os
+import queue
+import textwrap
+import threading
+import types
+from collections.abc import Callable
+from fractions import Fraction
+from typing import Any
+
+import numpy as np
+from numba.core.dispatcher import Dispatcher
+
+#: the environment variable that chooses the mode
+ENV_VAR = "MBS_ENVS_JIT"
+#: its values: compile in the background (default), compile before the call, never compile a new call
+MODES = ("background", "sync", "python")
+
+
+def mode() -> str:
+    """The mode :data:`ENV_VAR` asks for (``background`` when unset).
+
+    Raises
+    ------
+    ValueError
+        Naming :data:`ENV_VAR` when it holds anything else.
+    """
+    m = os.environ.get(ENV_VAR, "background").strip().lower() or "background"
+    if m not in MODES:
+        raise ValueError(f"{ENV_VAR}={os.environ[ENV_VAR]!r}: expected one of {', '.join(MODES)}")
+    return m
+
+
+# -- the Python of a kernel ------------------------------------------------------
+
+#: Python stand-ins of objects compiled code uses that Python cannot call (numba intrinsics), by id
+_python_versions: dict[int, Callable] = {}
+
+
+def python_version(obj: Any, func: Callable) -> None:
+    """Register ``func`` as what :func:`interpreted` code calls in place of ``obj`` (a numba intrinsic)."""
+    _python_versions[id(obj)] = func
+
+
+def fma_exact(a: float, b: float, c: float) -> float:
+    """``a b + c`` rounded once, in Python (as IEEE 754's fused multiply-add; ``math.fma`` is Python 3.13's).
+
+    Exact rational arithmetic, then one correctly rounded conversion (CPython's ``int / int``);
+    non-finite arguments take ``a * b + c``, whose inf and NaN are the FMA's.
+    """
+    a, b, c = float(a), float(b), float(c)
+    if math.isfinite(a) and math.isfinite(b) and math.isfinite(c):
+        r = float(Fraction(a) * Fraction(b) + Fraction(c))
+        if r == 0.0:  # an exact zero: -0 only for -0 + -0 (a zero product), as IEEE 754's sum
+            return a * b + c if a == 0.0 or b == 0.0 else 0.0
+        return r
+    return a * b + c
+
+
+#: modules whose objects interpreted code keeps as they are
+_KEEP = ("numpy", "math", "cmath", "numba", "builtins", "operator")
+
+_clones: dict[int, tuple[Dispatcher, types.FunctionType]] = {}
+_globals: dict[int, dict] = {}
+_proxies: dict[int, types.ModuleType] = {}
+
+
+class _ModuleProxy(types.ModuleType):
+    """A module seen from interpreted code: its kernels are their Python (``_compiled.no_projection``)."""
+
+    def __init__(self, module: types.ModuleType):
+        super().__init__(module.__name__)
+        object.__setattr__(self, "_module", module)
+
+    def __getattr__(self, name: str) -> Any:
+        return _python_value(getattr(object.__getattribute__(self, "_module"), name))
+
+
+#: numpy's functions that compiled code computes by libm, and Python's libm calls that give the same bits
+#: (numpy's own float64 ``exp``, for one, is a SIMD routine of its own: 1 ulp off libm's now and then)
+_LIBM = {
+    "exp": math.exp, "expm1": math.expm1, "log": math.log, "log1p": math.log1p, "log2": math.log2,
+    "log10": math.log10, "sin": math.sin, "cos": math.cos, "tan": math.tan, "arcsin": math.asin,
+    "arccos": math.acos, "arctan": math.atan, "arctan2": math.atan2, "sinh": math.sinh, "cosh": math.cosh,
+    "tanh": math.tanh, "arcsinh": math.asinh, "arccosh": math.acosh, "arctanh": math.atanh,
+}  # fmt: skip
+
+
+def _libm(name: str, f: Callable) -> Callable:
+    """``np.<name>`` as compiled code computes it: libm's ``f`` on a float, element by element on an array."""
+    elementwise = np.frompyfunc(f, f.__code__.co_argcount if hasattr(f, "__code__") else (2 if name == "arctan2" else 1), 1)
+
+    def g(*x):
+        if all(isinstance(a, (float, int, np.floating, np.integer)) for a in x):
+            return np.float64(f(*(float(a) for a in x)))
+        return elementwise(*x).astype(np.float64)
+
+    g.__name__ = name
+    return g
+
+
+class _NumpyProxy(types.ModuleType):
+    """numpy seen from interpreted code: :data:`_LIBM`'s functions by libm, everything else numpy's."""
+
+    def __init__(self):
+        super().__init__("numpy")
+        for name, f in _LIBM.items():
+            object.__setattr__(self, name, _libm(name, f))
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(np, name)
+
+
+_numpy = _NumpyProxy()
+
+
+def _python_value(v: Any) -> Any:
+    """What interpreted code sees in place of ``v``: a kernel's Python, an intrinsic's stand-in, else ``v``."""
+    if isinstance(v, Dispatcher):
+        return interpreted(v)
+    if id(v) in _python_versions:
+        return _python_versions[id(v)]
+    if v is np:
+        return _numpy
+    if isinstance(v, types.ModuleType) and not v.__name__.split(".")[0] in _KEEP:
+        p = _proxies.get(id(v))
+        if p is None:
+            p = _proxies[id(v)] = _ModuleProxy(v)
+        return p
+    if type(v) is tuple and any(isinstance(x, Dispatcher) for x in v):
+        return tuple(_python_value(x) for x in v)
+    return v
+
+
+def numba_power(a: Any, b: Any) -> Any:
+    """``a ** b`` as numba's compiled code computes it (:mod:`numba.cpython.numbers`).
+
+    An integer exponent is applied by repeated squaring (``x ** 2`` is ``x * x``; libm's ``pow``, which Python's
+    ``**`` calls, is 1 ulp off that now and then); a float exponent by libm's ``pow``, except ``2.0``, ``0.5``,
+    ``1.0`` and ``-1.0``, which LLVM rewrites (``x * x``, ``|sqrt x|``, ``x``, ``1 / x``; the package's kernels use
+    none of them); integers to integer powers as Python does. Arrays element by element.
+    """
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return np.frompyfunc(numba_power, 2, 1)(a, b).astype(np.result_type(a, b, np.float64 if isinstance(b, float) else b))
+    integral_b = isinstance(b, (int, np.integer)) and not isinstance(b, (bool, np.bool_))
+    if integral_b and isinstance(a, (int, np.integer)):
+        return a**b
+    if integral_b:
+        n, r, x = abs(int(b)), None, a
+        while n:
+            if n & 1:
+                r = x if r is None else r * x
+            n >>= 1
+            x = x * x
+        r = type(a)(1.0) if r is None else r
+        return 1.0 / r if b < 0 else r
+    b = float(b)  # LLVM's rewrites of a constant exponent (its instcombine, without fast-math), else libm
+    if b == 2.0:
+        return a * a
+    if b == 0.5:
+        return np.float64(math.inf if a == -math.inf else abs(math.sqrt(a)) if a >= 0.0 else math.nan)
+    if b == 1.0:
+        return a
+    if b == -1.0:
+        return 1.0 / a
+    return np.float64(math.pow(float(a), b))
+
+
+class _Power(ast.NodeTransformer):
+    """``a ** b`` -> ``__numba_power__(a, b)``."""
+
+    def visit_BinOp(self, node: ast.BinOp) -> ast.AST:
+        self.generic_visit(node)
+        if isinstance(node.op, ast.Pow):
+            return ast.copy_location(ast.Call(ast.Name("__numba_power__", ast.Load()), [node.left, node.right], []), node)
+        return node
+
+    def visit_AugAssign(self, node: ast.AugAssign) -> ast.AST:
+        if isinstance(node.op, ast.Pow):
+            raise SyntaxError("**= in a kernel")  # none in the package: the function keeps its own code
+        return self.generic_visit(node)
+
+
+def _code(f: types.FunctionType) -> types.CodeType:
+    """``f``'s code with every ``**`` as :func:`numba_power` (its own code where it has none, or where its source
+    cannot be read)."""
+    code = f.__code__
+    try:
+        src = textwrap.dedent(inspect.getsource(f))
+    except (OSError, TypeError):
+        return code
+    if "**" not in src:
+        return code
+    try:
+        tree = ast.parse(src)
+        fn = tree.body[0]
+        if not isinstance(fn, ast.FunctionDef) or fn.name != code.co_name:
+            return code
+        fn.decorator_list = []
+        fn = _Power().visit(fn)
+        if code.co_freevars:  # a closure: defined inside a function that binds its free variables
+            outer = ast.FunctionDef("__outer__", ast.arguments([], [ast.arg(v) for v in code.co_freevars], None, [], [], None, []),
+                                    [fn, ast.Return(ast.Name(fn.name, ast.Load()))], [], None)  # fmt: skip
+            tree.body = [outer]
+        else:
+            tree.body = [fn]
+        ast.increment_lineno(tree, code.co_firstlineno - 1)  # tracebacks and debuggers show the kernel's own lines
+        module = compile(ast.fix_missing_locations(tree), code.co_filename, "exec")
+    except SyntaxError:
+        return code
+    consts = module.co_consts
+    if code.co_freevars:
+        consts = next(c for c in consts if isinstance(c, types.CodeType)).co_consts
+    return next(c for c in consts if isinstance(c, types.CodeType) and c.co_name == code.co_name)
+
+
+def _module_globals(g: dict) -> dict:
+    """A copy of a module's globals with every value as :func:`_python_value` (one per module)."""
+    out = _globals.get(id(g))
+    if out is None:
+        out = _globals[id(g)] = {"__numba_power__": numba_power}  # registered before it is filled: kernels of one module call each other
+        out.update({k: _python_value(v) for k, v in list(g.items())})
+    return out
+
+
+def _cell(c) -> types.CellType:
+    try:
+        return types.CellType(_python_value(c.cell_contents))
+    except ValueError:  # an empty cell
+        return types.CellType()
+
+
+def interpreted(kernel: Dispatcher) -> types.FunctionType:
+    """The Python of a numba kernel: its source function, calling the Python of every kernel it calls.
+
+    Parameters
+    ----------
+    kernel : numba Dispatcher
+
+    Returns
+    -------
+    function
+        Takes the kernel's arguments and computes its results bit for bit (module docstring),
+        however slowly. One per kernel and process.
+    """
+    c = _clones.get(id(kernel))
+    if c is None:
+        f = kernel.py_func
+        code = _code(f)
+        cells = dict(zip(f.__code__.co_freevars, f.__closure__ or ()))
+        closure = tuple(_cell(cells[v]) for v in code.co_freevars) or None
+        clone = types.FunctionType(code, _module_globals(f.__globals__), f.__name__, f.__defaults__, closure)
+        clone.__kwdefaults__, clone.__qualname__, clone.__doc__ = f.__kwdefaults__, f.__qualname__, f.__doc__
+        c = _clones[id(kernel)] = (kernel, clone)  # the kernel kept alive: its id stays its own
+    return c[1]
+
+
+# -- the thread that compiles ----------------------------------------------------
+
+_lock = threading.Lock()
+_idle = threading.Lock()  # held while a kernel compiles (a fork waits for it)
+_queue: queue.SimpleQueue = queue.SimpleQueue()
+_state: dict[str, Any] = {"thread": None, "generation": 0, "pending": set(), "done": set(), "failed": set()}
+_local = threading.local()
+
+
+def generation() -> int:
+    """How many compilations the thread has finished in this process (a cached choice of code is stale once it moved)."""
+    return _state["generation"]
+
+
+def _worker() -> None:
+    while True:
+        kernel, sig = _queue.get()
+        key = (id(kernel), sig)
+        with _idle:
+            try:
+                kernel.compile(sig)
+            except Exception:  # noqa: BLE001 - the call raises it where it was made, compiled there (_guarded)
+                _state["failed"].add(key)
+            finally:
+                with _lock:
+                    _state["pending"].discard(key)
+                    _state["done"].add(key)
+                    _state["generation"] += 1
+
+
+def _request(kernel: Dispatcher, sig: tuple) -> None:
+    """Queue ``kernel``'s compilation for ``sig`` (once) and start the thread if it is not running."""
+    key = (id(kernel), sig)
+    with _lock:
+        if key in _state["pending"] or key in _state["done"]:
+            return
+        _state["pending"].add(key)
+        _queue.put((kernel, sig))
+        if _state["thread"] is None:
+            t = threading.Thread(target=_worker, name="mbs_envs-compile", daemon=True)
+            _state["thread"] = t
+            t.start()
+
+
+def pending() -> int:
+    """How many compilations are queued or running."""
+    return len(_state["pending"])
+
+
+def wait(timeout: float | None = None) -> bool:
+    """Block until every queued compilation has finished (True), or ``timeout`` [s] passed (False).
+
+    For benchmarks and tests that time compiled code; an env needs no call: it switches by itself.
+    """
+    import time
+
+    end = None if timeout is None else time.monotonic() + timeout
+    while _state["pending"]:
+        if end is not None and time.monotonic() > end:
+            return False
+        time.sleep(0.01)
+    return True
+
+
+@contextlib.contextmanager
+def synchronous():
+    """Within: this thread's calls of kernels compile before they run (a vector env's step: its Python would loop
+    over every member)."""
+    before = getattr(_local, "sync", False)
+    _local.sync = True
+    try:
+        yield
+    finally:
+        _local.sync = before
+
+
+def _arrays(x, out: list) -> None:
+    if isinstance(x, np.ndarray):
+        out.append((x, x.copy()))
+    elif isinstance(x, tuple):
+        for y in x:
+            _arrays(y, out)
+
+
+def _guarded(kernel: Dispatcher, sig: tuple) -> Callable:
+    """The kernel's Python for one call, falling back to its compiled code should the Python raise (module docstring)."""
+    f = interpreted(kernel)
+
+    def call(*args):
+        saved: list = []
+        _arrays(args, saved)
+        try:
+            with np.errstate(all="ignore"):
+                return f(*args)
+        except Exception:  # noqa: BLE001 - the compiled code decides what the call gives
+            for a, copy in saved:
+                a[...] = copy
+            kernel.compile(sig)
+            return kernel(*args)
+
+    return call
+
+
+def _signature(kernel: Dispatcher, args: tuple) -> tuple:
+    """numba's types of ``args`` as the kernel's dispatcher finds them (its record of a call's types left empty, as
+    numba leaves it after a call)."""
+    try:
+        return tuple(kernel.typeof_pyval(a) for a in args)
+    finally:
+        kernel._types_active_call.clear()
+
+
+def _choose(kernel: Dispatcher, args: tuple, sig: tuple | None = None) -> Callable | None:
+    """The Python to run a call of ``kernel`` that has no compiled code (queuing its compilation), or None to compile
+    it now."""
+    m = mode()
+    if m == "sync" or getattr(_local, "sync", False) or threading.current_thread() is _state["thread"]:
+        return None
+    if sig is None:
+        sig = _signature(kernel, args)
+    key = (id(kernel), sig)
+    if key in _state["failed"] or (m == "background" and key in _state["done"]):
+        return None  # compiled (or failed) already: numba's own path finds or raises it
+    if m == "background":
+        _request(kernel, sig)
+    return _guarded(kernel, sig)
+
+
+def install(kernel: Dispatcher) -> Dispatcher:
+    """Route ``kernel``'s calls from Python that find no compiled code through :func:`_choose` (numba calls
+    ``_compile_for_args`` for them, and runs what it returns)."""
+    compile_for_args = kernel._compile_for_args
+
+    def _compile_for_args(*args, **kws):
+        if kws:
+            return compile_for_args(*args, **kws)
+        f = _choose(kernel, args)
+        return compile_for_args(*args) if f is None else f
+
+    kernel._compile_for_args = _compile_for_args
+    return kernel
+
+
+def entry(kernel: Dispatcher, args: tuple) -> tuple[Callable, bool]:
+    """``(function, compiled)``: the compiled overload's entry point for the types of ``args``
+    (:func:`mbs_envs.dynamics.jit.direct`), or, while it is being compiled, the kernel's Python and False."""
+    from .jit import direct
+
+    sig = _signature(kernel, args)
+    if sig not in kernel.overloads:
+        f = _choose(kernel, args, sig)
+        if f is not None:
+            return f, False
+    return direct(kernel, args), True
+
+
+# -- fork safety ------------------------------------------------------------------
+
+
+def _before_fork() -> None:
+    _idle.acquire()
+
+
+def _after_fork_parent() -> None:
+    _idle.release()
+
+
+def _after_fork_child() -> None:
+    global _lock, _idle, _queue
+    _lock, _idle, _queue = threading.Lock(), threading.Lock(), queue.SimpleQueue()
+    _state.update(thread=None, pending=set(), done=set(_state["done"]), failed=set(_state["failed"]))
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(before=_before_fork, after_in_parent=_after_fork_parent, after_in_child=_after_fork_child)

@@ -1,0 +1,210 @@
+"""Kernels run as Python while a thread compiles them (mbs_envs.dynamics.background): the same bits as compiled, the
+switch to compiled code, the fallback where Python raises, the modes, and a fork while compiling."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import multiprocessing
+import os
+import subprocess
+import sys
+
+import gymnasium as gym
+import numba
+import numpy as np
+import pytest
+
+import mbs_envs  # noqa: F401
+from mbs_envs.dynamics import background
+from mbs_envs.dynamics.jit import njit
+from mbs_envs.dynamics.trig import fma
+
+EPISODES = """
+import hashlib, json, sys
+import numpy as np, gymnasium as gym, mbs_envs
+out = {}
+for env_id in sys.argv[2:]:
+    kw = {"n_links": 4} if "Chain" in env_id else {}
+    env = gym.make(env_id, **kw)
+    obs, _ = env.reset(seed=3)
+    env.action_space.seed(3)
+    h = hashlib.sha1(np.asarray(obs).tobytes())
+    for i in range(int(sys.argv[1])):
+        o, r, te, tr, info = env.step(env.action_space.sample())
+        h.update(np.asarray(o).tobytes()); h.update(np.float64(r).tobytes())
+        for k in sorted(info):
+            h.update(np.asarray(info[k]).tobytes())
+        if te or tr:
+            h.update(np.asarray(env.reset()[0]).tobytes())
+    out[env_id] = h.hexdigest()
+print(json.dumps(out))
+"""
+
+
+def _hashes(mode: str, steps: int, ids: list[str]) -> dict:
+    env = {**os.environ, background.ENV_VAR: mode}
+    res = subprocess.run([sys.executable, "-c", EPISODES, str(steps), *ids], env=env, capture_output=True, text=True, timeout=900)
+    assert res.returncode == 0, res.stderr[-3000:]
+    return json.loads(res.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.parametrize(
+    "ids",
+    [
+        pytest.param(["mbs_envs/Planar2R-v0", "mbs_envs/FourBar-v0", "mbs_envs/SpatialChain-v0", "mbs_envs/Acrobot-v0"], id="fast"),
+        pytest.param(sorted(k for k in gym.registry if k.startswith("mbs_envs/")), id="every-id", marks=pytest.mark.slow),
+    ],
+)
+def test_episodes_run_as_python_are_bit_for_bit_the_compiled_ones(ids):
+    """Every step of an episode (observations, rewards, every info entry, resets) on the kernels' Python alone
+    (``MBS_ENVS_JIT=python``: nothing compiled) against the compiled kernels (``sync``); a closed chain, a spatial
+    chain and a SymPy-derived model among them (their friction's ``tanh``, whose numpy version is 1 ulp off libm's
+    now and then, and ``x ** 2``, whose libm ``pow`` is 1 ulp off ``x * x`` now and then, made them differ before
+    the kernels' Python called libm's and numba's own)."""
+    steps = 200 if len(ids) < 6 else 1000
+    assert _hashes("python", steps, ids) == _hashes("sync", steps, ids)
+
+
+def test_a_new_call_runs_as_python_until_the_thread_has_compiled_it(monkeypatch):
+    monkeypatch.setenv(background.ENV_VAR, "background")
+
+    @njit(cache=False)
+    def scaled_sum(x, s):
+        acc = 0.0
+        for i in range(x.shape[0]):
+            acc += math.tanh(x[i]) * s + np.exp(-x[i]) ** 2
+        return acc
+
+    x = np.random.default_rng(0).normal(size=257)
+    first = scaled_sum(x, 0.3)  # no compiled code yet: the Python, while the thread compiles
+    assert background.wait(timeout=120)
+    assert len(scaled_sum.overloads) == 1
+    assert scaled_sum(x, 0.3) == first  # now compiled: the same bits
+    assert background.interpreted(scaled_sum)(x, 0.3) == first
+
+
+def test_python_that_raises_puts_the_arrays_back_and_the_call_runs_compiled(monkeypatch):
+    monkeypatch.setenv(background.ENV_VAR, "python")
+
+    @njit(cache=False)
+    def halve_then_invert(x, out):
+        for i in range(x.shape[0]):
+            x[i] *= 0.5
+        out[0] = 1.0 / float(x[0])  # Python raises ZeroDivisionError; compiled code gives inf (error_model="numpy")
+
+    x, out = np.array([0.0, 4.0]), np.array([7.0])
+    halve_then_invert(x, out)
+    np.testing.assert_array_equal(x, [0.0, 2.0])  # halved once: the Python's writes were undone first
+    assert out[0] == np.inf
+    assert len(halve_then_invert.overloads) == 1
+
+
+def test_python_mode_compiles_nothing_and_sync_compiles_before_the_call(monkeypatch):
+    @njit(cache=False)
+    def twice(x):
+        return 2.0 * x
+
+    monkeypatch.setenv(background.ENV_VAR, "python")
+    assert twice(1.5) == 3.0 and len(twice.overloads) == 0 and background.pending() == 0
+    monkeypatch.setenv(background.ENV_VAR, "sync")
+    assert twice(1.5) == 3.0 and len(twice.overloads) == 1
+
+
+@pytest.mark.parametrize("value", ["fast", "1", "Python3"])
+def test_a_mode_that_does_not_exist_is_refused_naming_the_variable(monkeypatch, value):
+    @njit(cache=False)
+    def one(x):
+        return x + 1.0
+
+    monkeypatch.setenv(background.ENV_VAR, value)
+    with pytest.raises(ValueError, match=background.ENV_VAR):
+        one(1.0)
+    assert len(one.overloads) == 0 and background.pending() == 0
+
+
+def test_numba_power_is_numbas_power():
+    @numba.njit(error_model="numpy")  # as the package's kernels: 1 / 0 is inf
+    def powers(a, n):
+        return a**2, a**3, a**-2, a**7, a**n, a**2.0, a**0.5, a**1.7
+
+    rng = np.random.default_rng(1)
+    with np.errstate(all="ignore"):
+        for a in np.r_[rng.normal(0, 10, 2000), rng.lognormal(0, 20, 200), np.inf, -np.inf, np.nan]:  # (numba raises for 0 ** -2)
+            for n in (0, 1, 5, -3):
+                want = powers(a, n)
+                k = 8 if 0.0 < a < np.inf else 6  # libm's pow of a float exponent: for positive finite bases (math.pow
+                got = tuple(background.numba_power(a, e) for e in (2, 3, -2, 7, n, 2.0, 0.5, 1.7)[:k])  # raises else)
+                assert np.asarray(got).tobytes() == np.asarray(want[:k]).tobytes(), (a, n, got, want)
+
+
+def test_the_python_fma_is_the_instruction():
+    @numba.njit
+    def fused(a, b, c):
+        return fma(a, b, c)
+
+    rng = np.random.default_rng(2)
+    a, b = rng.normal(size=5000) * 10.0 ** rng.integers(-200, 200, 5000), rng.normal(size=5000)
+    c = -a * b  # near-cancellations, where a separate product and sum would differ most
+    cases = list(zip(a, b, c)) + [(0.0, -1.0, -0.0), (-0.0, 1.0, -0.0), (0.0, 1.0, -0.0), (1.0, 1.0, -1.0), (np.inf, 0.0, 1.0)]
+    for x, y, z in cases:
+        assert np.float64(background.fma_exact(x, y, z)).tobytes() == np.float64(fused(x, y, z)).tobytes(), (x, y, z)
+
+
+def _child_compiles(q):
+    os.environ[background.ENV_VAR] = "sync"  # the child's kernel compiled in the child, before the call
+
+    @njit(cache=False)
+    def plus(x):
+        return x + 1.0
+
+    background.wait(timeout=60)
+    q.put((plus(1.0), len(plus.overloads)))
+
+
+def test_a_fork_while_the_thread_compiles_leaves_a_child_that_compiles(monkeypatch):
+    """The fork waits for the kernel being compiled: the child inherits no held compiler lock and no thread."""
+    monkeypatch.setenv(background.ENV_VAR, "background")
+
+    @njit(cache=False)
+    def busy(x):
+        s = 0.0
+        for i in range(x.shape[0]):
+            s += math.sin(x[i]) * math.cos(x[i] * 2.0) + math.exp(-abs(x[i]))
+        return s
+
+    busy(np.ones(3))  # queued: the thread compiles it now
+    ctx = multiprocessing.get_context("fork")
+    q = ctx.Queue()
+    p = ctx.Process(target=_child_compiles, args=(q,))
+    p.start()
+    p.join(120)
+    assert p.exitcode == 0
+    assert q.get(timeout=5) == (2.0, 1)
+    assert background.wait(timeout=120)
+
+
+def test_a_single_env_switches_to_compiled_code_without_changing_its_episode(monkeypatch):
+    """A single env steps on its step kernel's Python until it is compiled, then compiled: the episode is the same
+    bit for bit as one compiled throughout. (The kernel here is compiled already, so the Python is forced for the
+    first steps, as a cold cache would.)"""
+
+    def episode(forced: int):
+        env = gym.make("mbs_envs/SerialChain-v0", n_links=3)
+        u = env.unwrapped
+        obs, _ = env.reset(seed=5)
+        rng = np.random.default_rng(5)
+        h = hashlib.sha1(obs.tobytes())
+        for i in range(60):
+            u._direct_call = None  # looked up again at every step (a real switch: when the thread's generation moves)
+            if i < forced:  # the Python of its step, as while the thread compiles
+                monkeypatch.setattr(background, "entry", lambda k, a: (background.interpreted(k), False))
+            else:
+                monkeypatch.undo()
+            o, r, *_ = env.step(rng.uniform(-1, 1, env.action_space.shape).astype(np.float32))
+            h.update(o.tobytes() + np.float64(r).tobytes())
+        monkeypatch.undo()
+        return h.hexdigest()
+
+    assert episode(25) == episode(0)
