@@ -1,12 +1,11 @@
-"""Kernels run as Python while a thread compiles them (mbs_envs.dynamics.background): the same bits as compiled, the
-switch to compiled code, the fallback where Python raises, the modes, and a fork while compiling."""
+"""Kernels run as Python while a child process compiles them (mbs_envs.dynamics.background): the same bits as
+compiled, the switch to compiled code, the fallback where Python raises, the modes."""
 
 from __future__ import annotations
 
 import hashlib
 import json
 import math
-import multiprocessing
 import os
 import subprocess
 import sys
@@ -67,22 +66,44 @@ def test_episodes_run_as_python_are_bit_for_bit_the_compiled_ones(ids):
     assert _hashes("python", steps, ids) == _hashes("sync", steps, ids)
 
 
-def test_a_new_call_runs_as_python_until_the_thread_has_compiled_it(monkeypatch):
+KERNEL = """
+import math
+import numpy as np
+from mbs_envs.dynamics.jit import njit
+
+
+@njit
+def scaled_sum(x, s):
+    acc = 0.0
+    for i in range(x.shape[0]):
+        acc += math.tanh(x[i]) * s + np.exp(-x[i]) ** 2
+    return acc
+"""
+
+
+def test_a_new_call_runs_as_python_until_the_child_process_has_compiled_it(monkeypatch, tmp_path):
+    """Within an env's calls (``allowed``), a kernel without compiled code runs as Python while a child process
+    compiles it into the disk cache; the first call after that loads it, the same bits; outside, it compiles first."""
+    import importlib.util
+
     monkeypatch.setenv(background.ENV_VAR, "background")
-
-    @njit(cache=False)
-    def scaled_sum(x, s):
-        acc = 0.0
-        for i in range(x.shape[0]):
-            acc += math.tanh(x[i]) * s + np.exp(-x[i]) ** 2
-        return acc
-
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "cache"))  # the child's cache (this process's is set at import)
+    path = tmp_path / "bg_kernel_module.py"
+    path.write_text(KERNEL)
+    spec = importlib.util.spec_from_file_location("bg_kernel_module", path)
+    module = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, "bg_kernel_module", module)
+    spec.loader.exec_module(module)
+    kernel = module.scaled_sum
     x = np.random.default_rng(0).normal(size=257)
-    first = scaled_sum(x, 0.3)  # no compiled code yet: the Python, while the thread compiles
-    assert background.wait(timeout=120)
-    assert len(scaled_sum.overloads) == 1
-    assert scaled_sum(x, 0.3) == first  # now compiled: the same bits
-    assert background.interpreted(scaled_sum)(x, 0.3) == first
+    with background.allowed():
+        first = kernel(x, 0.3)  # no compiled code: its Python, while the child compiles
+        assert len(kernel.overloads) == 0 and background.pending() >= 1
+        assert background.wait(timeout=300)
+        assert kernel(x, 0.3) == first  # now compiled (loaded from the cache the child wrote): the same bits
+    assert len(kernel.overloads) == 1
+    kernel(np.asarray(x, np.float32), 0.3)  # other types, outside an env's calls: compiled before it runs
+    assert len(kernel.overloads) == 2 and background.pending() == 0
 
 
 def test_python_that_raises_puts_the_arrays_back_and_the_call_runs_compiled(monkeypatch):
@@ -95,7 +116,8 @@ def test_python_that_raises_puts_the_arrays_back_and_the_call_runs_compiled(monk
         out[0] = 1.0 / float(x[0])  # Python raises ZeroDivisionError; compiled code gives inf (error_model="numpy")
 
     x, out = np.array([0.0, 4.0]), np.array([7.0])
-    halve_then_invert(x, out)
+    with background.allowed():
+        halve_then_invert(x, out)
     np.testing.assert_array_equal(x, [0.0, 2.0])  # halved once: the Python's writes were undone first
     assert out[0] == np.inf
     assert len(halve_then_invert.overloads) == 1
@@ -107,9 +129,11 @@ def test_python_mode_compiles_nothing_and_sync_compiles_before_the_call(monkeypa
         return 2.0 * x
 
     monkeypatch.setenv(background.ENV_VAR, "python")
-    assert twice(1.5) == 3.0 and len(twice.overloads) == 0 and background.pending() == 0
+    with background.allowed():
+        assert twice(1.5) == 3.0 and len(twice.overloads) == 0 and background.pending() == 0
     monkeypatch.setenv(background.ENV_VAR, "sync")
-    assert twice(1.5) == 3.0 and len(twice.overloads) == 1
+    with background.allowed():
+        assert twice(1.5) == 3.0 and len(twice.overloads) == 1
 
 
 @pytest.mark.parametrize("value", ["fast", "1", "Python3"])
@@ -119,7 +143,7 @@ def test_a_mode_that_does_not_exist_is_refused_naming_the_variable(monkeypatch, 
         return x + 1.0
 
     monkeypatch.setenv(background.ENV_VAR, value)
-    with pytest.raises(ValueError, match=background.ENV_VAR):
+    with pytest.raises(ValueError, match=background.ENV_VAR), background.allowed():
         one(1.0)
     assert len(one.overloads) == 0 and background.pending() == 0
 
@@ -152,39 +176,6 @@ def test_the_python_fma_is_the_instruction():
         assert np.float64(background.fma_exact(x, y, z)).tobytes() == np.float64(fused(x, y, z)).tobytes(), (x, y, z)
 
 
-def _child_compiles(q):
-    os.environ[background.ENV_VAR] = "sync"  # the child's kernel compiled in the child, before the call
-
-    @njit(cache=False)
-    def plus(x):
-        return x + 1.0
-
-    background.wait(timeout=60)
-    q.put((plus(1.0), len(plus.overloads)))
-
-
-def test_a_fork_while_the_thread_compiles_leaves_a_child_that_compiles(monkeypatch):
-    """The fork waits for the kernel being compiled: the child inherits no held compiler lock and no thread."""
-    monkeypatch.setenv(background.ENV_VAR, "background")
-
-    @njit(cache=False)
-    def busy(x):
-        s = 0.0
-        for i in range(x.shape[0]):
-            s += math.sin(x[i]) * math.cos(x[i] * 2.0) + math.exp(-abs(x[i]))
-        return s
-
-    busy(np.ones(3))  # queued: the thread compiles it now
-    ctx = multiprocessing.get_context("fork")
-    q = ctx.Queue()
-    p = ctx.Process(target=_child_compiles, args=(q,))
-    p.start()
-    p.join(120)
-    assert p.exitcode == 0
-    assert q.get(timeout=5) == (2.0, 1)
-    assert background.wait(timeout=120)
-
-
 def test_a_single_env_switches_to_compiled_code_without_changing_its_episode(monkeypatch):
     """A single env steps on its step kernel's Python until it is compiled, then compiled: the episode is the same
     bit for bit as one compiled throughout. (The kernel here is compiled already, so the Python is forced for the
@@ -197,8 +188,8 @@ def test_a_single_env_switches_to_compiled_code_without_changing_its_episode(mon
         rng = np.random.default_rng(5)
         h = hashlib.sha1(obs.tobytes())
         for i in range(60):
-            u._direct_call = None  # looked up again at every step (a real switch: when the thread's generation moves)
-            if i < forced:  # the Python of its step, as while the thread compiles
+            u._direct_call = None  # looked up again at every step (a real switch: when the child's answers move the generation)
+            if i < forced:  # the Python of its step, as while the child process compiles
                 monkeypatch.setattr(background, "entry", lambda k, a: (background.interpreted(k), False))
             else:
                 monkeypatch.undo()

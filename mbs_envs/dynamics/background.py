@@ -1,51 +1,61 @@
-"""Compile in the background; until a kernel is compiled, run its Python source, which gives the same bits.
+"""Compile in another process; until a kernel is compiled, run its Python, which gives the same bits.
 
 A fresh install's first step used to wait for numba to compile a scene's kernels: 12-26 s per scene
 with an empty cache (docs/performance.md). The package's kernels are plain Python that numba compiles
 without fast-math, so every floating-point operation is one IEEE 754 operation in both (LLVM neither
-reassociates nor contracts them; a vectorized loop computes each element as the scalar one), and
-the functions they call are the same libm's: run as Python, a kernel computes the very bits it computes
-compiled. So a package kernel called from Python with argument types it has not been compiled for now
+reassociates nor contracts them; a vectorized loop computes each element as the scalar one). What
+differs is made the same: numpy's own ``exp``, ``tanh`` and ``arctan2`` are 1 ulp off libm's now and then,
+so the kernels' Python calls libm's (as compiled code does), and ``x ** 2`` is numba's ``x * x``, not
+libm's ``pow`` (1 ulp off now and then). So within an env's construction, reset and single step
+(:func:`allowed`), a package kernel called with argument types it has no compiled code for
 
-1. runs as Python (:func:`interpreted`: its source, with every numba kernel it calls replaced by that
-   kernel's Python, and the one intrinsic, :func:`mbs_envs.dynamics.trig.fma`, by an exact Python
-   version), under ``np.errstate(all="ignore")`` (compiled code raises no floating-point warnings);
-2. while a daemon thread compiles it for those types (loading it from numba's disk cache where it is
-   there), after which the call takes the compiled code, as every call did before.
+1. runs as Python (:func:`interpreted`: its source, with every kernel it calls replaced by that kernel's
+   Python, ``**`` by :func:`numba_power`, and the one intrinsic, :func:`mbs_envs.dynamics.trig.fma`, by an
+   exact Python version), under ``np.errstate(all="ignore")`` (compiled code raises no warnings);
+2. while a child process compiles it for those types into numba's disk cache, on another core; the first
+   call after that loads the compiled code from the cache, and every call after it runs compiled.
 
-Every scene's episodes are bit for bit the same either way (``tests/test_background.py``), so nothing
-an env returns depends on when the switch happens. Should a kernel's Python raise where the compiled
-code does not (a float division by zero, ``math.exp`` overflowing: compiled code gives inf or NaN), the
-call's arrays are put back as they were, the kernel is compiled there and then, and the call runs
-compiled. A vector env of more than one member compiles its step before its first step, as before
-(its Python would loop over every member; :func:`synchronous`).
+Every scene's episodes are bit for bit the same either way (``tests/test_background.py``), so nothing an env
+returns depends on when the switch happens. Should a kernel's Python raise where compiled code does not (a
+float division by zero, ``math.exp`` overflowing: compiled code gives inf or NaN), the call's arrays are put
+back as they were, the kernel is compiled there and then, and the call runs compiled. Elsewhere (a vector env
+of more than one member, whose Python would loop over every member; ``simulate``; a controller; a user's own
+call) a kernel compiles before it runs, as numba does by itself. Kernels numba cannot cache (``cache=False``,
+or defined inside a function) are compiled where they are called, too.
 
 ``MBS_ENVS_JIT`` (environment variable, read at each decision) chooses: ``background`` (the default),
-``sync`` (compile before the first call, numba's own behaviour) or ``python`` (never compile what is
-not compiled yet: every new call runs as Python, e.g. to step through a kernel in a debugger).
-
-Fork safety: a process forked while the thread compiles would inherit numba's compiler lock held by a
-thread that does not exist in the child, and a half-built compilation. A fork therefore waits for the
-kernel being compiled (``os.register_at_fork``), and the child starts with no thread and no queue.
+``sync`` (compile before the first call, numba's own behaviour) or ``python`` (never compile what is not
+compiled yet in those calls: they run as Python, e.g. to step through a kernel in a debugger).
 """
 
 from __future__ import annotations
 
 import ast
+import base64
 import contextlib
+import importlib
+import importlib.util
 import inspect
+import json
 import math
 import os
-import queue
+import pickle
+import subprocess
+import sys
 import textwrap
 import threading
+import time
 import types
 from collections.abc import Callable
 from fractions import Fraction
 from typing import Any
 
 import numpy as np
+from numba.core.caching import NullCache
 from numba.core.dispatcher import Dispatcher
+
+#: the directory holding the package (the child imports it from there)
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 #: the environment variable that chooses the mode
 ENV_VAR = "MBS_ENVS_JIT"
@@ -291,48 +301,24 @@ def interpreted(kernel: Dispatcher) -> types.FunctionType:
     return c[1]
 
 
-# -- the thread that compiles ----------------------------------------------------
+# -- the process that compiles ---------------------------------------------------
+#
+# A thread would share the GIL with the steps it runs beside: numba's compiler calls LLVM through ctypes thousands of
+# times, each call releases the GIL, and getting it back waits for the stepping thread's switch interval (5 ms), so the
+# compilation stalled for as long as the steps went on (measured: Planar2R-v0's kernels not compiled after 60 s of
+# steps; 9 s alone). A child process compiles on the other core into numba's disk cache instead, and a call after it
+# is done loads the compiled code from there.
 
+#: the child's protocol lines start with this (anything else it prints is ignored)
+_TAG = "mbs_envs-compiled "
 _lock = threading.Lock()
-_idle = threading.Lock()  # held while a kernel compiles (a fork waits for it)
-_queue: queue.SimpleQueue = queue.SimpleQueue()
-_state: dict[str, Any] = {"thread": None, "generation": 0, "pending": set(), "done": set(), "failed": set()}
+_state: dict[str, Any] = {"child": None, "generation": 0, "pending": {}, "done": set(), "failed": set(), "tokens": {}}
 _local = threading.local()
 
 
 def generation() -> int:
-    """How many compilations the thread has finished in this process (a cached choice of code is stale once it moved)."""
+    """How many compilations the child has finished for this process (a cached choice of code is stale once it moved)."""
     return _state["generation"]
-
-
-def _worker() -> None:
-    while True:
-        kernel, sig = _queue.get()
-        key = (id(kernel), sig)
-        with _idle:
-            try:
-                kernel.compile(sig)
-            except Exception:  # noqa: BLE001 - the call raises it where it was made, compiled there (_guarded)
-                _state["failed"].add(key)
-            finally:
-                with _lock:
-                    _state["pending"].discard(key)
-                    _state["done"].add(key)
-                    _state["generation"] += 1
-
-
-def _request(kernel: Dispatcher, sig: tuple) -> None:
-    """Queue ``kernel``'s compilation for ``sig`` (once) and start the thread if it is not running."""
-    key = (id(kernel), sig)
-    with _lock:
-        if key in _state["pending"] or key in _state["done"]:
-            return
-        _state["pending"].add(key)
-        _queue.put((kernel, sig))
-        if _state["thread"] is None:
-            t = threading.Thread(target=_worker, name="mbs_envs-compile", daemon=True)
-            _state["thread"] = t
-            t.start()
 
 
 def pending() -> int:
@@ -341,12 +327,10 @@ def pending() -> int:
 
 
 def wait(timeout: float | None = None) -> bool:
-    """Block until every queued compilation has finished (True), or ``timeout`` [s] passed (False).
+    """Block until every requested compilation has finished (True), or ``timeout`` [s] passed (False).
 
     For benchmarks and tests that time compiled code; an env needs no call: it switches by itself.
     """
-    import time
-
     end = None if timeout is None else time.monotonic() + timeout
     while _state["pending"]:
         if end is not None and time.monotonic() > end:
@@ -355,16 +339,120 @@ def wait(timeout: float | None = None) -> bool:
     return True
 
 
+def _address(kernel: Dispatcher) -> tuple[str, str, str | None] | None:
+    """``(module, qualname, file)`` by which a child process finds ``kernel``; None for a kernel it cannot find or
+    whose compiled code would not reach this process (no disk cache: ``cache=False``, or defined inside a function)."""
+    f = kernel.py_func
+    if isinstance(kernel._cache, NullCache) or "<locals>" in f.__qualname__:
+        return None
+    module = sys.modules.get(f.__module__)
+    return f.__module__, f.__qualname__, getattr(module, "__file__", None)
+
+
+def _finished(key: tuple, ok: bool) -> None:
+    with _lock:
+        if _state["pending"].pop(key, None) is not None:
+            (_state["done"] if ok else _state["failed"]).add(key)
+            _state["generation"] += 1
+
+
+def _read(child: subprocess.Popen) -> None:
+    """The parent's reader of the child's answers (a thread that waits on the pipe, holding no GIL meanwhile)."""
+    for line in child.stdout:
+        if line.startswith(_TAG):
+            token, ok = line[len(_TAG) :].split()
+            key = _state["tokens"].get(token)
+            if key is not None:
+                _finished(key, ok == "1")
+    for key in list(_state["pending"]):  # the child is gone: what it did not finish is compiled where it is called
+        _finished(key, False)
+
+
+def _child() -> subprocess.Popen | None:
+    """The compiling child process of this process (started on first use; None where it cannot start)."""
+    child = _state["child"]
+    if child is not None and child.poll() is None:
+        return child
+    env = {**os.environ, ENV_VAR: "sync", "PYTHONPATH": os.pathsep.join([ROOT, os.environ.get("PYTHONPATH", "")])}
+    try:
+        child = subprocess.Popen(
+            [sys.executable, "-m", "mbs_envs.dynamics.background"], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+            stderr=subprocess.DEVNULL, env=env, text=True, bufsize=1,
+        )  # fmt: skip
+    except OSError:
+        return None
+    _state["child"] = child
+    threading.Thread(target=_read, args=(child,), name="mbs_envs-compiled", daemon=True).start()
+    return child
+
+
+def _request(kernel: Dispatcher, sig: tuple) -> bool:
+    """Ask the child to compile ``kernel`` for ``sig`` (once); False where it cannot (the caller compiles)."""
+    key = (id(kernel), sig)
+    if key in _state["pending"]:
+        return True
+    address = _address(kernel)
+    if address is None:
+        return False
+    try:
+        blob = base64.b64encode(pickle.dumps(sig)).decode()
+    except Exception:  # noqa: BLE001 - a type that does not pickle: compiled here
+        return False
+    with _lock:
+        child = _child()
+        if child is None:
+            return False
+        token = str(len(_state["tokens"]))
+        _state["tokens"][token] = key
+        _state["pending"][key] = kernel
+        try:
+            child.stdin.write(json.dumps({"token": token, "address": address, "sig": blob}) + "\n")
+            child.stdin.flush()
+        except OSError:
+            del _state["pending"][key]
+            return False
+    return True
+
+
+def _kernel_at(module: str, qualname: str, file: str | None) -> Dispatcher:
+    """The kernel a parent named (its module imported, or loaded from its file, as the derived models are)."""
+    try:
+        m = importlib.import_module(module)
+    except ImportError:
+        spec = importlib.util.spec_from_file_location(module, file)
+        m = importlib.util.module_from_spec(spec)
+        sys.modules[module] = m
+        spec.loader.exec_module(m)
+    obj = m
+    for part in qualname.split("."):
+        obj = getattr(obj, part)
+    return obj
+
+
+def _serve() -> None:
+    """The child: compile each requested kernel (into numba's disk cache) and answer ``<tag> <token> <1|0>``."""
+    for line in sys.stdin:
+        try:
+            r = json.loads(line)
+            kernel = _kernel_at(*r["address"])
+            kernel.compile(pickle.loads(base64.b64decode(r["sig"])))
+            ok = "1"
+        except Exception:  # noqa: BLE001 - the parent compiles it itself and sees the error there
+            ok = "0"
+        print(_TAG + r.get("token", "?") + " " + ok, flush=True)
+
+
 @contextlib.contextmanager
-def synchronous():
-    """Within: this thread's calls of kernels compile before they run (a vector env's step: its Python would loop
-    over every member)."""
-    before = getattr(_local, "sync", False)
-    _local.sync = True
+def allowed():
+    """Within: this thread's calls of the package's kernels that are not compiled yet run as Python while the child
+    compiles them (an env's construction, reset and single step: calls of bounded cost). Elsewhere they compile before
+    they run, as numba does (a long simulation must not run its whole length as Python)."""
+    before = getattr(_local, "allow", False)
+    _local.allow = True
     try:
         yield
     finally:
-        _local.sync = before
+        _local.allow = before
 
 
 def _arrays(x, out: list) -> None:
@@ -403,19 +491,21 @@ def _signature(kernel: Dispatcher, args: tuple) -> tuple:
         kernel._types_active_call.clear()
 
 
-def _choose(kernel: Dispatcher, args: tuple, sig: tuple | None = None) -> Callable | None:
-    """The Python to run a call of ``kernel`` that has no compiled code (queuing its compilation), or None to compile
-    it now."""
+def _choose(kernel: Dispatcher, args: tuple, sig: tuple | None = None, allow: bool = False) -> Callable | None:
+    """The Python to run a call of ``kernel`` that has no compiled code (asking the child to compile it), or None to
+    compile it here and now."""
+    if not (allow or getattr(_local, "allow", False)):
+        return None
     m = mode()
-    if m == "sync" or getattr(_local, "sync", False) or threading.current_thread() is _state["thread"]:
+    if m == "sync":
         return None
     if sig is None:
         sig = _signature(kernel, args)
     key = (id(kernel), sig)
-    if key in _state["failed"] or (m == "background" and key in _state["done"]):
-        return None  # compiled (or failed) already: numba's own path finds or raises it
-    if m == "background":
-        _request(kernel, sig)
+    if key in _state["done"] or key in _state["failed"]:
+        return None  # compiled by the child (loaded from the disk cache now), or failed there (raised here)
+    if m == "background" and not _request(kernel, sig):
+        return None
     return _guarded(kernel, sig)
 
 
@@ -441,28 +531,21 @@ def entry(kernel: Dispatcher, args: tuple) -> tuple[Callable, bool]:
 
     sig = _signature(kernel, args)
     if sig not in kernel.overloads:
-        f = _choose(kernel, args, sig)
+        f = _choose(kernel, args, sig, allow=True)
         if f is not None:
             return f, False
     return direct(kernel, args), True
 
 
-# -- fork safety ------------------------------------------------------------------
-
-
-def _before_fork() -> None:
-    _idle.acquire()
-
-
-def _after_fork_parent() -> None:
-    _idle.release()
-
-
 def _after_fork_child() -> None:
-    global _lock, _idle, _queue
-    _lock, _idle, _queue = threading.Lock(), threading.Lock(), queue.SimpleQueue()
-    _state.update(thread=None, pending=set(), done=set(_state["done"]), failed=set(_state["failed"]))
+    """A forked child has neither the parent's compiling child nor its reader: it starts its own when it needs one."""
+    global _lock
+    _lock = threading.Lock()
+    _state.update(child=None, pending={}, tokens={})
 
 
 if hasattr(os, "register_at_fork"):
-    os.register_at_fork(before=_before_fork, after_in_parent=_after_fork_parent, after_in_child=_after_fork_child)
+    os.register_at_fork(after_in_child=_after_fork_child)
+
+if __name__ == "__main__":
+    _serve()

@@ -11,6 +11,7 @@ drawing; see :class:`mbs_envs.envs.tracking.JointTrackingEnv`.
 from __future__ import annotations
 
 import copy
+import functools
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -347,8 +348,7 @@ class MBSEnv(gym.Env):
         state, out = (q, v, t, action), (u, obs, info, bad, terminated)
         if B > 1:  # compiled before the first step (its Python would loop over the members); no floating-point warnings
             kernel = self.step_kernel if self.batched_step_kernel is None else self.batched_step_kernel
-            with background.synchronous():
-                kernel(theta, stepper, control, task + task_columns, state, out)
+            kernel(theta, stepper, control, task + task_columns, state, out)
             return obs.T, info.T, u.T, bad, terminated
         # a single env: its overload called directly (:func:`mbs_envs.dynamics.jit.direct`), looked up again when an
         # argument object changes (a setting, the model's parameters, the episode's task); the state and the outputs
@@ -600,6 +600,20 @@ class MBSEnv(gym.Env):
 
     # -- Gymnasium API -------------------------------------------------------
 
+    def __init_subclass__(cls, **kwargs):
+        """A scene's construction may call the package's kernels before they are compiled: as Python meanwhile
+        (:func:`mbs_envs.dynamics.background.allowed`)."""
+        super().__init_subclass__(**kwargs)
+        if "__init__" in cls.__dict__:
+            init = cls.__init__
+
+            @functools.wraps(init)
+            def __init__(self, *args, **kw):
+                with background.allowed():
+                    init(self, *args, **kw)
+
+            cls.__init__ = __init__
+
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Start an episode.
 
@@ -610,6 +624,11 @@ class MBSEnv(gym.Env):
         is drawn from a copy of the generator (or the new seed's), which replaces this env's only
         once the start is accepted.
         """
+        with background.allowed():  # kernels not compiled yet run as Python meanwhile (mbs_envs.dynamics.background)
+            return self._reset(seed=seed, options=options)
+
+    def _reset(self, *, seed: int | None = None, options: dict | None = None):
+        """:meth:`reset`'s work."""
         seed = check.seed(seed)
         options = self.check_reset_options(options)
         if seed is None:
@@ -754,6 +773,15 @@ class MBSEnv(gym.Env):
     consistency_tol: ClassVar[float] = 1e-9
 
     def step(self, action: Any):
+        if self.__dict__.get("_warm"):  # its kernels compiled
+            return self._step(action)
+        with background.allowed():  # kernels not compiled yet run as Python meanwhile (mbs_envs.dynamics.background)
+            out = self._step(action)
+        c = self.__dict__.get("_direct_call")
+        self._warm = c is not None and c[7] is None
+        return out
+
+    def _step(self, action: Any):
         self._require_reset("step")
         tab = self.compiled
         if tab is not None:
@@ -858,4 +886,5 @@ class MBSEnv(gym.Env):
         state = self.__dict__.copy()
         state["_renderer"] = None  # a pygame window is not picklable; reopened on demand
         state.pop("_direct_call", None)  # nor a compiled entry point; looked up again
+        state.pop("_warm", None)
         return state
