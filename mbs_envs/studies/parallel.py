@@ -32,7 +32,7 @@ def run_tasks(fn: Callable[[Any], Any], tasks: list[Any], ray_address: str | Non
         return [fn(t) for t in tasks]
     workers = max_workers or min(len(tasks), multiprocessing.cpu_count())
     context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(workers, mp_context=context, initializer=_exit_with_parent, initargs=(os.getpid(),)) as pool:
+    with ProcessPoolExecutor(workers, mp_context=context, initializer=_worker_start, initargs=(os.getpid(),)) as pool:
         futures = [pool.submit(fn, t) for t in tasks]
         bar = _bar(len(tasks), progress)
         for _ in as_completed(futures):
@@ -52,6 +52,14 @@ def _bar(total: int, label: str | None) -> Any:
     except ImportError:
         return None
     return tqdm(total=total, desc=label)
+
+
+def _worker_start(parent: int) -> None:
+    """Worker initializer: :func:`_exit_with_parent`; kernels compiled before they run (``MBS_ENVS_JIT=sync`` unless
+    set otherwise): the pool keeps every core busy, where a process compiling beside each worker
+    (:mod:`mbs_envs.dynamics.background`) would only share them."""
+    os.environ.setdefault("MBS_ENVS_JIT", "sync")
+    _exit_with_parent(parent)
 
 
 def _exit_with_parent(parent: int, period: float = 0.5) -> None:
