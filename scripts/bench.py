@@ -33,10 +33,13 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import pathlib
 import platform
 import sys
 import time
+
+os.environ.setdefault("MBS_ENVS_JIT", "sync")  # the steps timed are compiled ones (mbs_envs.dynamics.background)
 
 import gymnasium as gym
 import numpy as np

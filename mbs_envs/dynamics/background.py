@@ -40,7 +40,6 @@ import json
 import math
 import os
 import pickle
-import subprocess
 import sys
 import textwrap
 import threading
@@ -312,7 +311,7 @@ def interpreted(kernel: Dispatcher) -> types.FunctionType:
 #: the child's protocol lines start with this (anything else it prints is ignored)
 _TAG = "mbs_envs-compiled "
 _lock = threading.Lock()
-_state: dict[str, Any] = {"child": None, "generation": 0, "pending": {}, "done": set(), "failed": set(), "tokens": {}}
+_state: dict[str, Any] = {"pid": None, "to_child": None, "generation": 0, "pending": {}, "done": set(), "failed": set(), "tokens": {}}
 _local = threading.local()
 
 
@@ -356,34 +355,63 @@ def _finished(key: tuple, ok: bool) -> None:
             _state["generation"] += 1
 
 
-def _read(child: subprocess.Popen) -> None:
+def _read(pid: int, fd: int) -> None:
     """The parent's reader of the child's answers (a thread that waits on the pipe, holding no GIL meanwhile)."""
-    for line in child.stdout:
-        if line.startswith(_TAG):
-            token, ok = line[len(_TAG) :].split()
-            key = _state["tokens"].get(token)
-            if key is not None:
-                _finished(key, ok == "1")
+    buf = b""
+    while True:
+        try:
+            chunk = os.read(fd, 65536)
+        except OSError:
+            chunk = b""
+        if not chunk:
+            break
+        buf += chunk
+        *lines, buf = buf.split(b"\n")
+        for line in lines:
+            text = line.decode(errors="replace")
+            if text.startswith(_TAG):
+                token, ok = text[len(_TAG) :].split()
+                key = _state["tokens"].get(token)
+                if key is not None:
+                    _finished(key, ok == "1")
+    os.close(fd)
+    with contextlib.suppress(ChildProcessError, OSError):
+        os.waitpid(pid, 0)  # no zombie left
+    with _lock:
+        if _state["pid"] == pid:
+            _state.update(pid=None, to_child=None)
     for key in list(_state["pending"]):  # the child is gone: what it did not finish is compiled where it is called
         _finished(key, False)
 
 
-def _child() -> subprocess.Popen | None:
-    """The compiling child process of this process (started on first use; None where it cannot start)."""
-    child = _state["child"]
-    if child is not None and child.poll() is None:
-        return child
-    env = {**os.environ, ENV_VAR: "sync", "PYTHONPATH": os.pathsep.join([ROOT, os.environ.get("PYTHONPATH", "")])}
-    try:
-        child = subprocess.Popen(
-            [sys.executable, "-m", "mbs_envs.dynamics.background"], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-            stderr=subprocess.DEVNULL, env=env, text=True, bufsize=1,
-        )  # fmt: skip
-    except OSError:
+def _child() -> int | None:
+    """The write end of the pipe to this process's compiling child (started on first use; None where it cannot start:
+    no ``os.posix_spawn``, e.g. on Windows, where kernels compile before they run).
+
+    The child runs in a session of its own (a Ctrl-C in the terminal does not stop it halfway through a kernel) and
+    ends when its input does: once this process has exited, it finishes the compilations asked for, so that the next
+    process finds them in the cache. Raw pipes and no ``Popen`` object: nothing to warn about at exit."""
+    if _state["to_child"] is not None:
+        return _state["to_child"]
+    if not hasattr(os, "posix_spawn"):
         return None
-    _state["child"] = child
-    threading.Thread(target=_read, args=(child,), name="mbs_envs-compiled", daemon=True).start()
-    return child
+    env = {**os.environ, ENV_VAR: "sync", "PYTHONPATH": os.pathsep.join([ROOT, os.environ.get("PYTHONPATH", "")])}
+    r_in, w_in = os.pipe()
+    r_out, w_out = os.pipe()
+    actions = [(os.POSIX_SPAWN_DUP2, r_in, 0), (os.POSIX_SPAWN_DUP2, w_out, 1),
+               (os.POSIX_SPAWN_OPEN, 2, os.devnull, os.O_WRONLY, 0)]  # fmt: skip
+    try:
+        pid = os.posix_spawn(sys.executable, [sys.executable, "-m", "mbs_envs.dynamics.background"], env,
+                             file_actions=actions, setsid=True)  # fmt: skip
+    except OSError:
+        for fd in (r_in, w_in, r_out, w_out):
+            os.close(fd)
+        return None
+    os.close(r_in)
+    os.close(w_out)
+    _state.update(pid=pid, to_child=w_in)
+    threading.Thread(target=_read, args=(pid, r_out), name="mbs_envs-compiled", daemon=True).start()
+    return w_in
 
 
 def _request(kernel: Dispatcher, sig: tuple) -> bool:
@@ -399,15 +427,14 @@ def _request(kernel: Dispatcher, sig: tuple) -> bool:
     except Exception:  # noqa: BLE001 - a type that does not pickle: compiled here
         return False
     with _lock:
-        child = _child()
-        if child is None:
+        fd = _child()
+        if fd is None:
             return False
         token = str(len(_state["tokens"]))
         _state["tokens"][token] = key
         _state["pending"][key] = kernel
         try:
-            child.stdin.write(json.dumps({"token": token, "address": address, "sig": blob}) + "\n")
-            child.stdin.flush()
+            os.write(fd, (json.dumps({"token": token, "address": address, "sig": blob}) + "\n").encode())  # one writer at a time (the lock)
         except OSError:
             del _state["pending"][key]
             return False
@@ -432,6 +459,7 @@ def _kernel_at(module: str, qualname: str, file: str | None) -> Dispatcher:
 def _serve() -> None:
     """The child: compile each requested kernel (into numba's disk cache) and answer ``<tag> <token> <1|0>``."""
     for line in sys.stdin:
+        r = {}
         try:
             r = json.loads(line)
             kernel = _kernel_at(*r["address"])
@@ -439,7 +467,10 @@ def _serve() -> None:
             ok = "1"
         except Exception:  # noqa: BLE001 - the parent compiles it itself and sees the error there
             ok = "0"
-        print(_TAG + r.get("token", "?") + " " + ok, flush=True)
+        try:
+            print(_TAG + r.get("token", "?") + " " + ok, flush=True)
+        except OSError:  # the parent is gone: the compilations go on, for the next process's cache
+            pass
 
 
 @contextlib.contextmanager
@@ -504,9 +535,18 @@ def _choose(kernel: Dispatcher, args: tuple, sig: tuple | None = None, allow: bo
     key = (id(kernel), sig)
     if key in _state["done"] or key in _state["failed"]:
         return None  # compiled by the child (loaded from the disk cache now), or failed there (raised here)
-    if m == "background" and not _request(kernel, sig):
+    if m == "background" and (_in_cache(kernel, sig) or not _request(kernel, sig)):
         return None
     return _guarded(kernel, sig)
+
+
+def _in_cache(kernel: Dispatcher, sig: tuple) -> bool:
+    """Whether numba's disk cache holds ``kernel``'s code for ``sig`` (then loading it beats any child: a warm cache)."""
+    try:
+        found = kernel._cache.load_overload(sig, kernel.targetctx) is not None
+    except Exception:  # noqa: BLE001 - numba's cache interface is private: as if not there
+        found = False
+    return found
 
 
 def install(kernel: Dispatcher) -> Dispatcher:
@@ -538,10 +578,14 @@ def entry(kernel: Dispatcher, args: tuple) -> tuple[Callable, bool]:
 
 
 def _after_fork_child() -> None:
-    """A forked child has neither the parent's compiling child nor its reader: it starts its own when it needs one."""
+    """A forked child has neither the parent's compiling child nor its reader: it starts its own when it needs one
+    (and does not hold the parent's pipe to it open: the compiling child ends when the parent does)."""
     global _lock
     _lock = threading.Lock()
-    _state.update(child=None, pending={}, tokens={})
+    if _state["to_child"] is not None:
+        with contextlib.suppress(OSError):
+            os.close(_state["to_child"])
+    _state.update(pid=None, to_child=None, pending={}, tokens={})
 
 
 if hasattr(os, "register_at_fork"):
