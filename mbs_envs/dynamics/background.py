@@ -541,12 +541,24 @@ def _choose(kernel: Dispatcher, args: tuple, sig: tuple | None = None, allow: bo
 
 
 def _in_cache(kernel: Dispatcher, sig: tuple) -> bool:
-    """Whether numba's disk cache holds ``kernel``'s code for ``sig`` (then loading it beats any child: a warm cache)."""
+    """Load ``kernel``'s code for ``sig`` from numba's disk cache if it is there (a warm cache: loading beats any
+    child), as ``Dispatcher.compile`` does before it compiles; whether it was there."""
     try:
-        found = kernel._cache.load_overload(sig, kernel.targetctx) is not None
-    except Exception:  # noqa: BLE001 - numba's cache interface is private: as if not there
-        found = False
-    return found
+        from numba.core.compiler_lock import global_compiler_lock
+
+        with global_compiler_lock:
+            if tuple(sig) in kernel.overloads:
+                return True
+            cres = kernel._cache.load_overload(sig, kernel.targetctx)
+            if cres is None:
+                return False
+            kernel._cache_hits[sig] += 1
+            if not cres.objectmode:
+                kernel.targetctx.insert_user_function(cres.entry_point, cres.fndesc, [cres.library])
+            kernel.add_overload(cres)
+            return True
+    except Exception:  # noqa: BLE001 - numba's cache interface is private: as if not there (the child compiles it)
+        return False
 
 
 def install(kernel: Dispatcher) -> Dispatcher:

@@ -44,7 +44,6 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-from scipy.integrate import BDF, DOP853, LSODA, RK45, Radau
 
 from .. import validation as check
 from .linalg import per_member
@@ -140,7 +139,14 @@ SCIPY_METHODS: dict[str, str] = {
     "lsoda": "LSODA",
 }
 
-_SCIPY_SOLVERS = {"RK45": RK45, "DOP853": DOP853, "Radau": Radau, "BDF": BDF, "LSODA": LSODA}
+
+
+def _scipy_solver(method: str) -> type:
+    """scipy's solver class named ``method`` (``"RK45"``, ...; scipy.integrate imported on first use: 0.25-0.5 s of
+    every process's import of the package otherwise)."""
+    import scipy.integrate
+
+    return getattr(scipy.integrate, method)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -277,7 +283,7 @@ class ScipyIVP:
         ts: list[float] = []
         ys: list[np.ndarray] = []
         with np.errstate(all="ignore"):
-            solver = _SCIPY_SOLVERS[self.method](rhs, t0, y0, float(t_eval[-1]), rtol=self.rtol, atol=self.atol)
+            solver = _scipy_solver(self.method)(rhs, t0, y0, float(t_eval[-1]), rtol=self.rtol, atol=self.atol)
             steps = 0
             while len(ts) < len(t_eval) and not guard["tripped"]:
                 solver.step()

@@ -43,6 +43,7 @@ or whose ``independent`` coordinates do not fix the others' rates.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 import importlib.util
@@ -55,6 +56,7 @@ from typing import Any
 import numpy as np
 
 from ..dynamics import constraints as _constraints
+from ..dynamics.jit import package_stamp
 from .base import Model, Params, as_vector, param
 from .constrained import ConstrainedModel
 
@@ -1005,7 +1007,7 @@ _CLASSES: dict[str, type] = {}
 
 def model_class(d: Derivation) -> type:
     """The :class:`DerivedModel` subclass of a derivation (one per generated source, kept)."""
-    source = generate_source(d)
+    source = source_of(d)
     key = hashlib.sha256(source.encode()).hexdigest()
     if key in _CLASSES:
         return _CLASSES[key]
@@ -1065,16 +1067,45 @@ def cached_derivation(name: str, q: Sequence[Any], T: Any, V: Any, params: Mappi
                 B, damp, [sp.srepr(sp.sympify(c)) for c in constraints], [sp.srepr(sp.sympify(c)) for c in velocity_constraints], ind, fric))  # fmt: skip
     folder = pathlib.Path(cache or CACHE)
     path = folder / f"derivation_{hashlib.sha256(key.encode()).hexdigest()[:32]}.pkl"
+    source = path.with_suffix(f".{package_stamp()[:16]}.source")  # its generated code, by this version of the package
     if path.exists():
         try:
             stored = pickle.loads(path.read_bytes())
             if stored[0] == key:
+                _SOURCES[id(stored[1])] = (stored[1], source)
                 return stored[1]
         except Exception:  # a damaged or foreign file: derive again and overwrite it
             pass
     d = derive_equations(name, q, T, V, params, actuation, damping, constraints, velocity_constraints, independent, friction=friction)
     folder.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(f".{os.getpid()}.tmp")
-    tmp.write_bytes(pickle.dumps((key, d)))
-    os.replace(tmp, path)
+    _write(path, pickle.dumps((key, d)))
+    _SOURCES[id(d)] = (d, source)
     return d
+
+
+def _write(path: pathlib.Path, data: bytes) -> None:
+    """``data`` to ``path`` atomically (a concurrent process reads the whole file or none)."""
+    tmp = path.with_suffix(f".{os.getpid()}.tmp")
+    tmp.write_bytes(data)
+    os.replace(tmp, path)
+
+
+#: derivations of :func:`cached_derivation` -> (the derivation, where its generated source is kept): a warm process
+#: reads it instead of printing the equations again (SymPy's printing: 0.35 s of a derived scene's warm first step)
+_SOURCES: dict[int, tuple[Derivation, pathlib.Path]] = {}
+
+
+def source_of(d: Derivation) -> str:
+    """:func:`generate_source` of ``d``, read from the derivation cache where :func:`cached_derivation` kept it (keyed
+    by the package's sources as well: any edit of the generator generates again)."""
+    kept = _SOURCES.get(id(d))
+    if kept is not None and kept[0] is d:
+        try:
+            return kept[1].read_text()
+        except OSError:
+            pass
+    source = generate_source(d)
+    if kept is not None and kept[0] is d:
+        with contextlib.suppress(OSError):
+            _write(kept[1], source.encode())
+    return source

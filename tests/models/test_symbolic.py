@@ -92,6 +92,29 @@ def test_the_derivation_is_cached_on_disk_and_the_model_pickles(tmp_path, monkey
     np.testing.assert_array_equal(copy.mass_matrix(q), model.mass_matrix(q))
 
 
+def test_the_generated_source_is_kept_beside_the_derivation_for_this_version_of_the_package(tmp_path, monkeypatch):
+    """A warm process reads the generated code instead of printing the equations again (SymPy's printing), and a
+    source kept by another version of the package (another stamp) is not used: it is generated again."""
+    (q1, q2), T, V = arm_lagrangian()
+    params = {k: getattr(Planar2R().params, k) for k in NAMES}
+    d = symbolic.cached_derivation("Arm2R", (q1, q2), T, V, params, cache=tmp_path)
+    source = symbolic.source_of(d)
+    assert source == symbolic.generate_source(d)
+    kept = list(tmp_path.glob("derivation_*.source"))
+    assert len(kept) == 1 and kept[0].read_text() == source and symbolic.package_stamp()[:16] in kept[0].name
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("printed again although kept")
+
+    monkeypatch.setattr(symbolic, "generate_source", refuse)
+    again = symbolic.cached_derivation("Arm2R", (q1, q2), T, V, params, cache=tmp_path)  # a new process's derivation
+    assert symbolic.source_of(again) == source
+    monkeypatch.setattr(symbolic, "package_stamp", lambda: "0" * 40)  # another version of the package
+    other = symbolic.cached_derivation("Arm2R", (q1, q2), T, V, params, cache=tmp_path)
+    with pytest.raises(AssertionError, match="printed again"):
+        symbolic.source_of(other)
+
+
 def test_malformed_lagrangians_are_refused_by_name():
     (q1, q2), T, V = arm_lagrangian()
     params = {k: 1.0 for k in NAMES}
