@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import os
 import subprocess
 import sys
@@ -16,7 +15,7 @@ import numpy as np
 import pytest
 
 import mbs_envs  # noqa: F401
-from mbs_envs.dynamics import background
+from mbs_envs.dynamics import background, interpreted
 from mbs_envs.dynamics.jit import njit
 from mbs_envs.dynamics.trig import fma
 
@@ -177,7 +176,7 @@ def test_numba_power_is_numbas_power():
             for n in (0, 1, 5, -3):
                 want = powers(a, n)
                 k = 8 if 0.0 < a < np.inf else 6  # libm's pow of a float exponent: for positive finite bases (math.pow
-                got = tuple(background.numba_power(a, e) for e in (2, 3, -2, 7, n, 2.0, 0.5, 1.7)[:k])  # raises else)
+                got = tuple(interpreted.numba_power(a, e) for e in (2, 3, -2, 7, n, 2.0, 0.5, 1.7)[:k])  # raises else)
                 assert np.asarray(got).tobytes() == np.asarray(want[:k]).tobytes(), (a, n, got, want)
 
 
@@ -191,7 +190,7 @@ def test_the_python_fma_is_the_instruction():
     c = -a * b  # near-cancellations, where a separate product and sum would differ most
     cases = list(zip(a, b, c)) + [(0.0, -1.0, -0.0), (-0.0, 1.0, -0.0), (0.0, 1.0, -0.0), (1.0, 1.0, -1.0), (np.inf, 0.0, 1.0)]
     for x, y, z in cases:
-        assert np.float64(background.fma_exact(x, y, z)).tobytes() == np.float64(fused(x, y, z)).tobytes(), (x, y, z)
+        assert np.float64(interpreted.fma_exact(x, y, z)).tobytes() == np.float64(fused(x, y, z)).tobytes(), (x, y, z)
 
 
 def test_a_single_env_switches_to_compiled_code_without_changing_its_episode(monkeypatch):
@@ -208,7 +207,7 @@ def test_a_single_env_switches_to_compiled_code_without_changing_its_episode(mon
         for i in range(60):
             u._direct_call = None  # looked up again at every step (a real switch: when the child's answers move the generation)
             if i < forced:  # the Python of its step, as while the child process compiles
-                monkeypatch.setattr(background, "entry", lambda k, a: (background.interpreted(k), False))
+                monkeypatch.setattr(background, "entry", lambda k, a: (interpreted.interpreted(k), False))
             else:
                 monkeypatch.undo()
             o, r, *_ = env.step(rng.uniform(-1, 1, env.action_space.shape).astype(np.float32))

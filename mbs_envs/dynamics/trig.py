@@ -24,7 +24,7 @@ import numpy as np
 from numba import types
 from numba.core.extending import intrinsic
 
-from .background import fma_exact, python_version
+from .interpreted import fma_exact, python_version
 from .jit import njit
 
 SINCOS_RANGE = 2.0**19 * np.pi / 2
@@ -148,7 +148,7 @@ def fma(typingctx, a, b, c):  # pragma: no cover - compiled
     return sig, codegen
 
 
-python_version(fma, fma_exact)  # what the kernels' Python calls (mbs_envs.dynamics.background)
+python_version(fma, fma_exact)  # what the kernels' Python calls (mbs_envs.dynamics.interpreted)
 
 
 @njit(inline="always")
