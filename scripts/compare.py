@@ -39,9 +39,13 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import os
 import pathlib
 import sys
 from typing import Any
+
+# every core busy with this script's processes: kernels compile before they run (mbs_envs/dynamics/background.py)
+os.environ.setdefault("MBS_ENVS_JIT", "sync")
 
 import gymnasium as gym
 import numpy as np

@@ -17,9 +17,13 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import os
 import pathlib
 import sys
 import time
+
+# every core busy with this script's processes: kernels compile before they run (mbs_envs/dynamics/background.py)
+os.environ.setdefault("MBS_ENVS_JIT", "sync")
 
 import mbs_envs  # noqa: F401
 from mbs_envs.studies import scene_robustness as sr

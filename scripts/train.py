@@ -22,8 +22,12 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import pathlib
 import sys
+
+# every core busy with this script's processes: kernels compile before they run (mbs_envs/dynamics/background.py)
+os.environ.setdefault("MBS_ENVS_JIT", "sync")
 
 import mbs_envs  # noqa: F401
 from mbs_envs.envs import registry
