@@ -110,8 +110,8 @@ def njit(f=None, *, cache: bool = True, **options):
     ``step_kernel``); closures over kernels would compile again in every process.
     ``options`` go to ``numba.njit`` (e.g. ``inline="always"``).
 
-    A call from Python with argument types not compiled yet runs the kernel's Python (the same bits) while a
-    thread compiles it (:mod:`mbs_envs.dynamics.background`).
+    Within an env's construction, reset and single step, a call from Python with argument types not compiled yet runs
+    the kernel's Python (the same bits) while a child process compiles it (:mod:`mbs_envs.dynamics.background`).
     """
     decorate = numba.njit(cache=cache, error_model="numpy", **options)
     if f is None:

@@ -353,7 +353,7 @@ class MBSEnv(gym.Env):
         # a single env: its overload called directly (:func:`mbs_envs.dynamics.jit.direct`), looked up again when an
         # argument object changes (a setting, the model's parameters, the episode's task); the state and the outputs
         # are built above the same way every step, so their types repeat. Until the kernel is compiled, its Python
-        # (the same bits, :mod:`mbs_envs.dynamics.background`), looked up again once the compiling thread moved on
+        # (the same bits, :mod:`mbs_envs.dynamics.background`), looked up again once the compiling child has answered
         c = self.__dict__.get("_direct_call")
         if (
             c is None or c[0] is not theta or c[1] is not stepper or c[2] is not control or c[3] is not task
