@@ -302,8 +302,8 @@ def _choose(kernel: Dispatcher, args: tuple, sig: tuple | None = None, allow: bo
     key = (id(kernel), sig)
     if key in _state["done"] or key in _state["failed"]:
         return None  # compiled by the child (loaded from the disk cache now), or failed there (raised here)
-    if m == "background" and (_in_cache(kernel, sig) or not _request(kernel, sig)):
-        return None
+    if m == "background" and key not in _state["pending"] and (_in_cache(kernel, sig) or not _request(kernel, sig)):
+        return None  # loaded from the disk cache, or not for the child: compiled here (a pending one: no disk lookup)
     return _guarded(kernel, sig)
 
 
@@ -349,11 +349,10 @@ def entry(kernel: Dispatcher, args: tuple) -> tuple[Callable, bool]:
     from .jit import direct
 
     sig = _signature(kernel, args)
-    if sig not in kernel.overloads:
-        f = _choose(kernel, args, sig, allow=True)
-        if f is not None:
-            return f, False
-    return direct(kernel, args), True
+    if sig in kernel.overloads:
+        return kernel.overloads[sig].entry_point, True
+    f = _choose(kernel, args, sig, allow=True)
+    return (f, False) if f is not None else (direct(kernel, args), True)
 
 
 def _after_fork_child() -> None:

@@ -87,7 +87,7 @@ _LIBM = {
 
 def _libm(name: str, f: Callable) -> Callable:
     """``np.<name>`` as compiled code computes it: libm's ``f`` on a float, element by element on an array."""
-    elementwise = np.frompyfunc(f, f.__code__.co_argcount if hasattr(f, "__code__") else (2 if name == "arctan2" else 1), 1)
+    elementwise = np.frompyfunc(f, 2 if name == "arctan2" else 1, 1)
 
     def g(*x):
         if all(isinstance(a, (float, int, np.floating, np.integer)) for a in x):
