@@ -12,8 +12,8 @@ Per registered scene (``gym.make`` defaults; the registry's ``bench_kwargs``: Se
 - ``cold start``: a fresh process's ``import`` + ``gym.make`` + ``reset`` +
   first ``step`` [s], with numba's on-disk cache empty (``NUMBA_CACHE_DIR`` a new
   folder: every kernel compiled) and then warm (the same folder again), in the default
-  ``MBS_ENVS_JIT`` mode (a first step on the kernels' Python while a thread compiles them;
-  ``(all compiled)``: until that thread is done); Acrobot-v1 alike for scale. The steps timed
+  ``MBS_ENVS_JIT`` mode (a first step on the kernels' Python while a child process compiles
+  them; ``(all compiled)``: until that child is done); Acrobot-v1 alike for scale. The steps timed
   in this process are compiled ones (``MBS_ENVS_JIT=sync`` here).
 
 Only the public API is used, so ``--baseline DIR`` runs the very same

@@ -1099,13 +1099,12 @@ def source_of(d: Derivation) -> str:
     """:func:`generate_source` of ``d``, read from the derivation cache where :func:`cached_derivation` kept it (keyed
     by the package's sources as well: any edit of the generator generates again)."""
     kept = _SOURCES.get(id(d))
-    if kept is not None and kept[0] is d:
-        try:
-            return kept[1].read_text()
-        except OSError:
-            pass
-    source = generate_source(d)
-    if kept is not None and kept[0] is d:
+    path = kept[1] if kept is not None and kept[0] is d else None
+    if path is not None:
         with contextlib.suppress(OSError):
-            _write(kept[1], source.encode())
+            return path.read_text()
+    source = generate_source(d)
+    if path is not None:
+        with contextlib.suppress(OSError):
+            _write(path, source.encode())
     return source
