@@ -10,12 +10,12 @@ its imports, blank lines not counted.
 """
 
 import sympy as sp
-from sympy.physics.mechanics import dynamicsymbols
 
 from ..models import symbolic
+from ..models.symbolic import dynamicsymbols
 from .derived import DerivedTrackingEnv
 
-t = dynamicsymbols._t
+t = symbolic.time_symbol()
 x, th1, th2 = dynamicsymbols("x th1 th2")
 m0, m1, m2, l1, l2, g = sp.symbols("m0 m1 m2 l1 l2 g")
 up = lambda a: sp.Matrix([sp.sin(a), sp.cos(a)])  # noqa: E731  (a unit vector at angle a from upright)

@@ -11,12 +11,12 @@ everything above the registry hooks: 23 lines with its imports, blank lines not 
 import math
 
 import sympy as sp
-from sympy.physics.mechanics import dynamicsymbols
 
 from ..models import symbolic
+from ..models.symbolic import dynamicsymbols
 from .derived_swingup import DerivedSwingUpEnv
 
-t = dynamicsymbols._t
+t = symbolic.time_symbol()
 x, th = dynamicsymbols("x th")
 m0, m, l, g = sp.symbols("m0 m l g")
 up = sp.Matrix([sp.sin(th), sp.cos(th)])  # the pole's direction (th from upright)

@@ -11,12 +11,12 @@ its imports, blank lines not counted.
 import math
 
 import sympy as sp
-from sympy.physics.mechanics import dynamicsymbols
 
 from ..models import symbolic
+from ..models.symbolic import dynamicsymbols
 from .derived import DerivedTrackingEnv
 
-t = dynamicsymbols._t
+t = symbolic.time_symbol()
 th, ps, s = dynamicsymbols("th ps s")
 r, l, m1, m2, m3, g = sp.symbols("r l m1 m2 m3 g")
 A = sp.Matrix([r * sp.cos(th), r * sp.sin(th)])  # crank pin

@@ -51,18 +51,28 @@ def reach_gravity_torque(model: SpatialChain) -> np.ndarray:
     return float(np.linalg.norm(p.g_vec)) * np.sum(np.triu(p.m[None, :] * lever), axis=1)
 
 
+#: the gradient tolerance of :func:`hanging_posture`'s BFGS [N m]
+GTOL = 1e-10
+
+
 def hanging_posture(model: SpatialChain) -> np.ndarray:
     """A rest posture [rad], shape (N,): the minimum of the potential energy reached from
     ``q = (0, pi/2, 0, ..., 0)`` (the default chain's own minimum: a horizontal first link turning about
-    the vertical, everything beyond hanging straight down) by BFGS on ``V(q)`` with the gradient ``G(q)``."""
-    from scipy.optimize import minimize
+    the vertical, everything beyond hanging straight down) by BFGS on ``V(q)`` with the gradient ``G(q)``.
 
+    Where ``G`` already vanishes at that start to BFGS's tolerance (``max |G| <= 1e-10``: the default chain,
+    ``|G| ~ 1e-16``), BFGS returns the start untouched at its first test, and so does this, without importing
+    ``scipy.optimize`` (0.2-0.3 s of a fresh process's first ``gym.make``, docs/performance.md)."""
     n = model.n_links
     q0 = np.zeros(n)
     if n > 1:
         q0[1] = np.pi / 2
+    if np.max(np.abs(model.gravity(q0))) <= GTOL:  # BFGS's own first test (its default norm: the largest entry)
+        return q0
+    from scipy.optimize import minimize
+
     res = minimize(lambda q: float(model.potential_energy(q)), q0, jac=lambda q: model.gravity(q), method="BFGS",
-                   options={"gtol": 1e-10, "maxiter": 200 * n})  # fmt: skip
+                   options={"gtol": GTOL, "maxiter": 200 * n})  # fmt: skip
     return np.asarray(res.x, float)
 
 

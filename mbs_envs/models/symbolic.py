@@ -60,6 +60,37 @@ from ..dynamics.jit import package_stamp
 from .base import Model, Params, as_vector, param
 from .constrained import ConstrainedModel
 
+def time_symbol() -> Any:
+    """The time ``t``: ``sympy.Symbol("t")``, the symbol :mod:`sympy.physics.mechanics` differentiates by
+    (``dynamicsymbols._t``, equal to it)."""
+    import sympy as sp
+
+    return sp.Symbol("t")
+
+
+def dynamicsymbols(names: str) -> Any:
+    """Coordinates as functions of time, ``q(t)``: what ``sympy.physics.mechanics.dynamicsymbols(names)`` returns
+    (the same objects: equal, the same ``srepr``, so the same derivation cache entry), without importing
+    :mod:`sympy.physics`, whose units package alone takes 0.1 s of a process's start (docs/performance.md). The
+    derivation imports it when it derives; a warm process reading the cache never does.
+
+    Parameters
+    ----------
+    names : str
+        One name, or several separated by spaces or commas (``sympy.symbols``' syntax).
+
+    Returns
+    -------
+    sympy expression, or list of them
+        ``f(t)`` for each name, a list where ``names`` names several.
+    """
+    import sympy as sp
+
+    fs = sp.symbols(names, cls=sp.Function)
+    t = time_symbol()
+    return [f(t) for f in fs] if isinstance(fs, (tuple, list)) else fs(t)
+
+
 #: where generated modules are kept (``$MBS_ENVS_DERIVED_CACHE`` overrides)
 CACHE = pathlib.Path(os.environ.get("MBS_ENVS_DERIVED_CACHE", pathlib.Path.home() / ".cache" / "mbs_envs" / "derived"))
 

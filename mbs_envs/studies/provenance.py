@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import importlib.metadata
 import os
+import pathlib
 import platform
 import sys
 from typing import Any
@@ -51,7 +52,7 @@ def pin_numerics() -> dict[str, str]:
 def cpu() -> dict[str, Any]:
     """The CPU's model name and which of :data:`CPU_FLAGS` it has (from ``/proc/cpuinfo``; empty elsewhere)."""
     try:
-        text = open("/proc/cpuinfo").read()
+        text = pathlib.Path("/proc/cpuinfo").read_text()
     except OSError:
         return {"model": platform.processor() or "unknown", "flags": []}
     info = dict(line.split(":", 1) for line in text.splitlines()[:40] if ":" in line)

@@ -71,6 +71,23 @@ def test_the_rest_posture_is_the_potential_minimum(n):
         np.testing.assert_allclose(p[2:, :2], np.broadcast_to(p[1, :2], p[2:, :2].shape), atol=1e-12)
 
 
+@pytest.mark.parametrize("axis", [None, [[0, 0, 1], [0.6, 0.8, 0], [0, 0.6, 0.8]]], ids=["default", "tilted"])
+def test_the_rest_posture_is_bfgs_result_with_or_without_scipy(axis):
+    """The default chain starts at its minimum (no scipy.optimize needed, the same bits BFGS returns); a chain
+    with tilted axes does not, and BFGS moves it to a stationary point of lower potential energy."""
+    from scipy.optimize import minimize
+
+    chain = SpatialChain(n_links=3) if axis is None else SpatialChain(n_links=3, axis=axis)
+    q0 = np.array([0.0, np.pi / 2, 0.0])
+    ref = minimize(lambda q: float(chain.potential_energy(q)), q0, jac=lambda q: chain.gravity(q), method="BFGS",
+                   options={"gtol": 1e-10, "maxiter": 600})  # fmt: skip
+    q = hanging_posture(chain)
+    assert np.array_equal(q, ref.x)
+    assert (ref.nit == 0) == (axis is None)  # the fast path is taken exactly where BFGS takes no step
+    assert np.max(np.abs(chain.gravity(q))) <= 1e-10
+    assert chain.potential_energy(q) <= chain.potential_energy(q0)
+
+
 @pytest.mark.parametrize("n", [10, 100])
 def test_computed_torque_tracks_and_pd_stays_within_the_drives(n):
     env = gym.make(ENV_ID, n_links=n)

@@ -451,3 +451,30 @@ def test_friction_laws_that_are_malformed_are_refused_by_name():
         symbolic.derive_equations("Bad", (q1, q2), T, V, params, friction={q1: sp.Symbol("mu") * sp.tanh(q1.diff(t))})
     with pytest.raises(ValueError, match="friction must be a mapping"):
         symbolic.derive_equations("Bad", (q1, q2), T, V, params, friction=[q1.diff(t)])
+
+
+def test_the_light_dynamicsymbols_are_sympys():
+    """symbolic.dynamicsymbols returns what sympy.physics.mechanics' does (equal, the same srepr: the same cache key)."""
+    for names in ("th", "x th", "q1, q2, q3"):
+        ours, theirs = symbolic.dynamicsymbols(names), dynamicsymbols(names)
+        assert ours == theirs and sp.srepr(ours) == sp.srepr(theirs)
+    assert symbolic.time_symbol() == dynamicsymbols._t
+    th = symbolic.dynamicsymbols("th")
+    assert th.diff(symbolic.time_symbol()) == dynamicsymbols("th", 1)
+
+
+def test_a_warm_process_makes_a_derived_scene_without_sympy_physics():
+    """A derived scene's first make, reset and step with the derivation cached: sympy.physics (0.1 s of imports)
+    is not loaded; only a derivation (a cache miss) imports it."""
+    import subprocess
+    import sys
+
+    import gymnasium as gym
+
+    gym.make("mbs_envs/CartPoleSwingUp-v0")  # the derivation is in this run's cache now
+    code = ("import sys, gymnasium as gym, mbs_envs\n"
+            "env = gym.make('mbs_envs/CartPoleSwingUp-v0'); env.reset(seed=0); env.step(env.action_space.sample())\n"
+            "print(sorted(m for m in sys.modules if m.startswith('sympy.physics')))")  # fmt: skip
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.strip().splitlines()[-1] == "[]"
