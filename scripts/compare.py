@@ -85,10 +85,14 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--robustness-seeds", type=int, default=1, help="test seeds per value of the robustness sweep (default 1)")
     p.add_argument("--robustness-pulses", type=int, default=10, help="perturbation episodes of the robustness sweep (default 10; --quick 2)")
     p.add_argument("--no-robustness", action="store_true", help="skip the robustness sweep")
+    p.add_argument("--plots-only", action="store_true",
+                   help="redraw comparison_<scene>.png from the summary.json already in --out (no evaluation)")
     return p.parse_args(argv)
 
 
 def run(args: argparse.Namespace) -> dict:
+    if args.plots_only:
+        return replot(args.out)
     n_seeds = 3 if args.quick else args.seeds
     if not 1 <= n_seeds <= len(seed_ranges.TEST):
         raise SystemExit(f"--seeds must be in [1, {len(seed_ranges.TEST)}]")
@@ -146,6 +150,15 @@ def run(args: argparse.Namespace) -> dict:
     print(f"written to {args.out}/report.md, episodes.csv, summary.json, learning_curves.png, comparison_<scene>.png"
           + (" and robustness_<scene>.png" if robust else ""))  # fmt: skip
     return {"summary": summary, "rows": rows, "sizing": sizing, "robustness": robust}
+
+
+def replot(out: pathlib.Path) -> dict:
+    """``--plots-only``: each scene's comparison figure drawn again from ``out/summary.json``."""
+    summary = json.loads((out / "summary.json").read_text())["summary"]
+    for scene in tqdm(summary, desc="plots"):
+        plot_scene(scene, summary[scene], out / f"comparison_{scene}.png")
+    print(f"written to {out}/comparison_<scene>.png")
+    return {"summary": summary}
 
 
 def robustness(args: argparse.Namespace, policies: dict[str, dict[str, list[str]]]) -> tuple[dict, dict]:
@@ -320,7 +333,8 @@ def training_curves(agents: dict[str, list[str]]) -> dict[str, dict]:
             path = pathlib.Path(folder) / "training_log.csv"
             if not path.exists():
                 continue
-            rows = list(csv.DictReader(open(path)))
+            with open(path, newline="") as f:
+                rows = list(csv.DictReader(f))
             cfg = json.loads((pathlib.Path(folder) / "config.json").read_text())
             runs.append({"timesteps": [float(r["timesteps"]) for r in rows], "train_wall_s": [float(r["train_wall_s"]) for r in rows],
                          "rms_error_settled": [float(r["rms_error_settled"]) for r in rows],
@@ -333,28 +347,65 @@ def training_curves(agents: dict[str, list[str]]) -> dict[str, dict]:
 
 
 def plot_scene(scene: str, by_cond: dict, path: pathlib.Path) -> None:
-    """Error over successful episodes with 95 % CIs per condition and policy; success rates annotated."""
+    """Per condition and policy, means with 95 % CIs: on the tracking scenes the settled error of the successful
+    episodes (log axis: errors span decades), the success rate written where it is below 100 %; on the swing-up
+    scenes two panels, the success rate at 0.1 rad and the time to swing up of the successful episodes (linear axes
+    from zero: the times differ by seconds, not decades). A policy without a successful episode has no error or
+    time: its success is written at the foot of the axis, inside it, so no label can stretch the figure."""
     plt = pyplot()
-    fig, ax = plt.subplots(figsize=(12, 4.5))
+    swing_up = scoring_of(scene) == "swing-up"
     conds = list(by_cond)
     policies = [p for p in by_cond["nominal"] if p != "no control"]
     x = np.arange(len(conds))
     width = 0.8 / len(policies)
     key = cmp.ERROR_METRIC[scoring_of(scene)]
-    for k, name in enumerate(policies):
-        m = [by_cond[c][name] for c in conds]
-        y = np.array([v[key] for v in m])
-        err = np.array([[v[key] - v[key + "_lo"], v[key + "_hi"] - v[key]] for v in m]).T
-        ax.bar(x + k * width, y, width, yerr=err, capsize=2, label=name)
-        for xi, v in zip(x + k * width, m):
-            if v["success"] < 1:
-                ax.text(xi, v[key] if np.isfinite(v[key]) else 1e-3, f"{v['success']:.0%}", fontsize=6, ha="center", va="bottom", rotation=90)
-    ax.set_yscale("log")
+    if swing_up:
+        fig, (ax_s, ax) = plt.subplots(2, 1, figsize=(12, 7), sharex=True)
+        bars(ax_s, x, width, policies, [[by_cond[c][p] for c in conds] for p in policies], "success", scale=100.0)
+        ax_s.set_ylim(0, 125)  # room for the legend above 100 %
+        ax_s.set_yticks(np.arange(0, 101, 20))
+        ax_s.set_ylabel("success at 0.1 rad [%]")
+        ax_s.set_title(f"{scene}: mean and 95 % CI over test episodes (and training seeds)")
+        ax_s.legend(fontsize=7, ncol=len(policies), loc="upper center")
+    else:
+        fig, ax = plt.subplots(figsize=(12, 4.5))
+        ax.set_title(f"{scene}: mean and 95 % CI over test episodes (and training seeds); labels: success rate if < 100 %")
+    bars(ax, x, width, policies, [[by_cond[c][p] for c in conds] for p in policies], key, label_success=not swing_up)
+    if swing_up:
+        ax.set_ylim(bottom=0.0)
+        ax.set_ylabel("time to swing up, successful episodes [s]")
+    else:
+        ax.set_yscale("log")
+        low, high = ax.get_ylim()
+        ax.set_ylim(low, high * 4)  # room for the success labels above the highest bars
+        ax.set_ylabel("settled RMS error, successful episodes [rad]")
+        ax.legend(fontsize=7, ncol=2)
     ax.set_xticks(x + 0.4 - width / 2, conds, fontsize=8)
-    ax.set_ylabel("settled RMS error, successful episodes [rad]" if key == "rms_error_settled" else "time to swing up, successful episodes [s]")
-    ax.legend(fontsize=7, ncol=2)
-    ax.set_title(f"{scene}: mean and 95 % CI over test episodes (and training seeds); labels: success rate if < 100 %")
     save(fig, path)
+
+
+def bars(ax: Any, x: np.ndarray, width: float, policies: list[str], cells: list[list[dict]], key: str, scale: float = 1.0,
+         label_success: bool = False) -> None:  # fmt: skip
+    """One bar per policy and condition: ``cells[k][i][key]`` (times ``scale``) with its 95 % CI; a missing (NaN) value
+    draws no bar. With ``label_success``, the success rate is written above each bar where it is below 100 %, and
+    at the foot of the axis (axes coordinates) where there is no bar."""
+    foot = ax.get_xaxis_transform()  # x in data, y in axes fractions
+    for k, (name, m) in enumerate(zip(policies, cells)):
+        y = np.array([v[key] for v in m], float) * scale
+        err = np.array([[v[key] - v[key + "_lo"], v[key + "_hi"] - v[key]] for v in m], float).T * scale
+        xs = x + k * width
+        ax.bar(xs, y, width, yerr=err, capsize=2, label=name, color=f"C{k}")
+        if not label_success:
+            continue
+        for xi, yi, v in zip(xs, y, m):
+            if v["success"] >= 1:
+                continue
+            text = f"{v['success']:.0%}"
+            if np.isfinite(yi):
+                ax.annotate(text, (xi, v[key + "_hi"] * scale), xytext=(0, 3), textcoords="offset points", fontsize=6, ha="center",
+                            va="bottom", rotation=90)  # fmt: skip
+            else:
+                ax.text(xi, 0.02, text, transform=foot, fontsize=6, ha="center", va="bottom", rotation=90, color=f"C{k}")
 
 
 def plot_learning_curves(summary: dict, curves: dict, path: pathlib.Path) -> None:

@@ -19,11 +19,39 @@ def load_script(name: str):
     return runpy.run_path(str(ROOT / "scripts" / name))
 
 
-def test_readme_usage_examples_run():
+def test_readme_usage_examples_run(tmp_path):
+    """The README's Python blocks, as written, one after the other (later blocks use earlier names) in a script run by
+    a fresh interpreter from an empty folder outside the checkout: as a user pastes them, the installed package found
+    from anywhere."""
+    import subprocess
+    import sys
+
     text = (ROOT / "README.md").read_text()
-    namespace: dict = {}
-    for block in text.split("```python")[1:]:  # later blocks may use earlier names
-        exec(compile(block.split("```")[0], "README.md", "exec"), namespace)
+    blocks = [block.split("```")[0] for block in text.split("```python")[1:]]
+    assert blocks and "gym.make" in blocks[0]
+    script = tmp_path / "usage.py"
+    script.write_text("\n".join(blocks))
+    env = {k: v for k, v in __import__("os").environ.items() if k != "PYTHONPATH"}
+    res = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert "Warning" not in res.stderr, res.stderr[-3000:]
+
+
+def test_the_comparison_figures_stay_readable(tmp_path):
+    """issue 37: the swing-up figure plotted 7-9 s on a log axis and put the success labels of policies without a
+    successful episode at y = 1e-3, which stretched the saved figure to 4,117 pixels. Now: success and time on
+    linear axes from zero, labels inside the axes, the figure its set size."""
+    from PIL import Image
+
+    script = load_script("compare.py")
+    cell = lambda s, t: {"success": s, "success_lo": max(s - 0.1, 0), "success_hi": min(s + 0.1, 1), "time_to_swing_up": t,  # noqa: E731
+                         "time_to_swing_up_lo": t - 0.5, "time_to_swing_up_hi": t + 0.5, "rms_error_settled": t / 100,
+                         "rms_error_settled_lo": t / 200, "rms_error_settled_hi": t / 50}  # fmt: skip
+    by_cond = {c: {"A": cell(0.9, 7.5), "B": cell(0.0, float("nan")), "C": cell(1.0, 8.5)} for c in ("nominal", "obs noise 0.01")}
+    for scene, size in (("Acrobot", (1320, 770)), ("Planar2R", (1320, 495))):
+        path = tmp_path / f"{scene}.png"
+        script["plot_scene"](scene, by_cond, path)
+        assert Image.open(path).size == size
 
 
 def test_compare_quick_end_to_end(tmp_path, capsys):
@@ -550,3 +578,66 @@ def test_bench_resets_times_both_ways_of_drawing_starts_against_cartpole(tmp_pat
     assert all(r["per_env_step_us"] > 0 and np.isfinite(r["ratio_to_cartpole"]) for r in rows.values())
     assert rows[("CartPole-v1", "zero", "gymnasium")]["episodes_ended_per_step"] > 0  # the timed runs hold episode ends
     assert "RollingDisk-v0 | random" in (tmp_path / "resets.md").read_text()
+
+
+def _quiet_run(args: list[str], tmp_path: pathlib.Path, drop: tuple = ()) -> "subprocess.CompletedProcess":  # noqa: F821
+    """A script run as a user runs it (a fresh interpreter, from an empty folder, ``drop`` left out of the environment),
+    every warning the project's own modules raise an error (``-W error::Warning:mbs_envs...``, the same for
+    ``controllers``; Python matches the module field whole, so each package's modules are named by a filter of the
+    ``warnings`` module installed before the script runs)."""
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k not in drop and k != "PYTHONPATH"}
+    prologue = ("import warnings, runpy, sys\n"
+                "warnings.filterwarnings('error', module=r'(mbs_envs|controllers)(\\..*)?$')\n"
+                "sys.argv = sys.argv[1:]\n"
+                "runpy.run_path(sys.argv[0], run_name='__main__')\n")  # fmt: skip
+    return subprocess.run([sys.executable, "-c", prologue, *args], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900)
+
+
+def test_a_tiny_main_job_in_parallel_shows_progress_and_prints_no_warning(tmp_path):
+    """issue 37: after "N cells" the parallel path printed nothing for minutes; the main job printed matplotlib's
+    "Tight layout not applied". Two worker processes: progress lines for the cells, nothing that warns."""
+    res = _quiet_run([str(ROOT / "scripts" / "compare.py"), "--out", str(tmp_path / "out"), "--quick", "--scene", "Planar2R",
+                      "--no-agents", "--no-robustness", "--workers", "2"], tmp_path)  # fmt: skip
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert "cells:" in res.stderr and "5/5" in res.stderr  # tqdm's lines: every cell counted (one scene x five conditions)
+    assert "Warning" not in res.stderr and "warn" not in res.stdout.lower(), res.stderr[-3000:]
+    assert "Planar2R" in res.stdout
+
+
+def test_a_recording_without_a_display_or_sound_card_prints_nothing_that_alarms(tmp_path):
+    """issue 37: on a machine without a display or a sound card, record.py printed pygame's XDG_RUNTIME_DIR and
+    ALSA "cannot find card" errors. Run with neither SDL_VIDEODRIVER nor XDG_RUNTIME_DIR set."""
+    pytest.importorskip("pygame")
+    pytest.importorskip("imageio_ffmpeg")
+    res = _quiet_run([str(ROOT / "scripts" / "record.py"), "--env", "mbs_envs/Acrobot-v1", "--policy", "swingup", "--seconds", "0.2",
+                      "--size", "100", "--format", "gif", "--out", str(tmp_path / "out")], tmp_path,
+                     drop=("SDL_VIDEODRIVER", "SDL_AUDIODRIVER", "XDG_RUNTIME_DIR", "DISPLAY"))  # fmt: skip
+    assert res.returncode == 0, res.stderr[-3000:]
+    for alarm in ("ALSA", "XDG_RUNTIME_DIR", "Warning", "error"):
+        assert alarm not in res.stderr, res.stderr[-3000:]
+    assert list((tmp_path / "out").glob("*.gif"))
+
+
+def test_the_printed_headline_names_every_compared_scene():
+    """issue 37: the printed headline left out the swing-up scenes. A summary of every compared scene (one
+    model-based and one RL row each): the headline and the swing-up headline printed by the main job name them all."""
+    script = load_script("compare.py")
+    from mbs_envs.studies.comparison import SCENES
+
+    def row(kind, success):
+        m = {"kind": kind, "episodes": 3, "train_seeds": 1}
+        for k, v in {"success": success, "success_wide": success, "time_near_upright": 5.0, "rms_error_settled": 0.01, "max_error": 0.02,
+                     "rms_torque": 1.0, "peak_torque": 2.0, "return": -1.0, "return_all": -1.0, "time_to_swing_up": 6.0,
+                     "energy_used": 10.0}.items():  # fmt: skip
+            m.update({k: v, k + "_lo": v, k + "_hi": v})
+        m.update(latency_us=10.0, latency_noisy_us=10.0, start_peak_torque=1.0)
+        return m
+
+    conds = ("nominal", "mismatch +20%", "mismatch -20%", "obs noise 0.01", "input delay 1 step")
+    summary = {s: {c: {"PD": row("model-based", 1.0), "PPO": row("RL", 1.0)} for c in conds} for s in SCENES}
+    printed = script["headline"](summary) + "\n" + script["swing_up_headline"](summary)
+    assert all(s in printed for s in SCENES), [s for s in SCENES if s not in printed]
