@@ -33,6 +33,8 @@ passed to ``predict`` is never changed by it.
 
 from __future__ import annotations
 
+import concurrent.futures
+import os
 from typing import Any
 
 import numpy as np
@@ -53,6 +55,37 @@ ROW_SIZE = STATE_SIZE + 5
 TERMINAL = np.diag([1.0, 1.0, 0.1, 0.1])
 #: the pumping gains searched for the initial guess (k_q [1/s^2], k_v [1/s], k_E [1/(J s)])
 PUMPING_GRID = np.array(np.meshgrid([2.0, 5.0, 10.0, 20.0, 50.0], [0.5, 1.0, 2.0, 5.0, 10.0], [1.0, 2.0, 4.0, 8.0, 16.0]), float).reshape(3, -1).T
+
+
+def plan_threads() -> int:
+    """How many members plan at once: ``$MBS_ENVS_PLAN_THREADS`` if set (>= 1), else the cores this process may
+    run on."""
+    value = os.environ.get("MBS_ENVS_PLAN_THREADS")
+    if value is None:
+        return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    try:
+        n = int(value)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise ValueError(f"MBS_ENVS_PLAN_THREADS must be a whole number >= 1, got {value!r}")
+    return n
+
+
+#: the planning threads, per process (a forked child's copy of its parent's pool has no threads) and size
+_POOL: dict[tuple[int, int], concurrent.futures.ThreadPoolExecutor] = {}
+
+
+def thread_map(f: Any, items: list) -> list:
+    """``[f(x) for x in items]``, on up to :func:`plan_threads` threads (a pool kept per process); in order."""
+    n = min(plan_threads(), len(items))
+    if n <= 1:
+        return [f(item) for item in items]
+    key = (os.getpid(), n)
+    pool = _POOL.get(key)
+    if pool is None:
+        pool = _POOL[key] = concurrent.futures.ThreadPoolExecutor(max_workers=n, thread_name_prefix="plan")
+    return list(pool.map(f, items))
 
 
 class PlannedSwingUp(AdaptiveSwingUpLQR):
@@ -152,12 +185,15 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
     def make_plans(self, row: np.ndarray, plan: np.ndarray, members: np.ndarray, x: np.ndarray, refine: np.ndarray) -> np.ndarray:
         """Plan for ``members`` from ``x`` (n, 4) on their identified models: afresh, or where ``refine`` (per
         member listed) from the rest of the plan being tracked. Writes ``row`` (phase, step, length, since) in
-        place and returns a new plan array (the one passed in untouched)."""
+        place and returns a new plan array (the one passed in untouched). Members plan on :func:`plan_threads`
+        threads at once (the compiled planner releases the GIL; each member's plan is its own, so the result does
+        not depend on how many)."""
         plan = plan.copy()
         Us, Xs, Ks = self._views(plan)
         u_max, driven, R = float(self.u_max[0]), self.driven, self.track_r
-        U_new, X_new, K_new = np.empty(self.max_steps), np.empty((self.max_steps + 1, 4)), np.empty((self.max_steps, 4))
-        for j, (i, th) in enumerate(zip(members, self.kernel_columns(row, members))):
+
+        def one(j: int, i: int, th: np.ndarray) -> tuple:
+            U_new, X_new, K_new = np.empty(self.max_steps), np.empty((self.max_steps + 1, 4)), np.empty((self.max_steps, 4))
             S = row[i, S_].reshape(4, 4)
             if refine[j]:
                 k, H = int(row[i, STEP]), int(row[i, LENGTH])
@@ -168,6 +204,11 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
                 H, err = traj.plan(x[i], PUMPING_GRID, traj.energy(self.goal, th), self.goal, S, self.w_u, self.W, self.P_T, self.Q, R, u_max,
                                    self.margin * u_max, driven, th, self.dt, self.substeps, self.max_steps, self.tail, self.patience, self.iterations,
                                    traj.ALPHAS, U_new, X_new, K_new)  # fmt: skip
+            return H, err, U_new, X_new, K_new
+
+        jobs = list(enumerate(zip(members, self.kernel_columns(row, members))))
+        results = thread_map(lambda job: one(job[0], *job[1]), jobs)
+        for (j, (i, _)), (H, err, U_new, X_new, K_new) in zip(jobs, results):
             row[i, SINCE] = 0.0
             # a refinement starts from the tracked plan's closed-loop rollout and only improves on it: taken when finite
             if H > 0 and (refine[j] or err <= self.accept):

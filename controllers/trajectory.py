@@ -246,23 +246,31 @@ def _backward(X, U, goal, w_u, W, S_T, u_max, mu, A, b, dt, kff, K):  # pragma: 
 def ilqr(x0, U, X_ref, K_ref, goal, w_u, W, S_T, u_max, driven, theta, dt, substeps, iterations, alphas):  # pragma: no cover - compiled
     """Step 2 (module docstring): improve the inputs ``U`` (H,) from ``x0`` in place, starting from the rollout
     of ``u_k = U_k + K_ref_k (x_k - X_ref_k)`` (``K_ref = 0``: open loop; a plan's own gains and states: the
-    closed-loop rollout, a far better start from a state off the plan). Returns ``(X, J)``, the states
-    (H+1, 4) along the result and its cost (inf if its rollout was not finite)."""
+    closed-loop rollout, a far better start from a state off the plan). Returns ``(X, J, A, b, current)``: the
+    states (H+1, 4) along the result and its cost (inf if its rollout was not finite), and the map's Jacobians
+    ``A`` (H, 4, 4), ``b`` (H, 4) of the last iteration, ``current`` when they are those along the result.
+
+    An iteration whose line search finds no lower cost leaves ``(X, U)`` as they were, so the next one takes the
+    Jacobians it has instead of differencing the same trajectory again (the same numbers: a third of the
+    iterations on the protocol's plans, where the Jacobians are a quarter of an iteration's work)."""
     H = U.shape[0]
     X = np.empty((H + 1, 4))
     Xn = np.empty((H + 1, 4))
     Un = np.empty(H)
     kff = np.zeros(H)
     K = np.zeros((H, 4))
+    A = np.empty((H, 4, 4))
+    b = np.empty((H, 4))
     if not _rollout(x0, U, X_ref, kff, K_ref, 0.0, u_max, driven, theta, dt, substeps, X, Un):
-        return X, np.inf
+        return X, np.inf, A, b, False
     U[:] = Un
     J = _cost(X, U, goal, w_u, W, S_T, dt)
     mu = 1e-6
-    A = np.empty((H, 4, 4))
-    b = np.empty((H, 4))
+    current = False  # whether A, b are the Jacobians along (X, U)
     for _ in range(iterations):
-        jacobians(X, U, driven, theta, dt, substeps, A, b)
+        if not current:
+            jacobians(X, U, driven, theta, dt, substeps, A, b)
+            current = True
         _backward(X, U, goal, w_u, W, S_T, u_max, mu, A, b, dt, kff, K)
         improved = False
         for a in alphas:
@@ -273,9 +281,10 @@ def ilqr(x0, U, X_ref, K_ref, goal, w_u, W, S_T, u_max, driven, theta, dt, subst
                     X[:] = Xn
                     U[:] = Un
                     improved = True
+                    current = False
                     break
         mu = max(mu / 4.0, 1e-9) if improved else mu * 10.0
-    return X, J
+    return X, J, A, b, current
 
 
 @njit
@@ -285,6 +294,14 @@ def tvlqr(X, U, Q, R, S_T, driven, theta, dt, substeps):  # pragma: no cover - c
     A = np.empty((H, 4, 4))
     b = np.empty((H, 4))
     jacobians(X, U, driven, theta, dt, substeps, A, b)
+    return riccati_gains(A, b, Q, R, S_T, dt)
+
+
+@njit
+def riccati_gains(A, b, Q, R, S_T, dt):  # pragma: no cover - compiled
+    """The time-varying LQR's gains ``K`` (H, 4) from the map's Jacobians ``A`` (>= H, 4, 4), ``b`` (H, 4): the
+    discrete Riccati recursion with stage cost ``(dx^T Q dx + R du^2) dt`` and terminal ``S_T``."""
+    H = b.shape[0]
     K = np.empty((H, 4))
     P = S_T.copy()
     Qd = Q * dt
@@ -298,7 +315,7 @@ def tvlqr(X, U, Q, R, S_T, driven, theta, dt, substeps):  # pragma: no cover - c
     return K
 
 
-@njit
+@njit(nogil=True)  # members plan on threads of their own (controllers.planned_swingup)
 def plan(x0, gains, E_up, goal, S, w_u, W, P_T, Q, R, u_max, u_plan, driven, theta, dt, substeps, steps, tail, patience, iterations,
          alphas, U_out, X_out, K_out):  # pragma: no cover - compiled  # fmt: skip
     """Steps 1-3 (module docstring) from ``x0`` within ``steps`` control steps, the plan's inputs within
@@ -313,18 +330,19 @@ def plan(x0, gains, E_up, goal, S, w_u, W, P_T, Q, R, u_max, u_plan, driven, the
                   iterations, alphas, U_out, X_out, K_out)  # fmt: skip
 
 
-@njit
+@njit(nogil=True)  # members plan on threads of their own (controllers.planned_swingup)
 def refine(x0, U, X_ref, K_ref, goal, S, w_u, W, P_T, Q, R, u_plan, driven, theta, dt, substeps, iterations, alphas, U_out, X_out,
            K_out):  # pragma: no cover - compiled  # fmt: skip
     """Steps 2-3 (module docstring) from the guess ``U`` (H,) with feedback ``K_ref`` about ``X_ref`` (:func:`ilqr`):
     as :func:`plan`, whose return it gives."""
     H = U.shape[0]
-    X, J = ilqr(x0, U, X_ref, K_ref, goal, w_u, W, P_T, u_plan, driven, theta, dt, substeps, iterations, alphas)
+    X, J, A, b, current = ilqr(x0, U, X_ref, K_ref, goal, w_u, W, P_T, u_plan, driven, theta, dt, substeps, iterations, alphas)
     if not np.isfinite(J):
         return 0, np.inf
     U_out[:H] = U
     X_out[: H + 1] = X
-    K_out[:H] = tvlqr(X, U, Q, R, S, driven, theta, dt, substeps)
+    # the last iteration's Jacobians where they are along the result (its line search found nothing lower)
+    K_out[:H] = riccati_gains(A, b, Q, R, S, dt) if current else tvlqr(X, U, Q, R, S, driven, theta, dt, substeps)
     return H, np.abs(wrapped(X[H], goal)).max()
 
 

@@ -32,7 +32,8 @@ def run_tasks(fn: Callable[[Any], Any], tasks: list[Any], ray_address: str | Non
         return [fn(t) for t in tasks]
     workers = max_workers or min(len(tasks), multiprocessing.cpu_count())
     context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(workers, mp_context=context, initializer=_worker_start, initargs=(os.getpid(),)) as pool:
+    threads = max(1, multiprocessing.cpu_count() // workers)  # each worker's share of the cores
+    with ProcessPoolExecutor(workers, mp_context=context, initializer=_worker_start, initargs=(os.getpid(), threads)) as pool:
         futures = [pool.submit(fn, t) for t in tasks]
         bar = _bar(len(tasks), progress)
         for _ in as_completed(futures):
@@ -54,11 +55,13 @@ def _bar(total: int, label: str | None) -> Any:
     return tqdm(total=total, desc=label)
 
 
-def _worker_start(parent: int) -> None:
+def _worker_start(parent: int, threads: int = 1) -> None:
     """Worker initializer: :func:`_exit_with_parent`; kernels compiled before they run (``MBS_ENVS_JIT=sync`` unless
     set otherwise): the pool keeps every core busy, where a process compiling beside each worker
-    (:mod:`mbs_envs.dynamics.background`) would only share them."""
+    (:mod:`mbs_envs.dynamics.background`) would only share them; the planner's threads
+    (:func:`controllers.planned_swingup.plan_threads`) limited to the worker's share of the cores, ``threads``."""
     os.environ.setdefault("MBS_ENVS_JIT", "sync")
+    os.environ.setdefault("MBS_ENVS_PLAN_THREADS", str(threads))
     _exit_with_parent(parent)
 
 

@@ -239,3 +239,57 @@ def test_the_compiled_pumping_law_is_the_swing_up_controllers(env_id):
         assert got == pytest.approx(want, rel=1e-9, abs=1e-9)
         saturated += abs(want) == u_max
     assert 0 < saturated < 200
+
+
+def test_the_gains_of_a_plan_are_the_tvlqr_along_it_whichever_jacobians_they_came_from():
+    """refine takes the last iLQR iteration's Jacobians for the time-varying LQR where its line search found nothing
+    lower (they are along the result): the gains equal a fresh tvlqr along the plan, bit for bit, both ways."""
+    env = gym.make("mbs_envs/Acrobot-v1")
+    ctrl = PlannedSwingUp(env)
+    th, model = theta_of(env.unwrapped.model), env.unwrapped.model
+    driven, u_plan = int(model.driven[0]), ctrl.margin * float(env.unwrapped.u_max[0])
+    rng = np.random.default_rng(0)
+    seen = set()
+    for iterations in (1, 3, 8, 20):
+        H = 150
+        U0 = rng.uniform(-u_plan, u_plan, H)
+        x0 = np.array([0.1, -0.2, 0.5, 0.0])
+        X, J, A, b, current = traj.ilqr(x0, U0.copy(), np.zeros((H + 1, 4)), np.zeros((H, 4)), GOAL, ctrl.w_u, ctrl.W, ctrl.P_T, u_plan,
+                                        driven, th, ctrl.dt, ctrl.substeps, iterations, traj.ALPHAS)  # fmt: skip
+        seen.add(bool(current))
+        U_out, X_out, K_out = np.empty(H), np.empty((H + 1, 4)), np.empty((H, 4))
+        Hn, _ = traj.refine(x0, U0.copy(), np.zeros((H + 1, 4)), np.zeros((H, 4)), GOAL, ctrl.S, ctrl.w_u, ctrl.W, ctrl.P_T, ctrl.Q,
+                            ctrl.track_r, u_plan, driven, th, ctrl.dt, ctrl.substeps, iterations, traj.ALPHAS, U_out, X_out, K_out)  # fmt: skip
+        assert Hn == H and np.array_equal(X_out, X)
+        assert np.array_equal(K_out, traj.tvlqr(X_out, U_out, ctrl.Q, ctrl.track_r, ctrl.S, driven, th, ctrl.dt, ctrl.substeps))
+        if current:  # the Jacobians handed back are those along the result
+            A2, b2 = np.empty_like(A), np.empty_like(b)
+            traj.jacobians(X, U_out, driven, th, ctrl.dt, ctrl.substeps, A2, b2)
+            assert np.array_equal(A, A2) and np.array_equal(b, b2)
+    assert seen == {True, False}  # both paths were taken
+
+
+def test_members_plan_on_threads_with_the_same_result(monkeypatch):
+    """A batch in which several members plan at once: the same plans and rows on one thread and on three; a
+    malformed thread count is refused by name."""
+    from controllers import planned_swingup
+
+    env = gym.make("mbs_envs/Acrobot-v1")
+    ctrl = PlannedSwingUp(env)
+    n = 3
+    out = {}
+    for threads in ("1", "3"):
+        monkeypatch.setenv("MBS_ENVS_PLAN_THREADS", threads)
+        venv = gym.make_vec("mbs_envs/Acrobot-v1", num_envs=n, vectorization_mode="vector_entry_point")
+        obs, _ = venv.reset(seed=[20000, 20001, 20002])
+        state, start = None, np.ones(n, bool)
+        for k in range(ctrl.plan_steps + 2):  # every member's first plan is due at plan_time
+            action, state = ctrl.predict(obs, state=state, episode_start=start)
+            start = np.zeros(n, bool)
+            obs, *_ = venv.step(action)
+        out[threads] = state
+    assert (out["1"][0][:, PHASE] == 1.0).sum() >= 2  # at least two members planned (and took their plans) together
+    assert all(np.array_equal(a, b) for a, b in zip(out["1"], out["3"]))
+    monkeypatch.setenv("MBS_ENVS_PLAN_THREADS", "two")
+    with pytest.raises(ValueError, match="MBS_ENVS_PLAN_THREADS"):
+        planned_swingup.plan_threads()
