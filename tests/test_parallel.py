@@ -73,3 +73,21 @@ def test_local_tasks_show_progress_and_keep_their_order(capsys):
 
     assert run_tasks(_square, list(range(6)), max_workers=2, progress="cells") == [x * x for x in range(6)]
     assert "cells" in capsys.readouterr().err
+
+
+def _plan_threads(_):
+    from controllers.planned_swingup import plan_threads
+
+    return plan_threads()
+
+
+def test_pool_workers_plan_on_their_share_of_the_cores(monkeypatch):
+    """A worker of a pool that fills the cores plans on its share of them (not every core each: they would only
+    contend); a value the user set is kept."""
+    import multiprocessing
+
+    monkeypatch.delenv("MBS_ENVS_PLAN_THREADS", raising=False)
+    share = max(1, multiprocessing.cpu_count() // 2)
+    assert run_tasks(_plan_threads, [0, 1], max_workers=2) == [share, share]
+    monkeypatch.setenv("MBS_ENVS_PLAN_THREADS", "3")
+    assert run_tasks(_plan_threads, [0, 1], max_workers=2) == [3, 3]
