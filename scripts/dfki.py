@@ -77,7 +77,8 @@ def run(args: argparse.Namespace) -> dict:
         raise SystemExit("dfki.py: no controller or agent matches --controller")
     gains = {(s, n): protocol_gains(s, n) if n in SWING_UP_CONTROLLERS else (None, "") for s, n in jobs}
     tasks = [{"env_id": SCENES[s], "spec": specs[s][n], "gains": gains[s, n][0],
-              "robustness": args.robustness, "values": args.values, "seed": args.seed} for s, n in jobs]  # fmt: skip
+              "robustness": args.robustness, "values": args.values, "seed": args.seed,
+              "progress": len(jobs) == 1 and args.ray is None} for s, n in jobs]  # fmt: skip  # one job runs here: its sweep's bar
     results = run_tasks(dfki.controller_job, tasks, ray_address=args.ray, max_workers=args.workers, progress="DFKI protocol")
     for (scene, name), res in zip(jobs, results):
         c = res["criteria"]

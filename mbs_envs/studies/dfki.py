@@ -239,7 +239,7 @@ def random_pulses(rng: np.random.Generator, episodes: int, t: np.ndarray) -> np.
     return pulses(rng, episodes, t, 2, PULSES["per_joint"], PULSES["min_spacing"], PULSES["sigma"], PULSES["amplitude"])
 
 
-def sweep(env_id: str, make_policy: Any, n: int = N_VALUES, seed: int = 0, axes: tuple = AXES) -> dict[str, dict[str, Any]]:
+def sweep(env_id: str, make_policy: Any, n: int = N_VALUES, seed: int = 0, axes: tuple = AXES, progress: bool = False) -> dict[str, dict[str, Any]]:
     """The robustness benchmark of one controller on a protocol id, one batched rollout per axis.
 
     Parameters
@@ -252,6 +252,9 @@ def sweep(env_id: str, make_policy: Any, n: int = N_VALUES, seed: int = 0, axes:
         Values per axis (their 21).
     seed : int
         Seeds the noise and the random pulses.
+    progress : bool
+        Show a progress bar over the axes (tqdm, where installed): for a sweep run on its own, not in a pool whose
+        own bar counts the jobs.
 
     Returns
     -------
@@ -276,7 +279,10 @@ def sweep(env_id: str, make_policy: Any, n: int = N_VALUES, seed: int = 0, axes:
         venv.close()
         return run_success(res)
 
+    bar = _axes_bar(env_id, len(axes)) if progress else None
     for axis in axes:
+        if bar is not None:
+            bar.set_postfix_str(axis)
         if axis == "model":
             points = model_variations(n=n)
             kept = [(name, value, params) for name, value, params in points if params is not None]
@@ -296,8 +302,21 @@ def sweep(env_id: str, make_policy: Any, n: int = N_VALUES, seed: int = 0, axes:
                  "time delay": lambda x: Perturbation(delay=np.rint(x / dt).astype(int))}[axis](values)  # fmt: skip
             out[axis] = {"values": values.tolist(), "success": batch(n, p)}
         out[axis]["fraction"] = float(np.mean(out[axis]["success"]))
+        if bar is not None:
+            bar.update(1)
+    if bar is not None:
+        bar.close()
     out["score"] = {"value": float(np.mean([out[a]["fraction"] for a in axes]))}
     return out
+
+
+def _axes_bar(env_id: str, total: int) -> Any:
+    """A tqdm bar over a sweep's axes (the plots extra), or None without tqdm."""
+    try:
+        from tqdm import tqdm
+    except ImportError:
+        return None
+    return tqdm(total=total, desc=f"{env_id.split('/')[-1]} robustness axes")
 
 
 # -- the published leaderboards (read 2026-11-25), to print our numbers beside -----------------------------
@@ -352,7 +371,7 @@ def controller_job(task: Mapping[str, Any]) -> dict[str, Any]:
 
     ``task``: ``env_id``, ``spec`` (``"module:Class"``, an agent folder or ``"lqr-catch:" + folder``, as
     :func:`mbs_envs.studies.comparison.load_policy` reads them), ``gains`` (a controller's entry of
-    ``controllers/tuned.json`` or None), ``robustness`` (bool), ``values`` and ``seed`` (the sweep's). Returns the recorded run, its
+    ``controllers/tuned.json`` or None), ``robustness`` (bool), ``values``, ``seed`` and ``progress`` (the sweep's). Returns the recorded run, its
     criteria and score, and with ``robustness`` the :func:`sweep`; wall times in seconds.
     """
     import time
@@ -375,6 +394,6 @@ def controller_job(task: Mapping[str, Any]) -> dict[str, Any]:
     out: dict[str, Any] = {"run": run_, "criteria": evaluate([run_], p.l1, p.l2)[0], "wall_s": time.perf_counter() - tic}
     if task.get("robustness"):
         tic = time.perf_counter()
-        out["sweep"] = sweep(task["env_id"], make, n=task.get("values", N_VALUES), seed=task.get("seed", 0))
+        out["sweep"] = sweep(task["env_id"], make, n=task.get("values", N_VALUES), seed=task.get("seed", 0), progress=task.get("progress", False))
         out["sweep_wall_s"] = time.perf_counter() - tic
     return out

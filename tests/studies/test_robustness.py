@@ -137,9 +137,10 @@ def test_model_variations_follow_their_axes():
     assert m2r2_low["I2"] == pytest.approx(presets.DFKI_C1.I2 - presets.DFKI_C1.m2 * (0.75 * presets.DFKI_C1.r2) ** 2)
 
 
-def test_sweep_runs_every_axis_batched(monkeypatch):
+def test_sweep_runs_every_axis_batched(monkeypatch, capsys):
     """A small sweep (3 values, 4 pulse episodes) of a do-nothing policy on the acrobot protocol: it never
-    swings up, so every axis fails; the structure and the score's arithmetic are checked."""
+    swings up, so every axis fails; the structure and the score's arithmetic are checked; with ``progress`` a bar
+    counts the axes (a sweep run on its own, minutes long, printed nothing)."""
     monkeypatch.setattr(dfki, "PULSES", {**dfki.PULSES, "episodes": 4})
 
     class Nothing:
@@ -148,7 +149,8 @@ def test_sweep_runs_every_axis_batched(monkeypatch):
 
     monkeypatch.setattr(gym.envs.registration.registry["mbs_envs/AcrobotDFKI-v1"], "max_episode_steps", 50)
     monkeypatch.setattr(dfki, "random_pulses", lambda rng, episodes, t: np.zeros((episodes, len(t), 2)))  # 0.1 s: no room for 6 pulses
-    res = dfki.sweep("mbs_envs/AcrobotDFKI-v1", lambda env: Nothing(), n=3)
+    res = dfki.sweep("mbs_envs/AcrobotDFKI-v1", lambda env: Nothing(), n=3, progress=True)
+    assert f"{len(dfki.AXES)}/{len(dfki.AXES)}" in capsys.readouterr().err
     assert set(res) == set(dfki.AXES) | {"score"}
     assert len(res["model"]["values"]) + len(res["model"]["skipped"]) == 5 * 3 + 2 * 2
     assert len(res["perturbations"]["success"]) == 4
