@@ -60,6 +60,7 @@ from ..dynamics.jit import package_stamp
 from .base import Model, Params, as_vector, param
 from .constrained import ConstrainedModel
 
+
 def time_symbol() -> Any:
     """The time ``t``: ``sympy.Symbol("t")``, the symbol :mod:`sympy.physics.mechanics` differentiates by
     (``dynamicsymbols._t``, equal to it)."""

@@ -265,6 +265,7 @@ def sweep(env_id: str, make_policy: Any, n: int = N_VALUES, seed: int = 0, axes:
     """
     import gymnasium as gym
 
+    from .parallel import progress_bar
     from .robustness import Perturbation, run
 
     nominal = gym.make(env_id)
@@ -279,7 +280,7 @@ def sweep(env_id: str, make_policy: Any, n: int = N_VALUES, seed: int = 0, axes:
         venv.close()
         return run_success(res)
 
-    bar = _axes_bar(env_id, len(axes)) if progress else None
+    bar = progress_bar(len(axes), f"{env_id.split('/')[-1]} robustness axes" if progress else None)
     for axis in axes:
         if bar is not None:
             bar.set_postfix_str(axis)
@@ -308,15 +309,6 @@ def sweep(env_id: str, make_policy: Any, n: int = N_VALUES, seed: int = 0, axes:
         bar.close()
     out["score"] = {"value": float(np.mean([out[a]["fraction"] for a in axes]))}
     return out
-
-
-def _axes_bar(env_id: str, total: int) -> Any:
-    """A tqdm bar over a sweep's axes (the plots extra), or None without tqdm."""
-    try:
-        from tqdm import tqdm
-    except ImportError:
-        return None
-    return tqdm(total=total, desc=f"{env_id.split('/')[-1]} robustness axes")
 
 
 # -- the published leaderboards (read 2026-11-25), to print our numbers beside -----------------------------

@@ -35,7 +35,7 @@ def run_tasks(fn: Callable[[Any], Any], tasks: list[Any], ray_address: str | Non
     threads = max(1, multiprocessing.cpu_count() // workers)  # each worker's share of the cores
     with ProcessPoolExecutor(workers, mp_context=context, initializer=_worker_start, initargs=(os.getpid(), threads)) as pool:
         futures = [pool.submit(fn, t) for t in tasks]
-        bar = _bar(len(tasks), progress)
+        bar = progress_bar(len(tasks), progress)
         for _ in as_completed(futures):
             if bar is not None:
                 bar.update(1)
@@ -44,7 +44,7 @@ def run_tasks(fn: Callable[[Any], Any], tasks: list[Any], ray_address: str | Non
         return [f.result() for f in futures]
 
 
-def _bar(total: int, label: str | None) -> Any:
+def progress_bar(total: int, label: str | None) -> Any:
     """A tqdm bar (the plots extra), or None without a label or without tqdm."""
     if label is None:
         return None
