@@ -640,3 +640,37 @@ def test_the_printed_headline_names_every_compared_scene():
     summary = {s: {c: {"PD": row("model-based", 1.0), "PPO": row("RL", 1.0)} for c in conds} for s in SCENES}
     printed = script["headline"](summary) + "\n" + script["swing_up_headline"](summary)
     assert all(s in printed for s in SCENES), [s for s in SCENES if s not in printed]
+
+
+@pytest.mark.slow  # a derivation, and a child process compiling the scene's kernels (about 10 s)
+@pytest.mark.skipif(not pathlib.Path("/proc/self/environ").exists(), reason="reads other processes' environments in /proc (Linux)")
+def test_bench_derived_first_make_leaves_no_child_writing_into_its_temporary_cache(tmp_path):
+    """bench_derived's fresh process with empty caches returns only once the child compiling its kernels (issue 37's
+    background compile) is done: the child had kept writing into the temporary numba cache as the bench removed it
+    ('Directory not empty'). Checked by looking, right after the process returns, for any process still running with
+    that cache folder in its environment (a child done with its work ends at once; 2 s allowed)."""
+    import os
+    import subprocess
+    import sys
+
+    script = load_script("bench_derived.py")
+    code = script["FIRST"].format(user="", env_id="mbs_envs/CartPoleSwingUp-v0")
+    cache = str(tmp_path / "numba")
+    env = {**os.environ, "MBS_ENVS_DERIVED_CACHE": str(tmp_path / "derived"), "NUMBA_CACHE_DIR": cache}
+    env.pop("MBS_ENVS_JIT", None)  # the default mode, as the bench runs it (the tests set sync)
+    res = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=600, cwd=ROOT)
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert float(res.stdout.strip().splitlines()[-1]) > 0.0
+
+    def uses_cache(pid: str) -> bool:
+        try:
+            return f"NUMBA_CACHE_DIR={cache}".encode() in pathlib.Path(f"/proc/{pid}/environ").read_bytes().split(b"\0")
+        except OSError:  # ended meanwhile, or not ours to read
+            return False
+
+    import time
+
+    end = time.monotonic() + 2.0  # a child that has answered everything ends as soon as it sees its parent gone
+    while (alive := [pid for pid in os.listdir("/proc") if pid.isdigit() and uses_cache(pid)]) and time.monotonic() < end:
+        time.sleep(0.05)
+    assert alive == []  # without the wait: still compiling the scene's kernels some seconds on
