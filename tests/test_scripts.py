@@ -23,6 +23,7 @@ def test_readme_usage_examples_run(tmp_path):
     """The README's Python blocks, as written, one after the other (later blocks use earlier names) in a script run by
     a fresh interpreter from an empty folder outside the checkout: as a user pastes them, the installed package found
     from anywhere."""
+    import os
     import subprocess
     import sys
 
@@ -31,7 +32,7 @@ def test_readme_usage_examples_run(tmp_path):
     assert blocks and "gym.make" in blocks[0]
     script = tmp_path / "usage.py"
     script.write_text("\n".join(blocks))
-    env = {k: v for k, v in __import__("os").environ.items() if k != "PYTHONPATH"}
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     res = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
     assert res.returncode == 0, res.stderr[-3000:]
     assert "Warning" not in res.stderr, res.stderr[-3000:]
@@ -67,6 +68,7 @@ def test_compare_quick_end_to_end(tmp_path, capfd):
         out = script["run"](script["parse_args"](["--out", str(tmp_path), "--quick", "--scene", "Planar2R", "--workers", "2"]))
     printed = capfd.readouterr()
     assert "cells:" in printed.err and "5/5" in printed.err  # one scene x five conditions, counted as they finish
+    assert "robustness sweeps:" in printed.err
     assert "Warning" not in printed.err and "warn" not in printed.out.lower(), printed.err[-3000:]
     for name in ("episodes.csv", "summary.json", "report.md", "comparison_Planar2R.png"):
         assert (tmp_path / name).stat().st_size > 0
