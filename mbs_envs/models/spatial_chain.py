@@ -73,65 +73,59 @@ def _rot_entries(x, y, z, s, c):  # pragma: no cover - compiled
 
 
 @njit(inline="always")
-def _rot_into(a, s, c, R):  # pragma: no cover - compiled
-    """:func:`_rot_entries` written into ``R (3, 3)``."""
-    R[0, 0], R[0, 1], R[0, 2], R[1, 0], R[1, 1], R[1, 2], R[2, 0], R[2, 1], R[2, 2] = _rot_entries(a[0], a[1], a[2], s, c)
-
-
-@njit(inline="always")
 def _cross_motion_entries(w0, w1, w2, v0, v1, v2, a0, a1, a2, b0, b1, b2):  # pragma: no cover - compiled
     """``V x M`` of two motion vectors ``V = (w, v)``, ``M = (a, b)``: ``(w x a, w x b + v x a)``, six entries."""
     return (w1 * a2 - w2 * a1, w2 * a0 - w0 * a2, w0 * a1 - w1 * a0,
             w1 * b2 - w2 * b1 + v1 * a2 - v2 * a1, w2 * b0 - w0 * b2 + v2 * a0 - v0 * a2, w0 * b1 - w1 * b0 + v0 * a1 - v1 * a0)  # fmt: skip
 
 
-@njit
-def _cross_motion_into(V, M, out):  # pragma: no cover - compiled
-    """``out = V x M`` of two motion vectors (:func:`_cross_motion_entries`)."""
-    out[0], out[1], out[2], out[3], out[4], out[5] = _cross_motion_entries(V[0], V[1], V[2], V[3], V[4], V[5], M[0], M[1], M[2], M[3], M[4], M[5])
-
-
-@njit
-def _cross_force_into(V, F, out):  # pragma: no cover - compiled
-    """``out = V x* F`` of a motion and a force vector: ``(w x n + v x f, w x f)``."""
-    w0, w1, w2, v0, v1, v2 = V[0], V[1], V[2], V[3], V[4], V[5]
-    n0, n1, n2, f0, f1, f2 = F[0], F[1], F[2], F[3], F[4], F[5]
-    out[0] = w1 * n2 - w2 * n1 + v1 * f2 - v2 * f1
-    out[1] = w2 * n0 - w0 * n2 + v2 * f0 - v0 * f2
-    out[2] = w0 * n1 - w1 * n0 + v0 * f1 - v1 * f0
-    out[3] = w1 * f2 - w2 * f1
-    out[4] = w2 * f0 - w0 * f2
-    out[5] = w0 * f1 - w1 * f0
-
-
-@njit
-def _matvec6(I, x, out):  # pragma: no cover - compiled
-    for r in range(6):
-        acc = 0.0
-        for k in range(6):
-            acc += I[r, k] * x[k]
-        out[r] = acc
-
-
-@njit
-def _dot6(a, b):  # pragma: no cover - compiled
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] + a[4] * b[4] + a[5] * b[5]
+@njit(inline="always")
+def _dot6(a, i, b, j):  # pragma: no cover - compiled
+    """``a[i] . b[j]`` of two rows of length 6, summed left to right (no views: numba counts a view's references)."""
+    return a[i, 0] * b[j, 0] + a[i, 1] * b[j, 1] + a[i, 2] * b[j, 2] + a[i, 3] * b[j, 3] + a[i, 4] * b[j, 4] + a[i, 5] * b[j, 5]
 
 
 @njit
 def work_arrays(N):  # pragma: no cover - compiled
-    """The work arrays of one member, allocated once per kernel call: frames ``R (N, 3, 3)``, joint
-    positions ``p``, axes ``z``, centres ``c`` ``(N, 3)``, world inertias about the centres ``Ic (N, 3, 3)``,
+    """The work arrays of one member, views of one allocation made once per kernel call: frames ``R (N, 3, 3)``,
+    joint positions ``p``, axes ``z``, centres ``c`` ``(N, 3)``, world inertias about the centres ``Ic (N, 3, 3)``,
     motion subspaces ``S (N, 6)``; the ABA's articulated inertia and the child's ``(2, 6, 6)``, bias forces
     ``pA``, velocity products ``cb``, ``U (N, 6)``, ``D``, ``u (N,)``; RNEA's forces ``F (N, 6)``; the joint
-    angles' sines and cosines ``(N,)``; the ABA's child bias force and ``IA c`` ``(2, 6)``."""
-    R, P, F, s = np.empty((2, N, 3, 3)), np.empty((3, N, 3)), np.empty((5, N, 6)), np.empty((4, N))  # views of four allocations
+    angles' sines and cosines ``(N,)``; the ABA's child bias force and ``IA c`` ``(2, 6)``; the rotation and its
+    product ``(2, 3, 3)`` of :func:`frames_into`; the recursions' spatial vectors ``(4, 6)``."""
+    return _work_views(np.empty(work_size(N)), N)
+
+
+@njit(inline="always")
+def work_size(N):  # pragma: no cover - compiled
+    """The doubles :func:`work_arrays` takes for ``N`` links."""
+    return 18 * N + 9 * N + 30 * N + 4 * N + 72 + 12 + 18 + 24
+
+
+@njit(inline="always")
+def _work_views(buf, N):  # pragma: no cover - compiled
+    """:func:`work_arrays`' views of ``buf`` (at least :func:`work_size` doubles, C-contiguous)."""
+    R = buf[: 18 * N].reshape((2, N, 3, 3))
+    o = 18 * N
+    P = buf[o : o + 9 * N].reshape((3, N, 3))
+    o += 9 * N
+    F = buf[o : o + 30 * N].reshape((5, N, 6))
+    o += 30 * N
+    s = buf[o : o + 4 * N].reshape((4, N))
+    o += 4 * N
+    IA = buf[o : o + 72].reshape((2, 6, 6))
+    o += 72
+    pa = buf[o : o + 12].reshape((2, 6))
+    o += 12
+    JT = buf[o : o + 18].reshape((2, 3, 3))
+    o += 18
+    VA = buf[o : o + 24].reshape((4, 6))
     return (R[0], P[0], P[1], P[2], R[1], F[0],
-            np.empty((2, 6, 6)), F[1], F[2], F[3], s[0], s[1],
-            F[4], s[2], s[3], np.empty((2, 6)))  # fmt: skip
+            IA, F[1], F[2], F[3], s[0], s[1],
+            F[4], s[2], s[3], pa, JT, VA)  # fmt: skip
 
 
-@njit
+@njit(_nrt=False)
 def frames_into(q, axis, offset, com, inertia, w):  # pragma: no cover - compiled
     """Forward kinematics into the work arrays ``w`` (:func:`work_arrays`): ``R_i = R_{i-1} Rot(a_i, q_i)``,
     ``p_i = p_{i-1} + R_{i-1} offset_i``, ``z_i = R_{i-1} a_i`` (= ``R_i a_i``: a rotation keeps its axis),
@@ -139,11 +133,11 @@ def frames_into(q, axis, offset, com, inertia, w):  # pragma: no cover - compile
     the sines and cosines of ``q`` by :func:`mbs_envs.dynamics.trig.sincos_columns` (1 ulp of libm's)."""
     R, p, z, c, Ic, S, sn, cs = w[0], w[1], w[2], w[3], w[4], w[5], w[13], w[14]
     N = q.shape[0]
-    JT = np.empty((2, 3, 3))
-    J, T = JT[0], JT[1]
+    J, T = w[16][0], w[16][1]
     sincos_columns(q, sn, cs)  # one SIMD pass (libm for arguments out of its range)
     for i in range(N):
-        _rot_into(axis[i], sn[i], cs[i], J)
+        J[0, 0], J[0, 1], J[0, 2], J[1, 0], J[1, 1], J[1, 2], J[2, 0], J[2, 1], J[2, 2] = _rot_entries(
+            axis[i, 0], axis[i, 1], axis[i, 2], sn[i], cs[i])
         for r in range(3):
             if i == 0:
                 p[i, r] = offset[i, r]
@@ -170,15 +164,15 @@ def frames_into(q, axis, offset, com, inertia, w):  # pragma: no cover - compile
                 Ic[i, r, k] = R[i, r, 0] * T[0, k] + R[i, r, 1] * T[1, k] + R[i, r, 2] * T[2, k]
 
 
-@njit
-def spatial_inertia_into(mi, c, Ic, I):  # pragma: no cover - compiled
-    """A body's spatial inertia about the origin, ``I (6, 6)`` written:
-    ``[[Ic + m [c]x [c]x^T, m [c]x], [m [c]x^T, m 1]]`` (``[c]x [c]x^T = |c|^2 1 - c c^T``)."""
-    cx, cy, cz = c[0], c[1], c[2]
+@njit(inline="always")
+def spatial_inertia_into(mi, c, Ic, i, I):  # pragma: no cover - compiled
+    """Body ``i``'s spatial inertia about the origin, ``I (6, 6)`` written, from its centre ``c[i]`` and world
+    inertia ``Ic[i]``: ``[[Ic + m [c]x [c]x^T, m [c]x], [m [c]x^T, m 1]]`` (``[c]x [c]x^T = |c|^2 1 - c c^T``)."""
+    cx, cy, cz = c[i, 0], c[i, 1], c[i, 2]
     cc = cx * cx + cy * cy + cz * cz
     for r in range(3):
         for k in range(3):
-            I[r, k] = Ic[r, k] + mi * ((cc if r == k else 0.0) - c[r] * c[k])
+            I[r, k] = Ic[i, r, k] + mi * ((cc if r == k else 0.0) - c[i, r] * c[i, k])
             I[3 + r, 3 + k] = mi if r == k else 0.0
     I[0, 3], I[0, 4], I[0, 5] = 0.0, -mi * cz, mi * cy
     I[1, 3], I[1, 4], I[1, 5] = mi * cz, 0.0, -mi * cx
@@ -211,22 +205,23 @@ def _body_force_entries(mi, cx, cy, cz, I00, I01, I02, I10, I11, I12, I20, I21, 
 
 
 @njit(inline="always")
-def _body_force(mi, c, Ic, w0, w1, w2, v0, v1, v2, al0, al1, al2, a0, a1, a2, F):  # pragma: no cover - compiled
-    """:func:`_body_force_entries` of one body written into ``F (6,)``, from its centre ``c (3,)`` and ``Ic (3, 3)``."""
-    F[0], F[1], F[2], F[3], F[4], F[5] = _body_force_entries(
-        mi, c[0], c[1], c[2], Ic[0, 0], Ic[0, 1], Ic[0, 2], Ic[1, 0], Ic[1, 1], Ic[1, 2], Ic[2, 0], Ic[2, 1], Ic[2, 2],
-        w0, w1, w2, v0, v1, v2, al0, al1, al2, a0, a1, a2,
+def _body_force(mi, c, Ic, i, w0, w1, w2, v0, v1, v2, al0, al1, al2, a0, a1, a2, F):  # pragma: no cover - compiled
+    """:func:`_body_force_entries` of body ``i`` written into ``F[i] (6,)``, from its centre ``c[i]`` and ``Ic[i]``."""
+    F[i, 0], F[i, 1], F[i, 2], F[i, 3], F[i, 4], F[i, 5] = _body_force_entries(
+        mi, c[i, 0], c[i, 1], c[i, 2], Ic[i, 0, 0], Ic[i, 0, 1], Ic[i, 0, 2], Ic[i, 1, 0], Ic[i, 1, 1], Ic[i, 1, 2],
+        Ic[i, 2, 0], Ic[i, 2, 1], Ic[i, 2, 2], w0, w1, w2, v0, v1, v2, al0, al1, al2, a0, a1, a2,
     )  # fmt: skip
 
 
-@njit
+@njit(_nrt=False)
 def rnea_into(q, v, a, axis, offset, com, inertia, m, armature, g_vec, gravity, w, tau):  # pragma: no cover - compiled
     """``tau = M a + C v (+ G)`` by the RNEA (module docstring), written into ``tau (N,)``; ``gravity`` False
     leaves ``G`` out. Each body's force in 3 x 3 form (:func:`_body_force`)."""
     N = q.shape[0]
     frames_into(q, axis, offset, com, inertia, w)
     c, Ic, S, F = w[3], w[4], w[5], w[12]
-    VA = np.zeros((4, 6))
+    VA = w[17]
+    VA[:, :] = 0.0
     V, A, Sv, tmp = VA[0], VA[1], VA[2], VA[3]
     if gravity:
         A[3], A[4], A[5] = -g_vec[0], -g_vec[1], -g_vec[2]
@@ -234,39 +229,44 @@ def rnea_into(q, v, a, axis, offset, com, inertia, m, armature, g_vec, gravity, 
         for k in range(6):
             Sv[k] = S[i, k] * v[i]
             V[k] += Sv[k]
-        _cross_motion_into(V, Sv, tmp)
+        tmp[0], tmp[1], tmp[2], tmp[3], tmp[4], tmp[5] = _cross_motion_entries(
+            V[0], V[1], V[2], V[3], V[4], V[5], Sv[0], Sv[1], Sv[2], Sv[3], Sv[4], Sv[5])
         for k in range(6):
             A[k] += S[i, k] * a[i] + tmp[k]
-        _body_force(m[i], c[i], Ic[i], V[0], V[1], V[2], V[3], V[4], V[5], A[0], A[1], A[2], A[3], A[4], A[5], F[i])
+        _body_force(m[i], c, Ic, i, V[0], V[1], V[2], V[3], V[4], V[5], A[0], A[1], A[2], A[3], A[4], A[5], F)
     for i in range(N - 1, -1, -1):
-        tau[i] = _dot6(S[i], F[i]) + armature[i] * a[i]
+        tau[i] = _dot6(S, i, F, i) + armature[i] * a[i]
         if i > 0:
             for k in range(6):
                 F[i - 1, k] += F[i, k]
 
 
-@njit
+@njit(_nrt=False)
 def crba_into(q, axis, offset, com, inertia, m, armature, w, M):  # pragma: no cover - compiled
     """``M(q)`` by the CRBA (module docstring), written into ``M (N, N)``."""
     N = q.shape[0]
     frames_into(q, axis, offset, com, inertia, w)
     c, Ic, S = w[3], w[4], w[5]
-    Icomp = np.zeros((6, 6))
-    I = np.empty((6, 6))  # noqa: E741
-    F = np.empty(6)
+    Icomp, I = w[6][0], w[6][1]  # noqa: E741
+    Icomp[:, :] = 0.0
+    F = w[15]
     for j in range(N - 1, -1, -1):
-        spatial_inertia_into(m[j], c[j], Ic[j], I)
+        spatial_inertia_into(m[j], c, Ic, j, I)
         for r in range(6):
             for k in range(6):
                 Icomp[r, k] += I[r, k]
-        _matvec6(Icomp, S[j], F)
+        for r in range(6):  # F = Icomp S_j
+            x = 0.0
+            for k in range(6):
+                x += Icomp[r, k] * S[j, k]
+            F[0, r] = x
         for i in range(j + 1):
-            M[i, j] = _dot6(S[i], F)
+            M[i, j] = _dot6(S, i, F, 0)
             M[j, i] = M[i, j]
         M[j, j] += armature[j]
 
 
-@njit
+@njit(_nrt=False)
 def aba_into(q, v, tau, axis, offset, com, inertia, m, armature, g_vec, w, acc):  # pragma: no cover - compiled
     """Accelerations ``M^-1 (tau - C v - G)`` by the ABA (module docstring), written into ``acc (N,)``.
 
@@ -277,66 +277,68 @@ def aba_into(q, v, tau, axis, offset, com, inertia, m, armature, g_vec, w, acc):
     N = q.shape[0]
     frames_into(q, axis, offset, com, inertia, w)
     c, Ic, S, pA, cb, U, D, u = w[3], w[4], w[5], w[7], w[8], w[9], w[10], w[11]
-    VA = np.zeros((3, 6))
+    VA = w[17]
+    VA[:3, :] = 0.0
     V, Sv, A = VA[0], VA[1], VA[2]
     for i in range(N):
         for k in range(6):
             Sv[k] = S[i, k] * v[i]
             V[k] += Sv[k]
-        _cross_motion_into(V, Sv, cb[i])
+        cb[i, 0], cb[i, 1], cb[i, 2], cb[i, 3], cb[i, 4], cb[i, 5] = _cross_motion_entries(
+            V[0], V[1], V[2], V[3], V[4], V[5], Sv[0], Sv[1], Sv[2], Sv[3], Sv[4], Sv[5])
         # the bias force V x* I V: the body's force at zero spatial acceleration
-        _body_force(m[i], c[i], Ic[i], V[0], V[1], V[2], V[3], V[4], V[5], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, pA[i])
+        _body_force(m[i], c, Ic, i, V[0], V[1], V[2], V[3], V[4], V[5], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, pA)
     IA, Ia = w[6][0], w[6][1]  # the link's articulated inertia, and its child's as passed up
     pa, Ac = w[15][0], w[15][1]
     Ia[:] = 0.0
     pa[:] = 0.0
     for i in range(N - 1, -1, -1):
-        spatial_inertia_into(m[i], c[i], Ic[i], IA)
+        spatial_inertia_into(m[i], c, Ic, i, IA)
         for r in range(6):
             for k in range(6):
                 IA[r, k] += Ia[r, k]
-        Ui, Si, ci = U[i], S[i], cb[i]
         for r in range(6):
             x = 0.0
             y = 0.0
             for k in range(6):
-                x += IA[r, k] * Si[k]
-                y += IA[r, k] * ci[k]
-            Ui[r] = x
+                x += IA[r, k] * S[i, k]
+                y += IA[r, k] * cb[i, k]
+            U[i, r] = x
             Ac[r] = y
-        D[i] = _dot6(Si, Ui) + armature[i]
-        pi = pA[i]
+        D[i] = _dot6(S, i, U, i) + armature[i]
         for k in range(6):
-            pi[k] += pa[k]
-        u[i] = tau[i] - _dot6(Si, pi)
+            pA[i, k] += pa[k]
+        u[i] = tau[i] - _dot6(S, i, pA, i)
         if i > 0:
             inv = 1.0 / D[i]
             for r in range(6):
-                ur = Ui[r] * inv
+                ur = U[i, r] * inv
                 for k in range(r, 6):
-                    x = IA[r, k] - ur * Ui[k]
+                    x = IA[r, k] - ur * U[i, k]
                     Ia[r, k] = x
                     Ia[k, r] = x
-            s_ = (_dot6(Ui, ci) - u[i]) * inv
+            s_ = (_dot6(U, i, cb, i) - u[i]) * inv
             for k in range(6):
-                pa[k] = pi[k] + Ac[k] - Ui[k] * s_
+                pa[k] = pA[i, k] + Ac[k] - U[i, k] * s_
     A[3], A[4], A[5] = -g_vec[0], -g_vec[1], -g_vec[2]
     for i in range(N):
         for k in range(6):
             A[k] += cb[i, k]
-        acc[i] = (u[i] - _dot6(U[i], A)) / D[i]
+        acc[i] = (u[i] - (U[i, 0] * A[0] + U[i, 1] * A[1] + U[i, 2] * A[2] + U[i, 3] * A[3] + U[i, 4] * A[4]
+                          + U[i, 5] * A[5])) / D[i]  # fmt: skip
         for k in range(6):
             A[k] += S[i, k] * acc[i]
 
 
-@njit
+@njit(_nrt=False)
 def energy_member(q, v, axis, offset, com, inertia, m, armature, g_vec, w):  # pragma: no cover - compiled
     """``(T, V)`` [J]: ``T = sum_i (m_i |v_ci|^2 + w_i . Ic_i w_i + armature_i v_i^2) / 2`` (the spatial
     ``V_i^T I_i V_i / 2`` about the centre), ``V = -sum_i m_i g_vec . c_i``."""
     N = q.shape[0]
     frames_into(q, axis, offset, com, inertia, w)
     c, Ic, S = w[3], w[4], w[5]
-    Vel = np.zeros(6)
+    Vel = w[17][0]
+    Vel[:] = 0.0
     T = 0.0
     U = 0.0
     for i in range(N):
@@ -432,27 +434,45 @@ def _rows_kinematics(q, theta):  # pragma: no cover - compiled
 # axis (3 N), offset (3 N), com (3 N), inertia (9 N), row by row, then m, armature, b (N each), g_vec (3)
 
 
+@njit(inline="always")
+def _param_views(buf, N):  # pragma: no cover - compiled
+    """The per-link arrays of a parameter column copied into ``buf`` (its first ``21 N + 3`` doubles), as views:
+    ``axis, offset, com (N, 3), inertia (N, 3, 3), m, armature, b (N,), g_vec (3,)`` (the column's order)."""
+    return (buf[: 3 * N].reshape((N, 3)), buf[3 * N : 6 * N].reshape((N, 3)), buf[6 * N : 9 * N].reshape((N, 3)),
+            buf[9 * N : 18 * N].reshape((N, 3, 3)), buf[18 * N : 19 * N], buf[19 * N : 20 * N], buf[20 * N : 21 * N],
+            buf[21 * N : 21 * N + 3])  # fmt: skip
+
+
+@njit(inline="always")
+def _copy_column(theta, k, buf):  # pragma: no cover - compiled
+    """``buf[:P] = theta[:, k]`` (``P`` the column's length)."""
+    for j in range(theta.shape[0]):
+        buf[j] = theta[j, k]
+
+
 @njit
 def _unpack(th, N):  # pragma: no cover - compiled
-    """The per-link arrays of one parameter column ``th`` (``(21 N + 3,)``), copied out (no reshape)."""
-    P, L = np.empty((3, N, 3)), np.empty((3, N))  # views of four allocations
-    axis, offset, com = P[0], P[1], P[2]
-    inertia = np.empty((N, 3, 3))
-    m, arm, b = L[0], L[1], L[2]
-    g = np.empty(3)
-    for i in range(N):
-        for r in range(3):
-            axis[i, r] = th[3 * i + r]
-            offset[i, r] = th[3 * N + 3 * i + r]
-            com[i, r] = th[6 * N + 3 * i + r]
-            for k in range(3):
-                inertia[i, r, k] = th[9 * N + 9 * i + 3 * r + k]
-        m[i] = th[18 * N + i]
-        arm[i] = th[19 * N + i]
-        b[i] = th[20 * N + i]
-    for r in range(3):
-        g[r] = th[21 * N + r]
-    return axis, offset, com, inertia, m, arm, b, g
+    """The per-link arrays of one parameter column ``th`` (``(21 N + 3,)``), copied out (one allocation)."""
+    buf = np.empty(21 * N + 3)
+    for j in range(21 * N + 3):
+        buf[j] = th[j]
+    return _param_views(buf, N)
+
+
+@njit(inline="always")
+def _member_size(N, rows):  # pragma: no cover - compiled
+    """The doubles of :func:`_member_views`' buffer."""
+    return 21 * N + 3 + rows * N + work_size(N)
+
+
+@njit(inline="always")
+def _member_views(theta, N, rows, buf):  # pragma: no cover - compiled
+    """A kernel's member loop in one buffer (:func:`_member_size` doubles): the parameters of column 0
+    (:func:`_param_views`, refilled in place by :func:`_copy_column` for per-member columns), ``rows`` scratch
+    rows ``(rows, N)`` and the work arrays (:func:`work_arrays`)."""
+    P = 21 * N + 3
+    _copy_column(theta, 0, buf)
+    return _param_views(buf, N), buf[P : P + rows * N].reshape((rows, N)), _work_views(buf[P + rows * N :], N)
 
 
 @njit
@@ -468,15 +488,22 @@ def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
     a : ndarray, shape (N, B)
         Written: ``a = ABA(q, v, tau - b v)`` [rad/s^2].
     """
+    _acceleration_members(q, v, tau, theta, np.empty(_member_size(q.shape[0], 4)), a)
+
+
+@njit(_nrt=False)
+def _acceleration_members(q, v, tau, theta, buf, a):  # pragma: no cover - compiled
+    """:func:`acceleration_kernel`'s member loop in the buffer ``buf`` (:func:`_member_views`). Compiled without
+    numba's reference counting (``_nrt=False``), as are :func:`aba_into` and the other member functions: they
+    allocate nothing, and the counts of their array views and arguments (atomic operations) were half of a
+    10-link chain's single-member time (docs/performance.md)."""
     N, B = q.shape
     C = theta.shape[1]
-    axis, offset, com, inertia, m, arm, b, g = _unpack(theta[:, 0], N)
-    x = np.empty((4, N))
+    (axis, offset, com, inertia, m, arm, b, g), x, w = _member_views(theta, N, 4, buf)
     qk, vk, net, acc = x[0], x[1], x[2], x[3]
-    w = work_arrays(N)
     for k in range(B):
         if C > 1 and k > 0:
-            axis, offset, com, inertia, m, arm, b, g = _unpack(theta[:, k], N)
+            _copy_column(theta, k, buf)
         for i in range(N):
             qk[i] = q[i, k]
             vk[i] = v[i, k]
@@ -645,15 +672,19 @@ def aba_tiles(q, v, tau, axis, offset, com, inertia, m, armature, b, g_vec, a): 
 @njit
 def energy_kernel(q, v, theta, E):  # pragma: no cover - compiled
     """``E = T + V`` [J] of a batch in columns (:func:`energy_member`); ``E`` shape ``(B,)``, written."""
+    _energy_members(q, v, theta, np.empty(_member_size(q.shape[0], 2)), E)
+
+
+@njit(_nrt=False)
+def _energy_members(q, v, theta, buf, E):  # pragma: no cover - compiled
+    """:func:`energy_kernel`'s member loop in the buffer ``buf`` (as :func:`_acceleration_members`)."""
     N, B = q.shape
     C = theta.shape[1]
-    axis, offset, com, inertia, m, arm, b, g = _unpack(theta[:, 0], N)
-    x = np.empty((2, N))
+    (axis, offset, com, inertia, m, arm, b, g), x, w = _member_views(theta, N, 2, buf)
     qk, vk = x[0], x[1]
-    w = work_arrays(N)
     for k in range(B):
         if C > 1 and k > 0:
-            axis, offset, com, inertia, m, arm, b, g = _unpack(theta[:, k], N)
+            _copy_column(theta, k, buf)
         for i in range(N):
             qk[i] = q[i, k]
             vk[i] = v[i, k]
