@@ -252,3 +252,47 @@ def test_tiled_aba_gives_each_member_the_bits_of_the_member_by_member_aba(n):
             acceleration_kernel(*(np.ascontiguousarray(x[:, k : k + 1]) for x in (q, v, tau)), theta, one)
             assert np.array_equal(a[:, k], one[:, 0]), (B, k)
         np.testing.assert_allclose(a, chain.forward_dynamics(q.T, v.T, tau.T).T, rtol=1e-9, atol=1e-9)
+
+
+def test_member_kernels_keep_no_reference_counts_and_the_step_kernels_allocate_once_per_call():
+    """The member kernels are compiled without numba's runtime (``_nrt=False``): they allocate nothing and count no
+    references (the counts of their array views and arguments were half of a 10-link member's time,
+    docs/performance.md), so a change that allocates in them fails to compile rather than slowing down. The
+    acceleration and energy kernels allocate one buffer per call, for one member or several with their own
+    parameters, and give the same bits at every call (nothing read from the buffer before it is written)."""
+    from numba import njit
+    from numba.core.runtime import _nrt_python as nrt
+
+    from mbs_envs.dynamics.compiled import batch_theta
+    from mbs_envs.models import spatial_chain as sc
+
+    for f in (sc.frames_into, sc.aba_into, sc.rnea_into, sc.crba_into, sc.energy_member, sc._acceleration_members,
+              sc._energy_members):  # fmt: skip
+        assert f.targetoptions.get("_nrt") is False, f.__name__
+    @njit
+    def repeat(k, q, v, tau, theta, a, E):  # the kernels called k times inside compiled code (no unboxing per call)
+        for _ in range(k):
+            sc.acceleration_kernel(q, v, tau, theta, a)
+            sc.energy_kernel(q, v, theta, E)
+
+    def allocations(k, *args):
+        before = nrt.memsys_get_stats_alloc(), nrt.memsys_get_stats_free()
+        repeat(k, *args)
+        return nrt.memsys_get_stats_alloc() - before[0], nrt.memsys_get_stats_free() - before[1]
+
+    rng = np.random.default_rng(3)
+    model = random_chain(4, rng)
+    for B, theta in ((1, batch_theta(model, 1)), (5, np.repeat(batch_theta(model, 1), 5, axis=1) * rng.uniform(0.9, 1.1, (1, 5)))):
+        q, v, tau = rng.normal(size=(3, 4, B))
+        a, E = np.empty((4, B)), np.empty(B)
+        repeat(1, q, v, tau, theta, a, E)  # compiled before counting
+        a0, E0 = a.copy(), E.copy()
+        was = nrt.memsys_stats_enabled()
+        nrt.memsys_enable_stats()
+        try:
+            once, four = allocations(1, q, v, tau, theta, a, E), allocations(4, q, v, tau, theta, a, E)
+        finally:
+            if not was:
+                nrt.memsys_disable_stats()
+        assert (four[0] - once[0], four[1] - once[1]) == (6, 6), (B, once, four)  # three more calls of each: one buffer each
+        assert a.tobytes() == a0.tobytes() and E.tobytes() == E0.tobytes()
