@@ -364,7 +364,7 @@ def energy_member(q, v, axis, offset, com, inertia, m, armature, g_vec, w):  # p
 @njit
 def _rows_rnea(q, v, a, theta, gravity):  # pragma: no cover - compiled
     N = q.shape[1]
-    axis, offset, com, inertia, m, arm, b_, g = _unpack(theta[:, 0], N)
+    axis, offset, com, inertia, m, arm, b_, g = _unpack(theta, N)
     out = np.empty(q.shape)
     w = work_arrays(N)
     tau = np.empty(N)
@@ -377,7 +377,7 @@ def _rows_rnea(q, v, a, theta, gravity):  # pragma: no cover - compiled
 @njit
 def _rows_crba(q, theta):  # pragma: no cover - compiled
     N = q.shape[1]
-    axis, offset, com, inertia, m, arm, b_, g = _unpack(theta[:, 0], N)
+    axis, offset, com, inertia, m, arm, b_, g = _unpack(theta, N)
     out = np.empty((q.shape[0], N, N))
     w = work_arrays(N)
     M = np.empty((N, N))
@@ -391,7 +391,7 @@ def _rows_crba(q, theta):  # pragma: no cover - compiled
 def _rows_aba(q, v, tau, d, theta):  # pragma: no cover - compiled
     """:func:`aba_into` per row, with ``d`` ``(B, N)`` (or one row ``(1, N)`` for all) added to the armature."""
     B, N = q.shape
-    axis, offset, com, inertia, m, arm0, b_, g = _unpack(theta[:, 0], N)
+    axis, offset, com, inertia, m, arm0, b_, g = _unpack(theta, N)
     out = np.empty(q.shape)
     w = work_arrays(N)
     arm, acc = np.empty(N), np.empty(N)
@@ -408,7 +408,7 @@ def _rows_aba(q, v, tau, d, theta):  # pragma: no cover - compiled
 @njit
 def _rows_energy(q, v, theta):  # pragma: no cover - compiled
     N = q.shape[1]
-    axis, offset, com, inertia, m, arm, b_, g = _unpack(theta[:, 0], N)
+    axis, offset, com, inertia, m, arm, b_, g = _unpack(theta, N)
     T, U = np.empty(q.shape[0]), np.empty(q.shape[0])
     w = work_arrays(N)
     for b in range(q.shape[0]):
@@ -419,7 +419,7 @@ def _rows_energy(q, v, theta):  # pragma: no cover - compiled
 @njit
 def _rows_kinematics(q, theta):  # pragma: no cover - compiled
     B, N = q.shape
-    axis, offset, com, inertia, m, arm, b_, g = _unpack(theta[:, 0], N)
+    axis, offset, com, inertia, m, arm, b_, g = _unpack(theta, N)
     p, c, z, R = np.empty((B, N, 3)), np.empty((B, N, 3)), np.empty((B, N, 3)), np.empty((B, N, 3, 3))
     w = work_arrays(N)
     for b in range(B):
@@ -451,11 +451,10 @@ def _copy_column(theta, k, buf):  # pragma: no cover - compiled
 
 
 @njit
-def _unpack(th, N):  # pragma: no cover - compiled
-    """The per-link arrays of one parameter column ``th`` (``(21 N + 3,)``), copied out (one allocation)."""
+def _unpack(theta, N):  # pragma: no cover - compiled
+    """The per-link arrays of the first parameter column of ``theta`` (``(21 N + 3, C)``), copied out (one allocation)."""
     buf = np.empty(21 * N + 3)
-    for j in range(21 * N + 3):
-        buf[j] = th[j]
+    _copy_column(theta, 0, buf)
     return _param_views(buf, N)
 
 
@@ -711,7 +710,7 @@ def tiled_acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compil
     if theta.shape[1] > 1:
         acceleration_kernel(q, v, tau, theta, a)
         return
-    axis, offset, com, inertia, m, arm, b, g = _unpack(theta[:, 0], N)
+    axis, offset, com, inertia, m, arm, b, g = _unpack(theta, N)
     aba_tiles(q, v, tau, axis, offset, com, inertia, m, arm, b, g, a)
     rest = B - B % TILE
     if rest < B:  # the members beyond the last whole tile, one by one
