@@ -109,6 +109,37 @@ def test_jacobians_are_those_of_the_map():
         assert np.allclose(b[k], col, atol=2e-6)
 
 
+def test_the_line_search_rollout_and_cost_are_their_formulas():
+    """The iLQR's forward pass ``u_k = clip(U_k + alpha kff_k + K_k (x_k - Xref_k))`` (angles wrapped) and its cost
+    ``w_u dt sum u^2 / 2 + dt sum dx^T W dx / 2 + dx_H^T S_T dx_H / 2``, against numpy on random data: to 1e-13
+    relative (the compiled code sums in another order and fuses the dot product's multiply-adds), with the running
+    weight zero (the shipped one, skipped by the compiled cost) and non-zero; a rollout that stops being finite
+    says so."""
+    model = gym.make("mbs_envs/Acrobot-v1").unwrapped.model
+    th, rng, H, dt, u_max = theta_of(model), np.random.default_rng(5), 40, 0.01, 8.0
+    x0 = rng.uniform(-3, 3, 4)
+    U, kff = rng.uniform(-6, 6, H), rng.normal(0, 2, H)
+    K, Xref = rng.normal(0, 3, (H, 4)), rng.uniform(-7, 7, (H + 1, 4))
+    X, Un = np.empty((H + 1, 4)), np.empty(H)
+    assert traj._rollout(x0, U, Xref, kff, K, 0.5, u_max, 1, th, dt, 2, X, Un)
+    x = x0.copy()
+    for k in range(H):
+        d = x - Xref[k]
+        d[:2] = (d[:2] + np.pi) % (2 * np.pi) - np.pi
+        u = np.clip(U[k] + 0.5 * kff[k] + K[k] @ d, -u_max, u_max)
+        assert Un[k] == pytest.approx(u, rel=1e-13, abs=1e-13)
+        np.testing.assert_array_equal(X[k], x)
+        x = traj.step_map(x, Un[k], 1, th, dt, 2)  # the compiled input: each step checked alone
+    S_T = np.diag([3.0, 2.0, 0.5, 0.25])
+    for W in (np.zeros((4, 4)), np.diag([1.0, 2.0, 0.1, 0.3])):
+        dx = X - GOAL
+        dx[:, :2] = (dx[:, :2] + np.pi) % (2 * np.pi) - np.pi
+        J = 0.5 * 0.1 * dt * np.sum(Un**2) + 0.5 * dt * np.einsum("ki,ij,kj->", dx[:H], W, dx[:H]) + 0.5 * dx[H] @ S_T @ dx[H]
+        assert traj._cost(X, Un, GOAL, 0.1, W, S_T, dt) == pytest.approx(J, rel=1e-13)
+    U[3] = np.nan
+    assert not traj._rollout(x0, U, Xref, kff, K, 0.5, u_max, 1, th, dt, 2, X, Un)
+
+
 def test_time_varying_lqr_at_rest_upright_is_the_discrete_lqr():
     """Along the upright equilibrium held for a long horizon, the first gain is the stationary discrete LQR's
     (scipy's DARE on the exact discretization of the same map's Jacobians)."""
