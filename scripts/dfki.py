@@ -5,8 +5,10 @@ plant, 6 N m, RK4 at 2 ms, 10 s from hanging at rest) runs every model-based swi
 every agent trained on the protocol (``agents/<scene>DFKI-v1/<algo>/seed<k>/``) alone and with the plant's
 upright LQR catching, and scores each with the benchmark's success rule and simulation-v2 score
 (``mbs_envs/studies/dfki.py``);
-``--robustness`` adds its robustness-v2 sweep (six axes, one batched rollout per axis). The controllers
-run in parallel processes (``--workers``), or on Ray with ``--ray [ADDRESS]`` (the ``ray`` extra). Writes
+``--robustness`` adds its robustness-v2 sweep (six axes, each a batched rollout cut in parts of ``--part-size``
+members, every part seeing the noise it sees in the whole batch: :func:`mbs_envs.studies.dfki.sweep_parts`). The
+controllers' episodes and the parts of every sweep run in one pool of processes (``--workers``), or on Ray with
+``--ray [ADDRESS]`` (the ``ray`` extra); the wall time is printed and kept in ``dfki.json``. Writes
 ``dfki.csv``, ``dfki.json``, ``report.md`` (our rows beside the published ones), one time-series plot per
 controller and one robustness plot per scene to ``--out``::
 
@@ -27,6 +29,7 @@ import json
 import os
 import pathlib
 import sys
+import time
 
 import gymnasium as gym
 import numpy as np
@@ -59,6 +62,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--robustness", action="store_true", help="run the robustness-v2 sweep too")
     p.add_argument("--values", type=int, default=dfki.N_VALUES, help=f"values per robustness axis (default {dfki.N_VALUES}, as theirs)")
     p.add_argument("--seed", type=int, default=0, help="seeds the sweep's noise and pulses")
+    p.add_argument("--part-size", type=int, default=None,
+                   help="members per part of a sweep (default: about 8 parts per worker over the controllers' sweeps)")
     p.add_argument("--workers", type=int, default=None, help="local processes (default: one per core, at most one per controller)")
     p.add_argument("--ray", nargs="?", const="local", default=None, help="run the controllers on Ray (cluster ADDRESS, or a local instance)")
     p.add_argument("--tune", action="store_true", help="tune the energy controllers' gains on the protocol instead (mbs_envs.studies.dfki_tuning)")
@@ -76,29 +81,42 @@ def run(args: argparse.Namespace) -> dict:
     if not jobs:
         raise SystemExit("dfki.py: no controller or agent matches --controller")
     gains = {(s, n): protocol_gains(s, n) if n in SWING_UP_CONTROLLERS else (None, "") for s, n in jobs}
-    tasks = [{"env_id": SCENES[s], "spec": specs[s][n], "gains": gains[s, n][0],
-              "robustness": args.robustness, "values": args.values, "seed": args.seed,
-              "progress": len(jobs) == 1 and args.ray is None} for s, n in jobs]  # fmt: skip  # one job runs here: its sweep's bar
+    base = [{"env_id": SCENES[s], "spec": specs[s][n], "gains": gains[s, n][0]} for s, n in jobs]
+    tasks = list(base)  # the protocol's episode of each, then the parts of every sweep: one pool keeps every core busy
+    owner: list[int] = []
+    metas = {}
+    if args.robustness:
+        workers = args.workers or os.cpu_count() or 1
+        members = sum(part.size for s, _ in jobs for part in dfki.sweep_parts(SCENES[s], args.values, args.seed)[0])
+        size = args.part_size or max(1, -(-members // (8 * workers)))  # about 8 parts per worker
+        for j, (s, n) in enumerate(jobs):
+            parts, metas[j] = dfki.sweep_parts(SCENES[s], args.values, args.seed, part_size=size)
+            tasks += [{**base[j], "part": part} for part in parts]
+            owner += [j] * len(parts)
+    tic = time.perf_counter()
     results = run_tasks(dfki.controller_job, tasks, ray_address=args.ray, max_workers=args.workers, progress="DFKI protocol")
-    for (scene, name), res in zip(jobs, results):
+    wall = time.perf_counter() - tic
+    for j, ((scene, name), res) in enumerate(zip(jobs, results)):
         c = res["criteria"]
         row = {"scene": scene, "controller": name, "gains": gains[scene, name][1], **c, "wall_s": res["wall_s"]}
         plot_run(res["run"], gym.make(SCENES[scene]).unwrapped.model.params, f"{scene}: {name}", args.out / f"run_{scene}_{slug(name)}.png")
         if args.robustness:
-            sweeps[(scene, name)] = res["sweep"]
-            row.update({f"robust {a}": res["sweep"][a]["fraction"] for a in dfki.AXES})
-            row["robustness score"] = res["sweep"]["score"]["value"]
-            row["robustness wall_s"] = res["sweep_wall_s"]
+            mine = [(t["part"], r) for t, r, o in zip(tasks[len(jobs) :], results[len(jobs) :], owner) if o == j]
+            sweeps[(scene, name)] = dfki.assemble_sweep(metas[j], [p for p, _ in mine], [r["success"] for _, r in mine])
+            row.update({f"robust {a}": sweeps[(scene, name)][a]["fraction"] for a in dfki.AXES})
+            row["robustness score"] = sweeps[(scene, name)]["score"]["value"]
+            row["robustness core_s"] = sum(r["wall_s"] for _, r in mine)  # its parts' time, each on one worker
         rows.append(row)
         print(f"{scene}, {name}: success {c['success']:.0f}, score {c['score']:.3f}"
               + (f", robustness {row['robustness score']:.3f}" if args.robustness else ""))  # fmt: skip
+    print(f"wall time {wall:.1f} s ({len(tasks)} tasks)")
     with open(args.out / "dfki.csv", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
     command = "python scripts/dfki.py " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("dfki.py") else None
     record = {"command": command, "rows": rows, "sweeps": {f"{s} | {n}": to_json(r) for (s, n), r in sweeps.items()},
-              "protocol": {s: SCENES[s] for s in scenes}, "values_per_axis": args.values, "seed": args.seed}  # fmt: skip
+              "protocol": {s: SCENES[s] for s in scenes}, "values_per_axis": args.values, "seed": args.seed, "wall_s": wall}  # fmt: skip
     (args.out / "dfki.json").write_text(json.dumps(record, indent=2, default=float))
     for scene in scenes:
         if any(k[0] == scene for k in sweeps):

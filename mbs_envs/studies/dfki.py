@@ -28,6 +28,7 @@ in ``tests/test_dfki.py`` on hand-made trajectories and against the published le
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 from types import MappingProxyType
 from typing import Any
@@ -239,21 +240,121 @@ def random_pulses(rng: np.random.Generator, episodes: int, t: np.ndarray) -> np.
     return pulses(rng, episodes, t, 2, PULSES["per_joint"], PULSES["min_spacing"], PULSES["sigma"], PULSES["amplitude"])
 
 
-def sweep(env_id: str, make_policy: Any, n: int = N_VALUES, seed: int = 0, axes: tuple = AXES, progress: bool = False) -> dict[str, dict[str, Any]]:
-    """The robustness benchmark of one controller on a protocol id, one batched rollout per axis.
+@dataclasses.dataclass(frozen=True)
+class SweepPart:
+    """Members ``members`` of one axis' batch (:func:`sweep_parts`): what :func:`sweep_part` runs.
+
+    Attributes
+    ----------
+    axis : str
+    members : slice
+        Rows of the axis' batch.
+    size : int
+        The axis' batch size.
+    perturbation : Perturbation
+        The whole batch's settings.
+    noise_seed : int
+        The batch's noise seed.
+    member_params : list of dict, optional
+        The whole batch's plant parameters (the model axis).
+    """
+
+    axis: str
+    members: slice
+    size: int
+    perturbation: Any
+    noise_seed: int
+    member_params: list | None = None
+
+
+def sweep_parts(env_id: str, n: int = N_VALUES, seed: int = 0, axes: tuple = AXES, part_size: int | None = None
+                ) -> tuple[list[SweepPart], dict[str, dict[str, Any]]]:  # fmt: skip
+    """The robustness benchmark of a protocol id as parts of at most ``part_size`` members (None: one part per axis),
+    and each axis' description (``values``; the model axis' ``skipped``). The noise seeds and pulses are drawn from
+    ``seed`` in the axes' order, so the parts of any size give one sweep's episodes (:func:`robustness.run`'s ``batch``)."""
+    import gymnasium as gym
+
+    from .robustness import Perturbation
+
+    if part_size is not None and int(part_size) < 1:
+        raise ValueError(f"part_size must be >= 1, got {part_size!r}")
+    nominal = gym.make(env_id)
+    steps, dt = nominal.spec.max_episode_steps, float(nominal.unwrapped.dt)
+    rng = np.random.default_rng(seed)
+    parts: list[SweepPart] = []
+    meta: dict[str, dict[str, Any]] = {}
+    for axis in axes:
+        params = None
+        if axis == "model":
+            points = model_variations(n=n)
+            kept = [(name, value, q) for name, value, q in points if q is not None]
+            size, p, params = len(kept), Perturbation(), [q for _, _, q in kept]
+            meta[axis] = {"values": [(name, value) for name, value, _ in kept],
+                          "skipped": [(name, value) for name, value, q in points if q is None]}  # fmt: skip
+        elif axis == "perturbations":
+            size = PULSES["episodes"]
+            p = Perturbation(pulses=random_pulses(rng, size, np.arange(steps) * dt))
+            meta[axis] = {"values": list(range(size))}
+        else:
+            values = np.linspace(*RANGES[axis], n)
+            size = n
+            p = {"velocity noise": lambda x: Perturbation(noise_sigma=x, noise_index=(4, 5)),
+                 "torque noise": lambda x: Perturbation(torque_sigma=x),
+                 "torque response": lambda x: Perturbation(response=x),
+                 "time delay": lambda x: Perturbation(delay=np.rint(x / dt).astype(int))}[axis](values)  # fmt: skip
+            meta[axis] = {"values": values.tolist()}
+        noise_seed = int(rng.integers(2**31))
+        step = size if part_size is None else int(part_size)
+        parts += [SweepPart(axis, slice(a, min(a + step, size)), size, p, noise_seed, params) for a in range(0, size, step)]
+    return parts, meta
+
+
+def sweep_part(env_id: str, make_policy: Any, part: SweepPart) -> np.ndarray:
+    """Run one :class:`SweepPart`: its members' success (bool per member), ``make_policy(env)`` on the nominal env."""
+    import gymnasium as gym
+
+    from .robustness import run
+
+    m = part.members
+    kwargs = {} if part.member_params is None else {"member_params": part.member_params[m]}
+    count = m.stop - m.start
+    venv = gym.make_vec(env_id, num_envs=count, vectorization_mode="vector_entry_point", autoreset_mode="Disabled", **kwargs)
+    try:
+        res = run(venv, make_policy(gym.make(env_id)), list(range(m.start, m.stop)), part.perturbation.rows(m),
+                  noise_seed=part.noise_seed, batch=(part.size, m.start))  # fmt: skip
+    finally:
+        venv.close()
+    return run_success(res)
+
+
+def assemble_sweep(meta: Mapping[str, Mapping[str, Any]], parts: list[SweepPart], success: list[np.ndarray]) -> dict[str, dict[str, Any]]:
+    """The sweep's result (:func:`sweep`) from its parts' successes (any order of parts)."""
+    out: dict[str, dict[str, Any]] = {}
+    for axis, info in meta.items():
+        mine = sorted(((p.members.start, ok) for p, ok in zip(parts, success) if p.axis == axis), key=lambda t: t[0])
+        ok = np.concatenate([o for _, o in mine])
+        out[axis] = {**info, "success": ok, "fraction": float(np.mean(ok))}
+    out["score"] = {"value": float(np.mean([out[a]["fraction"] for a in meta]))}
+    return out
+
+
+def sweep(env_id: str, make_policy: Any, n: int = N_VALUES, seed: int = 0, axes: tuple = AXES, progress: bool = False,
+          part_size: int | None = None) -> dict[str, dict[str, Any]]:  # fmt: skip
+    """The robustness benchmark of one controller on a protocol id, one batched rollout per axis (or per part of
+    ``part_size`` members; the same episodes: :func:`sweep_parts`), in this process.
 
     Parameters
     ----------
     env_id : str
         ``"mbs_envs/AcrobotDFKI-v1"`` or ``"mbs_envs/PendubotDFKI-v1"``.
     make_policy : callable
-        ``make_policy(env) -> policy`` on the nominal env (called once per axis; its memory lives in ``state``).
+        ``make_policy(env) -> policy`` on the nominal env (called once per part; its memory lives in ``state``).
     n : int
         Values per axis (their 21).
     seed : int
         Seeds the noise and the random pulses.
     progress : bool
-        Show a progress bar over the axes (tqdm, where installed): for a sweep run on its own, not in a pool whose
+        Show a progress bar over the parts (tqdm, where installed): for a sweep run on its own, not in a pool whose
         own bar counts the jobs.
 
     Returns
@@ -263,52 +364,20 @@ def sweep(env_id: str, make_policy: Any, n: int = N_VALUES, seed: int = 0, axes:
         (bool per member; the model axis' unphysical variations are left out and counted in ``skipped``),
         ``fraction``; and ``"score"``: the mean of the fractions.
     """
-    import gymnasium as gym
-
     from .parallel import progress_bar
-    from .robustness import Perturbation, run
 
-    nominal = gym.make(env_id)
-    steps = nominal.spec.max_episode_steps
-    dt = float(nominal.unwrapped.dt)
-    rng = np.random.default_rng(seed)
-    out: dict[str, dict[str, Any]] = {}
-
-    def batch(members: int, p: Perturbation, **vec_kwargs: Any) -> np.ndarray:
-        venv = gym.make_vec(env_id, num_envs=members, vectorization_mode="vector_entry_point", autoreset_mode="Disabled", **vec_kwargs)
-        res = run(venv, make_policy(nominal), list(range(members)), p, noise_seed=int(rng.integers(2**31)))
-        venv.close()
-        return run_success(res)
-
-    bar = progress_bar(len(axes), f"{env_id.split('/')[-1]} robustness axes" if progress else None)
-    for axis in axes:
+    parts, meta = sweep_parts(env_id, n, seed, axes, part_size)
+    bar = progress_bar(len(parts), f"{env_id.split('/')[-1]} robustness" if progress else None)
+    success = []
+    for part in parts:
         if bar is not None:
-            bar.set_postfix_str(axis)
-        if axis == "model":
-            points = model_variations(n=n)
-            kept = [(name, value, params) for name, value, params in points if params is not None]
-            ok = batch(len(kept), Perturbation(), member_params=[params for _, _, params in kept])
-            out[axis] = {"values": [(name, value) for name, value, _ in kept], "success": ok,
-                         "skipped": [(name, value) for name, value, params in points if params is None]}  # fmt: skip
-        elif axis == "perturbations":
-            members = PULSES["episodes"]
-            pulses = random_pulses(rng, members, np.arange(steps) * dt)
-            ok = batch(members, Perturbation(pulses=pulses))
-            out[axis] = {"values": list(range(members)), "success": ok}
-        else:
-            values = np.linspace(*RANGES[axis], n)
-            p = {"velocity noise": lambda x: Perturbation(noise_sigma=x, noise_index=(4, 5)),
-                 "torque noise": lambda x: Perturbation(torque_sigma=x),
-                 "torque response": lambda x: Perturbation(response=x),
-                 "time delay": lambda x: Perturbation(delay=np.rint(x / dt).astype(int))}[axis](values)  # fmt: skip
-            out[axis] = {"values": values.tolist(), "success": batch(n, p)}
-        out[axis]["fraction"] = float(np.mean(out[axis]["success"]))
+            bar.set_postfix_str(part.axis)
+        success.append(sweep_part(env_id, make_policy, part))
         if bar is not None:
             bar.update(1)
     if bar is not None:
         bar.close()
-    out["score"] = {"value": float(np.mean([out[a]["fraction"] for a in axes]))}
-    return out
+    return assemble_sweep(meta, parts, success)
 
 
 # -- the published leaderboards (read 2026-11-25), to print our numbers beside -----------------------------
@@ -359,12 +428,15 @@ PUBLISHED_ROBUSTNESS_V2 = MappingProxyType({
 
 
 def controller_job(task: Mapping[str, Any]) -> dict[str, Any]:
-    """One controller on one protocol id (a picklable task for :func:`mbs_envs.studies.parallel.run_tasks`).
+    """One controller on one protocol id, or one part of its robustness sweep (a picklable task for
+    :func:`mbs_envs.studies.parallel.run_tasks`).
 
     ``task``: ``env_id``, ``spec`` (``"module:Class"``, an agent folder or ``"lqr-catch:" + folder``, as
     :func:`mbs_envs.studies.comparison.load_policy` reads them), ``gains`` (a controller's entry of
-    ``controllers/tuned.json`` or None), ``robustness`` (bool), ``values``, ``seed`` and ``progress`` (the sweep's). Returns the recorded run, its
-    criteria and score, and with ``robustness`` the :func:`sweep`; wall times in seconds.
+    ``controllers/tuned.json`` or None), and either ``part`` (a :class:`SweepPart`: returns its ``success`` and
+    ``wall_s``) or the protocol's episode: returns the recorded run, its criteria and score and ``wall_s``, and with
+    ``robustness`` (bool; ``values``, ``seed``, ``progress``) the whole :func:`sweep` run here and its
+    ``sweep_wall_s``. Wall times in seconds.
     """
     import time
 
@@ -378,10 +450,12 @@ def controller_job(task: Mapping[str, Any]) -> dict[str, Any]:
             return make_controller(task["spec"], env, task["gains"])
         return load_policy(task["spec"], env)  # a controller with its defaults, an agent, or an agent + LQR
 
+    tic = time.perf_counter()
+    if task.get("part") is not None:
+        return {"success": sweep_part(task["env_id"], make, task["part"]), "wall_s": time.perf_counter() - tic}
     env = gym.make(task["env_id"])
     p = env.unwrapped.model.params
     venv = gym.make_vec(task["env_id"], num_envs=1, vectorization_mode="vector_entry_point", autoreset_mode="Disabled")
-    tic = time.perf_counter()
     run_ = record(venv, make(env), [0])[0]
     out: dict[str, Any] = {"run": run_, "criteria": evaluate([run_], p.l1, p.l2)[0], "wall_s": time.perf_counter() - tic}
     if task.get("robustness"):

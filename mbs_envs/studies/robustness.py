@@ -58,6 +58,11 @@ class Perturbation:
     delay: np.ndarray | None = None
     pulses: np.ndarray | None = None
 
+    def rows(self, members: slice) -> Perturbation:
+        """The settings of the members ``members`` (a slice of the batch) alone."""
+        return dataclasses.replace(self, **{f.name: getattr(self, f.name)[members] for f in dataclasses.fields(self)
+                                            if f.name != "noise_index" and getattr(self, f.name) is not None})  # fmt: skip
+
 
 def gaussian_pulses(t: np.ndarray, mu: np.ndarray, sigma: np.ndarray, amplitude: np.ndarray) -> np.ndarray:
     """Sums of Gaussian pulses ``A exp(-(t - mu)^2 / (2 sigma^2))`` per joint.
@@ -118,8 +123,13 @@ def random_pulses(rng: np.random.Generator, episodes: int, t: np.ndarray, coordi
 
 
 def run(venv: Any, policy: Any, seeds: list[int], p: Perturbation, noise_seed: int = 0, deterministic: bool = True,
-        record: bool = False) -> dict[str, Any]:  # fmt: skip
+        record: bool = False, batch: tuple[int, int] | None = None) -> dict[str, Any]:  # fmt: skip
     """One perturbed episode per member of ``venv`` (``autoreset_mode="Disabled"``, a ``max_episode_steps``).
+
+    ``batch = (total, first)``: these members are the rows ``first .. first + n`` of a batch of ``total`` whose
+    noise is drawn as one (``noise_seed``'s draws for all ``total`` rows at each step, these rows taken), so a part
+    of a batch run on its own sees what it sees in the whole batch: the same episodes, bit for bit, where the policy
+    treats its members independently (every controller and agent here does).
 
     Returns
     -------
@@ -136,7 +146,15 @@ def run(venv: Any, policy: Any, seeds: list[int], p: Perturbation, noise_seed: i
     if base.num_envs != n or steps is None:
         raise ValueError(f"venv needs {n} members and a max_episode_steps, has {base.num_envs} and {steps}")
     u_max = np.asarray(base.env.u_max, float)
+    total, first = (n, 0) if batch is None else (int(batch[0]), int(batch[1]))
+    if not 0 <= first <= total - n:
+        raise ValueError(f"batch: {n} members from row {first} do not fit in a batch of {total}")
     rng = np.random.default_rng(noise_seed)
+
+    def normal(k: int) -> np.ndarray:  # (n, k) standard normals: these members' rows of the whole batch's draw
+        z = rng.standard_normal((total, k))
+        return z if batch is None else z[first : first + n]
+
     obs, _ = base.reset(seed=list(seeds))
     delay = np.zeros(n, int) if p.delay is None else np.asarray(p.delay, int)
     history = np.empty((int(delay.max()) + 1,) + obs.shape, obs.dtype)  # a ring of the last observations
@@ -155,7 +173,7 @@ def run(venv: Any, policy: Any, seeds: list[int], p: Perturbation, noise_seed: i
         if p.noise_sigma is not None:
             idx = list(p.noise_index) or slice(None)
             noisy = seen.copy()
-            noisy[:, idx] = seen[:, idx] + (np.asarray(p.noise_sigma)[:, None] * rng.standard_normal((n, noisy[:, idx].shape[1])))
+            noisy[:, idx] = seen[:, idx] + (np.asarray(p.noise_sigma)[:, None] * normal(noisy[:, idx].shape[1]))
             seen = noisy.astype(obs.dtype)
         tic = time.perf_counter()
         action, state = policy.predict(seen, state=state, episode_start=start, deterministic=deterministic)
@@ -165,7 +183,7 @@ def run(venv: Any, policy: Any, seeds: list[int], p: Perturbation, noise_seed: i
         u = np.clip(np.asarray(action, float).reshape(n, -1), -1.0, 1.0) * u_max
         if p.torque_sigma is not None:
             sigma = np.asarray(p.torque_sigma, float)
-            u = u + (sigma[:, None] if sigma.ndim == 1 else sigma) * rng.standard_normal(u.shape)
+            u = u + (sigma[:, None] if sigma.ndim == 1 else sigma) * normal(u.shape[1])
         if p.response is not None:
             u = applied + np.asarray(p.response)[:, None] * (u - applied)
         applied = np.clip(u, -u_max, u_max)

@@ -155,3 +155,59 @@ def test_sweep_runs_every_axis_batched(monkeypatch, capsys):
     assert len(res["model"]["values"]) + len(res["model"]["skipped"]) == 5 * 3 + 2 * 2
     assert len(res["perturbations"]["success"]) == 4
     assert all(res[a]["fraction"] == 0.0 for a in dfki.AXES) and res["score"]["value"] == 0.0
+
+
+def test_a_part_of_a_batch_sees_what_it_sees_in_the_whole_batch():
+    """``run(batch=(total, first))``: members run in parts (each its rows of the batch's noise) end bit for bit where they
+    end in the whole batch, under every axis at once (a controller with memory: the adaptive swing-up's filter and
+    identification, noisy velocities, torque noise, a lag, delays, pulses and its own plant per member); a part that
+    does not fit in the batch is refused."""
+    from controllers import AdaptiveSwingUpLQR
+
+    env_id, n, steps = "mbs_envs/AcrobotDFKI-v1", 5, 120
+    rng = np.random.default_rng(3)
+    p = Perturbation(noise_sigma=np.linspace(0.0, 0.4, n), noise_index=(4, 5), torque_sigma=np.linspace(0.0, 0.5, n),
+                     response=np.linspace(0.5, 1.0, n), delay=np.arange(n), pulses=rng.normal(0.0, 0.5, (n, steps, 2)))  # fmt: skip
+    params = [dict(m1=presets.DFKI_C1.m1 * s) for s in np.linspace(0.9, 1.1, n)]
+
+    def go(members):
+        v = gym.make_vec(env_id, num_envs=members.stop - members.start, vectorization_mode="vector_entry_point", autoreset_mode="Disabled",
+                         max_episode_steps=steps, member_params=params[members])  # fmt: skip
+        res = run(v, AdaptiveSwingUpLQR(gym.make(env_id)), list(range(members.start, members.stop)), p.rows(members), noise_seed=11,
+                  batch=(n, members.start))  # fmt: skip
+        return np.concatenate([res["q"], res["v"]], axis=1)
+
+    whole = go(slice(0, n))
+    parts = np.concatenate([go(slice(0, 2)), go(slice(2, 3)), go(slice(3, n))])
+    assert np.all(np.isfinite(whole)) and len(np.unique(whole[:, 0])) == n  # the members differ
+    np.testing.assert_array_equal(parts, whole)
+    with pytest.raises(ValueError, match="batch"):
+        run(venv(2), Recorder(), [0, 1], Perturbation(), batch=(3, 2))
+
+
+def test_a_sweep_in_parts_is_the_whole_sweep(monkeypatch):
+    """:func:`dfki.sweep` with parts of 2 members gives each member the value it gets in one batch per axis (the success
+    rule replaced by each member's final shoulder angle, so every bit shows), and the parts assemble in any order."""
+    monkeypatch.setattr(dfki, "PULSES", {**dfki.PULSES, "episodes": 3})
+    monkeypatch.setattr(gym.envs.registration.registry["mbs_envs/AcrobotDFKI-v1"], "max_episode_steps", 60)
+    monkeypatch.setattr(dfki, "random_pulses", lambda rng, episodes, t: rng.normal(0.0, 1.0, (episodes, len(t), 2)))
+    monkeypatch.setattr(dfki, "run_success", lambda res: res["q"][:, 0].copy())
+    from controllers import SwingUpLQR
+
+    make = lambda env: SwingUpLQR(env)  # noqa: E731
+    whole = dfki.sweep("mbs_envs/AcrobotDFKI-v1", make, n=3)
+    parted = dfki.sweep("mbs_envs/AcrobotDFKI-v1", make, n=3, part_size=2)
+    for axis in dfki.AXES:
+        np.testing.assert_array_equal(parted[axis]["success"], whole[axis]["success"])
+        assert parted[axis]["values"] == whole[axis]["values"]
+    assert parted["score"] == whole["score"]
+    parts, meta = dfki.sweep_parts("mbs_envs/AcrobotDFKI-v1", n=3, part_size=2)
+    assert max(p.members.stop - p.members.start for p in parts) == 2 and len(parts) > len(dfki.AXES)
+    ok = [np.full(p.members.stop - p.members.start, float(p.members.start)) for p in parts]
+    order = np.random.default_rng(0).permutation(len(parts))
+    a = dfki.assemble_sweep(meta, parts, ok)
+    b = dfki.assemble_sweep(meta, [parts[i] for i in order], [ok[i] for i in order])
+    for axis in dfki.AXES:
+        np.testing.assert_array_equal(a[axis]["success"], b[axis]["success"])
+    with pytest.raises(ValueError, match="part_size"):
+        dfki.sweep_parts("mbs_envs/AcrobotDFKI-v1", n=3, part_size=0)
