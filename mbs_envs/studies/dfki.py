@@ -276,8 +276,9 @@ def sweep_parts(env_id: str, n: int = N_VALUES, seed: int = 0, axes: tuple = AXE
 
     from .robustness import Perturbation
 
-    if part_size is not None and int(part_size) < 1:
-        raise ValueError(f"part_size must be >= 1, got {part_size!r}")
+    from .. import validation as check
+
+    part_size = None if part_size is None else check.integer(part_size, "part_size", 1, 10**9)
     nominal = gym.make(env_id)
     steps, dt = nominal.spec.max_episode_steps, float(nominal.unwrapped.dt)
     rng = np.random.default_rng(seed)
@@ -304,7 +305,7 @@ def sweep_parts(env_id: str, n: int = N_VALUES, seed: int = 0, axes: tuple = AXE
                  "time delay": lambda x: Perturbation(delay=np.rint(x / dt).astype(int))}[axis](values)  # fmt: skip
             meta[axis] = {"values": values.tolist()}
         noise_seed = int(rng.integers(2**31))
-        step = size if part_size is None else int(part_size)
+        step = size if part_size is None else part_size
         parts += [SweepPart(axis, slice(a, min(a + step, size)), size, p, noise_seed, params) for a in range(0, size, step)]
     return parts, meta
 
@@ -331,8 +332,10 @@ def assemble_sweep(meta: Mapping[str, Mapping[str, Any]], parts: list[SweepPart]
     """The sweep's result (:func:`sweep`) from its parts' successes (any order of parts)."""
     out: dict[str, dict[str, Any]] = {}
     for axis, info in meta.items():
-        mine = sorted(((p.members.start, ok) for p, ok in zip(parts, success) if p.axis == axis), key=lambda t: t[0])
-        ok = np.concatenate([o for _, o in mine])
+        mine = sorted(((p.members.start, p.size, ok) for p, ok in zip(parts, success) if p.axis == axis), key=lambda t: t[0])
+        ok = np.concatenate([o for _, _, o in mine]) if mine else np.empty(0)
+        if not mine or len(ok) != mine[0][1] or [a for a, _, _ in mine] != list(np.cumsum([0] + [len(o) for _, _, o in mine[:-1]])):
+            raise ValueError(f"the parts of axis {axis!r} do not make up its batch once")
         out[axis] = {**info, "success": ok, "fraction": float(np.mean(ok))}
     out["score"] = {"value": float(np.mean([out[a]["fraction"] for a in meta]))}
     return out
@@ -433,10 +436,9 @@ def controller_job(task: Mapping[str, Any]) -> dict[str, Any]:
 
     ``task``: ``env_id``, ``spec`` (``"module:Class"``, an agent folder or ``"lqr-catch:" + folder``, as
     :func:`mbs_envs.studies.comparison.load_policy` reads them), ``gains`` (a controller's entry of
-    ``controllers/tuned.json`` or None), and either ``part`` (a :class:`SweepPart`: returns its ``success`` and
-    ``wall_s``) or the protocol's episode: returns the recorded run, its criteria and score and ``wall_s``, and with
-    ``robustness`` (bool; ``values``, ``seed``, ``progress``) the whole :func:`sweep` run here and its
-    ``sweep_wall_s``. Wall times in seconds.
+    ``controllers/tuned.json`` or None), and ``part`` (a :class:`SweepPart`: returns its ``success`` and ``wall_s``)
+    or not (the protocol's episode: returns the recorded run, its criteria and score and ``wall_s``). Wall times in
+    seconds.
     """
     import time
 
@@ -457,9 +459,4 @@ def controller_job(task: Mapping[str, Any]) -> dict[str, Any]:
     p = env.unwrapped.model.params
     venv = gym.make_vec(task["env_id"], num_envs=1, vectorization_mode="vector_entry_point", autoreset_mode="Disabled")
     run_ = record(venv, make(env), [0])[0]
-    out: dict[str, Any] = {"run": run_, "criteria": evaluate([run_], p.l1, p.l2)[0], "wall_s": time.perf_counter() - tic}
-    if task.get("robustness"):
-        tic = time.perf_counter()
-        out["sweep"] = sweep(task["env_id"], make, n=task.get("values", N_VALUES), seed=task.get("seed", 0), progress=task.get("progress", False))
-        out["sweep_wall_s"] = time.perf_counter() - tic
-    return out
+    return {"run": run_, "criteria": evaluate([run_], p.l1, p.l2)[0], "wall_s": time.perf_counter() - tic}

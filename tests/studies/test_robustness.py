@@ -209,5 +209,10 @@ def test_a_sweep_in_parts_is_the_whole_sweep(monkeypatch):
     b = dfki.assemble_sweep(meta, [parts[i] for i in order], [ok[i] for i in order])
     for axis in dfki.AXES:
         np.testing.assert_array_equal(a[axis]["success"], b[axis]["success"])
-    with pytest.raises(ValueError, match="part_size"):
-        dfki.sweep_parts("mbs_envs/AcrobotDFKI-v1", n=3, part_size=0)
+    for bad in (0, 2.5, True):
+        with pytest.raises(ValueError, match="part_size"):
+            dfki.sweep_parts("mbs_envs/AcrobotDFKI-v1", n=3, part_size=bad)
+    with pytest.raises(ValueError, match="make up its batch"):  # a part missing, or given twice
+        dfki.assemble_sweep(meta, parts[1:], ok[1:])
+    with pytest.raises(ValueError, match="make up its batch"):
+        dfki.assemble_sweep(meta, parts + parts[:1], ok + ok[:1])
