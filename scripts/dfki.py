@@ -5,8 +5,10 @@ plant, 6 N m, RK4 at 2 ms, 10 s from hanging at rest) runs every model-based swi
 every agent trained on the protocol (``agents/<scene>DFKI-v1/<algo>/seed<k>/``) alone and with the plant's
 upright LQR catching, and scores each with the benchmark's success rule and simulation-v2 score
 (``mbs_envs/studies/dfki.py``);
-``--robustness`` adds its robustness-v2 sweep (six axes, each a batched rollout cut in parts of ``--part-size``
-members, every part seeing the noise it sees in the whole batch: :func:`mbs_envs.studies.dfki.sweep_parts`). The
+``--robustness`` adds its robustness-v2 sweep (six axes, each a batched rollout; a model-based controller's cut in
+parts of ``--part-size`` members, every part seeing the noise it sees in the whole batch:
+:func:`mbs_envs.studies.dfki.sweep_parts`; an agent's one batch per axis, as its network's outputs move in the last
+bits with the batch size). The
 controllers' episodes and the parts of every sweep run in one pool of processes (``--workers``), or on Ray with
 ``--ray [ADDRESS]`` (the ``ray`` extra); the wall time is printed and kept in ``dfki.json``. Writes
 ``dfki.csv``, ``dfki.json``, ``report.md`` (our rows beside the published ones), one time-series plot per
@@ -63,7 +65,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--values", type=int, default=dfki.N_VALUES, help=f"values per robustness axis (default {dfki.N_VALUES}, as theirs)")
     p.add_argument("--seed", type=int, default=0, help="seeds the sweep's noise and pulses")
     p.add_argument("--part-size", type=int, default=None,
-                   help="members per part of a sweep (default: about 8 parts per worker over the controllers' sweeps)")
+                   help="members per part of a model-based controller's sweep (default: about 8 parts per worker over "
+                        "their sweeps; an agent's sweep runs one batch per axis)")
     p.add_argument("--workers", type=int, default=None, help="local processes (default: one per core, at most one per controller)")
     p.add_argument("--ray", nargs="?", const="local", default=None, help="run the controllers on Ray (cluster ADDRESS, or a local instance)")
     p.add_argument("--tune", action="store_true", help="tune the energy controllers' gains on the protocol instead (mbs_envs.studies.dfki_tuning)")
@@ -84,15 +87,11 @@ def run(args: argparse.Namespace) -> dict:
     base = [{"env_id": SCENES[s], "spec": specs[s][n], "gains": gains[s, n][0]} for s, n in jobs]
     tasks = list(base)  # the protocol's episode of each, then the parts of every sweep: one pool keeps every core busy
     owner: list[int] = []
-    metas = {}
+    metas: dict[int, dict] = {}
     if args.robustness:
-        workers = args.workers or os.cpu_count() or 1
-        members = sum(part.size for s, _ in jobs for part in dfki.sweep_parts(SCENES[s], args.values, args.seed)[0])
-        size = args.part_size or max(1, -(-members // (8 * workers)))  # about 8 parts per worker
-        for j, (s, n) in enumerate(jobs):
-            parts, metas[j] = dfki.sweep_parts(SCENES[s], args.values, args.seed, part_size=size)
-            tasks += [{**base[j], "part": part} for part in parts]
-            owner += [j] * len(parts)
+        parts, metas = sweep_parts_of(jobs, args.values, args.seed, args.workers or os.cpu_count() or 1, args.part_size)
+        tasks += [{**base[j], "part": part} for j, part in parts]
+        owner = [j for j, _ in parts]
     tic = time.perf_counter()
     results = run_tasks(dfki.controller_job, tasks, ray_address=args.ray, max_workers=args.workers, progress="DFKI protocol")
     wall = time.perf_counter() - tic
@@ -125,6 +124,23 @@ def run(args: argparse.Namespace) -> dict:
     (args.out / "report.md").write_text(report(rows, args))
     print(f"written {args.out}")
     return record
+
+
+def sweep_parts_of(jobs: list[tuple[str, str]], values: int, seed: int, workers: int, part_size: int | None = None
+                   ) -> tuple[list[tuple[int, dfki.SweepPart]], dict[int, dict]]:  # fmt: skip
+    """The parts of every job's sweep, as ``(job index, part)``, and each job's axis descriptions.
+
+    A model-based controller's sweep is cut in parts of ``part_size`` members (default: about 8 parts per worker over
+    all of them); an agent's stays one batch per axis: its network's outputs move in the last bits with the batch size
+    (:func:`mbs_envs.studies.robustness.run`), so only whole batches give the committed runs' episodes."""
+    model_based = {j for j, (_, name) in enumerate(jobs) if name in SWING_UP_CONTROLLERS}
+    members = sum(part.size for j in model_based for part in dfki.sweep_parts(SCENES[jobs[j][0]], values, seed)[0])
+    size = part_size or max(1, -(-members // (8 * workers)))
+    out, metas = [], {}
+    for j, (scene, _) in enumerate(jobs):
+        parts, metas[j] = dfki.sweep_parts(SCENES[scene], values, seed, part_size=size if j in model_based else None)
+        out += [(j, part) for part in parts]
+    return out, metas
 
 
 def policies(scene: str, agents: pathlib.Path | None) -> dict[str, str]:

@@ -546,6 +546,28 @@ def test_dfki_script_scores_the_protocol_and_writes_its_report(tmp_path, monkeyp
     assert "ours: swing-up + LQR" in text and "AR-EAPO (published)" in text
 
 
+def test_dfki_script_cuts_the_controllers_sweeps_in_parts_and_keeps_an_agents_whole():
+    """A model-based controller's sweep goes out in parts (that make up each axis' batch once, in its order); an agent's in
+    one batch per axis (its network's outputs move in the last bits with the batch size)."""
+    from mbs_envs.studies import dfki
+
+    script = load_script("dfki.py")
+    jobs = [("Acrobot", "swing-up + LQR"), ("Acrobot", "PPO seed0"), ("Pendubot", "identified iLQR + TVLQR")]
+    parts, metas = script["sweep_parts_of"](jobs, 3, 0, workers=2)
+    mine = {j: [p for i, p in parts if i == j] for j in range(3)}
+    assert [p.axis for p in mine[1]] == list(dfki.AXES) and all(p.members == slice(0, p.size) for p in mine[1])
+    for j in (0, 2):
+        assert len(mine[j]) > len(dfki.AXES) and max(p.members.stop - p.members.start for p in mine[j]) < max(p.size for p in mine[j])
+        for axis in dfki.AXES:
+            axis_parts = [p for p in mine[j] if p.axis == axis]
+            rows = [p.members for p in axis_parts]
+            assert rows[0].start == 0 and rows[-1].stop == axis_parts[0].size
+            assert all(a.stop == b.start for a, b in zip(rows, rows[1:]))
+    assert set(metas) == {0, 1, 2} and set(metas[0]) == set(dfki.AXES)
+    fixed, _ = script["sweep_parts_of"](jobs, 3, 0, workers=2, part_size=1)
+    assert all(p.members.stop - p.members.start == 1 for j, p in fixed if j != 1)
+
+
 def test_robustness_script_sweeps_a_scene_and_writes_its_report(tmp_path):
     """One controller on one scene, 2 values per axis, 1 seed, 2 pulse episodes: the CSV has a row per member."""
     script = load_script("robustness.py")

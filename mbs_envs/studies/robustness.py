@@ -128,8 +128,10 @@ def run(venv: Any, policy: Any, seeds: list[int], p: Perturbation, noise_seed: i
 
     ``batch = (total, first)``: these members are the rows ``first .. first + n`` of a batch of ``total`` whose
     noise is drawn as one (``noise_seed``'s draws for all ``total`` rows at each step, these rows taken), so a part
-    of a batch run on its own sees what it sees in the whole batch: the same episodes, bit for bit, where the policy
-    treats its members independently (every controller and agent here does).
+    of a batch run on its own sees what it sees in the whole batch: the same episodes, bit for bit, where the policy's
+    action for a member does not depend on the other members to the bit (the model-based controllers here: tested).
+    A neural network's does, in its last bits: a batched matrix product's blocking follows the batch size, and a
+    closed loop amplifies the difference (a PPO agent on the DFKI acrobot ends elsewhere in parts than in one batch).
 
     Returns
     -------
