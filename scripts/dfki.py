@@ -40,6 +40,7 @@ import numpy as np
 os.environ.setdefault("MBS_ENVS_JIT", "sync")
 
 import mbs_envs  # noqa: F401
+from mbs_envs import validation as check
 from mbs_envs.envs.presets import PROTOCOL_IDS
 from mbs_envs.envs.registry import SWING_UP_CONTROLLERS
 from mbs_envs.studies import dfki
@@ -134,12 +135,12 @@ def sweep_parts_of(jobs: list[tuple[str, str]], values: int, seed: int, workers:
     all of them); an agent's stays one batch per axis: its network's outputs move in the last bits with the batch size
     (:func:`mbs_envs.studies.robustness.run`), so only whole batches give the committed runs' episodes."""
     model_based = {j for j, (_, name) in enumerate(jobs) if name in SWING_UP_CONTROLLERS}
-    members = sum(part.size for j in model_based for part in dfki.sweep_parts(SCENES[jobs[j][0]], values, seed)[0])
-    size = part_size or max(1, -(-members // (8 * workers)))
-    out, metas = [], {}
+    whole, metas = {}, {}
     for j, (scene, _) in enumerate(jobs):
-        parts, metas[j] = dfki.sweep_parts(SCENES[scene], values, seed, part_size=size if j in model_based else None)
-        out += [(j, part) for part in parts]
+        whole[j], metas[j] = dfki.sweep_parts(SCENES[scene], values, seed)
+    members = sum(part.size for j in model_based for part in whole[j])
+    size = check.integer(part_size, "part_size", 1, 10**9) if part_size is not None else max(1, -(-members // (8 * workers)))
+    out = [(j, piece) for j in whole for part in whole[j] for piece in (part.cut(size) if j in model_based else [part])]
     return out, metas
 
 

@@ -566,6 +566,8 @@ def test_dfki_script_cuts_the_controllers_sweeps_in_parts_and_keeps_an_agents_wh
     assert set(metas) == {0, 1, 2} and set(metas[0]) == set(dfki.AXES)
     fixed, _ = script["sweep_parts_of"](jobs, 3, 0, workers=2, part_size=1)
     assert all(p.members.stop - p.members.start == 1 for j, p in fixed if j != 1)
+    with pytest.raises(ValueError, match="part_size"):
+        script["sweep_parts_of"](jobs, 3, 0, workers=2, part_size=0)
 
 
 def test_robustness_script_sweeps_a_scene_and_writes_its_report(tmp_path):

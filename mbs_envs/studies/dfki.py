@@ -266,6 +266,11 @@ class SweepPart:
     noise_seed: int
     member_params: list | None = None
 
+    def cut(self, part_size: int) -> list[SweepPart]:
+        """These members in parts of at most ``part_size`` (an integer >= 1), in order."""
+        a, b = self.members.start, self.members.stop
+        return [dataclasses.replace(self, members=slice(k, min(k + part_size, b))) for k in range(a, b, part_size)]
+
 
 def sweep_parts(env_id: str, n: int = N_VALUES, seed: int = 0, axes: tuple = AXES, part_size: int | None = None
                 ) -> tuple[list[SweepPart], dict[str, dict[str, Any]]]:  # fmt: skip
@@ -304,9 +309,8 @@ def sweep_parts(env_id: str, n: int = N_VALUES, seed: int = 0, axes: tuple = AXE
                  "torque response": lambda x: Perturbation(response=x),
                  "time delay": lambda x: Perturbation(delay=np.rint(x / dt).astype(int))}[axis](values)  # fmt: skip
             meta[axis] = {"values": values.tolist()}
-        noise_seed = int(rng.integers(2**31))
-        step = size if part_size is None else part_size
-        parts += [SweepPart(axis, slice(a, min(a + step, size)), size, p, noise_seed, params) for a in range(0, size, step)]
+        whole = SweepPart(axis, slice(0, size), size, p, int(rng.integers(2**31)), params)
+        parts += [whole] if part_size is None else whole.cut(part_size)
     return parts, meta
 
 
