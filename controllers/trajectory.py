@@ -96,6 +96,12 @@ def wrapped(x, goal):  # pragma: no cover - compiled
     return d
 
 
+@njit(inline="always")
+def error4(x0, x1, x2, x3, r0, r1, r2, r3):  # pragma: no cover - compiled
+    """:func:`wrapped` on scalars: ``x - r`` with the angles wrapped, a tuple of 4 (nothing allocated)."""
+    return wrap(x0 - r0), wrap(x1 - r1), x2 - r2, x3 - r3
+
+
 @njit
 def energy(x, theta):  # pragma: no cover - compiled
     """Mechanical energy [J] of the state ``x`` (4,)."""
@@ -183,8 +189,8 @@ def _rollout(x0, U, Xref, kff, K, alpha, u_max, driven, theta, dt, substeps, X, 
     False if the state stops being finite."""
     X[0] = x0
     for k in range(U.shape[0]):
-        d0, d1 = wrap(X[k, 0] - Xref[k, 0]), wrap(X[k, 1] - Xref[k, 1])
-        u = U[k] + alpha * kff[k] + dot4(K[k, 0], K[k, 1], K[k, 2], K[k, 3], d0, d1, X[k, 2] - Xref[k, 2], X[k, 3] - Xref[k, 3])
+        d0, d1, d2, d3 = error4(X[k, 0], X[k, 1], X[k, 2], X[k, 3], Xref[k, 0], Xref[k, 1], Xref[k, 2], Xref[k, 3])
+        u = U[k] + alpha * kff[k] + dot4(K[k, 0], K[k, 1], K[k, 2], K[k, 3], d0, d1, d2, d3)
         Un[k] = min(max(u, -u_max), u_max)
         X[k + 1, 0], X[k + 1, 1], X[k + 1, 2], X[k + 1, 3] = step4(X[k, 0], X[k, 1], X[k, 2], X[k, 3], Un[k], driven, theta, dt, substeps)
         if not (np.isfinite(X[k + 1, 0]) and np.isfinite(X[k + 1, 1]) and np.isfinite(X[k + 1, 2]) and np.isfinite(X[k + 1, 3])):
@@ -226,8 +232,7 @@ def _backward(X, U, goal, w_u, W, S_T, u_max, mu, A, b, dt, kff, K):  # pragma: 
             Vb[i] = Vxx[i, 0] * bk[0] + Vxx[i, 1] * bk[1] + Vxx[i, 2] * bk[2] + Vxx[i, 3] * bk[3]
         Qu = r * U[k] + bk[0] * Vx[0] + bk[1] * Vx[1] + bk[2] * Vx[2] + bk[3] * Vx[3]
         Quu = r + bk[0] * Vb[0] + bk[1] * Vb[1] + bk[2] * Vb[2] + bk[3] * Vb[3] + mu
-        dk[0], dk[1] = wrap(X[k, 0] - goal[0]), wrap(X[k, 1] - goal[1])
-        dk[2], dk[3] = X[k, 2] - goal[2], X[k, 3] - goal[3]
+        dk[0], dk[1], dk[2], dk[3] = error4(X[k, 0], X[k, 1], X[k, 2], X[k, 3], goal[0], goal[1], goal[2], goal[3])
         for i in range(4):
             Qx[i] = Ak[0, i] * Vx[0] + Ak[1, i] * Vx[1] + Ak[2, i] * Vx[2] + Ak[3, i] * Vx[3]
             Qx[i] += dt * (W[i, 0] * dk[0] + W[i, 1] * dk[1] + W[i, 2] * dk[2] + W[i, 3] * dk[3])
@@ -367,8 +372,7 @@ def lqr_catches(x0, K, goal, u_max, driven, theta, dt, substeps, steps, tol):  #
     x0_, x1, x2, x3 = x0[0], x0[1], x0[2], x0[3]
     hold = max(1, steps // 10)
     for k in range(steps):
-        d0, d1 = wrap(x0_ - goal[0]), wrap(x1 - goal[1])
-        d2, d3 = x2 - goal[2], x3 - goal[3]
+        d0, d1, d2, d3 = error4(x0_, x1, x2, x3, goal[0], goal[1], goal[2], goal[3])
         if k >= steps - hold and max(abs(d0), abs(d1), abs(d2), abs(d3)) > tol:
             return False
         u = min(max(-(K[0] * d0 + K[1] * d1 + K[2] * d2 + K[3] * d3), -u_max), u_max)
