@@ -79,3 +79,80 @@ def ekf_step(model: Any, x: np.ndarray, P: np.ndarray, u: np.ndarray, y: np.ndar
     x_new[:, :n] = wrap_angle(x_new[:, :n])
     P_new = P_pred - L @ P_pred
     return x_new, 0.5 * (P_new + np.swapaxes(P_new, -1, -2))
+
+
+def rates_from_angles(q: np.ndarray, q_1: np.ndarray, q_2: np.ndarray, history: np.ndarray, v_seen: np.ndarray,
+                      dt: float) -> np.ndarray:  # fmt: skip
+    """Joint rates from the last three angle observations: the second-order backward difference
+
+        v_k = (3 q_k - 4 q_{k-1} + q_{k-2}) / (2 dt) = (3 (q_k - q_{k-1}) - (q_{k-1} - q_{k-2})) / (2 dt)
+
+    (exact for angles quadratic in time: no lag at constant acceleration; error ``dt^2 q''' / 3``), with wrapped
+    differences; the first-order ``(q_k - q_{k-1}) / dt`` where only two angles are known yet, and the observed
+    rates where only one is.
+
+    Parameters
+    ----------
+    q, q_1, q_2 : ndarray, shape (B, n)
+        The angles observed now, one and two control steps before [rad].
+    history : ndarray, shape (B,)
+        How many observations each member has had before this one in its episode (0, 1, >= 2).
+    v_seen : ndarray, shape (B, n)
+        The rates observed now [rad/s] (kept where ``history == 0``).
+    dt : float
+        The control step [s].
+
+    Returns
+    -------
+    ndarray, shape (B, n)
+        The rates [rad/s].
+    """
+    d1, d2 = wrap_angle(q - q_1), wrap_angle(q_1 - q_2)
+    second = (3.0 * d1 - d2) / (2.0 * dt)
+    h = np.asarray(history)[:, None]
+    return np.where(h >= 2, second, np.where(h == 1, d1 / dt, v_seen))
+
+
+class RatesFromAngles:
+    """A policy (controller or agent, SB3's ``predict``) fed its swing-up observations with the joint rates replaced
+    by :func:`rates_from_angles` of the observed angles: what an arm's encoders give where its rate sensors are noisy
+    (the DFKI benchmark's velocity-noise axis perturbs the observed rates only). Where the angles are noisy too the
+    difference amplifies their noise by about ``1.6 / dt`` (the swing-up scenes' observation noise: keep the
+    observed rates or the controllers' own filter there).
+
+    Memory (SB3's ``state``): ``(q_1, q_2, history, inner)``: the last two observed angles (B, n), the observations
+    each member has had in its episode (B,), and the wrapped policy's own state; reset where ``episode_start``.
+
+    Parameters
+    ----------
+    policy : object with ``predict(obs, state, episode_start, deterministic)``
+    env : a swing-up env (``mbs_envs/Acrobot-v*``, ``Pendubot-v*`` and their protocol ids), for its control step.
+    """
+
+    def __init__(self, policy: Any, env: Any):
+        from mbs_envs.envs.swingup import SwingUpEnv
+
+        base = getattr(env, "unwrapped", env)
+        if not isinstance(base, SwingUpEnv):
+            raise ValueError(f"env: RatesFromAngles reads a swing-up env's observations, got {type(base).__name__}")
+        self.policy, self.dt = policy, float(base.dt)
+        self.observation_space, self.action_space = env.observation_space, env.action_space
+
+    def predict(self, observation: Any, state: Any = None, episode_start: Any = None, deterministic: bool = True) -> tuple[np.ndarray, Any]:
+        from mbs_envs.envs.swingup import decode_swingup
+
+        obs = np.asarray(observation)
+        single = obs.ndim == 1
+        batch = np.array(obs.reshape(-1, obs.shape[-1]), dtype=obs.dtype if obs.dtype.kind == "f" else np.float32)
+        seen = decode_swingup(batch)  # ValueError for a wrong shape; the angles by atan2
+        q, B = seen.q, len(batch)
+        start = np.ones(B, bool) if episode_start is None else np.broadcast_to(np.asarray(episode_start, bool).reshape(-1), (B,))
+        if state is None:
+            q_1, q_2, history, inner = q, q, np.zeros(B), None
+        else:
+            q_1, q_2, history, inner = state
+            q_1, q_2 = np.asarray(q_1, float).reshape(B, -1), np.asarray(q_2, float).reshape(B, -1)
+            history = np.where(start, 0.0, np.asarray(history, float).reshape(B))
+        batch[:, -q.shape[1] :] = rates_from_angles(q, q_1, q_2, history, seen.v, self.dt)
+        action, inner = self.policy.predict(batch[0] if single else batch, state=inner, episode_start=episode_start, deterministic=deterministic)
+        return action, (q, q_1, history + 1.0, inner)

@@ -50,6 +50,8 @@ from mbs_envs.studies.robustness import plot_success
 from mbs_envs.studies.plotting import pyplot, save
 
 SCENES = {entry[0].split("/")[1].replace("DFKI-v1", ""): entry[0] for entry in PROTOCOL_IDS}
+#: what ``--rates-from-angles`` appends to each policy's name
+RATES_SUFFIX = " (rates from angles)"
 CRITERIA = ("swingup_time", "energy", "tau_cost", "tau_smoothness", "velocity_cost")
 
 
@@ -70,6 +72,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                         "their sweeps; an agent's sweep runs one batch per axis)")
     p.add_argument("--workers", type=int, default=None, help="local processes (default: one per core, at most one per controller)")
     p.add_argument("--ray", nargs="?", const="local", default=None, help="run the controllers on Ray (cluster ADDRESS, or a local instance)")
+    p.add_argument("--rates-from-angles", action="store_true",
+                   help="every policy sees the joint rates differenced from the observed angles instead of the observed "
+                        "rates (controllers.estimator.RatesFromAngles); their names get ' (rates from angles)'")
     p.add_argument("--tune", action="store_true", help="tune the energy controllers' gains on the protocol instead (mbs_envs.studies.dfki_tuning)")
     p.add_argument("--write", action="store_true", help="with --tune: store the picks in controllers/tuned.json under the protocol ids")
     return p.parse_args(argv)
@@ -85,7 +90,7 @@ def run(args: argparse.Namespace) -> dict:
     if not jobs:
         raise SystemExit("dfki.py: no controller or agent matches --controller")
     gains = {(s, n): protocol_gains(s, n) if n in SWING_UP_CONTROLLERS else (None, "") for s, n in jobs}
-    base = [{"env_id": SCENES[s], "spec": specs[s][n], "gains": gains[s, n][0]} for s, n in jobs]
+    base = [{"env_id": SCENES[s], "spec": specs[s][n], "gains": gains[s, n][0], "rates_from_angles": args.rates_from_angles} for s, n in jobs]
     tasks = list(base)  # the protocol's episode of each, then the parts of every sweep: one pool keeps every core busy
     owner: list[int] = []
     metas: dict[int, dict] = {}
@@ -97,8 +102,10 @@ def run(args: argparse.Namespace) -> dict:
     results = run_tasks(dfki.controller_job, tasks, ray_address=args.ray, max_workers=args.workers, progress="DFKI protocol")
     wall = time.perf_counter() - tic
     for j, ((scene, name), res) in enumerate(zip(jobs, results)):
+        source = gains[scene, name][1]
+        name = name + (RATES_SUFFIX if args.rates_from_angles else "")
         c = res["criteria"]
-        row = {"scene": scene, "controller": name, "gains": gains[scene, name][1], **c, "wall_s": res["wall_s"]}
+        row = {"scene": scene, "controller": name, "gains": source, **c, "wall_s": res["wall_s"]}
         plot_run(res["run"], gym.make(SCENES[scene]).unwrapped.model.params, f"{scene}: {name}", args.out / f"run_{scene}_{slug(name)}.png")
         if args.robustness:
             mine = [(t["part"], r) for t, r, o in zip(tasks[len(jobs) :], results[len(jobs) :], owner) if o == j]
@@ -263,6 +270,14 @@ def report(rows: list[dict], args: argparse.Namespace) -> str:
            "simulates it: 6 N m on the driven joint, RK4 at 2 ms, 10 s from hanging at rest); success and score "
            "(simulation v2) as `mbs_envs/studies/dfki.py` computes them. Our controllers' gains: "
            + gains_sentence(rows), ""]  # fmt: skip
+    if args.rates_from_angles:
+        out += ["**Rates from angles** (`--rates-from-angles`): every policy here sees the joint rates differenced from the "
+                "observed angles (the second-order backward difference, `controllers.estimator.RatesFromAngles`) instead "
+                "of the observed rates. The velocity-noise axis perturbs only the observed rates, so it reaches these "
+                "policies only through the first step's (the difference needs two angles): each of its episodes differs from "
+                "the noise-free one by that step alone, so the axis mostly repeats the nominal episode (in this run each "
+                "policy scored 0, 1 or all 21 of its episodes) and scores the estimator rather than the controller. The published "
+                "entries see the noisy rates (or their own filters of them).", ""]  # fmt: skip
     for scene in dict.fromkeys(r["scene"] for r in rows):
         out += [f"## {scene}: simulation v2", "", "| controller | success | swing-up time [s] | energy [J] | torque cost | smoothness [N m] | velocity cost | score |",
                 "|---|---|---|---|---|---|---|---|"]  # fmt: skip

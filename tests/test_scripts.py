@@ -544,6 +544,11 @@ def test_dfki_script_scores_the_protocol_and_writes_its_report(tmp_path, monkeyp
         assert (tmp_path / name).stat().st_size > 0, name
     text = (tmp_path / "report.md").read_text()
     assert "ours: swing-up + LQR" in text and "AR-EAPO (published)" in text
+    # the same controller seeing the rates differenced from the angles: named so, and said so in the report
+    other = script["run"](script["parse_args"](["--out", str(tmp_path / "rates"), "--scene", "Pendubot", "--controller", "swing-up + LQR",
+                                                "--rates-from-angles", "--workers", "1"]))  # fmt: skip
+    assert other["rows"][0]["controller"] == "swing-up + LQR (rates from angles)"
+    assert "Rates from angles" in (tmp_path / "rates" / "report.md").read_text()
 
 
 def test_dfki_script_cuts_the_controllers_sweeps_in_parts_and_keeps_an_agents_whole():

@@ -440,7 +440,8 @@ def controller_job(task: Mapping[str, Any]) -> dict[str, Any]:
 
     ``task``: ``env_id``, ``spec`` (``"module:Class"``, an agent folder or ``"lqr-catch:" + folder``, as
     :func:`mbs_envs.studies.comparison.load_policy` reads them), ``gains`` (a controller's entry of
-    ``controllers/tuned.json`` or None), and ``part`` (a :class:`SweepPart`: returns its ``success`` and ``wall_s``)
+    ``controllers/tuned.json`` or None), optionally ``rates_from_angles`` (True: the policy sees the joint rates
+    differenced from the observed angles, :class:`controllers.estimator.RatesFromAngles`), and ``part`` (a :class:`SweepPart`: returns its ``success`` and ``wall_s``)
     or not (the protocol's episode: returns the recorded run, its criteria and score and ``wall_s``). Wall times in
     seconds.
     """
@@ -453,8 +454,14 @@ def controller_job(task: Mapping[str, Any]) -> dict[str, Any]:
 
     def make(env: Any) -> Any:
         if task.get("gains") is not None:
-            return make_controller(task["spec"], env, task["gains"])
-        return load_policy(task["spec"], env)  # a controller with its defaults, an agent, or an agent + LQR
+            policy = make_controller(task["spec"], env, task["gains"])
+        else:
+            policy = load_policy(task["spec"], env)  # a controller with its defaults, an agent, or an agent + LQR
+        if task.get("rates_from_angles"):
+            from controllers.estimator import RatesFromAngles
+
+            policy = RatesFromAngles(policy, env)
+        return policy
 
     tic = time.perf_counter()
     if task.get("part") is not None:
