@@ -21,7 +21,8 @@ action) or ``SAME_STEP`` (the member is reset within the step; its last
 observation and info are in ``info["final_obs"]``, ``info["final_info"]``).
 
 Domain randomization: ``randomize={"m2": 0.2, ...}`` scales the named model
-parameters of every member by ``U(1 - s, 1 + s)``, drawn from the member's
+parameters of every member by ``U(1 - s, 1 + s)`` (or, for a pair ``{"b2": (0.0, 0.1)}``, draws the
+parameter itself from ``U(low, high)``), drawn from the member's
 generator at each reset (after its task), for models whose equations accept
 per-member parameters (see :meth:`mbs_envs.models.base.Params.batched`). Fixed per-member
 parameters (a parameter sweep run as one batch): ``member_params=[{"m2": 0.9}, {"m2": 1.1}, ...]``,
@@ -76,7 +77,9 @@ class MBSVectorEnv(VectorEnv):
         Truncation (the registered id's value through ``gym.make_vec``).
     autoreset_mode : AutoresetMode or str
     randomize : dict, optional
-        ``{parameter name: relative half-width}`` (domain randomization).
+        ``{parameter name: relative half-width s}`` (domain randomization: the parameter times ``U(1 - s, 1 + s)``)
+        or ``{parameter name: (low, high)}`` (the parameter itself ``U(low, high)``: e.g. a damping whose nominal
+        value is zero).
     member_params : sequence of Mapping, optional
         One mapping of model parameters per member (fixed for the env's life), each validated as
         ``params`` are; members may name different parameters (the others stay nominal).
@@ -144,7 +147,9 @@ class MBSVectorEnv(VectorEnv):
         self._elapsed = np.zeros(n, int)
         self._task: Any = None
         self._task_columns: tuple | None = None  # the compiled step's layout of _task, kept in step with it
-        self._scales: dict[str, np.ndarray] = {k: np.ones(n) for k in self.randomize}
+        # the draws: a scale per member, or the value itself for a (low, high) range (the base value until drawn)
+        self._scales: dict[str, np.ndarray] = {k: np.array(np.broadcast_to(self._base_value(k), (n,)), float) if isinstance(s, tuple)
+                                               else np.ones(n) for k, s in self.randomize.items()}  # fmt: skip
         self._apply_scales()  # fixed per-member parameters from the start
         self._autoreset = np.zeros(n, bool)
         self._ahead = StartsAhead(n)  # the members' next starts, drawn in batches (autoresets take them)
@@ -197,7 +202,17 @@ class MBSVectorEnv(VectorEnv):
         for name, s in randomize.items():
             if name not in names:
                 raise ValueError(f"randomize: unknown parameter {name!r} of {type(self.nominal_params).__name__}")
-            randomize[name] = check.real(s, f"randomize[{name!r}]", 0.0, 1.0, high_open=True)
+            if isinstance(s, (tuple, list, np.ndarray)):
+                lo, hi = (check.real(x, f"randomize[{name!r}]", -1e300, 1e300) for x in np.asarray(s, float).reshape(-1)) if np.size(s) == 2 else (None, None)
+                if lo is None or lo > hi:
+                    raise ValueError(f"randomize[{name!r}] must be a half-width in [0, 1) or a range (low, high) with low <= high, got {s!r}")
+                try:
+                    self.nominal_params.replace(**{name: lo}).replace(**{name: hi})
+                except ValueError as e:
+                    raise ValueError(f"randomize[{name!r}]: {e}") from None
+                randomize[name] = (lo, hi)
+            else:
+                randomize[name] = check.real(s, f"randomize[{name!r}]", 0.0, 1.0, high_open=True)
         if randomize and not getattr(self.model, "batched_params", False):
             raise ValueError(f"{type(self.model).__name__} does not support per-member parameters (randomize)")
         return randomize
@@ -229,8 +244,8 @@ class MBSVectorEnv(VectorEnv):
         """The per-member parameters of members ``idx`` (an index array or an int)."""
         scales = self._scales if scales is None else scales
         values = {k: v[idx] for k, v in self._fixed.items()}
-        for k in self.randomize:
-            values[k] = np.asarray(self._base_value(k) * np.ones(self.num_envs))[idx] * scales[k][idx]
+        for k, s in self.randomize.items():
+            values[k] = scales[k][idx] if isinstance(s, tuple) else np.asarray(self._base_value(k) * np.ones(self.num_envs))[idx] * scales[k][idx]
         return values
 
     def _apply_scales(self) -> None:
@@ -257,7 +272,7 @@ class MBSVectorEnv(VectorEnv):
         scales = {k: s.copy() for k, s in self._scales.items()}
         for i in idx:
             for k, s in self.randomize.items():
-                scales[k][i] = rngs[i].uniform(1 - s, 1 + s)
+                scales[k][i] = rngs[i].uniform(*s) if isinstance(s, tuple) else rngs[i].uniform(1 - s, 1 + s)
         model = self.nominal_model
         if self.randomize or self._fixed:
             model = self.nominal_model.with_params(self.nominal_params.batched(**self._member_values(idx, scales)))

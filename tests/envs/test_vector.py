@@ -144,6 +144,33 @@ def test_domain_randomization_draws_members_parameters_from_their_seeds():
         gym.make_vec("mbs_envs/Planar2R-v0", num_envs=2, vectorization_mode="vector_entry_point", randomize={"mass": 0.1})
 
 
+def test_domain_randomization_over_a_range_draws_the_parameter_itself():
+    """``randomize={"b2": (low, high)}``: each member's b2 from U(low, high) at every reset (a damping whose nominal
+    value is 0 cannot be scaled), with scaled ones beside it; bad ranges are refused by name and leave nothing made."""
+    kw = {"randomize": {"b2": (0.0, 0.1), "m2": 0.25}}
+    venv = gym.make_vec("mbs_envs/AcrobotDFKI-v1", num_envs=64, vectorization_mode="vector_entry_point", **kw)
+    assert np.all(venv.unwrapped.model.params.b2 == 0.0)  # nominal until the first reset
+    venv.reset(seed=3)
+    b2, m2 = venv.unwrapped.model.params.b2, venv.unwrapped.model.params.m2
+    nominal = venv.unwrapped.nominal_params
+    assert b2.shape == (64,) and np.all((b2 >= 0.0) & (b2 < 0.1)) and b2.std() > 0.02  # U(0, 0.1): std 0.029
+    assert np.all(np.abs(m2 / nominal.m2 - 1) <= 0.25 + 1e-12) and not np.allclose(m2, nominal.m2)
+    # each member's own draw from its seed (member i seeded 3 + i), the dynamics each member's own
+    one = gym.make_vec("mbs_envs/AcrobotDFKI-v1", num_envs=1, vectorization_mode="vector_entry_point", **kw)
+    one.reset(seed=5)
+    assert one.unwrapped.model.params.b2[0] == b2[2] and one.unwrapped.model.params.m2[0] == m2[2]
+    q, v, u = venv.unwrapped.q, np.ones((64, 2)), np.zeros((64, 1))
+    a = venv.unwrapped.model.forward_dynamics(q, v, u)
+    model = venv.unwrapped.nominal_model
+    single = model.with_params(nominal.replace(b2=float(b2[7]), m2=float(m2[7])))
+    np.testing.assert_allclose(a[7], single.forward_dynamics(q[7], v[7], u[7]), rtol=1e-13)
+    venv.reset(seed=4)
+    assert not np.array_equal(venv.unwrapped.model.params.b2, b2)  # drawn again at the reset
+    for bad, match in (((0.1, 0.0), "low <= high"), ((0.0,), "range"), ((-1.0, 0.1), "b2"), ((0.0, np.nan), "finite")):
+        with pytest.raises(ValueError, match=match):
+            gym.make_vec("mbs_envs/AcrobotDFKI-v1", num_envs=2, vectorization_mode="vector_entry_point", randomize={"b2": bad})
+
+
 def test_reset_mask_and_seed_lists():
     venv = gym.make_vec("mbs_envs/Planar2R-v0", num_envs=3, vectorization_mode="vector_entry_point")
     obs0, _ = venv.reset(seed=[4, 5, 6])
