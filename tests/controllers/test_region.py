@@ -153,16 +153,21 @@ def test_the_lqg_hold_share_falls_with_the_noise_and_matches_the_stationary_spre
     less), within sampling error (2,000 windows: 0.035)."""
     import scipy.stats
 
-    from controllers.region import lqg_hold_share, noise_floor
+    from controllers.region import LQG_GRID, lqg_hold_share, noise_floor
     from controllers.swingup import upright_linearization
 
     env = gym.make("mbs_envs/Acrobot-v1").unwrapped
     A, B = upright_linearization(env.model)
     dt = env.dt
-    shares = [lqg_hold_share(A, B, dt, s, 0.1, 200) for s in (1e-4, 0.005, 0.01, 0.02)]
+    grid = LQG_GRID[:12:3]  # four of the grid's controllers (the whole grid: about 15 s a call)
+    shares = [lqg_hold_share(A, B, dt, s, 0.1, 200, grid=grid) for s in (1e-4, 0.005, 0.01, 0.02)]
     assert shares[0] == 1.0 and shares[0] >= shares[1] >= shares[2] >= shares[3] and shares[3] < shares[1]
     floor = noise_floor(A, B, dt, 0.01)
-    assert lqg_hold_share(A, B, dt, 0.01, 0.2 * floor[1], 200) == 0.0
+    assert lqg_hold_share(A, B, dt, 0.01, 0.2 * floor[1], 200, grid=grid) == 0.0
     one = lqg_hold_share(A, B, dt, 0.01, 0.1, 1)  # one step: P(both angles inside) at the stationary spread
     p_elbow = scipy.stats.norm.cdf(0.1 / floor[1]) * 2 - 1  # the elbow alone, at the floor: an upper estimate
     assert one <= p_elbow + 0.035 and one > 0.5
+    # the batch of controllers gives each its own share: a grid of one is that controller's share in the whole grid
+    whole = lqg_hold_share(A, B, dt, 0.01, 0.1, 50, windows=300, grid=grid)
+    alone = [lqg_hold_share(A, B, dt, 0.01, 0.1, 50, windows=300, grid=(g,)) for g in grid]
+    assert abs(whole - max(alone)) <= 1 / 300  # (a window at the edge may round differently in a batch of another size)
