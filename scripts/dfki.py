@@ -271,13 +271,15 @@ def report(rows: list[dict], args: argparse.Namespace) -> str:
            "(simulation v2) as `mbs_envs/studies/dfki.py` computes them. Our controllers' gains: "
            + gains_sentence(rows), ""]  # fmt: skip
     if args.rates_from_angles:
+        passed = sorted({int(round(r["robust velocity noise"] * args.values)) for r in rows if "robust velocity noise" in r})
         out += ["**Rates from angles** (`--rates-from-angles`): every policy here sees the joint rates differenced from the "
                 "observed angles (the second-order backward difference, `controllers.estimator.RatesFromAngles`) instead "
                 "of the observed rates. The velocity-noise axis perturbs only the observed rates, so it reaches these "
                 "policies only through the first step's (the difference needs two angles): each of its episodes differs from "
-                "the noise-free one by that step alone, so the axis mostly repeats the nominal episode (in this run each "
-                "policy scored 0, 1 or all 21 of its episodes) and scores the estimator rather than the controller. The published "
-                "entries see the noisy rates (or their own filters of them).", ""]  # fmt: skip
+                "the noise-free one by that step alone, so the axis mostly repeats the nominal episode"
+                + (f" (in this run the policies passed {', '.join(map(str, passed))} of its {args.values} episodes)" if passed else "")
+                + " and scores the estimator rather than the controller. The published entries see the noisy rates (or "
+                "their own filters of them).", ""]  # fmt: skip
     for scene in dict.fromkeys(r["scene"] for r in rows):
         out += [f"## {scene}: simulation v2", "", "| controller | success | swing-up time [s] | energy [J] | torque cost | smoothness [N m] | velocity cost | score |",
                 "|---|---|---|---|---|---|---|---|"]  # fmt: skip
