@@ -117,8 +117,8 @@ class RatesFromAngles:
     """A policy (controller or agent, SB3's ``predict``) fed its swing-up observations with the joint rates replaced
     by :func:`rates_from_angles` of the observed angles: what an arm's encoders give where its rate sensors are noisy
     (the DFKI benchmark's velocity-noise axis perturbs the observed rates only). Where the angles are noisy too the
-    difference amplifies their noise by about ``1.6 / dt`` (the swing-up scenes' observation noise: keep the
-    observed rates or the controllers' own filter there).
+    difference amplifies their noise by ``sqrt(26) / (2 dt)``, about ``2.5 / dt`` (the swing-up scenes' observation
+    noise: keep the observed rates or the controllers' own filter there).
 
     Memory (SB3's ``state``): ``(q_1, q_2, history, inner)``: the last two observed angles (B, n), the observations
     each member has had in its episode (B,), and the wrapped policy's own state; reset where ``episode_start``.
