@@ -13,5 +13,6 @@ from .adaptive_swingup import AdaptiveSwingUpLQR
 from .planned_swingup import PlannedSwingUp
 from .swingup import SwingUpLQR
 from .energy_swingup import EnergySwingUpLQR
+from .estimator import RatesFromAngles
 
-__all__ = ["Controller", "PD", "PDGravity", "ComputedTorque", "LQR", "SteeringPD", "NoControl", "SwingUpLQR", "AdaptiveSwingUpLQR", "PlannedSwingUp", "EnergySwingUpLQR"]
+__all__ = ["Controller", "PD", "PDGravity", "ComputedTorque", "LQR", "SteeringPD", "NoControl", "SwingUpLQR", "AdaptiveSwingUpLQR", "PlannedSwingUp", "EnergySwingUpLQR", "RatesFromAngles"]

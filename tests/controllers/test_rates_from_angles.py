@@ -135,3 +135,26 @@ def test_with_rates_from_angles_the_velocity_noise_axis_does_not_reach_the_contr
         ok[wrap] = final_success(res["q"], res["v"]) & ~res["terminated"]
     assert ok[False][0] and not ok[False][1:].all()
     assert ok[True].all()
+
+
+def test_stable_baselines3s_evaluate_policy_runs_the_wrapped_controller():
+    """``evaluate_policy`` (SB3's own loop, memory through ``state`` and ``episode_start``) on the protocol: the
+    wrapped swing-up + LQR gets the return of its own episode run by hand."""
+    from stable_baselines3.common.evaluation import evaluate_policy
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from controllers import RatesFromAngles as exported
+
+    assert exported is RatesFromAngles
+    env = gym.make("mbs_envs/AcrobotDFKI-v1", max_episode_steps=600)
+    venv = DummyVecEnv([lambda: gym.make("mbs_envs/AcrobotDFKI-v1", max_episode_steps=600)])
+    venv.seed(4)
+    mean, _ = evaluate_policy(RatesFromAngles(SwingUpLQR(env), env), venv, n_eval_episodes=1)
+    ctrl = RatesFromAngles(SwingUpLQR(env), env)
+    obs, _ = env.reset(seed=4)
+    state, start, total, done = None, True, 0.0, False
+    while not done:
+        action, state = ctrl.predict(obs, state=state, episode_start=start)
+        obs, r, term, trunc, _ = env.step(action)
+        total, start, done = total + r, False, term or trunc
+    assert mean == pytest.approx(total, rel=1e-6)
