@@ -50,6 +50,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--train-env-kwargs", type=json.loads, default={},
                    help="JSON dict of env arguments for the training members only (a curriculum; validation runs the task as "
                         "--env-kwargs gives it), e.g. '{\"start_upright\": 0.5}'")
+    p.add_argument("--eval-env-kwargs", type=json.loads, default={},
+                   help="JSON dict of env arguments for the validation episodes only, e.g. '{\"randomize\": {\"m2\": 0.25}}' "
+                        "(each validation seed's plant drawn from it; --keep-best then keeps the best over those plants)")
     p.add_argument("--net-arch", type=int, nargs="+", help="hidden layers (default SB3's: 64 64 for PPO, 256 256 otherwise)")
     p.add_argument("--residual", nargs="?", const="default", help="train a residual agent on this controller ('module:Class'; default the scene's best)")
     p.add_argument("--residual-bound", type=float, default=0.25, help="largest correction, fraction of the actuator limit (default 0.25)")
@@ -79,7 +82,7 @@ def run(args: argparse.Namespace) -> list[dict]:
     residual = residual_base(args.env) if args.residual == "default" else args.residual
     for seed in args.seed:
         config = dict(env_id=args.env, algo=args.algo, steps=args.steps, seed=seed, n_envs=args.n_envs,
-                      env_kwargs=args.env_kwargs, train_env_kwargs=args.train_env_kwargs, keep_best=args.keep_best, net_arch=tuple(args.net_arch) if args.net_arch else None,
+                      env_kwargs=args.env_kwargs, train_env_kwargs=args.train_env_kwargs, eval_env_kwargs=args.eval_env_kwargs, keep_best=args.keep_best, net_arch=tuple(args.net_arch) if args.net_arch else None,
                       eval_every=args.eval_every, eval_seeds=args.eval_seeds, residual=residual, residual_bound=args.residual_bound,
                       hyper=dict(args.hyper), action_repeat=args.action_repeat, normalize=args.normalize,
                       init=str(args.init).format(seed=seed) if args.init else None)  # fmt: skip

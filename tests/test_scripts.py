@@ -509,6 +509,26 @@ def test_train_env_kwargs_reach_the_training_members_only(tmp_path, monkeypatch)
     assert records[0]["env_kwargs"] == {"start_noise": 0.05}
 
 
+def test_eval_env_kwargs_reach_the_validation_episodes_only(tmp_path, monkeypatch):
+    """--eval-env-kwargs (e.g. plants drawn per validation seed) shape the validation episodes, not the training
+    members, and config.json records them; the validation plants are the same at every evaluation (seeded)."""
+    from mbs_envs.studies import training
+
+    seen = {"eval": []}
+    real_vec, real_eval = training.make_sb3_vec_env, training.evaluate
+    monkeypatch.setattr(training, "make_sb3_vec_env", lambda *a, **kw: seen.setdefault("train", kw) and real_vec(*a, **kw))
+    monkeypatch.setattr(training, "evaluate", lambda p, i, s, kw, **r: seen["eval"].append((list(s), dict(kw))) or real_eval(p, i, s, kw, **r))
+    script = load_script("train.py")
+    rand = {"randomize": {"m2": 0.25, "b2": [0.0, 0.1]}}
+    records = script["run"](script["parse_args"](["--env", "mbs_envs/Acrobot-v1", "--algo", "ppo", "--steps", "1024", "--n-envs", "8",
+                                                  "--hyper", "n_steps=32", "--eval-seeds", "2", "--env-kwargs", '{"start_noise": 0.05}',
+                                                  "--eval-env-kwargs", json.dumps(rand), "--out", str(tmp_path)]))  # fmt: skip
+    assert "randomize" not in seen["train"]
+    assert all(kw == {"start_noise": 0.05, **rand} for _, kw in seen["eval"]) and len(seen["eval"]) >= 2
+    assert all(s == seen["eval"][0][0] for s, _ in seen["eval"])
+    assert records[0]["eval_env_kwargs"] == rand and records[0]["env_kwargs"] == {"start_noise": 0.05}
+
+
 def test_keep_best_ships_the_evaluation_with_the_highest_validation_return(tmp_path):
     """--keep-best: agent.zip is the agent evaluated best on the validation seeds; config.json says which."""
     import json

@@ -92,6 +92,10 @@ class TrainConfig:
         Arguments applied on top of ``env_kwargs`` to the training members only, never to the
         validation episodes: a training curriculum, e.g. ``{"start_upright": 0.5}`` on the swing-up
         scenes (half the training episodes start near upright; the task scored still starts hanging).
+    eval_env_kwargs : dict
+        Arguments applied on top of ``env_kwargs`` to the validation episodes only, e.g. ``{"randomize": {...}}``:
+        each validation seed's plant drawn from its own generator (the same plants at every evaluation), so that
+        ``keep_best`` keeps the agent best over a set of plants rather than on the nominal one.
     net_arch : tuple of int, optional
         Hidden layers of the policy (and value/Q) networks; default SB3's:
         (64, 64) for PPO, (256, 256) for SAC and TD3.
@@ -139,6 +143,7 @@ class TrainConfig:
     n_envs: int | None = None
     env_kwargs: dict = dataclasses.field(default_factory=dict)
     train_env_kwargs: dict = dataclasses.field(default_factory=dict)
+    eval_env_kwargs: dict = dataclasses.field(default_factory=dict)
     net_arch: tuple[int, ...] | None = None
     eval_every: int | None = None
     eval_seeds: int = 10
@@ -301,7 +306,7 @@ class TrainingLog(BaseCallback):
     def _evaluate(self) -> None:
         tic = time.perf_counter()
         seeds = seed_ranges.validation_seeds(self.config.eval_seeds)
-        metrics = evaluate(self.as_policy(self.model), self.config.env_id, seeds, self.config.env_kwargs)
+        metrics = evaluate(self.as_policy(self.model), self.config.env_id, seeds, {**self.config.env_kwargs, **self.config.eval_env_kwargs})
         self.eval_time += time.perf_counter() - tic
         wall = time.perf_counter() - self._t0 - self.eval_time
         self.rows.append({"timesteps": self.env_steps, "train_wall_s": wall, **metrics})
@@ -455,6 +460,7 @@ def _train(config: TrainConfig, out: pathlib.Path, tensorboard: bool, checkpoint
         "env_id": config.env_id,
         "env_kwargs": config.env_kwargs,
         "train_env_kwargs": config.train_env_kwargs,
+        "eval_env_kwargs": config.eval_env_kwargs,
         "algo": config.algo,
         "steps": config.steps,
         "seed": config.seed,
