@@ -202,10 +202,12 @@ class MBSVectorEnv(VectorEnv):
         for name, s in randomize.items():
             if name not in names:
                 raise ValueError(f"randomize: unknown parameter {name!r} of {type(self.nominal_params).__name__}")
-            if isinstance(s, (tuple, list, np.ndarray)):
-                lo, hi = (check.real(x, f"randomize[{name!r}]", -1e300, 1e300) for x in np.asarray(s, float).reshape(-1)) if np.size(s) == 2 else (None, None)
-                if lo is None or lo > hi:
-                    raise ValueError(f"randomize[{name!r}] must be a half-width in [0, 1) or a range (low, high) with low <= high, got {s!r}")
+            if isinstance(s, (tuple, list, np.ndarray)):  # a range (low, high): the parameter itself drawn
+                if np.size(s) != 2:
+                    raise ValueError(f"randomize[{name!r}] must be a half-width in [0, 1) or a range (low, high), got {s!r}")
+                lo, hi = (check.real(x, f"randomize[{name!r}]", -1e300, 1e300) for x in np.ravel(np.asarray(s, dtype=object)))
+                if lo > hi:
+                    raise ValueError(f"randomize[{name!r}] must be a range (low, high) with low <= high, got {s!r}")
                 try:
                     self.nominal_params.replace(**{name: lo}).replace(**{name: hi})
                 except ValueError as e:
