@@ -17,10 +17,18 @@ controller and one robustness plot per scene to ``--out``::
     python scripts/dfki.py --out results/dfki                      # the protocol: about a minute
     python scripts/dfki.py --out results/dfki --robustness         # and the sweep: minutes per controller
     python scripts/dfki.py --out results/dfki_tune --tune --write  # tune the energy controllers on the protocol
+    python scripts/dfki.py --out results/dfki_catch --tune-robust-catch --write   # the catching LQR, for robustness
+    python scripts/dfki.py --out results/dfki_rc --robustness --robust-catch     # the policies with that catch
 
 The energy controllers run with the gains tuned on the protocol where ``controllers/tuned.json`` has them (``--tune``:
 :mod:`mbs_envs.studies.dfki_tuning`, 8-9 minutes per scene on one core in the last run; ``--write`` stores the picks), else with those tuned on our own
 scene of the same task (``mbs_envs/<scene>-v1``).
+
+``--tune-robust-catch`` tunes the catching LQR (its input weight and catch level) of every policy that has one -- the
+energy controllers and each agent with the LQR catching, an agent's training seeds together -- for robustness, on a
+tuning set of the robustness axes drawn apart from the benchmark's grid (:func:`mbs_envs.studies.dfki_tuning.robust_catch`);
+``--write`` stores the picks as ``"<name> (robust catch)"`` under the protocol ids, and ``--robust-catch`` runs those
+policies with them (their names get ``" (robust catch)"``), to be scored on the benchmark's own grid.
 """
 
 from __future__ import annotations
@@ -52,6 +60,8 @@ from mbs_envs.studies.plotting import pyplot, save
 SCENES = {entry[0].split("/")[1].replace("DFKI-v1", ""): entry[0] for entry in PROTOCOL_IDS}
 #: what ``--rates-from-angles`` appends to each policy's name
 RATES_SUFFIX = " (rates from angles)"
+#: what ``--robust-catch`` appends to each policy's name, and to its name for the entry in ``controllers/tuned.json``
+CATCH_SUFFIX = " (robust catch)"
 CRITERIA = ("swingup_time", "energy", "tau_cost", "tau_smoothness", "velocity_cost")
 
 
@@ -75,8 +85,15 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--rates-from-angles", action="store_true",
                    help="every policy sees the joint rates differenced from the observed angles instead of the observed "
                         "rates (controllers.estimator.RatesFromAngles); their names get ' (rates from angles)'")
+    p.add_argument("--robust-catch", action="store_true",
+                   help="run only the policies with a catching LQR tuned for robustness (--tune-robust-catch --write), with it; "
+                        "their names get ' (robust catch)'")
     p.add_argument("--tune", action="store_true", help="tune the energy controllers' gains on the protocol instead (mbs_envs.studies.dfki_tuning)")
-    p.add_argument("--write", action="store_true", help="with --tune: store the picks in controllers/tuned.json under the protocol ids")
+    p.add_argument("--tune-robust-catch", action="store_true",
+                   help="tune the catching LQR of every policy that has one for robustness instead, on a tuning set of the "
+                        "robustness axes (mbs_envs.studies.dfki_tuning.robust_catch; with --rates-from-angles as the policies "
+                        "will run)")
+    p.add_argument("--write", action="store_true", help="with --tune or --tune-robust-catch: store the picks in controllers/tuned.json under the protocol ids")
     return p.parse_args(argv)
 
 
@@ -89,8 +106,17 @@ def run(args: argparse.Namespace) -> dict:
             if (not args.controller or n in args.controller) and not (args.no_controllers and n in SWING_UP_CONTROLLERS)]  # fmt: skip
     if not jobs:
         raise SystemExit("dfki.py: no controller or agent matches --controller")
+    if args.robust_catch:
+        catches = {(s, n): robust_catch_entry(s, n) for s, n in jobs}
+        skipped = [f"{n} ({s})" for (s, n), c in catches.items() if c is None]
+        jobs = [j for j in jobs if catches[j] is not None]
+        if skipped:
+            print("--robust-catch: no catch tuned for robustness (--tune-robust-catch --write), not run: " + ", ".join(skipped))
+        if not jobs:
+            raise SystemExit("dfki.py: no policy has a catch tuned for robustness (run --tune-robust-catch --write)")
     gains = {(s, n): protocol_gains(s, n) if n in SWING_UP_CONTROLLERS else (None, "") for s, n in jobs}
-    base = [{"env_id": SCENES[s], "spec": specs[s][n], "gains": gains[s, n][0], "rates_from_angles": args.rates_from_angles} for s, n in jobs]
+    base = [{"env_id": SCENES[s], "spec": specs[s][n], "gains": gains[s, n][0], "rates_from_angles": args.rates_from_angles,
+             **({"catch_gains": catches[s, n]} if args.robust_catch else {})} for s, n in jobs]  # fmt: skip
     tasks = list(base)  # the protocol's episode of each, then the parts of every sweep: one pool keeps every core busy
     owner: list[int] = []
     metas: dict[int, dict] = {}
@@ -103,9 +129,11 @@ def run(args: argparse.Namespace) -> dict:
     wall = time.perf_counter() - tic
     for j, ((scene, name), res) in enumerate(zip(jobs, results)):
         source = gains[scene, name][1]
-        name = name + (RATES_SUFFIX if args.rates_from_angles else "")
+        name = name + (CATCH_SUFFIX if args.robust_catch else "") + (RATES_SUFFIX if args.rates_from_angles else "")
         c = res["criteria"]
         row = {"scene": scene, "controller": name, "gains": source, **c, "wall_s": res["wall_s"]}
+        if args.robust_catch:
+            row["catch_gains"] = json.dumps(base[j]["catch_gains"], sort_keys=True)
         plot_run(res["run"], gym.make(SCENES[scene]).unwrapped.model.params, f"{scene}: {name}", args.out / f"run_{scene}_{slug(name)}.png")
         if args.robustness:
             mine = [(t["part"], r) for t, r, o in zip(tasks[len(jobs) :], results[len(jobs) :], owner) if o == j]
@@ -183,6 +211,80 @@ def protocol_gains(scene: str, name: str) -> tuple[dict | None, str]:
     if entry is not None:
         return entry, "protocol"
     return tuned_gains(gym.make(f"mbs_envs/{scene}-v1"), tuned_name), "own scene"
+
+
+def catch_group(name: str) -> str:
+    """The name a policy's robust catch is tuned and stored under: an agent's seeds share one (``"PPO + LQR seed1"`` ->
+    ``"PPO + LQR"``)."""
+    head, _, tail = name.rpartition(" ")
+    return head if head and tail.startswith("seed") and tail[4:].isdigit() else name
+
+
+def robust_catch_entry(scene: str, name: str) -> dict | None:
+    """The catch tuned for robustness (``{"lqr_r", "catch"}``) stored for this policy on the protocol id, or None."""
+    from controllers.tuned import stored_entry
+
+    return stored_entry(SCENES[scene], catch_group(name) + CATCH_SUFFIX)
+
+
+def catching_policies(scene: str, agents: pathlib.Path) -> dict[str, str]:
+    """Name -> spec of the policies with a catching LQR on the protocol: the energy controllers (not the planner, whose
+    time-varying LQR and replanning are its own) and every agent with the LQR catching."""
+    from mbs_envs.studies.comparison import HAND_OVER
+
+    return {n: s for n, s in policies(scene, agents).items()
+            if n in ("swing-up + LQR", "adaptive swing-up + LQR") or s.startswith(HAND_OVER)}  # fmt: skip
+
+
+def tune_robust_catch(args: argparse.Namespace) -> dict:
+    """``--tune-robust-catch``: :func:`mbs_envs.studies.dfki_tuning.robust_catch` per scene; ``robust_catch.json`` and
+    ``robust_catch.csv`` to ``--out``, and with ``--write`` each group's pick into ``controllers/tuned.json`` as
+    ``"<group> (robust catch)"`` under the protocol id."""
+    from controllers import tuned
+    from mbs_envs.studies import dfki_tuning
+
+    args.out.mkdir(parents=True, exist_ok=True)
+    command = "python scripts/dfki.py " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("dfki.py") else None
+    record: dict = {"procedure": dfki_tuning.robust_catch.__doc__, "command": command, "tuning_set": dict(dfki_tuning.ROBUST_SET),
+                    "rates_from_angles": args.rates_from_angles, "gains": {}, "scenes": {}}  # fmt: skip
+    rows = []
+    for scene in args.scene or sorted(SCENES):
+        specs = catching_policies(scene, args.agents)
+        if args.controller:
+            specs = {n: s for n, s in specs.items() if n in args.controller or catch_group(n) in args.controller}
+        pols = {n: {"spec": s, "gains": protocol_gains(scene, n)[0] if n in SWING_UP_CONTROLLERS else None} for n, s in specs.items()}
+        groups: dict[str, list[str]] = {}
+        for n in pols:
+            groups.setdefault(catch_group(n), []).append(n)
+        res = dfki_tuning.robust_catch(SCENES[scene], pols, groups, rates_from_angles=args.rates_from_angles, workers=args.workers,
+                                       progress=f"{scene}: catch tuned for robustness")  # fmt: skip
+        record["gains"][SCENES[scene]] = {g + CATCH_SUFFIX: pick for g, pick in res["picks"].items()}
+        record.setdefault("scores", {})[SCENES[scene]] = {
+            g + CATCH_SUFFIX: {"tuning_set_robustness": {r["policy"]: r["score"] for r in res["rows"]
+                                                         if r["policy"] in groups[g] and r["lqr_r"] == pick["lqr_r"] and r["catch"] == pick["catch"]},
+                               "candidates": len(res["rows"]) // len(pols), "tuning_set": dict(dfki_tuning.ROBUST_SET),
+                               "rates_from_angles": args.rates_from_angles, "wall_s": res["wall_s"], "command": command}
+            for g, pick in res["picks"].items()}  # fmt: skip
+        record["scenes"][scene] = {"groups": groups, "picks": res["picks"], "wall_s": res["wall_s"]}
+        rows += [{"scene": scene, **r} for r in res["rows"]]
+        for g, pick in res["picks"].items():
+            mine = [r for r in res["rows"] if r["policy"] in groups[g] and r["lqr_r"] == pick["lqr_r"] and r["catch"] == pick["catch"]]
+            print(f"{scene}, {g}: {pick}, tuning-set robustness " + ", ".join(f"{r['score']:.3f}" for r in mine) + f" ({res['wall_s']:.0f} s)")
+    record["rows"] = rows
+    with open(args.out / "robust_catch.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    (args.out / "robust_catch.json").write_text(json.dumps(record, indent=2))
+    if args.write:
+        stored = json.loads(tuned.PATH.read_text())
+        for key in ("gains", "scores"):
+            for env_id, entries in record[key].items():
+                stored.setdefault(key, {}).setdefault(env_id, {}).update(entries)
+        tuned.PATH.write_text(json.dumps(stored, indent=2) + "\n")
+        tuned.clear_cache()
+    print(f"written {args.out}")
+    return record
 
 
 def tune(args: argparse.Namespace) -> dict:
@@ -280,6 +382,16 @@ def report(rows: list[dict], args: argparse.Namespace) -> str:
                 + (f" (in this run the policies passed {', '.join(map(str, passed))} of its {args.values} episodes)" if passed else "")
                 + " and scores the estimator rather than the controller. The published entries see the noisy rates (or "
                 "their own filters of them).", ""]  # fmt: skip
+    if args.robust_catch:
+        from mbs_envs.studies.dfki_tuning import ROBUST_SET
+
+        used = "; ".join(f"{r['controller']} ({r['scene']}): {r['catch_gains']}" for r in rows)
+        out += ["**Robust catch** (`--robust-catch`): each policy's catching LQR -- its input weight `lqr_r` and catch level "
+                "`catch` of `x^T S x` -- is the one picked for robustness (`scripts/dfki.py --tune-robust-catch`, "
+                "`mbs_envs.studies.dfki_tuning.robust_catch`): the best mean robustness score, among the candidates under which "
+                "every member swings up in the nominal episode, on a tuning set of the six axes whose values are drawn "
+                f"uniformly over the benchmark's ranges ({ROBUST_SET['n']} per axis, noise and pulses from seed {ROBUST_SET['seed']}), never on the benchmark's grid "
+                "scored here; an agent's training seeds share one pick. Used: " + used + ".", ""]  # fmt: skip
     for scene in dict.fromkeys(r["scene"] for r in rows):
         out += [f"## {scene}: simulation v2", "", "| controller | success | swing-up time [s] | energy [J] | torque cost | smoothness [N m] | velocity cost | score |",
                 "|---|---|---|---|---|---|---|---|"]  # fmt: skip
@@ -318,9 +430,11 @@ def report(rows: list[dict], args: argparse.Namespace) -> str:
 def main(argv: list[str] | None = None) -> int:
     provenance.pin_numerics()  # before torch loads, here and in the workers (mbs_envs/studies/provenance.py)
     args = parse_args(argv)
-    if args.write and not args.tune:
-        raise SystemExit("dfki.py: --write stores the picks of --tune; give both")
-    (tune if args.tune else run)(args)
+    if args.write and not (args.tune or args.tune_robust_catch):
+        raise SystemExit("dfki.py: --write stores the picks of --tune or --tune-robust-catch; give one of them")
+    if args.tune and args.tune_robust_catch:
+        raise SystemExit("dfki.py: --tune and --tune-robust-catch are separate runs; give one")
+    (tune if args.tune else tune_robust_catch if args.tune_robust_catch else run)(args)
     return 0
 
 

@@ -571,6 +571,53 @@ def test_dfki_script_scores_the_protocol_and_writes_its_report(tmp_path, monkeyp
     assert "Rates from angles" in (tmp_path / "rates" / "report.md").read_text()
 
 
+def test_dfki_script_tunes_a_robust_catch_stores_it_and_runs_with_it(tmp_path, monkeypatch):
+    """``--tune-robust-catch --write`` (the tuning itself replaced by its picks: it is tested in test_dfki_tuning) stores
+    one entry per group (an agent's seeds share one) beside the others; ``--robust-catch`` runs only the policies with
+    one, with it, named so and said so in the report."""
+    import shutil
+
+    from controllers import tuned
+    from mbs_envs.studies import dfki_tuning
+
+    script = load_script("dfki.py")
+    assert script["catch_group"]("PPO + LQR seed12") == "PPO + LQR" and script["catch_group"]("swing-up + LQR") == "swing-up + LQR"
+    seen = {}
+
+    def fake(env_id, policies, groups, **kw):
+        seen.update(policies=dict(policies), groups=dict(groups), kw=kw)
+        return {"rows": [{"policy": n, "lqr_r": 3.0, "catch": 10.0, "score": 0.5} for n in policies],
+                "picks": {g: {"lqr_r": 3.0, "catch": 10.0} for g in groups}, "wall_s": 1.0}
+
+    monkeypatch.setattr(dfki_tuning, "robust_catch", fake)
+    table = tmp_path / "tuned.json"
+    shutil.copy(tuned.PATH, table)
+    monkeypatch.setattr(tuned, "PATH", table)
+    tuned.clear_cache()
+    try:
+        script["tune_robust_catch"](script["parse_args"](["--out", str(tmp_path / "tune"), "--scene", "Pendubot", "--tune-robust-catch",
+                                                          "--rates-from-angles", "--write"]))  # fmt: skip
+        assert seen["groups"]["PPO + LQR"] == ["PPO + LQR seed0", "PPO + LQR seed1", "PPO + LQR seed2"]
+        assert {"swing-up + LQR", "adaptive swing-up + LQR"} <= set(seen["groups"]) and "identified iLQR + TVLQR" not in seen["groups"]
+        assert seen["policies"]["swing-up + LQR"]["gains"] == tuned.stored_entry("mbs_envs/PendubotDFKI-v1", "swing-up + LQR")
+        assert seen["kw"]["rates_from_angles"] is True
+        stored = json.loads(table.read_text())
+        assert stored["gains"]["mbs_envs/PendubotDFKI-v1"]["PPO + LQR (robust catch)"] == {"lqr_r": 3.0, "catch": 10.0}
+        assert "swing-up + LQR" in stored["gains"]["mbs_envs/PendubotDFKI-v1"]  # the other entries kept
+        assert stored["scores"]["mbs_envs/PendubotDFKI-v1"]["swing-up + LQR (robust catch)"]["rates_from_angles"] is True
+        record = script["run"](script["parse_args"](["--out", str(tmp_path / "run"), "--scene", "Pendubot", "--robust-catch", "--workers", "1",
+                                                     "--controller", "swing-up + LQR", "--controller", "identified iLQR + TVLQR"]))  # fmt: skip
+        (row,) = record["rows"]
+        assert row["controller"] == "swing-up + LQR (robust catch)" and json.loads(row["catch_gains"]) == {"lqr_r": 3.0, "catch": 10.0}
+        assert "Robust catch" in (tmp_path / "run" / "report.md").read_text()
+        with pytest.raises(SystemExit, match="no policy has a catch tuned for robustness"):
+            script["run"](script["parse_args"](["--out", str(tmp_path / "none"), "--scene", "Pendubot", "--robust-catch",
+                                                "--controller", "identified iLQR + TVLQR"]))  # fmt: skip
+    finally:
+        monkeypatch.undo()
+        tuned.clear_cache()
+
+
 def test_dfki_script_cuts_the_controllers_sweeps_in_parts_and_keeps_an_agents_whole():
     """A model-based controller's sweep goes out in parts (that make up each axis' batch once, in its order); an agent's in
     one batch per axis (its network's outputs move in the last bits with the batch size)."""

@@ -29,6 +29,7 @@ in ``tests/test_dfki.py`` on hand-made trajectories and against the published le
 from __future__ import annotations
 
 import dataclasses
+import pathlib
 from collections.abc import Mapping
 from types import MappingProxyType
 from typing import Any
@@ -198,21 +199,24 @@ def run_success(res: Mapping[str, Any]) -> np.ndarray:
     return final_success(res["q"], res["v"]) & ~res["terminated"]
 
 
-def model_variations(p: Any = None, n: int = N_VALUES) -> list[tuple[str, float, dict[str, float] | None]]:
+def model_variations(p: Any = None, n: int = N_VALUES, rng: np.random.Generator | None = None
+                     ) -> list[tuple[str, float, dict[str, float] | None]]:  # fmt: skip
     """The model axis as ``(parameter, value, Planar2R params or None)``: their variations of ``p`` (default
     :data:`~mbs_envs.envs.presets.DFKI_C1`) converted with :func:`~mbs_envs.envs.presets.planar2r_params`;
     None where the variation has no rigid link (an inertia about the joint below ``m r^2``), which is not simulated.
     Left out: the motor inertia (Planar2R has no rotor), Coulomb friction (a differently smoothed law) and
-    negative damping."""
+    negative damping.
+
+    With ``rng`` the values are drawn rather than spaced: per factor ``n`` factors ``U(0.75, 1.25)``, per damping
+    ``(n + 1) // 2`` values ``U(0, 0.1)``, in that order (:func:`axis_values`)."""
     import dataclasses
 
     from ..envs.presets import DFKI_C1, planar2r_params
 
     p = DFKI_C1 if p is None else p
-    factors = np.linspace(0.75, 1.25, n)
     out: list[tuple[str, float, dict[str, float] | None]] = []
     for name in MODEL_FACTORS:
-        for f in factors:
+        for f in axis_values((0.75, 1.25), n, rng):
             if name == "m1r1":
                 value, changed = p.m1 * p.r1 * f, {"r1": p.r1 * f}
             elif name == "m2r2":
@@ -225,9 +229,15 @@ def model_variations(p: Any = None, n: int = N_VALUES) -> list[tuple[str, float,
                 params = None
             out.append((name, float(value), params))
     for name in MODEL_DAMPING:
-        for value in np.linspace(0.0, 0.1, (n + 1) // 2):
+        for value in axis_values((0.0, 0.1), (n + 1) // 2, rng):
             out.append((name, float(value), {**planar2r_params(p), name: float(value)}))
     return out
+
+
+def axis_values(bounds: tuple[float, float], n: int, rng: np.random.Generator | None = None) -> np.ndarray:
+    """``n`` values of an axis over ``bounds``: their grid (``linspace``) or, with ``rng``, uniform draws
+    ``U(low, high)`` (a tuning set of the same ranges that shares no value with the grid but by chance), ``(n,)``."""
+    return np.linspace(*bounds, n) if rng is None else rng.uniform(*bounds, n)
 
 
 def random_pulses(rng: np.random.Generator, episodes: int, t: np.ndarray) -> np.ndarray:
@@ -272,11 +282,13 @@ class SweepPart:
         return [dataclasses.replace(self, members=slice(k, min(k + part_size, b))) for k in range(a, b, part_size)]
 
 
-def sweep_parts(env_id: str, n: int = N_VALUES, seed: int = 0, axes: tuple = AXES, part_size: int | None = None
-                ) -> tuple[list[SweepPart], dict[str, dict[str, Any]]]:  # fmt: skip
+def sweep_parts(env_id: str, n: int = N_VALUES, seed: int = 0, axes: tuple = AXES, part_size: int | None = None,
+                draw_seed: int | None = None) -> tuple[list[SweepPart], dict[str, dict[str, Any]]]:  # fmt: skip
     """The robustness benchmark of a protocol id as parts of at most ``part_size`` members (None: one part per axis),
     and each axis' description (``values``; the model axis' ``skipped``). The noise seeds and pulses are drawn from
-    ``seed`` in the axes' order, so the parts of any size give one sweep's episodes (:func:`robustness.run`'s ``batch``)."""
+    ``seed`` in the axes' order, so the parts of any size give one sweep's episodes (:func:`robustness.run`'s ``batch``).
+    With ``draw_seed`` the swept values are drawn uniformly over the axes' ranges from that seed instead of their grid
+    (:func:`axis_values`; ``n`` per axis as there, pulses as ever from ``seed``): a tuning set beside the benchmark."""
     import gymnasium as gym
 
     from .robustness import Perturbation
@@ -287,12 +299,13 @@ def sweep_parts(env_id: str, n: int = N_VALUES, seed: int = 0, axes: tuple = AXE
     nominal = gym.make(env_id)
     steps, dt = nominal.spec.max_episode_steps, float(nominal.unwrapped.dt)
     rng = np.random.default_rng(seed)
+    draws = None if draw_seed is None else np.random.default_rng(draw_seed)
     parts: list[SweepPart] = []
     meta: dict[str, dict[str, Any]] = {}
     for axis in axes:
         params = None
         if axis == "model":
-            points = model_variations(n=n)
+            points = model_variations(n=n, rng=draws)
             kept = [(name, value, q) for name, value, q in points if q is not None]
             size, p, params = len(kept), Perturbation(), [q for _, _, q in kept]
             meta[axis] = {"values": [(name, value) for name, value, _ in kept],
@@ -302,7 +315,7 @@ def sweep_parts(env_id: str, n: int = N_VALUES, seed: int = 0, axes: tuple = AXE
             p = Perturbation(pulses=random_pulses(rng, size, np.arange(steps) * dt))
             meta[axis] = {"values": list(range(size))}
         else:
-            values = np.linspace(*RANGES[axis], n)
+            values = axis_values(RANGES[axis], n, draws)
             size = n
             p = {"velocity noise": lambda x: Perturbation(noise_sigma=x, noise_index=(4, 5)),
                  "torque noise": lambda x: Perturbation(torque_sigma=x),
@@ -346,7 +359,7 @@ def assemble_sweep(meta: Mapping[str, Mapping[str, Any]], parts: list[SweepPart]
 
 
 def sweep(env_id: str, make_policy: Any, n: int = N_VALUES, seed: int = 0, axes: tuple = AXES, progress: bool = False,
-          part_size: int | None = None) -> dict[str, dict[str, Any]]:  # fmt: skip
+          part_size: int | None = None, draw_seed: int | None = None) -> dict[str, dict[str, Any]]:  # fmt: skip
     """The robustness benchmark of one controller on a protocol id, one batched rollout per axis (or per part of
     ``part_size`` members; the same episodes: :func:`sweep_parts`), in this process.
 
@@ -363,6 +376,8 @@ def sweep(env_id: str, make_policy: Any, n: int = N_VALUES, seed: int = 0, axes:
     progress : bool
         Show a progress bar over the parts (tqdm, where installed): for a sweep run on its own, not in a pool whose
         own bar counts the jobs.
+    draw_seed : int, optional
+        Draw the axes' values from this seed instead of their grid (:func:`sweep_parts`).
 
     Returns
     -------
@@ -373,7 +388,7 @@ def sweep(env_id: str, make_policy: Any, n: int = N_VALUES, seed: int = 0, axes:
     """
     from .parallel import progress_bar
 
-    parts, meta = sweep_parts(env_id, n, seed, axes, part_size)
+    parts, meta = sweep_parts(env_id, n, seed, axes, part_size, draw_seed)
     bar = progress_bar(len(parts), f"{env_id.split('/')[-1]} robustness" if progress else None)
     success = []
     for part in parts:
@@ -441,7 +456,9 @@ def controller_job(task: Mapping[str, Any]) -> dict[str, Any]:
     ``task``: ``env_id``, ``spec`` (``"module:Class"``, an agent folder or ``"lqr-catch:" + folder``, as
     :func:`mbs_envs.studies.comparison.load_policy` reads them), ``gains`` (a controller's entry of
     ``controllers/tuned.json`` or None), optionally ``rates_from_angles`` (True: the policy sees the joint rates
-    differenced from the observed angles, :class:`controllers.estimator.RatesFromAngles`), and ``part`` (a :class:`SweepPart`: returns its ``success`` and ``wall_s``)
+    differenced from the observed angles, :class:`controllers.estimator.RatesFromAngles`), optionally ``catch_gains``
+    (the catching LQR's ``lqr_r``, ``catch`` and/or ``release`` in place of the tuned ones: on a controller's gains or on an
+    RL + LQR pair, :func:`mbs_envs.studies.handover.hand_over`), and ``part`` (a :class:`SweepPart`: returns its ``success`` and ``wall_s``)
     or not (the protocol's episode: returns the recorded run, its criteria and score and ``wall_s``). Wall times in
     seconds.
     """
@@ -449,12 +466,23 @@ def controller_job(task: Mapping[str, Any]) -> dict[str, Any]:
 
     import gymnasium as gym
 
-    from .comparison import load_policy
+    from .comparison import HAND_OVER, load_policy
     from .evaluation import make_controller
+
+    over = dict(task.get("catch_gains") or {})
+    if set(over) - {"lqr_r", "catch", "release"}:
+        raise ValueError(f"catch_gains: unknown keys {sorted(set(over) - {'lqr_r', 'catch', 'release'})}")
 
     def make(env: Any) -> Any:
         if task.get("gains") is not None:
-            policy = make_controller(task["spec"], env, task["gains"])
+            policy = make_controller(task["spec"], env, {**task["gains"], **over})
+        elif over:
+            if not task["spec"].startswith(HAND_OVER):
+                raise ValueError(f"catch_gains: {task['spec']!r} is neither a controller with gains nor an RL + LQR pair")
+            from .handover import hand_over
+            from .training import load_agent
+
+            policy = hand_over(load_agent(pathlib.Path(task["spec"][len(HAND_OVER):]))[0], env, **over)
         else:
             policy = load_policy(task["spec"], env)  # a controller with its defaults, an agent, or an agent + LQR
         if task.get("rates_from_angles"):

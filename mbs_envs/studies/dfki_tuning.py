@@ -31,6 +31,7 @@ score over them (higher first). The protocol starts at rest, so one episode per 
 from __future__ import annotations
 
 import time
+from types import MappingProxyType
 from typing import Any, Callable, Mapping
 
 import gymnasium as gym
@@ -231,3 +232,82 @@ def own_scene_entry(env_id: str, name: str) -> dict[str, Any]:
 def tune_job(task: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
     """:func:`tune` of ``task["env_id"]`` (a picklable task for :func:`mbs_envs.studies.parallel.run_tasks`)."""
     return tune(task["env_id"])
+
+
+# -- the catching LQR tuned for robustness, on a tuning set of the robustness axes -----------------------------------
+
+#: the robust catch's candidates: the catching LQR's input weight ``lqr_r`` [(N m)^-2] ...
+ROBUST_LQR_R = (1.0, 3.0, 10.0, 30.0, 100.0)
+#: ... times its catch level of ``x^T S x`` (``S`` grows with ``lqr_r``, so the levels are tried with every weight)
+ROBUST_CATCH = (3.0, 10.0, 30.0, 100.0)
+#: the tuning set: values per axis, the seed of its noise and pulses, the seed its axis values are drawn from
+#: (:func:`mbs_envs.studies.dfki.sweep_parts`; the benchmark is the grid of 21 values per axis with seed 0)
+ROBUST_SET = MappingProxyType({"n": 11, "seed": 1, "draw_seed": 1})
+
+
+def robust_catch_grid() -> list[dict[str, float]]:
+    """Every ``{"lqr_r", "catch"}`` of :data:`ROBUST_LQR_R` x :data:`ROBUST_CATCH`."""
+    return [{"lqr_r": r, "catch": c} for r in ROBUST_LQR_R for c in ROBUST_CATCH]
+
+
+def robust_catch(env_id: str, policies: Mapping[str, Mapping[str, Any]], groups: Mapping[str, list[str]],
+                 candidates: list[dict[str, float]] | None = None, tuning_set: Mapping[str, int] = ROBUST_SET,
+                 rates_from_angles: bool = True, workers: int | None = None, progress: str | None = None) -> dict[str, Any]:  # fmt: skip
+    """The catching LQR's input weight and level picked for robustness on a tuning set of the robustness axes.
+
+    Every policy of ``policies`` (name -> a :func:`mbs_envs.studies.dfki.controller_job` task's ``spec`` and
+    ``gains``) runs with every candidate (``catch_gains``, default :func:`robust_catch_grid`) the protocol's nominal
+    episode and the robustness sweep on the tuning set (:data:`ROBUST_SET`: axis values drawn uniformly over the
+    benchmark's ranges, noise and pulses from another seed; never the benchmark's grid). Per group of ``groups``
+    (e.g. the model-based controller alone, or an agent's training seeds together: one setting for all of them) the
+    pick is the candidate under which every member swings up in the nominal episode, then with the highest mean
+    robustness score over the group's members on the tuning set; the first in ``candidates``' order on a tie.
+
+    Returns
+    -------
+    dict
+        ``"rows"``: one per policy and candidate (``policy``, ``lqr_r``, ``catch``, ``nominal_success``, each axis'
+        fraction and ``score`` on the tuning set); ``"picks"``: group -> the picked candidate; ``"wall_s"``.
+    """
+    from .parallel import run_tasks
+
+    candidates = robust_catch_grid() if candidates is None else [dict(c) for c in candidates]
+    tic = time.perf_counter()
+    parts, meta = dfki.sweep_parts(env_id, tuning_set["n"], tuning_set["seed"], draw_seed=tuning_set["draw_seed"])
+    keys = [(name, k) for name in policies for k in range(len(candidates))]
+    tasks = []
+    for name, k in keys:
+        base = {"env_id": env_id, "spec": policies[name]["spec"], "gains": policies[name].get("gains"),
+                "rates_from_angles": rates_from_angles, "catch_gains": candidates[k]}  # fmt: skip
+        tasks += [base] + [{**base, "part": part} for part in parts]
+    results = run_tasks(dfki.controller_job, tasks, max_workers=workers, progress=progress)
+    rows, per = [], 1 + len(parts)
+    for i, (name, k) in enumerate(keys):
+        nominal, done = results[i * per], results[i * per + 1:(i + 1) * per]
+        swept = dfki.assemble_sweep(meta, parts, [r["success"] for r in done])
+        rows.append({"policy": name, **candidates[k], "nominal_success": float(nominal["criteria"]["success"]),
+                     **{a: swept[a]["fraction"] for a in meta}, "score": swept["score"]["value"]})  # fmt: skip
+    return {"rows": rows, "picks": pick_catches(rows, groups, candidates), "wall_s": time.perf_counter() - tic}
+
+
+def pick_catches(rows: list[Mapping[str, Any]], groups: Mapping[str, list[str]], candidates: list[Mapping[str, float]]
+                 ) -> dict[str, dict[str, float]]:  # fmt: skip
+    """Per group, the candidate of :func:`robust_catch`'s rule from its rows: every member swings up in the nominal
+    episode, then the highest mean tuning-set ``score`` over the group's members; the first in ``candidates``' order
+    on a tie.
+
+    Raises
+    ------
+    ValueError
+        Where a group's member has no row for a candidate.
+    """
+    picks = {}
+    for group, members in groups.items():
+        def key(k: int) -> tuple[float, float]:
+            mine = [r for r in rows if r["policy"] in members and all(r[name] == v for name, v in candidates[k].items())]
+            if len(mine) != len(members):
+                raise ValueError(f"rows: group {group!r} has {len(mine)} rows for candidate {dict(candidates[k])}, not {len(members)}")
+            return float(all(r["nominal_success"] for r in mine)), float(np.mean([r["score"] for r in mine]))
+
+        picks[group] = dict(candidates[max(range(len(candidates)), key=lambda k: (key(k), -k))])
+    return picks

@@ -34,24 +34,30 @@ from .. import validation as check
 TUNED_NAME = "RL + LQR"
 
 
-def catching_controller(env: Any) -> Any:
+def catching_controller(env: Any, lqr_r: float | None = None) -> Any:
     """The scene's model-based swing-up controller whose LQR catches: :class:`controllers.swingup.SwingUpLQR` on the
-    arm, :class:`controllers.energy_swingup.EnergySwingUpLQR` on a derived mechanism (with its tuned gains)."""
+    arm, :class:`controllers.energy_swingup.EnergySwingUpLQR` on a derived mechanism (with its tuned gains; on the arm
+    with the LQR's input weight ``lqr_r`` [(N m)^-2] where given)."""
     from controllers.energy_swingup import EnergySwingUpLQR
 
-    for cls in (SwingUpLQR, EnergySwingUpLQR):
-        if isinstance(env.unwrapped, cls.fits):
-            return cls(env)
+    if isinstance(env.unwrapped, SwingUpLQR.fits):
+        return SwingUpLQR(env) if lqr_r is None else SwingUpLQR(env, lqr_r=lqr_r)
+    if lqr_r is not None:
+        raise ValueError(f"lqr_r: only the 2R arm's catching LQR takes an input weight, not {type(env.unwrapped).__name__}'s")
+    if isinstance(env.unwrapped, EnergySwingUpLQR.fits):
+        return EnergySwingUpLQR(env)
     raise ValueError(f"no swing-up controller catches on {type(env.unwrapped).__name__}")
 
 
-def hand_over(agent: Any, env: Any, catch: float | None = None, release: float | None = None) -> "HandOverPolicy":
-    """``agent`` with the scene's upright LQR catching at the pair's tuned level (module docstring),
-    or at ``catch`` / ``release`` where given."""
+def hand_over(agent: Any, env: Any, catch: float | None = None, release: float | None = None, lqr_r: float | None = None,
+              entry_name: str = TUNED_NAME) -> "HandOverPolicy":  # fmt: skip
+    """``agent`` with the scene's upright LQR catching at the pair's tuned level (module docstring; the entry
+    ``entry_name`` of ``controllers/tuned.json``, which may also carry the LQR's ``lqr_r``), or at ``catch`` /
+    ``release`` / ``lqr_r`` where given."""
     from controllers.tuned import tuned_gains
 
-    lqr = catching_controller(env)
-    entry = tuned_gains(env, TUNED_NAME) or {}
+    entry = tuned_gains(env, entry_name) or {}
+    lqr = catching_controller(env, entry.get("lqr_r") if lqr_r is None else lqr_r)
     catch = entry.get("catch", lqr.catch) if catch is None else catch
     release = entry.get("release", lqr.release) if release is None else release
     return HandOverPolicy(agent, lqr, catch, release)

@@ -119,3 +119,48 @@ def test_no_gate_counts_as_beyond_the_largest_at_the_grid_edge():
     assert tuning.at_grid_edge({"k_q": 1.0, "gate": 0.5}, grid) == []  # none is beyond it
     assert tuning.at_grid_edge({"k_q": 1.0, "gate": min(g for g in dfki_tuning.GATES if g)}, grid) == ["gate"]
     assert tuning.at_grid_edge({"k_q": 1.0, "gate": None}, grid) == []  # a choice, not a number
+
+
+def test_pick_catches_needs_every_nominal_swing_up_then_the_best_mean_score():
+    cands = [{"lqr_r": 1.0, "catch": 30.0}, {"lqr_r": 10.0, "catch": 30.0}, {"lqr_r": 30.0, "catch": 10.0}]
+
+    def row(policy, k, ok, score):
+        return {"policy": policy, **cands[k], "nominal_success": ok, "score": score}
+
+    rows = [row("A", 0, 1.0, 0.70), row("A", 1, 1.0, 0.80), row("A", 2, 1.0, 0.80),  # a tie: the first candidate
+            row("s0", 0, 1.0, 0.60), row("s0", 1, 1.0, 0.90), row("s0", 2, 1.0, 0.70),
+            row("s1", 0, 1.0, 0.60), row("s1", 1, 0.0, 0.95), row("s1", 2, 1.0, 0.70)]  # 1: best mean, but s1 fails nominally
+    picks = dfki_tuning.pick_catches(rows, {"model-based": ["A"], "RL + LQR": ["s0", "s1"]}, cands)
+    assert picks == {"model-based": cands[1], "RL + LQR": cands[2]}
+    with pytest.raises(ValueError, match="group 'RL \\+ LQR' has 1 rows"):
+        dfki_tuning.pick_catches(rows[:-1], {"RL + LQR": ["s0", "s1"]}, cands)
+    assert dfki_tuning.robust_catch_grid()[0] == {"lqr_r": dfki_tuning.ROBUST_LQR_R[0], "catch": dfki_tuning.ROBUST_CATCH[0]}
+    assert len(dfki_tuning.robust_catch_grid()) == len(dfki_tuning.ROBUST_LQR_R) * len(dfki_tuning.ROBUST_CATCH)
+
+
+def test_a_job_runs_with_the_catch_it_is_given(tmp_path):
+    """``catch_gains`` replaces the catching LQR's weight and level: the tuned values give the tuned episode bit for bit,
+    another weight another episode; a pair's LQR takes the weight too; unknown keys and a policy without a catch are
+    refused by name."""
+    from mbs_envs.studies.handover import HandOverPolicy, hand_over
+
+    gains = tuned.stored_entry(ACRO, "swing-up + LQR")
+    task = {"env_id": ACRO, "spec": "controllers:SwingUpLQR", "gains": gains}
+    plain = dfki.controller_job(task)["run"]
+    same = dfki.controller_job({**task, "catch_gains": {"lqr_r": gains["lqr_r"], "catch": gains["catch"]}})["run"]
+    other = dfki.controller_job({**task, "catch_gains": {"lqr_r": 100.0 * gains["lqr_r"]}})["run"]
+    np.testing.assert_array_equal(plain["u"], same["u"])
+    assert not np.array_equal(plain["u"], other["u"])
+    with pytest.raises(ValueError, match="unknown keys \\['k_q'\\]"):
+        dfki.controller_job({**task, "catch_gains": {"k_q": 1.0}})
+    with pytest.raises(ValueError, match="neither a controller with gains nor an RL \\+ LQR pair"):
+        dfki.controller_job({"env_id": ACRO, "spec": "controllers:SwingUpLQR", "gains": None, "catch_gains": {"catch": 1.0}})
+
+    class Agent:
+        def predict(self, obs, state=None, episode_start=None, deterministic=True):
+            return np.zeros((len(np.atleast_2d(obs)), 1), np.float32), state
+
+    env = gym.make(ACRO)
+    pair = hand_over(Agent(), env, catch=7.0, lqr_r=10.0)
+    assert isinstance(pair, HandOverPolicy) and pair.level == 7.0 and pair.lqr.lqr_r == 10.0
+    assert not np.allclose(pair.lqr.K, hand_over(Agent(), env).lqr.K)

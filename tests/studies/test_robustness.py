@@ -216,3 +216,28 @@ def test_a_sweep_in_parts_is_the_whole_sweep(monkeypatch):
         dfki.assemble_sweep(meta, parts[1:], ok[1:])
     with pytest.raises(ValueError, match="make up its batch"):
         dfki.assemble_sweep(meta, parts + parts[:1], ok + ok[:1])
+
+
+def test_a_tuning_set_draws_the_axes_values_apart_from_the_grid():
+    """``draw_seed``: every axis' values drawn over its range (reproducibly, another seed other values), none on the grid;
+    the noise seeds and pulses those of the sweep's ``seed`` as ever."""
+    grid, meta_grid = dfki.sweep_parts("mbs_envs/AcrobotDFKI-v1", n=5, seed=1)
+    drawn, meta = dfki.sweep_parts("mbs_envs/AcrobotDFKI-v1", n=5, seed=1, draw_seed=7)
+    again, meta_again = dfki.sweep_parts("mbs_envs/AcrobotDFKI-v1", n=5, seed=1, draw_seed=7)
+    _, meta_other = dfki.sweep_parts("mbs_envs/AcrobotDFKI-v1", n=5, seed=1, draw_seed=8)
+    assert meta_again == meta and meta_other != meta
+    for axis, (low, high) in dfki.RANGES.items():
+        v, g = np.array(meta[axis]["values"]), np.array(meta_grid[axis]["values"])
+        assert len(v) == 5 and ((v >= low) & (v <= high)).all() and not np.isin(v, g).any(), axis
+    drawn_model = meta["model"]["values"] + meta["model"]["skipped"]
+    nominal = {"m1r1": presets.DFKI_C1.m1 * presets.DFKI_C1.r1, "m2r2": presets.DFKI_C1.m2 * presets.DFKI_C1.r2}
+    for name in dfki.MODEL_FACTORS:
+        f = np.array([v for n, v in drawn_model if n == name]) / nominal.get(name, getattr(presets.DFKI_C1, name, None) or 1.0)
+        assert len(f) == 5 and ((f >= 0.75) & (f <= 1.25)).all() and not np.isin(np.round(f, 12), np.round(np.linspace(0.75, 1.25, 5), 12)).any(), name
+    for name in dfki.MODEL_DAMPING:
+        b = np.array([v for n, v in drawn_model if n == name])
+        assert len(b) == 3 and ((b >= 0.0) & (b <= 0.1)).all() and not np.isin(b, np.linspace(0.0, 0.1, 3)).any(), name
+    for a, b in zip(grid, drawn):  # one part per axis: the same noise seed and pulses
+        assert a.axis == b.axis and a.noise_seed == b.noise_seed
+        if a.axis == "perturbations":
+            np.testing.assert_array_equal(a.perturbation.pulses, b.perturbation.pulses)
