@@ -21,7 +21,11 @@ and length mismatch). Each entry is keyed by env id and controller name:
   the LQR (written by ``scripts/tune_handover.py``; :mod:`mbs_envs.studies.handover`).
 
 The DFKI protocol ids (``mbs_envs/AcrobotDFKI-v1``, ``mbs_envs/PendubotDFKI-v1``) carry the energy controllers'
-entries tuned on the protocol itself (``scripts/dfki.py --tune --write``; :mod:`mbs_envs.studies.dfki_tuning`).
+entries tuned on the protocol itself (``scripts/dfki.py --tune --write``; :mod:`mbs_envs.studies.dfki_tuning`), and
+``"<policy> (robust catch)"`` entries ``{"lqr_r", "catch"}``: a catching LQR's input weight and level picked for the
+benchmark's robustness on a tuning set of its axes (``scripts/dfki.py --tune-robust-catch --write``;
+:func:`mbs_envs.studies.dfki_tuning.robust_catch`; ``"PPO + LQR (robust catch)"`` for every seed of the agent), which
+only ``scripts/dfki.py --robust-catch`` reads (:func:`stored_entry`).
 
 Ids or controllers without an entry get :data:`FALLBACK` (the pre-tuning
 defaults: bandwidth 10 rad/s, critical damping).
