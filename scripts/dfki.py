@@ -240,7 +240,6 @@ def tune_robust_catch(args: argparse.Namespace) -> dict:
     """``--tune-robust-catch``: :func:`mbs_envs.studies.dfki_tuning.robust_catch` per scene; ``robust_catch.json`` and
     ``robust_catch.csv`` to ``--out``, and with ``--write`` each group's pick into ``controllers/tuned.json`` as
     ``"<group> (robust catch)"`` under the protocol id."""
-    from controllers import tuned
     from mbs_envs.studies import dfki_tuning
 
     args.out.mkdir(parents=True, exist_ok=True)
@@ -271,26 +270,33 @@ def tune_robust_catch(args: argparse.Namespace) -> dict:
             mine = [r for r in res["rows"] if r["policy"] in groups[g] and r["lqr_r"] == pick["lqr_r"] and r["catch"] == pick["catch"]]
             print(f"{scene}, {g}: {pick}, tuning-set robustness " + ", ".join(f"{r['score']:.3f}" for r in mine) + f" ({res['wall_s']:.0f} s)")
     record["rows"] = rows
-    with open(args.out / "robust_catch.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+    write_tuning(args.out, "robust_catch", rows, record, args.write)
+    return record
+
+
+def write_tuning(out: pathlib.Path, stem: str, rows: list[dict], record: dict, store: bool) -> None:
+    """``<stem>.csv`` (one row per candidate; a column missing from a row left empty) and ``<stem>.json`` to ``out``;
+    with ``store`` the record's ``gains`` and ``scores`` into ``controllers/tuned.json`` (other entries kept)."""
+    from controllers import tuned
+
+    with open(out / f"{stem}.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(dict.fromkeys(k for r in rows for k in r)))
         w.writeheader()
         w.writerows(rows)
-    (args.out / "robust_catch.json").write_text(json.dumps(record, indent=2))
-    if args.write:
+    (out / f"{stem}.json").write_text(json.dumps(record, indent=2))
+    if store:
         stored = json.loads(tuned.PATH.read_text())
         for key in ("gains", "scores"):
             for env_id, entries in record[key].items():
                 stored.setdefault(key, {}).setdefault(env_id, {}).update(entries)
         tuned.PATH.write_text(json.dumps(stored, indent=2) + "\n")
         tuned.clear_cache()
-    print(f"written {args.out}")
-    return record
+    print(f"written {out}")
 
 
 def tune(args: argparse.Namespace) -> dict:
     """``--tune``: :func:`mbs_envs.studies.dfki_tuning.tune` per scene; ``tuning.json`` (and ``tuning.csv``) to ``--out``,
     and with ``--write`` the picks into ``controllers/tuned.json`` under the protocol ids (other entries kept)."""
-    from controllers import tuned
     from mbs_envs.studies import dfki_tuning, tuning
 
     args.out.mkdir(parents=True, exist_ok=True)
@@ -311,19 +317,7 @@ def tune(args: argparse.Namespace) -> dict:
             rows += [{"scene": scene, "controller": name, **r, "entry": json.dumps(r["entry"])} for r in res["rows"]]
             print(f"{scene}, {name}: {res['best']} ({len(res['rows'])} candidates, {res['wall_s']:.0f} s): "
                   + ", ".join(f"{k} {v:.3g}" for k, v in chosen.items() if k != "entry"))  # fmt: skip
-    with open(args.out / "tuning.csv", "w", newline="") as f:  # a stage's own columns empty in the others' rows
-        w = csv.DictWriter(f, fieldnames=list(dict.fromkeys(k for r in rows for k in r)))
-        w.writeheader()
-        w.writerows(rows)
-    (args.out / "tuning.json").write_text(json.dumps(record, indent=2))
-    if args.write:
-        stored = json.loads(tuned.PATH.read_text())
-        for key in ("gains", "scores"):
-            for env_id, entries in record[key].items():
-                stored.setdefault(key, {}).setdefault(env_id, {}).update(entries)
-        tuned.PATH.write_text(json.dumps(stored, indent=2) + "\n")
-        tuned.clear_cache()
-    print(f"written {args.out}")
+    write_tuning(args.out, "tuning", rows, record, args.write)  # a stage's own columns empty in the others' rows
     return record
 
 
