@@ -24,7 +24,7 @@ from __future__ import annotations
 import dataclasses
 import pathlib
 import time
-from typing import Any
+from typing import Any, Mapping
 
 import gymnasium as gym
 import numpy as np
@@ -104,14 +104,23 @@ def model_kwargs(scene: str, params: dict[str, Any]) -> dict[str, Any]:
 HAND_OVER = "lqr-catch:"
 
 
-def load_policy(spec: str, nominal_env: gym.Env) -> Any:
+def load_policy(spec: str, nominal_env: gym.Env, catch_gains: Mapping[str, float] | None = None) -> Any:
     """A controller (``"module:Class"``) built on the nominal env, an agent (a folder with ``agent.zip``),
-    or an agent whose swing-up the scene's LQR catches (``"lqr-catch:" + folder``)."""
+    or an agent whose swing-up the scene's LQR catches (``"lqr-catch:" + folder``; with ``catch_gains``, the
+    :func:`~mbs_envs.studies.handover.hand_over` arguments ``catch``, ``release``, ``lqr_r`` in place of the tuned ones).
+
+    Raises
+    ------
+    ValueError
+        ``catch_gains`` for a spec that is not an RL + LQR pair.
+    """
     if spec.startswith(HAND_OVER):
         from .handover import hand_over
         from .training import load_agent
 
-        return hand_over(load_agent(pathlib.Path(spec[len(HAND_OVER):]))[0], nominal_env)
+        return hand_over(load_agent(pathlib.Path(spec[len(HAND_OVER):]))[0], nominal_env, **(catch_gains or {}))
+    if catch_gains:
+        raise ValueError(f"catch_gains: {spec!r} is neither a controller with gains nor an RL + LQR pair")
     if ":" in spec and not pathlib.Path(spec).exists():
         return make_controller(spec, nominal_env)
     from .training import load_agent

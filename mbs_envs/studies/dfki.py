@@ -29,7 +29,6 @@ in ``tests/test_dfki.py`` on hand-made trajectories and against the published le
 from __future__ import annotations
 
 import dataclasses
-import pathlib
 from collections.abc import Mapping
 from types import MappingProxyType
 from typing import Any
@@ -466,7 +465,7 @@ def controller_job(task: Mapping[str, Any]) -> dict[str, Any]:
 
     import gymnasium as gym
 
-    from .comparison import HAND_OVER, load_policy
+    from .comparison import load_policy
     from .evaluation import make_controller
 
     over = dict(task.get("catch_gains") or {})
@@ -476,15 +475,8 @@ def controller_job(task: Mapping[str, Any]) -> dict[str, Any]:
     def make(env: Any) -> Any:
         if task.get("gains") is not None:
             policy = make_controller(task["spec"], env, {**task["gains"], **over})
-        elif over:
-            if not task["spec"].startswith(HAND_OVER):
-                raise ValueError(f"catch_gains: {task['spec']!r} is neither a controller with gains nor an RL + LQR pair")
-            from .handover import hand_over
-            from .training import load_agent
-
-            policy = hand_over(load_agent(pathlib.Path(task["spec"][len(HAND_OVER):]))[0], env, **over)
-        else:
-            policy = load_policy(task["spec"], env)  # a controller with its defaults, an agent, or an agent + LQR
+        else:  # a controller with its defaults, an agent, or an agent + LQR (with the catch given, where given)
+            policy = load_policy(task["spec"], env, over)
         if task.get("rates_from_angles"):
             from controllers.estimator import RatesFromAngles
 

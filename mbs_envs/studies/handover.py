@@ -49,15 +49,14 @@ def catching_controller(env: Any, lqr_r: float | None = None) -> Any:
     raise ValueError(f"no swing-up controller catches on {type(env.unwrapped).__name__}")
 
 
-def hand_over(agent: Any, env: Any, catch: float | None = None, release: float | None = None, lqr_r: float | None = None,
-              entry_name: str = TUNED_NAME) -> "HandOverPolicy":  # fmt: skip
-    """``agent`` with the scene's upright LQR catching at the pair's tuned level (module docstring; the entry
-    ``entry_name`` of ``controllers/tuned.json``, which may also carry the LQR's ``lqr_r``), or at ``catch`` /
-    ``release`` / ``lqr_r`` where given."""
+def hand_over(agent: Any, env: Any, catch: float | None = None, release: float | None = None, lqr_r: float | None = None
+              ) -> "HandOverPolicy":  # fmt: skip
+    """``agent`` with the scene's upright LQR catching at the pair's tuned level (module docstring),
+    or at ``catch`` / ``release`` where given, the LQR with the input weight ``lqr_r`` where given."""
     from controllers.tuned import tuned_gains
 
-    entry = tuned_gains(env, entry_name) or {}
-    lqr = catching_controller(env, entry.get("lqr_r") if lqr_r is None else lqr_r)
+    lqr = catching_controller(env, lqr_r)
+    entry = tuned_gains(env, TUNED_NAME) or {}
     catch = entry.get("catch", lqr.catch) if catch is None else catch
     release = entry.get("release", lqr.release) if release is None else release
     return HandOverPolicy(agent, lqr, catch, release)
