@@ -18,6 +18,7 @@ controller and one robustness plot per scene to ``--out``::
     python scripts/dfki.py --out results/dfki --robustness         # and the sweep: minutes per controller
     python scripts/dfki.py --out results/dfki_tune --tune --write  # tune the energy controllers on the protocol
     python scripts/dfki.py --out results/dfki_catch --tune-robust-catch --write   # the catching LQR, for robustness
+    python scripts/dfki.py --out results/dfki_release --tune-robust-catch --release-stage --write   # its hand-back factor
     python scripts/dfki.py --out results/dfki_rc --robustness --robust-catch     # the policies with that catch
 
 The energy controllers run with the gains tuned on the protocol where ``controllers/tuned.json`` has them (``--tune``:
@@ -28,7 +29,9 @@ scene of the same task (``mbs_envs/<scene>-v1``).
 energy controllers and each agent with the LQR catching, an agent's training seeds together -- for robustness, on a
 tuning set of the robustness axes drawn apart from the benchmark's grid (:func:`mbs_envs.studies.dfki_tuning.robust_catch`);
 ``--write`` stores the picks as ``"<name> (robust catch)"`` under the protocol ids, and ``--robust-catch`` runs those
-policies with them (their names get ``" (robust catch)"``), to be scored on the benchmark's own grid.
+policies with them (their names get ``" (robust catch)"``), to be scored on the benchmark's own grid. With
+``--release-stage`` it is the second stage: each stored pick kept, the factor on its level beyond which the LQR hands
+back (``release``) tried by the same rule, the pick stored in the same entry.
 """
 
 from __future__ import annotations
@@ -93,6 +96,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                    help="tune the catching LQR of every policy that has one for robustness instead, on a tuning set of the "
                         "robustness axes (mbs_envs.studies.dfki_tuning.robust_catch; with --rates-from-angles as the policies "
                         "will run)")
+    p.add_argument("--release-stage", action="store_true",
+                   help="with --tune-robust-catch: its second stage, each stored robust catch's lqr_r and catch kept and the factor "
+                        "'release' (the LQR hands back beyond release x catch) tried (mbs_envs.studies.dfki_tuning.release_grid)")
     p.add_argument("--write", action="store_true", help="with --tune or --tune-robust-catch: store the picks in controllers/tuned.json under the protocol ids")
     return p.parse_args(argv)
 
@@ -221,7 +227,8 @@ def catch_group(name: str) -> str:
 
 
 def robust_catch_entry(scene: str, name: str) -> dict | None:
-    """The catch tuned for robustness (``{"lqr_r", "catch"}``) stored for this policy on the protocol id, or None."""
+    """The catch tuned for robustness (``{"lqr_r", "catch"}``, and ``release`` after the second stage) stored for this
+    policy on the protocol id, or None."""
     from controllers.tuned import stored_entry
 
     return stored_entry(SCENES[scene], catch_group(name) + CATCH_SUFFIX)
@@ -255,20 +262,34 @@ def tune_robust_catch(args: argparse.Namespace) -> dict:
         groups: dict[str, list[str]] = {}
         for n in pols:
             groups.setdefault(catch_group(n), []).append(n)
-        res = dfki_tuning.robust_catch(SCENES[scene], pols, groups, rates_from_angles=args.rates_from_angles, workers=args.workers,
-                                       progress=f"{scene}: catch tuned for robustness")  # fmt: skip
+        progress = f"{scene}: catch tuned for robustness"
+        if args.release_stage:  # each group with its stored pick, the release factors tried (one run per group)
+            stored = {g: robust_catch_entry(scene, g) for g in groups}
+            missing = sorted(g for g, e in stored.items() if e is None)
+            if missing:
+                print(f"--release-stage: no catch tuned for robustness stored for {', '.join(missing)} ({scene}): not tuned")
+            res = {"rows": [], "picks": {}, "wall_s": 0.0}
+            for g in (g for g in groups if stored[g] is not None):
+                one = dfki_tuning.robust_catch(SCENES[scene], {n: pols[n] for n in groups[g]}, {g: groups[g]}, candidates=dfki_tuning.release_grid(stored[g]),
+                                               rates_from_angles=args.rates_from_angles, workers=args.workers, progress=f"{progress}: {g}, release")  # fmt: skip
+                res["rows"] += one["rows"]
+                res["picks"].update(one["picks"])
+                res["wall_s"] += one["wall_s"]
+        else:
+            res = dfki_tuning.robust_catch(SCENES[scene], pols, groups, rates_from_angles=args.rates_from_angles, workers=args.workers, progress=progress)
         record["gains"][SCENES[scene]] = {g + CATCH_SUFFIX: pick for g, pick in res["picks"].items()}
+        picked = {g: [r for r in res["rows"] if r["policy"] in groups[g] and all(r.get(k) == v for k, v in pick.items())]
+                  for g, pick in res["picks"].items()}  # fmt: skip
         record.setdefault("scores", {})[SCENES[scene]] = {
-            g + CATCH_SUFFIX: {"tuning_set_robustness": {r["policy"]: r["score"] for r in res["rows"]
-                                                         if r["policy"] in groups[g] and r["lqr_r"] == pick["lqr_r"] and r["catch"] == pick["catch"]},
-                               "candidates": len(res["rows"]) // len(pols), "tuning_set": dict(dfki_tuning.ROBUST_SET),
+            g + CATCH_SUFFIX: {"tuning_set_robustness": {r["policy"]: r["score"] for r in picked[g]},
+                               "candidates": sum(r["policy"] == groups[g][0] for r in res["rows"]), "tuning_set": dict(dfki_tuning.ROBUST_SET),
+                               "stage": "release" if args.release_stage else "lqr_r and catch",
                                "rates_from_angles": args.rates_from_angles, "wall_s": res["wall_s"], "command": command}
-            for g, pick in res["picks"].items()}  # fmt: skip
+            for g in res["picks"]}  # fmt: skip
         record["scenes"][scene] = {"groups": groups, "picks": res["picks"], "wall_s": res["wall_s"]}
         rows += [{"scene": scene, **r} for r in res["rows"]]
         for g, pick in res["picks"].items():
-            mine = [r for r in res["rows"] if r["policy"] in groups[g] and r["lqr_r"] == pick["lqr_r"] and r["catch"] == pick["catch"]]
-            print(f"{scene}, {g}: {pick}, tuning-set robustness " + ", ".join(f"{r['score']:.3f}" for r in mine) + f" ({res['wall_s']:.0f} s)")
+            print(f"{scene}, {g}: {pick}, tuning-set robustness " + ", ".join(f"{r['score']:.3f}" for r in picked[g]) + f" ({res['wall_s']:.0f} s)")
     record["rows"] = rows
     write_tuning(args.out, "robust_catch", rows, record, args.write)
     return record
@@ -426,6 +447,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     if args.write and not (args.tune or args.tune_robust_catch):
         raise SystemExit("dfki.py: --write stores the picks of --tune or --tune-robust-catch; give one of them")
+    if args.release_stage and not args.tune_robust_catch:
+        raise SystemExit("dfki.py: --release-stage is a stage of --tune-robust-catch; give both")
     if args.tune and args.tune_robust_catch:
         raise SystemExit("dfki.py: --tune and --tune-robust-catch are separate runs; give one")
     (tune if args.tune else tune_robust_catch if args.tune_robust_catch else run)(args)

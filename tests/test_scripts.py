@@ -618,6 +618,61 @@ def test_dfki_script_tunes_a_robust_catch_stores_it_and_runs_with_it(tmp_path, m
         tuned.clear_cache()
 
 
+def test_dfki_script_release_stage_keeps_each_stored_catch_and_tries_the_release_factors(tmp_path, monkeypatch):
+    """``--tune-robust-catch --release-stage --write``: one tuning per group with a stored robust catch, its candidates that
+    catch with each factor of ``ROBUST_RELEASE`` (today's 4 first), the group's members only; the pick, release included,
+    replaces the stored entry, and ``--robust-catch`` runs with it. A group without a stored catch is not tuned; the stage
+    alone (without --tune-robust-catch) is refused."""
+    import shutil
+
+    from controllers import tuned
+    from mbs_envs.studies import dfki_tuning
+
+    script = load_script("dfki.py")
+    calls = []
+
+    def fake(env_id, policies, groups, candidates=None, **kw):
+        calls.append((dict(groups), [dict(c) for c in candidates]))
+        (g,) = groups
+        pick = dict(candidates[2])  # not the first: the stored entry must change
+        return {"rows": [{"policy": n, **c, "score": 0.5 + 0.1 * (c == pick)} for n in policies for c in candidates],
+                "picks": {g: pick}, "wall_s": 1.0}
+
+    monkeypatch.setattr(dfki_tuning, "robust_catch", fake)
+    table = tmp_path / "tuned.json"
+    shutil.copy(tuned.PATH, table)
+    monkeypatch.setattr(tuned, "PATH", table)
+    tuned.clear_cache()
+    try:
+        stored = json.loads(table.read_text())
+        entries = stored["gains"]["mbs_envs/PendubotDFKI-v1"]
+        before = dict(entries["PPO + LQR (robust catch)"])
+        del entries["adaptive swing-up + LQR (robust catch)"]  # this group has no stored catch
+        table.write_text(json.dumps(stored))
+        tuned.clear_cache()
+        record = script["tune_robust_catch"](script["parse_args"](["--out", str(tmp_path / "tune"), "--scene", "Pendubot", "--tune-robust-catch",
+                                                                   "--release-stage", "--rates-from-angles", "--write"]))  # fmt: skip
+        by_group = {next(iter(groups)): cands for groups, cands in calls}
+        assert set(by_group) == {"swing-up + LQR", "PPO + LQR"}
+        assert [c["release"] for c in by_group["PPO + LQR"]] == list(dfki_tuning.ROBUST_RELEASE) and dfki_tuning.ROBUST_RELEASE[0] == 4.0
+        assert all({k: c[k] for k in ("lqr_r", "catch")} == before for c in by_group["PPO + LQR"])
+        assert [g for groups, _ in calls for g in groups.values()][-1] == ["PPO + LQR seed0", "PPO + LQR seed1", "PPO + LQR seed2"]
+        after = json.loads(table.read_text())["gains"]["mbs_envs/PendubotDFKI-v1"]["PPO + LQR (robust catch)"]
+        assert after == {**before, "release": dfki_tuning.ROBUST_RELEASE[2]}
+        score = record["scores"]["mbs_envs/PendubotDFKI-v1"]["PPO + LQR (robust catch)"]
+        assert score["stage"] == "release" and score["candidates"] == len(dfki_tuning.ROBUST_RELEASE)
+        assert set(score["tuning_set_robustness"].values()) == {0.6}  # the picked candidate's rows, release included
+        run = script["run"](script["parse_args"](["--out", str(tmp_path / "run"), "--scene", "Pendubot", "--robust-catch", "--workers", "1",
+                                                  "--controller", "swing-up + LQR"]))  # fmt: skip
+        (row,) = run["rows"]
+        assert json.loads(row["catch_gains"])["release"] == dfki_tuning.ROBUST_RELEASE[2]
+        with pytest.raises(SystemExit, match="--release-stage is a stage of --tune-robust-catch"):
+            script["main"](["--out", str(tmp_path / "x"), "--release-stage"])
+    finally:
+        monkeypatch.undo()
+        tuned.clear_cache()
+
+
 def test_dfki_script_cuts_the_controllers_sweeps_in_parts_and_keeps_an_agents_whole():
     """A model-based controller's sweep goes out in parts (that make up each axis' batch once, in its order); an agent's in
     one batch per axis (its network's outputs move in the last bits with the batch size)."""

@@ -32,7 +32,9 @@ are ranked by the nominal score, and the benchmark also scores robustness, where
 (smaller gains tolerate more delay). For every policy with a catching LQR (the energy controllers; every agent with
 the LQR catching, its training seeds together) the LQR's input weight and catch level are picked for the robustness
 score on a tuning set of the six axes -- their values drawn uniformly over the benchmark's ranges from another seed,
-other noise and pulses (:data:`ROBUST_SET`) -- never on the benchmark's grid, which scores the pick.
+other noise and pulses (:data:`ROBUST_SET`) -- never on the benchmark's grid, which scores the pick. A second stage
+(``--tune-robust-catch --release-stage``, :func:`release_grid`) keeps each group's pick and tries the factor
+``release`` on its level beyond which the LQR hands back to the swing-up, by the same rule on the same tuning set.
 """
 
 from __future__ import annotations
@@ -259,10 +261,23 @@ def robust_catch_grid() -> list[dict[str, float]]:
     return [{"lqr_r": r, "catch": c} for r in ROBUST_LQR_R for c in ROBUST_CATCH]
 
 
+#: the second stage: the factor on the catch level beyond which the LQR hands back to the swing-up (the hysteresis of
+#: ``x^T S x``), tried with a group's picked ``lqr_r`` and ``catch``; 4, every policy's value before this stage,
+#: first (so that a tie keeps it)
+ROBUST_RELEASE = (4.0, 1.5, 2.0, 8.0, 16.0)
+
+
+def release_grid(pick: Mapping[str, float]) -> list[dict[str, float]]:
+    """The second stage's candidates: ``pick`` (a group's ``{"lqr_r", "catch"}``) with each ``release`` of
+    :data:`ROBUST_RELEASE`, in its order."""
+    return [{"lqr_r": float(pick["lqr_r"]), "catch": float(pick["catch"]), "release": r} for r in ROBUST_RELEASE]
+
+
 def robust_catch(env_id: str, policies: Mapping[str, Mapping[str, Any]], groups: Mapping[str, list[str]],
                  candidates: list[dict[str, float]] | None = None, tuning_set: Mapping[str, int] = ROBUST_SET,
                  rates_from_angles: bool = True, workers: int | None = None, progress: str | None = None) -> dict[str, Any]:  # fmt: skip
-    """The catching LQR's input weight and level picked for robustness on a tuning set of the robustness axes.
+    """The catching LQR's input weight and level (and, in the second stage, the hand-back factor ``release``:
+    :func:`release_grid`) picked for robustness on a tuning set of the robustness axes.
 
     Every policy of ``policies`` (name -> a :func:`mbs_envs.studies.dfki.controller_job` task's ``spec`` and
     ``gains``) runs with every candidate (``catch_gains``, default :func:`robust_catch_grid`) the protocol's nominal
