@@ -128,10 +128,18 @@ def test_train_residual_writes_a_residual_agent(tmp_path):
     assert policy.predict(obs)[0].shape == (1,)
 
 
-def test_train_writes_an_agent_that_loads_and_predicts(tmp_path):
+def test_train_writes_an_agent_that_loads_and_predicts(tmp_path, monkeypatch):
+    """... and leaves nothing in the system's temp dir (SB3's default logger made an empty folder there per run)."""
+    import tempfile
+
+    scratch = tmp_path / "system_tmp"
+    scratch.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(scratch))
     script = load_script("train.py")
     records = script["run"](script["parse_args"](["--env", "mbs_envs/Planar2R-v0", "--algo", "ppo", "--steps", "2048",
-                                                  "--n-envs", "8", "--out", str(tmp_path)]))  # fmt: skip
+                                                  "--n-envs", "8", "--out", str(tmp_path / "run")]))  # fmt: skip
+    assert [p.name for p in scratch.iterdir() if p.name.startswith("SB3-")] == []  # (torch may keep its own cache there)
+    tmp_path = tmp_path / "run"
     assert records[0]["steps"] == 2048 and records[0]["train_wall_s"] > 0
     from mbs_envs.studies.training import load_agent
 

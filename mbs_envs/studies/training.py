@@ -30,6 +30,7 @@ import gymnasium as gym
 import numpy as np
 from stable_baselines3 import PPO, SAC, TD3
 from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback, CallbackList
+from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.noise import NormalActionNoise
 from stable_baselines3.common.vec_env import VecNormalize
 from tqdm import tqdm
@@ -434,6 +435,8 @@ def _train(config: TrainConfig, out: pathlib.Path, tensorboard: bool, checkpoint
                                         tensorboard_log=str(out / "tensorboard") if tensorboard else None)  # fmt: skip
         model.set_random_seed(config.seed)
         hyper = source["hyperparameters"]
+    if not tensorboard:  # SB3's own logger, left to itself, makes an empty folder in the system's temp dir per run
+        model.set_logger(Logger(folder=None, output_formats=[]))
     kept: dict[str, Any] = {}
 
     def keep(row: dict[str, float]) -> None:
