@@ -99,6 +99,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--release-stage", action="store_true",
                    help="with --tune-robust-catch: its second stage, each stored robust catch's lqr_r and catch kept and the factor "
                         "'release' (the LQR hands back beyond release x catch) tried (mbs_envs.studies.dfki_tuning.release_grid)")
+    p.add_argument("--release-values", type=float, nargs="+",
+                   help="with --release-stage: the factors tried, in this order (a tie keeps the first; default "
+                        "dfki_tuning.ROBUST_RELEASE), e.g. a grid widened beyond a pick at its edge")
     p.add_argument("--write", action="store_true", help="with --tune or --tune-robust-catch: store the picks in controllers/tuned.json under the protocol ids")
     return p.parse_args(argv)
 
@@ -270,7 +273,7 @@ def tune_robust_catch(args: argparse.Namespace) -> dict:
                 print(f"--release-stage: no catch tuned for robustness stored for {', '.join(missing)} ({scene}): not tuned")
             res = {"rows": [], "picks": {}, "wall_s": 0.0}
             for g in (g for g in groups if stored[g] is not None):
-                one = dfki_tuning.robust_catch(SCENES[scene], {n: pols[n] for n in groups[g]}, {g: groups[g]}, candidates=dfki_tuning.release_grid(stored[g]),
+                one = dfki_tuning.robust_catch(SCENES[scene], {n: pols[n] for n in groups[g]}, {g: groups[g]}, candidates=dfki_tuning.release_grid(stored[g], *([tuple(args.release_values)] if args.release_values else [])),
                                                rates_from_angles=args.rates_from_angles, workers=args.workers, progress=f"{progress}: {g}, release")  # fmt: skip
                 res["rows"] += one["rows"]
                 res["picks"].update(one["picks"])
@@ -449,6 +452,8 @@ def main(argv: list[str] | None = None) -> int:
         raise SystemExit("dfki.py: --write stores the picks of --tune or --tune-robust-catch; give one of them")
     if args.release_stage and not args.tune_robust_catch:
         raise SystemExit("dfki.py: --release-stage is a stage of --tune-robust-catch; give both")
+    if args.release_values and not args.release_stage:
+        raise SystemExit("dfki.py: --release-values are the factors of --release-stage; give it")
     if args.tune and args.tune_robust_catch:
         raise SystemExit("dfki.py: --tune and --tune-robust-catch are separate runs; give one")
     (tune if args.tune else tune_robust_catch if args.tune_robust_catch else run)(args)

@@ -642,7 +642,7 @@ def test_dfki_script_release_stage_keeps_each_stored_catch_and_tries_the_release
     def fake(env_id, policies, groups, candidates=None, **kw):
         calls.append((dict(groups), [dict(c) for c in candidates]))
         (g,) = groups
-        pick = dict(candidates[2])  # not the first: the stored entry must change
+        pick = dict(candidates[min(2, len(candidates) - 1)])  # not the first: the stored entry must change
         return {"rows": [{"policy": n, **c, "score": 0.5 + 0.1 * (c == pick)} for n in policies for c in candidates],
                 "picks": {g: pick}, "wall_s": 1.0}
 
@@ -663,7 +663,7 @@ def test_dfki_script_release_stage_keeps_each_stored_catch_and_tries_the_release
         by_group = {next(iter(groups)): cands for groups, cands in calls}
         assert set(by_group) == {"swing-up + LQR", "PPO + LQR"}
         assert [c["release"] for c in by_group["PPO + LQR"]] == list(dfki_tuning.ROBUST_RELEASE) and dfki_tuning.ROBUST_RELEASE[0] == 4.0
-        assert all({k: c[k] for k in ("lqr_r", "catch")} == before for c in by_group["PPO + LQR"])
+        assert all(c[k] == before[k] for c in by_group["PPO + LQR"] for k in ("lqr_r", "catch"))
         assert [g for groups, _ in calls for g in groups.values()][-1] == ["PPO + LQR seed0", "PPO + LQR seed1", "PPO + LQR seed2"]
         after = json.loads(table.read_text())["gains"]["mbs_envs/PendubotDFKI-v1"]["PPO + LQR (robust catch)"]
         assert after == {**before, "release": dfki_tuning.ROBUST_RELEASE[2]}
@@ -676,6 +676,14 @@ def test_dfki_script_release_stage_keeps_each_stored_catch_and_tries_the_release
         assert json.loads(row["catch_gains"])["release"] == dfki_tuning.ROBUST_RELEASE[2]
         with pytest.raises(SystemExit, match="--release-stage is a stage of --tune-robust-catch"):
             script["main"](["--out", str(tmp_path / "x"), "--release-stage"])
+        # a grid widened beyond a pick at its edge, for the groups named
+        calls.clear()
+        script["tune_robust_catch"](script["parse_args"](["--out", str(tmp_path / "wide"), "--scene", "Pendubot", "--tune-robust-catch",
+                                                          "--release-stage", "--release-values", "16", "32", "--controller", "PPO + LQR"]))  # fmt: skip
+        ((groups, cands),) = calls
+        assert list(groups) == ["PPO + LQR"] and [c["release"] for c in cands] == [16.0, 32.0]
+        with pytest.raises(SystemExit, match="--release-values are the factors of --release-stage"):
+            script["main"](["--out", str(tmp_path / "x"), "--tune-robust-catch", "--release-values", "8"])
     finally:
         monkeypatch.undo()
         tuned.clear_cache()

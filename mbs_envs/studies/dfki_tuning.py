@@ -267,10 +267,12 @@ def robust_catch_grid() -> list[dict[str, float]]:
 ROBUST_RELEASE = (4.0, 1.5, 2.0, 8.0, 16.0)
 
 
-def release_grid(pick: Mapping[str, float]) -> list[dict[str, float]]:
-    """The second stage's candidates: ``pick`` (a group's ``{"lqr_r", "catch"}``) with each ``release`` of
-    :data:`ROBUST_RELEASE`, in its order."""
-    return [{"lqr_r": float(pick["lqr_r"]), "catch": float(pick["catch"]), "release": r} for r in ROBUST_RELEASE]
+def release_grid(pick: Mapping[str, float], values: tuple[float, ...] = ROBUST_RELEASE) -> list[dict[str, float]]:
+    """The second stage's candidates: ``pick`` (a group's ``{"lqr_r", "catch"}``) with each ``release`` of ``values``
+    (default :data:`ROBUST_RELEASE`; a grid widened beyond a pick at its edge), in their order."""
+    if not values or any(not (np.isfinite(r) and r > 1.0) for r in values):
+        raise ValueError(f"values: release factors must be finite and > 1, got {values!r}")
+    return [{"lqr_r": float(pick["lqr_r"]), "catch": float(pick["catch"]), "release": float(r)} for r in values]
 
 
 def robust_catch(env_id: str, policies: Mapping[str, Mapping[str, Any]], groups: Mapping[str, list[str]],

@@ -138,6 +138,20 @@ def test_pick_catches_needs_every_nominal_swing_up_then_the_best_mean_score():
     assert len(dfki_tuning.robust_catch_grid()) == len(dfki_tuning.ROBUST_LQR_R) * len(dfki_tuning.ROBUST_CATCH)
 
 
+
+def test_release_grid_keeps_the_pick_and_tries_each_factor_in_order():
+    pick = {"lqr_r": 10.0, "catch": 30.0, "release": 4.0}
+    grid = dfki_tuning.release_grid(pick)
+    assert [c["release"] for c in grid] == list(dfki_tuning.ROBUST_RELEASE) and grid[0]["release"] == 4.0  # today's value first
+    assert all((c["lqr_r"], c["catch"]) == (10.0, 30.0) for c in grid)
+    assert [c["release"] for c in dfki_tuning.release_grid(pick, (16, 32.0))] == [16.0, 32.0]  # a widened grid
+    for bad in ((), (1.0,), (0.5, 2.0), (np.inf,), (np.nan,)):
+        with pytest.raises(ValueError, match="values"):
+            dfki_tuning.release_grid(pick, bad)
+    # the rule on stage-2 rows: candidates differing only in release are told apart
+    rows = [{"policy": "A", **c, "nominal_success": 1.0, "score": s} for c, s in zip(grid, (0.7, 0.7, 0.8, 0.8, 0.6))]
+    assert dfki_tuning.pick_catches(rows, {"g": ["A"]}, grid) == {"g": grid[2]}
+
 def test_a_job_runs_with_the_catch_it_is_given(tmp_path):
     """``catch_gains`` replaces the catching LQR's weight and level: the tuned values give the tuned episode bit for bit,
     another weight another episode; a pair's LQR takes the weight too; unknown keys and a policy without a catch are
