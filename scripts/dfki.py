@@ -445,9 +445,8 @@ def report(rows: list[dict], args: argparse.Namespace) -> str:
     return "\n".join(out) + "\n"
 
 
-def main(argv: list[str] | None = None) -> int:
-    provenance.pin_numerics()  # before torch loads, here and in the workers (mbs_envs/studies/provenance.py)
-    args = parse_args(argv)
+def check_args(args: argparse.Namespace) -> None:
+    """Refuse combinations of options that do not go together (SystemExit, before anything runs)."""
     if args.write and not (args.tune or args.tune_robust_catch):
         raise SystemExit("dfki.py: --write stores the picks of --tune or --tune-robust-catch; give one of them")
     if args.release_stage and not args.tune_robust_catch:
@@ -456,6 +455,12 @@ def main(argv: list[str] | None = None) -> int:
         raise SystemExit("dfki.py: --release-values are the factors of --release-stage; give it")
     if args.tune and args.tune_robust_catch:
         raise SystemExit("dfki.py: --tune and --tune-robust-catch are separate runs; give one")
+
+
+def main(argv: list[str] | None = None) -> int:
+    provenance.pin_numerics()  # before torch loads, here and in the workers (mbs_envs/studies/provenance.py)
+    args = parse_args(argv)
+    check_args(args)
     (tune if args.tune else tune_robust_catch if args.tune_robust_catch else run)(args)
     return 0
 

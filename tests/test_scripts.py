@@ -579,14 +579,27 @@ def test_dfki_script_scores_the_protocol_and_writes_its_report(tmp_path, monkeyp
     assert "Rates from angles" in (tmp_path / "rates" / "report.md").read_text()
 
 
-def test_dfki_script_tunes_a_robust_catch_stores_it_and_runs_with_it(tmp_path, monkeypatch):
-    """``--tune-robust-catch --write`` (the tuning itself replaced by its picks: it is tested in test_dfki_tuning) stores
-    one entry per group (an agent's seeds share one) beside the others; ``--robust-catch`` runs only the policies with
-    one, with it, named so and said so in the report."""
+def tuning_replaced(tmp_path, monkeypatch, fake):
+    """``dfki_tuning.robust_catch`` replaced by ``fake`` and ``controllers/tuned.json`` by a copy in ``tmp_path`` (returned),
+    for the DFKI script's tuning runs; the caller undoes both (``monkeypatch.undo()``, ``tuned.clear_cache()``)."""
     import shutil
 
     from controllers import tuned
     from mbs_envs.studies import dfki_tuning
+
+    monkeypatch.setattr(dfki_tuning, "robust_catch", fake)
+    table = tmp_path / "tuned.json"
+    shutil.copy(tuned.PATH, table)
+    monkeypatch.setattr(tuned, "PATH", table)
+    tuned.clear_cache()
+    return table
+
+
+def test_dfki_script_tunes_a_robust_catch_stores_it_and_runs_with_it(tmp_path, monkeypatch):
+    """``--tune-robust-catch --write`` (the tuning itself replaced by its picks: it is tested in test_dfki_tuning) stores
+    one entry per group (an agent's seeds share one) beside the others; ``--robust-catch`` runs only the policies with
+    one, with it, named so and said so in the report."""
+    from controllers import tuned
 
     script = load_script("dfki.py")
     assert script["catch_group"]("PPO + LQR seed12") == "PPO + LQR" and script["catch_group"]("swing-up + LQR") == "swing-up + LQR"
@@ -597,11 +610,7 @@ def test_dfki_script_tunes_a_robust_catch_stores_it_and_runs_with_it(tmp_path, m
         return {"rows": [{"policy": n, "lqr_r": 3.0, "catch": 10.0, "score": 0.5} for n in policies],
                 "picks": {g: {"lqr_r": 3.0, "catch": 10.0} for g in groups}, "wall_s": 1.0}
 
-    monkeypatch.setattr(dfki_tuning, "robust_catch", fake)
-    table = tmp_path / "tuned.json"
-    shutil.copy(tuned.PATH, table)
-    monkeypatch.setattr(tuned, "PATH", table)
-    tuned.clear_cache()
+    table = tuning_replaced(tmp_path, monkeypatch, fake)
     try:
         script["tune_robust_catch"](script["parse_args"](["--out", str(tmp_path / "tune"), "--scene", "Pendubot", "--tune-robust-catch",
                                                           "--rates-from-angles", "--write"]))  # fmt: skip
@@ -631,8 +640,6 @@ def test_dfki_script_release_stage_keeps_each_stored_catch_and_tries_the_release
     catch with each factor of ``ROBUST_RELEASE`` (today's 4 first), the group's members only; the pick, release included,
     replaces the stored entry, and ``--robust-catch`` runs with it. A group without a stored catch is not tuned; the stage
     alone (without --tune-robust-catch) is refused."""
-    import shutil
-
     from controllers import tuned
     from mbs_envs.studies import dfki_tuning
 
@@ -646,11 +653,7 @@ def test_dfki_script_release_stage_keeps_each_stored_catch_and_tries_the_release
         return {"rows": [{"policy": n, **c, "score": 0.5 + 0.1 * (c == pick)} for n in policies for c in candidates],
                 "picks": {g: pick}, "wall_s": 1.0}
 
-    monkeypatch.setattr(dfki_tuning, "robust_catch", fake)
-    table = tmp_path / "tuned.json"
-    shutil.copy(tuned.PATH, table)
-    monkeypatch.setattr(tuned, "PATH", table)
-    tuned.clear_cache()
+    table = tuning_replaced(tmp_path, monkeypatch, fake)
     try:
         stored = json.loads(table.read_text())
         entries = stored["gains"]["mbs_envs/PendubotDFKI-v1"]
@@ -675,7 +678,7 @@ def test_dfki_script_release_stage_keeps_each_stored_catch_and_tries_the_release
         (row,) = run["rows"]
         assert json.loads(row["catch_gains"])["release"] == dfki_tuning.ROBUST_RELEASE[2]
         with pytest.raises(SystemExit, match="--release-stage is a stage of --tune-robust-catch"):
-            script["main"](["--out", str(tmp_path / "x"), "--release-stage"])
+            script["check_args"](script["parse_args"](["--out", str(tmp_path / "x"), "--release-stage"]))
         # a grid widened beyond a pick at its edge, for the groups named
         calls.clear()
         script["tune_robust_catch"](script["parse_args"](["--out", str(tmp_path / "wide"), "--scene", "Pendubot", "--tune-robust-catch",
@@ -683,7 +686,7 @@ def test_dfki_script_release_stage_keeps_each_stored_catch_and_tries_the_release
         ((groups, cands),) = calls
         assert list(groups) == ["PPO + LQR"] and [c["release"] for c in cands] == [16.0, 32.0]
         with pytest.raises(SystemExit, match="--release-values are the factors of --release-stage"):
-            script["main"](["--out", str(tmp_path / "x"), "--tune-robust-catch", "--release-values", "8"])
+            script["check_args"](script["parse_args"](["--out", str(tmp_path / "x"), "--tune-robust-catch", "--release-values", "8"]))
     finally:
         monkeypatch.undo()
         tuned.clear_cache()
