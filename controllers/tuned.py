@@ -22,8 +22,9 @@ and length mismatch). Each entry is keyed by env id and controller name:
 
 The DFKI protocol ids (``mbs_envs/AcrobotDFKI-v1``, ``mbs_envs/PendubotDFKI-v1``) carry the energy controllers'
 entries tuned on the protocol itself (``scripts/dfki.py --tune --write``; :mod:`mbs_envs.studies.dfki_tuning`), and
-``"<policy> (robust catch)"`` entries ``{"lqr_r", "catch"}``: a catching LQR's input weight and level picked for the
-benchmark's robustness on a tuning set of its axes (``scripts/dfki.py --tune-robust-catch --write``;
+``"<policy> (robust catch)"`` entries ``{"lqr_r", "catch", "release"}``: a catching LQR's input weight, level and
+hand-back factor picked for the benchmark's robustness on a tuning set of its axes (``scripts/dfki.py
+--tune-robust-catch --write``, then ``--release-stage``;
 :func:`mbs_envs.studies.dfki_tuning.robust_catch`; ``"PPO + LQR (robust catch)"`` for every seed of the agent), which
 only ``scripts/dfki.py --robust-catch`` reads (:func:`stored_entry`).
 

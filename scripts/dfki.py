@@ -266,18 +266,8 @@ def tune_robust_catch(args: argparse.Namespace) -> dict:
         for n in pols:
             groups.setdefault(catch_group(n), []).append(n)
         progress = f"{scene}: catch tuned for robustness"
-        if args.release_stage:  # each group with its stored pick, the release factors tried (one run per group)
-            stored = {g: robust_catch_entry(scene, g) for g in groups}
-            missing = sorted(g for g, e in stored.items() if e is None)
-            if missing:
-                print(f"--release-stage: no catch tuned for robustness stored for {', '.join(missing)} ({scene}): not tuned")
-            res = {"rows": [], "picks": {}, "wall_s": 0.0}
-            for g in (g for g in groups if stored[g] is not None):
-                one = dfki_tuning.robust_catch(SCENES[scene], {n: pols[n] for n in groups[g]}, {g: groups[g]}, candidates=dfki_tuning.release_grid(stored[g], *([tuple(args.release_values)] if args.release_values else [])),
-                                               rates_from_angles=args.rates_from_angles, workers=args.workers, progress=f"{progress}: {g}, release")  # fmt: skip
-                res["rows"] += one["rows"]
-                res["picks"].update(one["picks"])
-                res["wall_s"] += one["wall_s"]
+        if args.release_stage:
+            res = release_stage(scene, pols, groups, args, progress)
         else:
             res = dfki_tuning.robust_catch(SCENES[scene], pols, groups, rates_from_angles=args.rates_from_angles, workers=args.workers, progress=progress)
         record["gains"][SCENES[scene]] = {g + CATCH_SUFFIX: pick for g, pick in res["picks"].items()}
@@ -296,6 +286,28 @@ def tune_robust_catch(args: argparse.Namespace) -> dict:
     record["rows"] = rows
     write_tuning(args.out, "robust_catch", rows, record, args.write)
     return record
+
+
+def release_stage(scene: str, pols: dict, groups: dict[str, list[str]], args: argparse.Namespace, progress: str) -> dict:
+    """``--release-stage``: per group with a stored robust catch, its ``lqr_r`` and ``catch`` with each release factor
+    (``--release-values`` or :data:`~mbs_envs.studies.dfki_tuning.ROBUST_RELEASE`), one tuning run per group; the
+    results merged as :func:`mbs_envs.studies.dfki_tuning.robust_catch` returns them. Groups without one are skipped."""
+    from mbs_envs.studies import dfki_tuning
+
+    values = tuple(args.release_values) if args.release_values else dfki_tuning.ROBUST_RELEASE
+    stored = {g: robust_catch_entry(scene, g) for g in groups}
+    missing = sorted(g for g, e in stored.items() if e is None)
+    if missing:
+        print(f"--release-stage: no catch tuned for robustness stored for {', '.join(missing)} ({scene}): not tuned")
+    res: dict = {"rows": [], "picks": {}, "wall_s": 0.0}
+    for g in (g for g in groups if stored[g] is not None):
+        one = dfki_tuning.robust_catch(SCENES[scene], {n: pols[n] for n in groups[g]}, {g: groups[g]},
+                                       candidates=dfki_tuning.release_grid(stored[g], values), rates_from_angles=args.rates_from_angles,
+                                       workers=args.workers, progress=f"{progress}: {g}, release")  # fmt: skip
+        res["rows"] += one["rows"]
+        res["picks"].update(one["picks"])
+        res["wall_s"] += one["wall_s"]
+    return res
 
 
 def write_tuning(out: pathlib.Path, stem: str, rows: list[dict], record: dict, store: bool) -> None:
