@@ -62,6 +62,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                    help="hold each action for K control steps (the agent decides every K dt; default 1)")
     p.add_argument("--normalize", action="store_true",
                    help="train behind VecNormalize (observations and rewards); the statistics are saved with the agent")
+    p.add_argument("--perturb", type=lambda t: t if t == "dfki" else json.loads(t),
+                   help="train under the robustness axes, one perturbation per member and episode: 'dfki' (the DFKI "
+                        "benchmark's ranges) or a JSON dict of mbs_envs.envs.perturbed.TrainingPerturbations' fields")
     p.add_argument("--init", type=pathlib.Path, help="continue the agent saved in this folder (e.g. one of an earlier task version); {seed} stands for the run seed")
     p.add_argument("--eval-seeds", type=int, default=10, help="validation episodes per evaluation (default 10)")
     p.add_argument("--eval-every", type=int, help="env-steps between evaluations (default steps/10)")
@@ -84,7 +87,7 @@ def run(args: argparse.Namespace) -> list[dict]:
         config = dict(env_id=args.env, algo=args.algo, steps=args.steps, seed=seed, n_envs=args.n_envs,
                       env_kwargs=args.env_kwargs, train_env_kwargs=args.train_env_kwargs, eval_env_kwargs=args.eval_env_kwargs, keep_best=args.keep_best, net_arch=tuple(args.net_arch) if args.net_arch else None,
                       eval_every=args.eval_every, eval_seeds=args.eval_seeds, residual=residual, residual_bound=args.residual_bound,
-                      hyper=dict(args.hyper), action_repeat=args.action_repeat, normalize=args.normalize,
+                      hyper=dict(args.hyper), action_repeat=args.action_repeat, normalize=args.normalize, perturb=args.perturb,
                       init=str(args.init).format(seed=seed) if args.init else None)  # fmt: skip
         try:
             TrainConfig(**config)  # validate before starting anything

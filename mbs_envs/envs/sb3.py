@@ -49,14 +49,15 @@ class SB3VecEnv(VecEnv):
     """
 
     def __init__(self, venv: MBSVectorEnv, action_repeat: int = 1):
-        if not isinstance(venv, MBSVectorEnv):
-            raise ValueError(f"venv must be an MBSVectorEnv, got {type(venv).__name__}")
+        if not isinstance(getattr(venv, "unwrapped", None), MBSVectorEnv):
+            raise ValueError(f"venv must be an MBSVectorEnv (or a wrapper of one), got {type(venv).__name__}")
         self.action_repeat = check_action_repeat(action_repeat)
-        mode = AutoresetMode.SAME_STEP if action_repeat == 1 else AutoresetMode.DISABLED
-        if venv.autoreset_mode != mode:
-            raise ValueError(f"SB3VecEnv with action_repeat={action_repeat} needs autoreset_mode={mode.name} "
-                             f"(SB3 resets within the step), got {venv.autoreset_mode.name}")  # fmt: skip
+        modes = (AutoresetMode.SAME_STEP, AutoresetMode.DISABLED) if action_repeat == 1 else (AutoresetMode.DISABLED,)
+        if venv.autoreset_mode not in modes:
+            raise ValueError(f"SB3VecEnv with action_repeat={action_repeat} needs autoreset_mode="
+                             f"{' or '.join(m.name for m in modes)} (SB3 resets within the step), got {venv.autoreset_mode.name}")  # fmt: skip
         self.venv = venv
+        self.task = venv.unwrapped.env  # the task env the members share
         self._actions: np.ndarray | None = None
         super().__init__(venv.num_envs, venv.single_observation_space, venv.single_action_space)
 
@@ -75,7 +76,7 @@ class SB3VecEnv(VecEnv):
         self._actions = np.asarray(actions)
 
     def step_wait(self):
-        same_step = self.action_repeat == 1
+        same_step = self.venv.autoreset_mode == AutoresetMode.SAME_STEP
         total = np.zeros(self.num_envs)
         dones = np.zeros(self.num_envs, bool)
         infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
@@ -98,7 +99,7 @@ class SB3VecEnv(VecEnv):
         self.venv.close()
 
     def get_attr(self, attr_name: str, indices: Any = None) -> list[Any]:
-        value = getattr(self.venv.env, attr_name)
+        value = getattr(self.task, attr_name)
         return [value for _ in self._get_indices(indices)]
 
     def set_attr(self, attr_name: str, value: Any, indices: Any = None) -> None:
@@ -114,7 +115,7 @@ class SB3VecEnv(VecEnv):
         return super().seed(check.seed(seed))
 
     def env_method(self, method_name: str, *method_args: Any, indices: Any = None, **method_kwargs: Any) -> list[Any]:
-        method = getattr(self.venv.env, method_name)
+        method = getattr(self.task, method_name)
         return [method(*method_args, **method_kwargs) for _ in self._get_indices(indices)]
 
     def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices: Any = None) -> list[bool]:
@@ -136,7 +137,8 @@ def check_action_repeat(action_repeat: Any) -> int:
 
 
 def make_sb3_vec_env(
-    env_id: str, n_envs: int = 8, seed: int | None = None, monitor: bool = True, action_repeat: int = 1, **kwargs: Any
+    env_id: str, n_envs: int = 8, seed: int | None = None, monitor: bool = True, action_repeat: int = 1,
+    perturb: Any = None, **kwargs: Any
 ) -> VecEnv:
     """SB3 ``VecEnv`` of ``n_envs`` batched members of a registered id.
 
@@ -151,12 +153,21 @@ def make_sb3_vec_env(
         Wrap in ``VecMonitor`` (episode returns and lengths for SB3's logger).
     action_repeat : int
         Control steps each action is held for (see the module docstring).
+    perturb : TrainingPerturbations or "dfki" or mapping, optional
+        Train under the robustness axes: each member meets one perturbation per episode
+        (:class:`mbs_envs.envs.perturbed.PerturbedVectorEnv`, its generator seeded from ``seed``).
     **kwargs
         Env arguments (``params``, ``dt``, ``n_links``, ``randomize``, ...).
     """
+    from .perturbed import PerturbedVectorEnv, TrainingPerturbations
+
     kwargs.setdefault("full_info", False)
-    mode = AutoresetMode.SAME_STEP if check_action_repeat(action_repeat) == 1 else AutoresetMode.DISABLED
+    perturb = None if perturb is None else TrainingPerturbations.of(perturb)  # refused before anything is built
+    same_step = check_action_repeat(action_repeat) == 1 and perturb is None
+    mode = AutoresetMode.SAME_STEP if same_step else AutoresetMode.DISABLED
     venv = gym.make_vec(env_id, num_envs=n_envs, vectorization_mode="vector_entry_point", autoreset_mode=mode, **kwargs)
+    if perturb is not None:
+        venv = PerturbedVectorEnv(venv, perturb, seed=seed)
     env: VecEnv = SB3VecEnv(venv, action_repeat)
     if seed is not None:
         env.seed(seed)

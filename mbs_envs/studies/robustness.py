@@ -122,6 +122,63 @@ def random_pulses(rng: np.random.Generator, episodes: int, t: np.ndarray, coordi
     return gaussian_pulses(t, mu, width, amp)
 
 
+def actuated(u: np.ndarray, applied: np.ndarray, u_max: np.ndarray, noise: np.ndarray | None = None,
+             response: np.ndarray | None = None) -> np.ndarray:
+    """The torque the plant gets for the command ``u``: the torque noise added, then the first-order actuator
+    ``applied + r (u - applied)`` (responsiveness ``r = response``), then the actuator limit.
+
+    Parameters
+    ----------
+    u : ndarray (n, nu)
+        Commanded torques [N m].
+    applied : ndarray (n, nu)
+        The torques applied at the step before [N m] (zeros at an episode's start).
+    u_max : ndarray (nu,)
+        Actuator limit [N m].
+    noise : ndarray (n, nu), optional
+        Additive torque noise [N m] (None: none).
+    response : ndarray (n,), optional
+        Responsiveness per member (None: ideal, ``r = 1``).
+
+    Returns
+    -------
+    ndarray (n, nu)
+    """
+    if noise is not None:
+        u = u + noise
+    if response is not None:
+        u = applied + response[:, None] * (u - applied)
+    return np.clip(u, -u_max, u_max)
+
+
+def delayed(history: np.ndarray, k: Any, delay: np.ndarray) -> np.ndarray:
+    """What each member sees at its control step ``k`` with its delay: the observation of step ``k - delay`` from the
+    ring ``history`` (the observation of step ``j`` in row ``j % len(history)``), the episode's first one until then.
+
+    Parameters
+    ----------
+    history : ndarray (L, n, obs_dim)
+        The ring, ``L > max(delay)``.
+    k : int or ndarray of int (n,)
+        Each member's step in its episode.
+    delay : ndarray of int (n,)
+        Delay [control steps].
+
+    Returns
+    -------
+    ndarray (n, obs_dim)
+    """
+    return history[np.maximum(k - delay, 0) % len(history), np.arange(history.shape[1])]
+
+
+def with_noise(seen: np.ndarray, index: Any, noise: np.ndarray) -> np.ndarray:
+    """``seen`` (n, obs_dim) with ``noise`` (n, len(index)) added to the entries ``index`` (a list, or a slice for
+    all), in ``seen``'s dtype (a new array)."""
+    noisy = seen.copy()
+    noisy[:, index] = seen[:, index] + noise
+    return noisy.astype(seen.dtype)
+
+
 def run(venv: Any, policy: Any, seeds: list[int], p: Perturbation, noise_seed: int = 0, deterministic: bool = True,
         record: bool = False, batch: tuple[int, int] | None = None) -> dict[str, Any]:  # fmt: skip
     """One perturbed episode per member of ``venv`` (``autoreset_mode="Disabled"``, a ``max_episode_steps``).
@@ -160,7 +217,6 @@ def run(venv: Any, policy: Any, seeds: list[int], p: Perturbation, noise_seed: i
     obs, _ = base.reset(seed=list(seeds))
     delay = np.zeros(n, int) if p.delay is None else np.asarray(p.delay, int)
     history = np.empty((int(delay.max()) + 1,) + obs.shape, obs.dtype)  # a ring of the last observations
-    members = np.arange(n)
     applied = np.zeros((n, base.model.nu))
     q_end, v_end = base.q, base.v
     ran = np.full(n, steps)
@@ -171,24 +227,21 @@ def run(venv: Any, policy: Any, seeds: list[int], p: Perturbation, noise_seed: i
     rows: dict[str, list] = {"t": [], "e": [], "u": [], "r": [], "dt": [], "div": []}
     for k in range(steps):
         history[k % len(history)] = obs
-        seen = history[np.maximum(k - delay, 0) % len(history), members] if delay.any() else obs
+        seen = delayed(history, k, delay) if delay.any() else obs
         if p.noise_sigma is not None:
             idx = list(p.noise_index) or slice(None)
-            noisy = seen.copy()
-            noisy[:, idx] = seen[:, idx] + (np.asarray(p.noise_sigma)[:, None] * normal(noisy[:, idx].shape[1]))
-            seen = noisy.astype(obs.dtype)
+            seen = with_noise(seen, idx, np.asarray(p.noise_sigma)[:, None] * normal(seen[:, idx].shape[1]))
         tic = time.perf_counter()
         action, state = policy.predict(seen, state=state, episode_start=start, deterministic=deterministic)
         if record:
             rows["dt"].append((time.perf_counter() - tic) / n)
         start = np.zeros(n, bool)
         u = np.clip(np.asarray(action, float).reshape(n, -1), -1.0, 1.0) * u_max
+        noise = None
         if p.torque_sigma is not None:
             sigma = np.asarray(p.torque_sigma, float)
-            u = u + (sigma[:, None] if sigma.ndim == 1 else sigma) * normal(u.shape[1])
-        if p.response is not None:
-            u = applied + np.asarray(p.response)[:, None] * (u - applied)
-        applied = np.clip(u, -u_max, u_max)
+            noise = (sigma[:, None] if sigma.ndim == 1 else sigma) * normal(u.shape[1])
+        applied = actuated(u, applied, u_max, noise, None if p.response is None else np.asarray(p.response))
         if p.pulses is not None:
             base.apply_impulse(np.where(done[:, None], 0.0, p.pulses[:, k] * dt))
         obs, reward, terminated, truncated, info = base.step((applied / u_max).astype(np.float32))

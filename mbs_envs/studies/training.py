@@ -135,6 +135,11 @@ class TrainConfig:
         Ship the agent of the evaluation with the highest validation return (validation seeds only,
         never test seeds; SB3's ``EvalCallback`` best-model rule) instead of the last one: PPO's return
         can collapse late in a run. ``config.json`` records which evaluation was kept.
+    perturb : str or dict, optional
+        Train under the robustness axes (``"dfki"``, or the fields of
+        :class:`mbs_envs.envs.perturbed.TrainingPerturbations`): each training member meets one perturbation
+        (measurement noise, torque noise, a lagging actuator, a delay, torque pulses) per episode, drawn at its
+        reset; validation runs the task unperturbed. ``config.json`` records the ranges.
     """
 
     env_id: str
@@ -155,6 +160,7 @@ class TrainConfig:
     normalize: bool = False
     init: str | None = None
     keep_best: bool = False
+    perturb: Any = None
 
     def __post_init__(self) -> None:
         if self.algo not in ALGOS:
@@ -173,6 +179,10 @@ class TrainConfig:
             raise ValueError("action_repeat > 1 is not available for residual agents (their base acts every step)")
         if self.init is not None:
             check_init(self)
+        if self.perturb is not None:
+            from ..envs.perturbed import TrainingPerturbations
+
+            object.__setattr__(self, "perturb", TrainingPerturbations.of(self.perturb).as_dict())  # checked, JSON-ready
         defaults = _defaults(self, 1)
         for key, value in self.hyper.items():
             if key not in defaults or not isinstance(defaults[key], (int, float)):
@@ -410,7 +420,7 @@ def _train(config: TrainConfig, out: pathlib.Path, tensorboard: bool, checkpoint
     torch.set_num_threads(1)
     members = seed_ranges.training_members(config.seed, config.members)
     venv = make_sb3_vec_env(config.env_id, n_envs=config.members, seed=members[0], action_repeat=config.action_repeat,
-                            **{**config.env_kwargs, **config.train_env_kwargs})
+                            perturb=config.perturb, **{**config.env_kwargs, **config.train_env_kwargs})
     base = base_gains = None
     if config.residual:
         nominal = gym.make(config.env_id, **config.env_kwargs)
@@ -476,6 +486,7 @@ def _train(config: TrainConfig, out: pathlib.Path, tensorboard: bool, checkpoint
         "hyper_overrides": config.hyper,
         "action_repeat": config.action_repeat,
         "normalize": config.normalize,
+        "perturb": config.perturb,
         "init": None if source is None else {"from": str(config.init), "env_id": source["env_id"], "steps": source["steps"],
                                              "init": source.get("init")},
         "command": "python scripts/train.py " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("train.py") else None,
