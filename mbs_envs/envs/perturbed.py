@@ -29,6 +29,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorWrapper
 
 from .. import validation as check
+from .base import validate_action
 
 #: the axes a member can draw at a reset, in this order ("nominal": none)
 TRAINING_AXES = ("nominal", "velocity noise", "torque noise", "torque response", "time delay", "perturbations")
@@ -167,11 +168,17 @@ class PerturbedVectorEnv(VectorWrapper):
         width = env.single_observation_space.shape[0]
         if any(i >= width for i in perturbations.noise_index):
             raise ValueError(f"perturbations.noise_index {perturbations.noise_index} beyond the observation's {width} entries")
+        n, nv, dt, steps = base.num_envs, base.model.nv, float(base.env.dt), int(base.max_episode_steps)
+        if perturbations.pulses is not None:
+            q = perturbations.pulses
+            if steps * dt < (nv * q["per_joint"] + 1) * q["min_spacing"]:
+                raise ValueError(f"perturbations.pulses: {nv * q['per_joint']} pulses {q['min_spacing']} s apart do not fit "
+                                 f"in an episode of {steps * dt:g} s")  # fmt: skip
         super().__init__(env)
         self.perturbations = perturbations
         self.rng = np.random.default_rng(None if seed is None else [seed, 0x9E47])  # not a member's stream (seed + i)
-        n, nu, nv = base.num_envs, base.model.nu, base.model.nv
-        self.dt, self.steps = float(base.env.dt), int(base.max_episode_steps)
+        nu = base.model.nu
+        self.dt, self.steps = dt, steps
         self.u_max = np.asarray(base.env.u_max, float)
         delay_max = 0 if perturbations.time_delay is None else int(np.rint(perturbations.time_delay[1] / self.dt))
         self.history = np.zeros((delay_max + 1, n, width), env.single_observation_space.dtype)
@@ -236,10 +243,7 @@ class PerturbedVectorEnv(VectorWrapper):
         from ..studies.robustness import actuated
 
         base = self.env.unwrapped
-        a = np.asarray(actions, float).reshape(self.num_envs, -1)
-        if a.shape[1] != len(self.u_max) or not np.isfinite(a).all():
-            raise ValueError(f"actions must be finite with shape ({self.num_envs}, {len(self.u_max)}), got {np.shape(actions)}")
-        u = np.clip(a, -1.0, 1.0) * self.u_max
+        u = validate_action(actions, len(self.u_max), self.num_envs) * self.u_max  # saturated to [-1, 1]; refused as the env does
         sigma = np.where(self._on("torque noise"), self.value, 0.0)
         noise = sigma[:, None] * self.rng.standard_normal(u.shape) if sigma.any() else None
         lag = self._on("torque response")
