@@ -13,7 +13,7 @@ observation.
     from mbs_envs.envs.sb3 import make_sb3_vec_env
 
     venv = make_sb3_vec_env("mbs_envs/Acrobot-v1", n_envs=16, seed=0, action_repeat=10, preset="dfki_c1",
-                            perturb=TrainingPerturbations.dfki())
+                            max_episode_steps=5000, perturb=TrainingPerturbations.dfki())   # 10 s: the pulses fit
 
 The wrapped env runs with ``autoreset_mode="Disabled"`` (a member's episode ends, then the caller resets it with
 ``options={"reset_mask": ...}``, as :class:`~mbs_envs.envs.sb3.SB3VecEnv` does), so that every perturbation
