@@ -171,3 +171,15 @@ def test_sb3_trains_behind_it_and_config_records_the_ranges(tmp_path):
                                         "--perturb", json.dumps(short), "--out", str(tmp_path)]))  # fmt: skip
     cfg = json.loads((tmp_path / "config.json").read_text())
     assert TrainingPerturbations.of(cfg["perturb"]) == TrainingPerturbations.of(short)
+
+
+def test_the_module_docstrings_example_runs_as_written():
+    import textwrap
+
+    import mbs_envs.envs.perturbed as module
+
+    doc = module.__doc__
+    block = doc.split("observation.\n\n", 1)[1].split("\n\nThe wrapped env", 1)[0]
+    namespace: dict = {}
+    exec(textwrap.dedent(block), namespace)  # noqa: S102 - our own docstring
+    assert namespace["venv"].reset().shape == (16, 6)
