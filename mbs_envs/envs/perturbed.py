@@ -23,6 +23,7 @@ setting belongs to exactly one episode.
 from __future__ import annotations
 
 import dataclasses
+from types import MappingProxyType
 from typing import Any, Mapping
 
 import numpy as np
@@ -33,6 +34,9 @@ from .base import validate_action
 
 #: the axes a member can draw at a reset, in this order ("nominal": none)
 TRAINING_AXES = ("nominal", "velocity noise", "torque noise", "torque response", "time delay", "perturbations")
+#: each axis' field of :class:`TrainingPerturbations`
+AXIS_FIELDS = MappingProxyType({"velocity noise": "velocity_noise", "torque noise": "torque_noise",
+                                "torque response": "torque_response", "time delay": "time_delay", "perturbations": "pulses"})
 
 
 def _range(value: Any, name: str, low: float, high: float) -> tuple[float, float] | None:
@@ -102,9 +106,7 @@ class TrainingPerturbations:
     @property
     def axes(self) -> tuple[str, ...]:
         """The axes a member draws from (:data:`TRAINING_AXES` that are set; "nominal" always)."""
-        on = {"velocity noise": self.velocity_noise, "torque noise": self.torque_noise, "torque response": self.torque_response,
-              "time delay": self.time_delay, "perturbations": self.pulses}  # fmt: skip
-        return ("nominal",) + tuple(a for a in TRAINING_AXES[1:] if on[a] is not None)
+        return ("nominal",) + tuple(a for a in TRAINING_AXES[1:] if getattr(self, AXIS_FIELDS[a]) is not None)
 
     @classmethod
     def dfki(cls) -> TrainingPerturbations:
@@ -113,7 +115,7 @@ class TrainingPerturbations:
 
         r = dfki.RANGES
         pulses = {k: dfki.PULSES[k] for k in ("per_joint", "min_spacing", "sigma", "amplitude")}
-        return cls(velocity_noise=r["velocity noise"], noise_index=(4, 5), torque_noise=r["torque noise"],
+        return cls(velocity_noise=r["velocity noise"], noise_index=dfki.RATE_INDEX, torque_noise=r["torque noise"],
                    torque_response=r["torque response"], time_delay=r["time delay"], pulses=pulses)  # fmt: skip
 
     @classmethod
@@ -198,9 +200,8 @@ class PerturbedVectorEnv(VectorWrapper):
         """Members ``idx`` begin an episode with the observation ``obs`` (theirs, rows of the batch)."""
         p, axes = self.perturbations, self.perturbations.axes
         axis = self.rng.integers(len(axes), size=len(idx))
-        ranges = {"velocity noise": p.velocity_noise, "torque noise": p.torque_noise, "torque response": p.torque_response,
-                  "time delay": p.time_delay}  # fmt: skip
-        value = np.array([self.rng.uniform(*ranges[axes[a]]) if axes[a] in ranges else 0.0 for a in axis])
+        scalar = [a not in ("nominal", "perturbations") for a in axes]  # the axes with a value drawn from a range
+        value = np.array([self.rng.uniform(*getattr(p, AXIS_FIELDS[axes[a]])) if scalar[a] else 0.0 for a in axis])
         self.axis[idx], self.value[idx] = axis, value
         self.delay[idx] = np.where([axes[a] == "time delay" for a in axis], np.rint(value / self.dt), 0).astype(int)
         self.k[idx] = 0
@@ -249,7 +250,7 @@ class PerturbedVectorEnv(VectorWrapper):
         lag = self._on("torque response")
         response = np.where(lag, self.value, 1.0) if lag.any() else None
         applied = actuated(u, self.applied, self.u_max, noise, response)
-        if self.pulses.shape[1]:
+        if self._on("perturbations").any():  # the others' rows are zeros: no solve for a batch without pulses
             base.apply_impulse(self.pulses[np.arange(self.num_envs), np.minimum(self.k, self.steps - 1)] * self.dt)
         obs, reward, terminated, truncated, info = self.env.step((applied / self.u_max).astype(np.float32))
         self.applied = applied

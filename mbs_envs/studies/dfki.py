@@ -178,6 +178,8 @@ AXES = ("model", "velocity noise", "torque noise", "torque response", "time dela
 #: ranges: velocity-noise std [rad/s], torque-noise std [N m], responsiveness, delay [s]
 RANGES = MappingProxyType({"velocity noise": (0.0, 0.5), "torque noise": (0.0, 1.1), "torque response": (0.1, 2.0),
                            "time delay": (0.0, 0.04)})  # fmt: skip
+#: the observation entries the velocity noise reaches: the joint rates of the swing-up envs' (cos, sin, cos, sin, v1, v2)
+RATE_INDEX = (4, 5)
 #: perturbations: episodes, pulses per joint, least spacing [s], width and height ranges [s], [N m]
 PULSES = MappingProxyType({"episodes": 50, "per_joint": 3, "min_spacing": 1.0, "sigma": (0.05, 0.1), "amplitude": (0.5, 5.0)})
 #: model axes varied by x [0.75, 1.25] in their convention (m r with m fixed, so r moves; I about the joint)
@@ -316,7 +318,7 @@ def sweep_parts(env_id: str, n: int = N_VALUES, seed: int = 0, axes: tuple = AXE
         else:
             values = axis_values(RANGES[axis], n, draws)
             size = n
-            p = {"velocity noise": lambda x: Perturbation(noise_sigma=x, noise_index=(4, 5)),
+            p = {"velocity noise": lambda x: Perturbation(noise_sigma=x, noise_index=RATE_INDEX),
                  "torque noise": lambda x: Perturbation(torque_sigma=x),
                  "torque response": lambda x: Perturbation(response=x),
                  "time delay": lambda x: Perturbation(delay=np.rint(x / dt).astype(int))}[axis](values)  # fmt: skip

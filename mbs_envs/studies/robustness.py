@@ -175,8 +175,8 @@ def with_noise(seen: np.ndarray, index: Any, noise: np.ndarray) -> np.ndarray:
     """``seen`` (n, obs_dim) with ``noise`` (n, len(index)) added to the entries ``index`` (a list, or a slice for
     all), in ``seen``'s dtype (a new array)."""
     noisy = seen.copy()
-    noisy[:, index] = seen[:, index] + noise
-    return noisy.astype(seen.dtype)
+    noisy[:, index] = seen[:, index] + noise  # cast into seen's dtype by the assignment
+    return noisy
 
 
 def run(venv: Any, policy: Any, seeds: list[int], p: Perturbation, noise_seed: int = 0, deterministic: bool = True,
