@@ -22,7 +22,11 @@ one), from a state ``x0 = (q, v)``:
    Jacobians (forward differences) with stage cost ``(dx^T Q dx + R du^2) dt`` and terminal ``S``, so the
    gains join the upright LQR's at the end.
 
-Everything is scalar numba code per member; members are independent.
+Members are independent. Within a member's plan the map runs on lanes (:func:`step_lanes`: the pumping search's
+125 gain sets, the Jacobians' time steps, the line search's step lengths, each a lane of SIMD loops), with the
+environments' own sines and cosines (the project's ``sincos``, 1 ulp of libm's); the filter and the catch test keep
+the scalar map :func:`step4` (libm). A plan costs about half what it did member by member in scalar code
+(docs/performance.md).
 """
 
 from __future__ import annotations
@@ -30,11 +34,15 @@ from __future__ import annotations
 import numpy as np
 
 from mbs_envs.dynamics.jit import njit
-from mbs_envs.dynamics.trig import fma, wrap
-from mbs_envs.models.planar2r import _acceleration, _energy, _friction
+from mbs_envs.dynamics.trig import fma, in_range, sincos, sincos_libm, wrap, wrap_fast, wrap_python
+from mbs_envs.models.planar2r import _acceleration, _acceleration_of, _energy, _energy_of, _friction
 
-#: line-search step lengths of the iLQR
+#: line-search step lengths of the iLQR (rolled out together, one lane each)
 ALPHAS = np.array([1.0, 0.5, 0.25, 0.1, 0.03])
+#: time steps differenced at once by :func:`jacobians` (lanes)
+CHUNK = 64
+#: rows of the work array of :func:`step_lanes`
+WORK_ROWS = 24
 
 
 @njit
@@ -108,58 +116,245 @@ def energy(x, theta):  # pragma: no cover - compiled
     return _energy(np.sin(x[0]), np.cos(x[0]), np.sin(x[1]), np.cos(x[1]), x[2], x[3], theta, 0)
 
 
+# -- lanes: the planner's map on many states at once -------------------------------------------------
+#
+# The planner's own map (the pumping search over its gains, the line search over its step lengths, the
+# Jacobians over the time steps) runs on "lanes": states in the columns of (4, L) arrays, each loop over the
+# lanes written without calls so that LLVM vectorizes it. The sines and cosines are the project's
+# straight-line ``sincos`` (1 ulp of libm's, as the environments' own kernels take them; libm beyond its
+# range), the wrap :func:`mbs_envs.dynamics.trig.wrap_fast` (Python's bits; ``fmod`` beyond its range), in a
+# second pass only where needed. Every lane's arithmetic is the same whatever the number of lanes: one lane
+# gives the bits of that lane in many (tested).
+
+
+@njit(_nrt=False)
+def trig_lanes(q1, q2, T, L):  # pragma: no cover - compiled
+    """``T[0..3, :L] = sin q1, cos q1, sin q2, cos q2`` of lanes ``:L`` (``q1, q2`` rows of a state array)."""
+    ok = True
+    for l in range(L):
+        T[0, l], T[1, l] = sincos(q1[l])
+        T[2, l], T[3, l] = sincos(q2[l])
+        ok &= in_range(q1[l]) & in_range(q2[l])
+    if not ok:
+        for l in range(L):
+            if not in_range(q1[l]):
+                T[0, l], T[1, l] = sincos_libm(q1[l])
+            if not in_range(q2[l]):
+                T[2, l], T[3, l] = sincos_libm(q2[l])
+
+
+@njit(_nrt=False)
+def rate_lanes(X, u, driven, theta, T, out, L):  # pragma: no cover - compiled
+    """:func:`rate` of lanes ``:L``: ``X`` (4, >= L) states, ``u`` (>= L,) torques on joint ``driven``, ``T`` their
+    :func:`trig_lanes` (given), ``out`` (4, >= L) written with ``dx/dt``. The parameters are read once, as scalars,
+    and the friction (a ``tanh`` where Coulomb or Stribeck terms are set) in a loop of its own."""
+    m1, m2, l1, r1, r2 = theta[0, 0], theta[1, 0], theta[2, 0], theta[4, 0], theta[5, 0]
+    I1, I2, g, b1, b2 = theta[6, 0], theta[7, 0], theta[8, 0], theta[9, 0], theta[10, 0]
+    if theta[11, 0] != 0.0 or theta[12, 0] != 0.0 or theta[14, 0] != 0.0 or theta[15, 0] != 0.0:
+        for l in range(L):
+            out[2, l] = _friction(X[2, l], b1, theta[11, 0], theta[13, 0], theta[14, 0], theta[16, 0])
+            out[3, l] = _friction(X[3, l], b2, theta[12, 0], theta[13, 0], theta[15, 0], theta[16, 0])
+    else:  # _friction's value without its branches: viscous only
+        for l in range(L):
+            out[2, l] = b1 * X[2, l]
+            out[3, l] = b2 * X[3, l]
+    for l in range(L):
+        t1 = u[l] if driven == 0 else 0.0
+        t2 = u[l] if driven == 1 else 0.0
+        a1, a2 = _acceleration_of(T[0, l], T[1, l], T[2, l], T[3, l], X[2, l], X[3, l], out[2, l], out[3, l], t1, t2,
+                                  m1, m2, l1, r1, r2, I1, I2, g)  # fmt: skip
+        out[0, l] = X[2, l]
+        out[1, l] = X[3, l]
+        out[2, l] = a1
+        out[3, l] = a2
+
+
+@njit(_nrt=False)
+def step_lanes(X, u, driven, theta, dt, substeps, work, L):  # pragma: no cover - compiled
+    """:func:`step_map` of lanes ``:L`` in place: ``X`` (4, >= L), ``u`` (>= L,) held, ``work`` (:data:`WORK_ROWS`,
+    >= L) scratch."""
+    h = dt / substeps
+    T, Y = work[0:4], work[4:8]
+    K0, K1, K2, K3 = work[8:12], work[12:16], work[16:20], work[20:24]
+    for _ in range(substeps):
+        trig_lanes(X[0], X[1], T, L)
+        rate_lanes(X, u, driven, theta, T, K0, L)
+        for i in range(4):
+            for l in range(L):
+                Y[i, l] = X[i, l] + 0.5 * h * K0[i, l]
+        trig_lanes(Y[0], Y[1], T, L)
+        rate_lanes(Y, u, driven, theta, T, K1, L)
+        for i in range(4):
+            for l in range(L):
+                Y[i, l] = X[i, l] + 0.5 * h * K1[i, l]
+        trig_lanes(Y[0], Y[1], T, L)
+        rate_lanes(Y, u, driven, theta, T, K2, L)
+        for i in range(4):
+            for l in range(L):
+                Y[i, l] = X[i, l] + h * K2[i, l]
+        trig_lanes(Y[0], Y[1], T, L)
+        rate_lanes(Y, u, driven, theta, T, K3, L)
+        for i in range(4):
+            for l in range(L):
+                X[i, l] = X[i, l] + (h / 6.0) * (K0[i, l] + 2.0 * K1[i, l] + 2.0 * K2[i, l] + K3[i, l])
+
+
+@njit(_nrt=False)
+def wrap_lanes(x, L):  # pragma: no cover - compiled
+    """``x[:L] = wrap(x[:L])`` in place: :func:`wrap_fast` in one pass where every lane is in its range, else
+    :func:`wrap` lane by lane."""
+    ok = True
+    for l in range(L):
+        ok &= wrap_fast(x[l])[1]
+    if ok:
+        for l in range(L):
+            x[l] = wrap_fast(x[l])[0]
+    else:
+        for l in range(L):
+            x[l] = wrap(x[l])
+
+
+@njit(_nrt=False)
+def pumping_lanes(X, k_q, k_v, k_E, E_up, driven, theta, u_max, T, R0, R1, w, u, L):  # pragma: no cover - compiled
+    """:func:`pumping_input` of lanes ``:L`` with gains ``k_q, k_v, k_E`` (>= L,) each, into ``u``; ``T`` is written
+    with the states' :func:`trig_lanes`, ``R0, R1`` (4, >= L) with the rates at ``u = 0`` and ``1``, ``w`` scratch."""
+    m1, m2, l1, r1, r2 = theta[0, 0], theta[1, 0], theta[2, 0], theta[4, 0], theta[5, 0]
+    I1, I2, g = theta[6, 0], theta[7, 0], theta[8, 0]
+    trig_lanes(X[0], X[1], T, L)
+    for l in range(L):
+        u[l] = 0.0
+    rate_lanes(X, u, driven, theta, T, R0, L)
+    for l in range(L):
+        u[l] = 1.0
+    rate_lanes(X, u, driven, theta, T, R1, L)
+    for l in range(L):
+        w[l] = X[1, l] if driven == 1 else X[0, l] - 0.5 * np.pi
+    wrap_lanes(w, L)
+    for l in range(L):
+        E_err = _energy_of(T[0, l], T[1, l], T[2, l], T[3, l], X[2, l], X[3, l], m1, m2, l1, r1, r2, I1, I2, g) - E_up
+        if driven == 1:  # acrobot
+            y = -k_q[l] * w[l] - k_v[l] * X[3, l] + k_E[l] * E_err * X[2, l]
+            a0, a1 = R0[3, l], R1[3, l]
+        else:  # pendubot
+            y = -k_q[l] * w[l] - k_v[l] * X[2, l] - k_E[l] * E_err * X[2, l]
+            a0, a1 = R0[2, l], R1[2, l]
+        u[l] = min(max((y - a0) / (a1 - a0), -u_max), u_max)
+
+
+@njit
+def rollout_lanes(x0, U, Xref, kff, K, alphas, u_max, driven, theta, dt, substeps, X, Un, ok):  # pragma: no cover - compiled
+    """:func:`_rollout` for every step length of ``alphas`` (A,) at once, a lane each: writes ``X`` (A, H+1, 4),
+    ``Un`` (A, H) and ``ok`` (A,): whether the lane's states stayed finite (a lane that stops being finite is
+    computed on, and its trajectory is not to be used)."""
+    A, H = alphas.shape[0], U.shape[0]
+    Z, D, u, work = np.empty((4, A)), np.empty((4, A)), np.empty(A), np.empty((WORK_ROWS, A))
+    for a in range(A):
+        ok[a] = True
+        for i in range(4):
+            Z[i, a] = x0[i]
+            X[a, 0, i] = x0[i]
+    for k in range(H):
+        for a in range(A):
+            D[0, a] = Z[0, a] - Xref[k, 0]
+            D[1, a] = Z[1, a] - Xref[k, 1]
+            D[2, a] = Z[2, a] - Xref[k, 2]
+            D[3, a] = Z[3, a] - Xref[k, 3]
+        wrap_lanes(D[0], A)
+        wrap_lanes(D[1], A)
+        for a in range(A):
+            v = U[k] + alphas[a] * kff[k] + dot4(K[k, 0], K[k, 1], K[k, 2], K[k, 3], D[0, a], D[1, a], D[2, a], D[3, a])
+            u[a] = min(max(v, -u_max), u_max)
+            Un[a, k] = u[a]
+        step_lanes(Z, u, driven, theta, dt, substeps, work, A)
+        alive = False
+        for a in range(A):
+            for i in range(4):
+                X[a, k + 1, i] = Z[i, a]
+            ok[a] = ok[a] and np.isfinite(Z[0, a]) and np.isfinite(Z[1, a]) and np.isfinite(Z[2, a]) and np.isfinite(Z[3, a])
+            alive |= ok[a]
+        if not alive:
+            return
+
+
 @njit
 def pumping_input(x, k_q, k_v, k_E, E_up, driven, theta, u_max):  # pragma: no cover - compiled
     """The energy-pumping law of :class:`controllers.swingup.SwingUpLQR` (its module docstring), clipped to
-    ``u_max``. The driven joint's acceleration is affine in ``u``, so the partial feedback linearization's
-    input is ``(y - a(0)) / (a(1) - a(0))``, from two forward-dynamics calls (no mass matrix needed)."""
-    E_err = energy(x, theta) - E_up
-    if driven == 1:  # acrobot
-        y = -k_q * wrap(x[1]) - k_v * x[3] + k_E * E_err * x[2]
-    else:  # pendubot
-        y = -k_q * wrap(x[0] - 0.5 * np.pi) - k_v * x[2] - k_E * E_err * x[2]
-    r0 = rate(x[0], x[1], x[2], x[3], 0.0, driven, theta)
-    r1 = rate(x[0], x[1], x[2], x[3], 1.0, driven, theta)
-    a0, a1 = (r0[3], r1[3]) if driven == 1 else (r0[2], r1[2])
-    return min(max((y - a0) / (a1 - a0), -u_max), u_max)
+    ``u_max``, at the state ``x`` (4,): one lane of :func:`pumping_lanes`. The driven joint's acceleration is affine
+    in ``u``, so the partial feedback linearization's input is ``(y - a(0)) / (a(1) - a(0))``, from two
+    forward-dynamics calls (no mass matrix needed)."""
+    X = np.empty((4, 1))
+    X[:, 0] = x
+    T, R0, R1, w, u = np.empty((4, 1)), np.empty((4, 1)), np.empty((4, 1)), np.empty(1), np.empty(1)
+    pumping_lanes(X, np.array([k_q]), np.array([k_v]), np.array([k_E]), E_up, driven, theta, u_max, T, R0, R1, w, u, 1)
+    return u[0]
+
+
+@njit
+def _pump(X, k_q, k_v, k_E, E_up, u_max, driven, theta, dt, substeps, steps, U, search, goal, S, patience, best, when):  # pragma: no cover - compiled
+    """The pumping law with gains ``k_q, k_v, k_E`` (L,) from the states ``X`` (4, L), ``steps`` control steps, a lane
+    per gain set: writes the inputs of lane 0 into ``U`` (when its length is ``steps``) and, where ``search``, per
+    lane the smallest weighted cost-to-go (:func:`pumping_search`) into ``best`` and its step into ``when``."""
+    L = X.shape[1]
+    T, R0, R1, E, w = np.empty((4, L)), np.empty((4, L)), np.empty((4, L)), np.empty((4, L)), np.empty(L)
+    u, work, alive = np.empty(L), np.empty((WORK_ROWS, L)), np.ones(L, np.bool_)
+    for l in range(L):
+        best[l], when[l] = np.inf, 0
+    for k in range(steps):
+        pumping_lanes(X, k_q, k_v, k_E, E_up, driven, theta, u_max, T, R0, R1, w, u, L)
+        if U.shape[0] == steps:
+            U[k] = u[0]
+        step_lanes(X, u, driven, theta, dt, substeps, work, L)
+        if not search:
+            continue
+        for l in range(L):
+            E[0, l] = X[0, l] - goal[0]
+            E[1, l] = X[1, l] - goal[1]
+            E[2, l] = X[2, l] - goal[2]
+            E[3, l] = X[3, l] - goal[3]
+        wrap_lanes(E[0], L)
+        wrap_lanes(E[1], L)
+        weight = np.exp(k / patience)
+        for l in range(L):
+            alive[l] = alive[l] and np.isfinite(X[0, l]) and np.isfinite(X[1, l]) and np.isfinite(X[2, l]) and np.isfinite(X[3, l])
+            c = 0.0
+            for i in range(4):
+                for j in range(4):
+                    c += E[i, l] * S[i, j] * E[j, l]
+            c *= weight
+            if alive[l] and c < best[l]:
+                best[l], when[l] = c, k
 
 
 @njit
 def pumping_search(x0, gains, E_up, goal, S, u_max, driven, theta, dt, substeps, steps, patience):  # pragma: no cover - compiled
     """Step 1 (module docstring): the row of ``gains`` (G, 3: ``k_q, k_v, k_E``) whose rollout from ``x0``
     comes closest to upright within ``steps`` control steps, by the cost-to-go ``dx^T S dx`` weighted by
-    ``exp(k / patience)`` at step ``k`` (an approach ``e`` times as far is as good ``patience`` steps sooner).
-    Returns ``(row, step, weighted cost)``: the chosen state is reached after ``step + 1`` inputs."""
-    best_row, best_step, best = 0, 0, np.inf
-    for g in range(gains.shape[0]):
-        x = x0.copy()
-        d = np.empty(4)
-        for k in range(steps):
-            u = pumping_input(x, gains[g, 0], gains[g, 1], gains[g, 2], E_up, driven, theta, u_max)
-            x[0], x[1], x[2], x[3] = step4(x[0], x[1], x[2], x[3], u, driven, theta, dt, substeps)
-            if not np.all(np.isfinite(x)):
-                break
-            for i in range(4):
-                d[i] = x[i] - goal[i]
-            for i in range(2):
-                d[i] = wrap(d[i])
-            c = 0.0
-            for i in range(4):
-                for j in range(4):
-                    c += d[i] * S[i, j] * d[j]
-            c *= np.exp(k / patience)
-            if c < best:
-                best_row, best_step, best = g, k, c
-    return best_row, best_step, best
+    ``exp(k / patience)`` at step ``k`` (an approach ``e`` times as far is as good ``patience`` steps sooner); a
+    rollout counts up to its last finite state. Every row is a lane (:func:`_pump`); ties go to the first row, and
+    within a row to the first step. Returns ``(row, step, weighted cost)``: the chosen state is reached after
+    ``step + 1`` inputs."""
+    G = gains.shape[0]
+    X = np.empty((4, G))
+    for i in range(4):
+        X[i, :] = x0[i]
+    best, when = np.empty(G), np.empty(G, np.int64)
+    k_q, k_v, k_E = gains[:, 0].copy(), gains[:, 1].copy(), gains[:, 2].copy()
+    _pump(X, k_q, k_v, k_E, E_up, u_max, driven, theta, dt, substeps, steps, np.empty(0), True, goal, S, patience, best, when)
+    row = 0
+    for g in range(1, G):
+        if best[g] < best[row]:
+            row = g
+    return row, when[row], best[row]
 
 
 @njit
 def pumping_rollout(x0, k_q, k_v, k_E, E_up, u_max, driven, theta, dt, substeps, U):  # pragma: no cover - compiled
-    """The pumping law's inputs ``U`` (H,) from ``x0``, written in place."""
-    x = x0.copy()
-    for k in range(U.shape[0]):
-        U[k] = pumping_input(x, k_q, k_v, k_E, E_up, driven, theta, u_max)
-        x = step_map(x, U[k], driven, theta, dt, substeps)
+    """The pumping law's inputs ``U`` (H,) from ``x0``, written in place: one lane (the bits of that row's lane in
+    :func:`pumping_search`)."""
+    X = np.empty((4, 1))
+    X[:, 0] = x0
+    _pump(X, np.array([k_q]), np.array([k_v]), np.array([k_E]), E_up, u_max, driven, theta, dt, substeps, U.shape[0], U, False,
+          np.zeros(4), np.zeros((4, 4)), 1.0, np.empty(1), np.empty(1, np.int64))  # fmt: skip
 
 
 @njit
@@ -185,35 +380,42 @@ def dot4(a0, a1, a2, a3, b0, b1, b2, b3):  # pragma: no cover - compiled
 
 @njit
 def _rollout(x0, U, Xref, kff, K, alpha, u_max, driven, theta, dt, substeps, X, Un):  # pragma: no cover - compiled
-    """``u_k = clip(U_k + alpha kff_k + K_k (x_k - Xref_k))`` from ``x0``; writes ``X`` (H+1, 4), ``Un`` (H,).
-    False if the state stops being finite."""
-    X[0] = x0
-    for k in range(U.shape[0]):
-        d0, d1, d2, d3 = error4(X[k, 0], X[k, 1], X[k, 2], X[k, 3], Xref[k, 0], Xref[k, 1], Xref[k, 2], Xref[k, 3])
-        u = U[k] + alpha * kff[k] + dot4(K[k, 0], K[k, 1], K[k, 2], K[k, 3], d0, d1, d2, d3)
-        Un[k] = min(max(u, -u_max), u_max)
-        X[k + 1, 0], X[k + 1, 1], X[k + 1, 2], X[k + 1, 3] = step4(X[k, 0], X[k, 1], X[k, 2], X[k, 3], Un[k], driven, theta, dt, substeps)
-        if not (np.isfinite(X[k + 1, 0]) and np.isfinite(X[k + 1, 1]) and np.isfinite(X[k + 1, 2]) and np.isfinite(X[k + 1, 3])):
-            return False
-    return True
+    """``u_k = clip(U_k + alpha kff_k + K_k (x_k - Xref_k))`` from ``x0``; writes ``X`` (H+1, 4), ``Un`` (H,): one
+    lane of :func:`rollout_lanes`. False if the state stops being finite."""
+    H = U.shape[0]
+    ok = np.empty(1, np.bool_)
+    rollout_lanes(x0, U, Xref, kff, K, np.array([alpha]), u_max, driven, theta, dt, substeps, X.reshape((1, H + 1, 4)),
+                  Un.reshape((1, H)), ok)  # fmt: skip
+    return ok[0]
 
 
 @njit
 def jacobians(X, U, driven, theta, dt, substeps, A, b):  # pragma: no cover - compiled
     """``A_k = dF/dx`` and ``b_k = dF/du`` along ``(X, U)`` by forward differences (step 1e-7, from the stored
-    ``X_{k+1} = F(X_k, U_k)``: five map calls per step), written into ``A`` (>= H, 4, 4) and ``b`` (>= H, 4)."""
+    ``X_{k+1} = F(X_k, U_k)``: five map calls per step, :data:`CHUNK` steps at a time as lanes), written into ``A``
+    (>= H, 4, 4) and ``b`` (>= H, 4)."""
     eps = 1e-7
-    for k in range(U.shape[0]):
-        x0, x1, x2, x3, u = X[k, 0], X[k, 1], X[k, 2], X[k, 3], U[k]
+    H = U.shape[0]
+    Z, v, work = np.empty((4, CHUNK)), np.empty(CHUNK), np.empty((WORK_ROWS, CHUNK))
+    for k0 in range(0, H, CHUNK):
+        n = min(CHUNK, H - k0)
         for j in range(5):
-            p = step4(x0 + (eps if j == 0 else 0.0), x1 + (eps if j == 1 else 0.0), x2 + (eps if j == 2 else 0.0),
-                      x3 + (eps if j == 3 else 0.0), u + (eps if j == 4 else 0.0), driven, theta, dt, substeps)  # fmt: skip
-            for i in range(4):
-                d = (p[i] - X[k + 1, i]) / eps
-                if j < 4:
-                    A[k, i, j] = d
-                else:
-                    b[k, i] = d
+            for l in range(n):
+                k = k0 + l
+                Z[0, l] = X[k, 0] + (eps if j == 0 else 0.0)
+                Z[1, l] = X[k, 1] + (eps if j == 1 else 0.0)
+                Z[2, l] = X[k, 2] + (eps if j == 2 else 0.0)
+                Z[3, l] = X[k, 3] + (eps if j == 3 else 0.0)
+                v[l] = U[k] + (eps if j == 4 else 0.0)
+            step_lanes(Z, v, driven, theta, dt, substeps, work, n)
+            for l in range(n):
+                k = k0 + l
+                for i in range(4):
+                    d = (Z[i, l] - X[k + 1, i]) / eps
+                    if j < 4:
+                        A[k, i, j] = d
+                    else:
+                        b[k, i] = d
 
 
 @njit
@@ -273,15 +475,16 @@ def ilqr(x0, U, X_ref, K_ref, goal, w_u, W, S_T, u_max, driven, theta, dt, subst
     iterations on the protocol's plans, where the Jacobians are a quarter of an iteration's work)."""
     H = U.shape[0]
     X = np.empty((H + 1, 4))
-    Xn = np.empty((H + 1, 4))
-    Un = np.empty(H)
+    Xn = np.empty((alphas.shape[0], H + 1, 4))  # the line search's rollouts, a lane per step length
+    Un = np.empty((alphas.shape[0], H))
+    ok = np.empty(alphas.shape[0], np.bool_)
     kff = np.zeros(H)
     K = np.zeros((H, 4))
     A = np.empty((H, 4, 4))
     b = np.empty((H, 4))
-    if not _rollout(x0, U, X_ref, kff, K_ref, 0.0, u_max, driven, theta, dt, substeps, X, Un):
+    if not _rollout(x0, U, X_ref, kff, K_ref, 0.0, u_max, driven, theta, dt, substeps, X, Un[0]):
         return X, np.inf, A, b, False
-    U[:] = Un
+    U[:] = Un[0]
     J = _cost(X, U, goal, w_u, W, S_T, dt)
     mu = 1e-6
     current = False  # whether A, b are the Jacobians along (X, U)
@@ -291,13 +494,14 @@ def ilqr(x0, U, X_ref, K_ref, goal, w_u, W, S_T, u_max, driven, theta, dt, subst
             current = True
         _backward(X, U, goal, w_u, W, S_T, u_max, mu, A, b, dt, kff, K)
         improved = False
-        for a in alphas:
-            if _rollout(x0, U, X, kff, K, a, u_max, driven, theta, dt, substeps, Xn, Un):
-                Jn = _cost(Xn, Un, goal, w_u, W, S_T, dt)
+        rollout_lanes(x0, U, X, kff, K, alphas, u_max, driven, theta, dt, substeps, Xn, Un, ok)
+        for a in range(alphas.shape[0]):  # the first step length, in order, that lowers the cost
+            if ok[a]:
+                Jn = _cost(Xn[a], Un[a], goal, w_u, W, S_T, dt)
                 if Jn < J:
                     J = Jn
-                    X[:] = Xn
-                    U[:] = Un
+                    X[:] = Xn[a]
+                    U[:] = Un[a]
                     improved = True
                     current = False
                     break

@@ -106,13 +106,10 @@ def _friction(v, b, f, v_s, df, v_st):  # pragma: no cover - compiled
     return F + _stribeck_law(v, df, v_st, v_s) if df != 0.0 else F
 
 
-@njit
-def _acceleration(s1, c1, s2, c2, d1, d2, F1, F2, tau1, tau2, theta, b):  # pragma: no cover - compiled
-    """Forward dynamics ``a = M^-1 (tau - C v - G - F)`` of member ``b`` from the sines and
-    cosines of its joint angles and its friction torques ``F``; the 2 x 2 system by
-    Cramer's rule (``det M >= (I1 + m1 r1^2)(I2 + m2 r2^2) > 0``). Returns ``(a1, a2)`` [rad/s^2]."""
-    m1, m2, l1, r1, r2 = theta[0, b], theta[1, b], theta[2, b], theta[4, b], theta[5, b]
-    I1, I2, g = theta[6, b], theta[7, b], theta[8, b]
+@njit(inline="always")
+def _acceleration_of(s1, c1, s2, c2, d1, d2, F1, F2, tau1, tau2, m1, m2, l1, r1, r2, I1, I2, g):  # pragma: no cover - compiled
+    """:func:`_acceleration` from the parameters as scalars (loops over many states at one parameter set keep them
+    in registers and vectorize: :mod:`controllers.trajectory`'s lanes)."""
     m11, m12, m22 = _mass_entries(c2, m1, m2, l1, r1, r2, I1, I2)
     h1, h2 = _coriolis_entries(s2, d1, d2, m2, l1, r2)
     g1, g2 = _gravity_entries(c1, c1 * c2 - s1 * s2, m1, m2, l1, r1, r2, g)
@@ -120,6 +117,15 @@ def _acceleration(s1, c1, s2, c2, d1, d2, F1, F2, tau1, tau2, theta, b):  # prag
     rhs2 = tau2 - (h2 + g2 + F2)
     det = m11 * m22 - m12 * m12
     return (m22 * rhs1 - m12 * rhs2) / det, (m11 * rhs2 - m12 * rhs1) / det
+
+
+@njit
+def _acceleration(s1, c1, s2, c2, d1, d2, F1, F2, tau1, tau2, theta, b):  # pragma: no cover - compiled
+    """Forward dynamics ``a = M^-1 (tau - C v - G - F)`` of member ``b`` from the sines and
+    cosines of its joint angles and its friction torques ``F``; the 2 x 2 system by
+    Cramer's rule (``det M >= (I1 + m1 r1^2)(I2 + m2 r2^2) > 0``). Returns ``(a1, a2)`` [rad/s^2]."""
+    return _acceleration_of(s1, c1, s2, c2, d1, d2, F1, F2, tau1, tau2, theta[0, b], theta[1, b], theta[2, b], theta[4, b],
+                            theta[5, b], theta[6, b], theta[7, b], theta[8, b])  # fmt: skip
 
 
 @njit
@@ -161,14 +167,19 @@ def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
         )
 
 
-@njit
-def _energy(s1, c1, s2, c2, d1, d2, theta, b):  # pragma: no cover - compiled
-    """Mechanical energy ``v^T M v / 2 + V`` [J] of member ``b`` from the sines and cosines of its angles."""
-    m1, m2, l1, r1, r2 = theta[0, b], theta[1, b], theta[2, b], theta[4, b], theta[5, b]
-    I1, I2, g = theta[6, b], theta[7, b], theta[8, b]
+@njit(inline="always")
+def _energy_of(s1, c1, s2, c2, d1, d2, m1, m2, l1, r1, r2, I1, I2, g):  # pragma: no cover - compiled
+    """:func:`_energy` from the parameters as scalars (as :func:`_acceleration_of`)."""
     m11, m12, m22 = _mass_entries(c2, m1, m2, l1, r1, r2, I1, I2)
     T = 0.5 * (m11 * d1 * d1 + 2.0 * m12 * d1 * d2 + m22 * d2 * d2)
     return T + _potential_entry(s1, s1 * c2 + c1 * s2, m1, m2, l1, r1, r2, g)
+
+
+@njit
+def _energy(s1, c1, s2, c2, d1, d2, theta, b):  # pragma: no cover - compiled
+    """Mechanical energy ``v^T M v / 2 + V`` [J] of member ``b`` from the sines and cosines of its angles."""
+    return _energy_of(s1, c1, s2, c2, d1, d2, theta[0, b], theta[1, b], theta[2, b], theta[4, b], theta[5, b], theta[6, b],
+                      theta[7, b], theta[8, b])  # fmt: skip
 
 
 @njit
