@@ -2,6 +2,7 @@
 identifies, plans and tracks (controllers/planned_swingup.py)."""
 
 import copy
+import math
 
 import gymnasium as gym
 import numpy as np
@@ -327,3 +328,115 @@ def test_members_plan_on_threads_with_the_same_result(monkeypatch):
     monkeypatch.setenv("MBS_ENVS_PLAN_THREADS", "two")
     with pytest.raises(ValueError, match="MBS_ENVS_PLAN_THREADS"):
         planned_swingup.plan_threads()
+
+
+def _lane_states(rng, L):
+    """States for the lanes: ordinary ones, angles beyond the fast sine's and the fast wrap's ranges, and a NaN."""
+    from mbs_envs.dynamics.trig import SINCOS_RANGE, WRAP_RANGE
+
+    X = rng.uniform([-4, -4, -8, -8], [4, 4, 8, 8], (L, 4)).T.copy()
+    X[0, 1], X[1, 2], X[0, 3], X[2, 4] = 3 * SINCOS_RANGE, -2 * SINCOS_RANGE, 4 * WRAP_RANGE, np.nan
+    return X
+
+
+@pytest.mark.parametrize("env_id, params", [("mbs_envs/Acrobot-v1", {"b1": 0.05, "b2": 0.02}),
+                                            ("mbs_envs/Pendubot-v1", {"f1": 0.1, "f2": 0.05, "b1": 0.01})])
+def test_one_lane_is_that_lane_of_many_and_the_map_to_round_off(env_id, params):
+    """The planner's map on lanes: every lane of a batch of 37 (a vector width's remainder) has the bits of the same
+    state stepped alone, with angles beyond the fast sine's and wrap's ranges, a NaN lane, viscous friction only
+    (the branch-free loop) and Coulomb friction; and each equals the scalar libm map :func:`step4` to round-off (the
+    two sines differ by at most an ulp)."""
+    model = gym.make(env_id, params=params).unwrapped.model
+    th, a, rng, L = theta_of(model), int(model.driven[0]), np.random.default_rng(7), 37
+    X = _lane_states(rng, L)
+    u = rng.uniform(-10, 10, L)
+    many = X.copy()
+    traj.step_lanes(many, u, a, th, 0.01, 2, np.empty((traj.WORK_ROWS, L)), L)
+    for l in range(L):
+        one = X[:, l : l + 1].copy()
+        traj.step_lanes(one, u[l : l + 1], a, th, 0.01, 2, np.empty((traj.WORK_ROWS, 1)), 1)
+        assert np.array_equal(one[:, 0], many[:, l], equal_nan=True)
+        want = traj.step4(*X[:, l], u[l], a, th, 0.01, 2)
+        assert np.allclose(many[:, l], want, rtol=1e-13, atol=1e-13, equal_nan=True)
+    w = X[0].copy()
+    traj.wrap_lanes(w, L)
+    assert np.array_equal(w, [(x + np.pi) % (2 * np.pi) - np.pi for x in X[0]], equal_nan=True)
+
+
+def test_the_pumping_search_is_the_row_by_row_search_on_its_lanes():
+    """The search over the gain sets as lanes picks what the search written row by row (the module docstring's rule,
+    here in Python on one lane at a time) picks: the same row, step and weighted cost, bit for bit, with a gain set
+    whose rollout stops being finite (it counts up to its last finite state); and :func:`pumping_rollout` replays the
+    chosen row's inputs."""
+    env = gym.make("mbs_envs/Acrobot-v1")
+    ctrl = PlannedSwingUp(env)
+    th, a = theta_of(env.unwrapped.model), 1
+    E_up, S, steps, patience, u_max = traj.energy(GOAL, th), ctrl.S, 300, 50.0, 1e9
+    gains = np.vstack([PUMPING_GRID[::18], [[5.0, 1.0, 1e12]]])  # the last one runs away without a torque limit
+    x0 = np.array([0.3, -0.2, 0.0, 0.1])
+    want, runaway = (0, 0, np.inf), False
+    np_err = np.seterr(over="ignore", invalid="ignore")  # the runaway's last finite costs overflow, as in the lanes
+    for g, (k_q, k_v, k_E) in enumerate(gains):
+        x = x0[:, None].copy()
+        for k in range(steps):
+            u = traj.pumping_input(x[:, 0], k_q, k_v, k_E, E_up, a, th, u_max)
+            traj.step_lanes(x, np.array([u]), a, th, ctrl.dt, ctrl.substeps, np.empty((traj.WORK_ROWS, 1)), 1)
+            if not np.isfinite(x).all():
+                runaway |= g == len(gains) - 1
+                break
+            d = x[:, 0] - GOAL
+            d[:2] = [(e + np.pi) % (2 * np.pi) - np.pi for e in d[:2]]
+            c = 0.0
+            for i in range(4):
+                for j in range(4):
+                    c += d[i] * S[i, j] * d[j]
+            c *= math.exp(k / patience)
+            if c < want[2]:
+                want = (g, k, c)
+    np.seterr(**np_err)
+    assert runaway
+    got = traj.pumping_search(x0, gains, E_up, GOAL, S, u_max, a, th, ctrl.dt, ctrl.substeps, steps, patience)
+    assert got == want
+    U = np.empty(want[1] + 1)
+    traj.pumping_rollout(x0, *gains[want[0]], E_up, u_max, a, th, ctrl.dt, ctrl.substeps, U)
+    x = x0.copy()
+    for k, u_k in enumerate(U):
+        assert u_k == traj.pumping_input(x, *gains[want[0]], E_up, a, th, u_max)
+        x1 = x[:, None].copy()
+        traj.step_lanes(x1, np.array([u_k]), a, th, ctrl.dt, ctrl.substeps, np.empty((traj.WORK_ROWS, 1)), 1)
+        x = x1[:, 0]
+
+
+def test_the_jacobians_and_the_line_search_lanes_are_their_steps_one_at_a_time():
+    """The Jacobians over time steps in lanes (``CHUNK`` at a time, a trajectory of 2.3 chunks) equal the forward
+    differences of each step alone, bit for bit; the line search's rollouts, a lane per step length, equal each
+    step length's rollout alone, bit for bit, and a lane that stops being finite says so without stopping the others."""
+    model = gym.make("mbs_envs/Acrobot-v1").unwrapped.model
+    th, rng, dt, n, eps = theta_of(model), np.random.default_rng(11), 0.01, 2, 1e-7
+    H = int(2.3 * traj.CHUNK)
+    U = rng.uniform(-5, 5, H)
+    X = np.empty((H + 1, 4))
+    X[0] = [0.2, -0.1, 0.3, 0.0]
+    for k in range(H):
+        x = X[k][:, None].copy()
+        traj.step_lanes(x, U[k : k + 1], 1, th, dt, n, np.empty((traj.WORK_ROWS, 1)), 1)
+        X[k + 1] = x[:, 0]
+    A, b = np.empty((H, 4, 4)), np.empty((H, 4))
+    traj.jacobians(X, U, 1, th, dt, n, A, b)
+    for k in range(H):
+        for j in range(5):
+            x = (X[k] + eps * (np.arange(4) == j))[:, None]
+            v = U[k : k + 1] + (eps if j == 4 else 0.0)
+            traj.step_lanes(x, v, 1, th, dt, n, np.empty((traj.WORK_ROWS, 1)), 1)
+            col = (x[:, 0] - X[k + 1]) / eps
+            assert np.array_equal(col, A[k, :, j] if j < 4 else b[k])
+    kff, K = rng.normal(0, 2, H), rng.normal(0, 1, (H, 4))
+    alphas = np.array([1.0, 0.5, np.nan, 0.1, 0.03])  # the third lane's inputs are not finite
+    Xn, Un, ok = np.empty((5, H + 1, 4)), np.empty((5, H)), np.empty(5, bool)
+    traj.rollout_lanes(X[0], U, X, kff, K, alphas, 8.0, 1, th, dt, n, Xn, Un, ok)
+    assert ok.tolist() == [True, True, False, True, True]
+    for a, alpha in enumerate(alphas):
+        X1, U1 = np.empty((H + 1, 4)), np.empty(H)
+        assert traj._rollout(X[0], U, X, kff, K, alpha, 8.0, 1, th, dt, n, X1, U1) == ok[a]
+        if ok[a]:
+            assert np.array_equal(X1, Xn[a]) and np.array_equal(U1, Un[a])
