@@ -25,7 +25,7 @@ one), from a state ``x0 = (q, v)``:
 Members are independent. Within a member's plan the map runs on lanes (:func:`step_lanes`: the pumping search's
 125 gain sets, the Jacobians' time steps, the line search's step lengths, each a lane of SIMD loops), with the
 environments' own sines and cosines (the project's ``sincos``, 1 ulp of libm's); the filter and the catch test keep
-the scalar map :func:`step4` (libm). A plan costs about half what it did member by member in scalar code
+the scalar map :func:`step4` (libm). A plan costs about half what it did in scalar code
 (docs/performance.md).
 """
 
