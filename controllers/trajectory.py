@@ -34,11 +34,15 @@ from __future__ import annotations
 import numpy as np
 
 from mbs_envs.dynamics.jit import njit
-from mbs_envs.dynamics.trig import fma, in_range, sincos, sincos_libm, wrap, wrap_fast
+from mbs_envs.dynamics.trig import fma, in_range, sincos, sincos_libm, wrap, wrap_fast, wrap_python
 from mbs_envs.models.planar2r import _acceleration, _acceleration_of, _energy, _energy_of, _friction
 
 #: line-search step lengths of the iLQR (rolled out together, one lane each)
 ALPHAS = np.array([1.0, 0.5, 0.25, 0.1, 0.03])
+#: time steps differenced at once by :func:`jacobians` (lanes)
+CHUNK = 64
+#: rows of the work array of :func:`step_lanes`
+WORK_ROWS = 24
 
 
 @njit
@@ -115,213 +119,158 @@ def energy(x, theta):  # pragma: no cover - compiled
 # -- lanes: the planner's map on many states at once -------------------------------------------------
 #
 # The planner's own map (the pumping search over its gains, the line search over its step lengths, the
-# Jacobians over the time steps) runs on "lanes": :data:`LANES` states at a time, each a column of a block of
-# rows in one flat buffer (:data:`WORK_SIZE` doubles; rows ``_X`` the states, ``_U`` the inputs, the rest
-# scratch), stepped by loops without calls over a width and at row offsets known when compiling, so that LLVM
-# vectorizes them without checking at run time whether arrays overlap (with separate arrays per quantity a step
-# of five lanes paid about 750 such checks, docs/performance.md). The sines and cosines are the project's
-# straight-line ``sincos`` (1 ulp of libm's, as the environments' own kernels take them; libm beyond its range),
-# the wrap :func:`mbs_envs.dynamics.trig.wrap_fast` (Python's bits; ``fmod`` beyond its range), in a second pass
-# only where needed. Every lane's arithmetic is the same whatever the other lanes hold: one state gives the bits
-# of that state among many (tested).
-
-#: states per block of lanes
-LANES = 8
-#: time steps differenced at once by :func:`jacobians`
-CHUNK = LANES
-# rows of a block: states, stage states, sines and cosines, the four RK4 rates, inputs, the pumping law's rates at
-# u = 0 and 1, a wrapped angle, errors, gains (k_q, k_v, k_E), step lengths
-_X, _Y, _T, _K0, _K1, _K2, _K3, _U, _R0, _R1, _W, _E, _G, _A = 0, 4, 8, 12, 16, 20, 24, 28, 29, 33, 37, 38, 42, 45
-#: rows of a block
-BLOCK_ROWS = 46
-#: doubles of the work buffer of :func:`step_lanes` and the planner's lane kernels
-WORK_SIZE = BLOCK_ROWS * LANES
-
-
-@njit(inline="always")
-def _lane_params(theta):  # pragma: no cover - compiled
-    """The kernel parameter column ``theta`` (P, 1) as the scalars the lanes read: masses, lengths, centres,
-    inertias, gravity, damping and the friction terms."""
-    return (theta[0, 0], theta[1, 0], theta[2, 0], theta[4, 0], theta[5, 0], theta[6, 0], theta[7, 0], theta[8, 0], theta[9, 0],
-            theta[10, 0], theta[11, 0], theta[12, 0], theta[13, 0], theta[14, 0], theta[15, 0], theta[16, 0])  # fmt: skip
-
-
-@njit(_nrt=False, inline="always")
-def _trig8(B, q1, q2, t):  # pragma: no cover - compiled
-    """Rows ``t .. t+3`` of the block ``B`` = sin, cos of row ``q1``, sin, cos of row ``q2``."""
-    ok = True
-    for l in range(LANES):
-        B[t * LANES + l], B[(t + 1) * LANES + l] = sincos(B[q1 * LANES + l])
-        B[(t + 2) * LANES + l], B[(t + 3) * LANES + l] = sincos(B[q2 * LANES + l])
-        ok &= in_range(B[q1 * LANES + l]) & in_range(B[q2 * LANES + l])
-    if not ok:
-        for l in range(LANES):
-            if not in_range(B[q1 * LANES + l]):
-                B[t * LANES + l], B[(t + 1) * LANES + l] = sincos_libm(B[q1 * LANES + l])
-            if not in_range(B[q2 * LANES + l]):
-                B[(t + 2) * LANES + l], B[(t + 3) * LANES + l] = sincos_libm(B[q2 * LANES + l])
-
-
-@njit(_nrt=False, inline="always")
-def _rate8(B, x, out, driven, p):  # pragma: no cover - compiled
-    """:func:`rate` of the block's lanes: states in rows ``x .. x+3``, their sines and cosines in rows ``_T`` (given),
-    the inputs in row ``_U``; ``dx/dt`` into rows ``out .. out+3``. A Coulomb or Stribeck term's ``tanh`` gets a loop
-    of its own (without one the viscous loop has no branch)."""
-    m1, m2, l1, r1, r2, I1, I2, g, b1, b2, f1, f2, v_s, df1, df2, v_st = p
-    if f1 != 0.0 or f2 != 0.0 or df1 != 0.0 or df2 != 0.0:
-        for l in range(LANES):
-            B[(out + 2) * LANES + l] = _friction(B[(x + 2) * LANES + l], b1, f1, v_s, df1, v_st)
-            B[(out + 3) * LANES + l] = _friction(B[(x + 3) * LANES + l], b2, f2, v_s, df2, v_st)
-    else:  # _friction's value without its branches: viscous only
-        for l in range(LANES):
-            B[(out + 2) * LANES + l] = b1 * B[(x + 2) * LANES + l]
-            B[(out + 3) * LANES + l] = b2 * B[(x + 3) * LANES + l]
-    for l in range(LANES):
-        t1 = B[_U * LANES + l] if driven == 0 else 0.0
-        t2 = B[_U * LANES + l] if driven == 1 else 0.0
-        a1, a2 = _acceleration_of(B[_T * LANES + l], B[(_T + 1) * LANES + l], B[(_T + 2) * LANES + l], B[(_T + 3) * LANES + l],
-                                  B[(x + 2) * LANES + l], B[(x + 3) * LANES + l], B[(out + 2) * LANES + l], B[(out + 3) * LANES + l],
-                                  t1, t2, m1, m2, l1, r1, r2, I1, I2, g)  # fmt: skip
-        B[out * LANES + l] = B[(x + 2) * LANES + l]
-        B[(out + 1) * LANES + l] = B[(x + 3) * LANES + l]
-        B[(out + 2) * LANES + l] = a1
-        B[(out + 3) * LANES + l] = a2
-
-
-@njit(_nrt=False, inline="always")
-def _step8(B, driven, p, dt, substeps):  # pragma: no cover - compiled
-    """:func:`step_map` of the block's lanes in place: rows ``_X`` with the inputs of row ``_U`` held."""
-    h = dt / substeps
-    for _ in range(substeps):
-        _trig8(B, _X, _X + 1, _T)
-        _rate8(B, _X, _K0, driven, p)
-        for i in range(4):
-            for l in range(LANES):
-                B[(_Y + i) * LANES + l] = B[(_X + i) * LANES + l] + 0.5 * h * B[(_K0 + i) * LANES + l]
-        _trig8(B, _Y, _Y + 1, _T)
-        _rate8(B, _Y, _K1, driven, p)
-        for i in range(4):
-            for l in range(LANES):
-                B[(_Y + i) * LANES + l] = B[(_X + i) * LANES + l] + 0.5 * h * B[(_K1 + i) * LANES + l]
-        _trig8(B, _Y, _Y + 1, _T)
-        _rate8(B, _Y, _K2, driven, p)
-        for i in range(4):
-            for l in range(LANES):
-                B[(_Y + i) * LANES + l] = B[(_X + i) * LANES + l] + h * B[(_K2 + i) * LANES + l]
-        _trig8(B, _Y, _Y + 1, _T)
-        _rate8(B, _Y, _K3, driven, p)
-        for i in range(4):
-            for l in range(LANES):
-                B[(_X + i) * LANES + l] = B[(_X + i) * LANES + l] + (h / 6.0) * (
-                    B[(_K0 + i) * LANES + l] + 2.0 * B[(_K1 + i) * LANES + l] + 2.0 * B[(_K2 + i) * LANES + l] + B[(_K3 + i) * LANES + l])
-
-
-@njit(_nrt=False, inline="always")
-def _wrap8(B, r):  # pragma: no cover - compiled
-    """Row ``r`` of the block wrapped in place: :func:`wrap_fast` in one pass where every lane is in its range, else
-    :func:`wrap` lane by lane."""
-    ok = True
-    for l in range(LANES):
-        ok &= wrap_fast(B[r * LANES + l])[1]
-    if ok:
-        for l in range(LANES):
-            B[r * LANES + l] = wrap_fast(B[r * LANES + l])[0]
-    else:
-        for l in range(LANES):
-            B[r * LANES + l] = wrap(B[r * LANES + l])
-
-
-@njit(_nrt=False, inline="always")
-def _pump8(B, E_up, driven, p, u_max):  # pragma: no cover - compiled
-    """:func:`pumping_input` of the block's lanes (states rows ``_X``, gains rows ``_G``) into row ``_U``."""
-    m1, m2, l1, r1, r2, I1, I2, g = p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7]
-    _trig8(B, _X, _X + 1, _T)
-    for l in range(LANES):
-        B[_U * LANES + l] = 0.0
-    _rate8(B, _X, _R0, driven, p)
-    for l in range(LANES):
-        B[_U * LANES + l] = 1.0
-    _rate8(B, _X, _R1, driven, p)
-    for l in range(LANES):
-        B[_W * LANES + l] = B[(_X + 1) * LANES + l] if driven == 1 else B[_X * LANES + l] - 0.5 * np.pi
-    _wrap8(B, _W)
-    for l in range(LANES):
-        q1, q2, v1, v2 = B[_X * LANES + l], B[(_X + 1) * LANES + l], B[(_X + 2) * LANES + l], B[(_X + 3) * LANES + l]
-        E_err = _energy_of(B[_T * LANES + l], B[(_T + 1) * LANES + l], B[(_T + 2) * LANES + l], B[(_T + 3) * LANES + l], v1, v2,
-                           m1, m2, l1, r1, r2, I1, I2, g) - E_up  # fmt: skip
-        k_q, k_v, k_E, w = B[_G * LANES + l], B[(_G + 1) * LANES + l], B[(_G + 2) * LANES + l], B[_W * LANES + l]
-        if driven == 1:  # acrobot
-            y = -k_q * w - k_v * v2 + k_E * E_err * v1
-            a0, a1 = B[(_R0 + 3) * LANES + l], B[(_R1 + 3) * LANES + l]
-        else:  # pendubot
-            y = -k_q * w - k_v * v1 - k_E * E_err * v1
-            a0, a1 = B[(_R0 + 2) * LANES + l], B[(_R1 + 2) * LANES + l]
-        B[_U * LANES + l] = min(max((y - a0) / (a1 - a0), -u_max), u_max)
+# Jacobians over the time steps) runs on "lanes": states in the columns of (4, L) arrays, each loop over the
+# lanes written without calls so that LLVM vectorizes it. The sines and cosines are the project's
+# straight-line ``sincos`` (1 ulp of libm's, as the environments' own kernels take them; libm beyond its
+# range), the wrap :func:`mbs_envs.dynamics.trig.wrap_fast` (Python's bits; ``fmod`` beyond its range), in a
+# second pass only where needed. Every lane's arithmetic is the same whatever the number of lanes: one lane
+# gives the bits of that lane in many (tested).
 
 
 @njit(_nrt=False)
-def step_lanes(X, u, driven, theta, dt, substeps, B, L):  # pragma: no cover - compiled
-    """:func:`step_map` of the columns ``:L`` of ``X`` (4, >= L) in place, inputs ``u`` (>= L,) held, :data:`LANES` at a
-    time in the buffer ``B`` (:data:`WORK_SIZE`,)."""
-    p = _lane_params(theta)
-    for b0 in range(0, L, LANES):
-        n = min(LANES, L - b0)
-        for l in range(LANES):
-            j = b0 + min(l, n - 1)  # a short block repeats its last state
-            for i in range(4):
-                B[(_X + i) * LANES + l] = X[i, j]
-            B[_U * LANES + l] = u[j]
-        _step8(B, driven, p, dt, substeps)
-        for l in range(n):
-            for i in range(4):
-                X[i, b0 + l] = B[(_X + i) * LANES + l]
+def trig_lanes(q1, q2, T, L):  # pragma: no cover - compiled
+    """``T[0..3, :L] = sin q1, cos q1, sin q2, cos q2`` of lanes ``:L`` (``q1, q2`` rows of a state array)."""
+    ok = True
+    for l in range(L):
+        T[0, l], T[1, l] = sincos(q1[l])
+        T[2, l], T[3, l] = sincos(q2[l])
+        ok &= in_range(q1[l]) & in_range(q2[l])
+    if not ok:
+        for l in range(L):
+            if not in_range(q1[l]):
+                T[0, l], T[1, l] = sincos_libm(q1[l])
+            if not in_range(q2[l]):
+                T[2, l], T[3, l] = sincos_libm(q2[l])
+
+
+@njit(_nrt=False)
+def rate_lanes(X, u, driven, theta, T, out, L):  # pragma: no cover - compiled
+    """:func:`rate` of lanes ``:L``: ``X`` (4, >= L) states, ``u`` (>= L,) torques on joint ``driven``, ``T`` their
+    :func:`trig_lanes` (given), ``out`` (4, >= L) written with ``dx/dt``. The parameters are read once, as scalars,
+    and the friction (a ``tanh`` where Coulomb or Stribeck terms are set) in a loop of its own."""
+    m1, m2, l1, r1, r2 = theta[0, 0], theta[1, 0], theta[2, 0], theta[4, 0], theta[5, 0]
+    I1, I2, g, b1, b2 = theta[6, 0], theta[7, 0], theta[8, 0], theta[9, 0], theta[10, 0]
+    if theta[11, 0] != 0.0 or theta[12, 0] != 0.0 or theta[14, 0] != 0.0 or theta[15, 0] != 0.0:
+        for l in range(L):
+            out[2, l] = _friction(X[2, l], b1, theta[11, 0], theta[13, 0], theta[14, 0], theta[16, 0])
+            out[3, l] = _friction(X[3, l], b2, theta[12, 0], theta[13, 0], theta[15, 0], theta[16, 0])
+    else:  # _friction's value without its branches: viscous only
+        for l in range(L):
+            out[2, l] = b1 * X[2, l]
+            out[3, l] = b2 * X[3, l]
+    for l in range(L):
+        t1 = u[l] if driven == 0 else 0.0
+        t2 = u[l] if driven == 1 else 0.0
+        a1, a2 = _acceleration_of(T[0, l], T[1, l], T[2, l], T[3, l], X[2, l], X[3, l], out[2, l], out[3, l], t1, t2,
+                                  m1, m2, l1, r1, r2, I1, I2, g)  # fmt: skip
+        out[0, l] = X[2, l]
+        out[1, l] = X[3, l]
+        out[2, l] = a1
+        out[3, l] = a2
+
+
+@njit(_nrt=False)
+def step_lanes(X, u, driven, theta, dt, substeps, work, L):  # pragma: no cover - compiled
+    """:func:`step_map` of lanes ``:L`` in place: ``X`` (4, >= L), ``u`` (>= L,) held, ``work`` (:data:`WORK_ROWS`,
+    >= L) scratch."""
+    h = dt / substeps
+    T, Y = work[0:4], work[4:8]
+    K0, K1, K2, K3 = work[8:12], work[12:16], work[16:20], work[20:24]
+    for _ in range(substeps):
+        trig_lanes(X[0], X[1], T, L)
+        rate_lanes(X, u, driven, theta, T, K0, L)
+        for i in range(4):
+            for l in range(L):
+                Y[i, l] = X[i, l] + 0.5 * h * K0[i, l]
+        trig_lanes(Y[0], Y[1], T, L)
+        rate_lanes(Y, u, driven, theta, T, K1, L)
+        for i in range(4):
+            for l in range(L):
+                Y[i, l] = X[i, l] + 0.5 * h * K1[i, l]
+        trig_lanes(Y[0], Y[1], T, L)
+        rate_lanes(Y, u, driven, theta, T, K2, L)
+        for i in range(4):
+            for l in range(L):
+                Y[i, l] = X[i, l] + h * K2[i, l]
+        trig_lanes(Y[0], Y[1], T, L)
+        rate_lanes(Y, u, driven, theta, T, K3, L)
+        for i in range(4):
+            for l in range(L):
+                X[i, l] = X[i, l] + (h / 6.0) * (K0[i, l] + 2.0 * K1[i, l] + 2.0 * K2[i, l] + K3[i, l])
+
+
+@njit(_nrt=False)
+def wrap_lanes(x, L):  # pragma: no cover - compiled
+    """``x[:L] = wrap(x[:L])`` in place: :func:`wrap_fast` in one pass where every lane is in its range, else
+    :func:`wrap` lane by lane."""
+    ok = True
+    for l in range(L):
+        ok &= wrap_fast(x[l])[1]
+    if ok:
+        for l in range(L):
+            x[l] = wrap_fast(x[l])[0]
+    else:
+        for l in range(L):
+            x[l] = wrap(x[l])
+
+
+@njit(_nrt=False)
+def pumping_lanes(X, k_q, k_v, k_E, E_up, driven, theta, u_max, T, R0, R1, w, u, L):  # pragma: no cover - compiled
+    """:func:`pumping_input` of lanes ``:L`` with gains ``k_q, k_v, k_E`` (>= L,) each, into ``u``; ``T`` is written
+    with the states' :func:`trig_lanes`, ``R0, R1`` (4, >= L) with the rates at ``u = 0`` and ``1``, ``w`` scratch."""
+    m1, m2, l1, r1, r2 = theta[0, 0], theta[1, 0], theta[2, 0], theta[4, 0], theta[5, 0]
+    I1, I2, g = theta[6, 0], theta[7, 0], theta[8, 0]
+    trig_lanes(X[0], X[1], T, L)
+    for l in range(L):
+        u[l] = 0.0
+    rate_lanes(X, u, driven, theta, T, R0, L)
+    for l in range(L):
+        u[l] = 1.0
+    rate_lanes(X, u, driven, theta, T, R1, L)
+    for l in range(L):
+        w[l] = X[1, l] if driven == 1 else X[0, l] - 0.5 * np.pi
+    wrap_lanes(w, L)
+    for l in range(L):
+        E_err = _energy_of(T[0, l], T[1, l], T[2, l], T[3, l], X[2, l], X[3, l], m1, m2, l1, r1, r2, I1, I2, g) - E_up
+        if driven == 1:  # acrobot
+            y = -k_q[l] * w[l] - k_v[l] * X[3, l] + k_E[l] * E_err * X[2, l]
+            a0, a1 = R0[3, l], R1[3, l]
+        else:  # pendubot
+            y = -k_q[l] * w[l] - k_v[l] * X[2, l] - k_E[l] * E_err * X[2, l]
+            a0, a1 = R0[2, l], R1[2, l]
+        u[l] = min(max((y - a0) / (a1 - a0), -u_max), u_max)
 
 
 @njit
 def rollout_lanes(x0, U, Xref, kff, K, alphas, u_max, driven, theta, dt, substeps, X, Un, ok):  # pragma: no cover - compiled
-    """:func:`_rollout` for every step length of ``alphas`` (A <= :data:`LANES`) at once, a lane each: writes ``X``
-    (A, H+1, 4), ``Un`` (A, H) and ``ok`` (A,): whether the lane's states stayed finite (a lane that stops being
-    finite is computed on, and its trajectory is not to be used)."""
-    if alphas.shape[0] > LANES:
-        raise ValueError("rollout_lanes: more step lengths than lanes")
-    _rollout8(x0, U, Xref, kff, K, alphas, u_max, driven, theta, dt, substeps, X, Un, ok, np.empty(WORK_SIZE))
-
-
-@njit(_nrt=False)
-def _rollout8(x0, U, Xref, kff, K, alphas, u_max, driven, theta, dt, substeps, X, Un, ok, B):  # pragma: no cover - compiled
-    """:func:`rollout_lanes` in the buffer ``B`` (:data:`WORK_SIZE`,)."""
+    """:func:`_rollout` for every step length of ``alphas`` (A,) at once, a lane each: writes ``X`` (A, H+1, 4),
+    ``Un`` (A, H) and ``ok`` (A,): whether the lane's states stayed finite (a lane that stops being finite is
+    computed on, and its trajectory is not to be used)."""
     A, H = alphas.shape[0], U.shape[0]
-    p = _lane_params(theta)
-    for l in range(LANES):
-        B[_A * LANES + l] = alphas[min(l, A - 1)]  # spare lanes repeat the last step length
-        for i in range(4):
-            B[(_X + i) * LANES + l] = x0[i]
+    Z, D, u, work = np.empty((4, A)), np.empty((4, A)), np.empty(A), np.empty((WORK_ROWS, A))
     for a in range(A):
         ok[a] = True
         for i in range(4):
+            Z[i, a] = x0[i]
             X[a, 0, i] = x0[i]
     for k in range(H):
-        r0, r1, r2, r3 = Xref[k, 0], Xref[k, 1], Xref[k, 2], Xref[k, 3]
-        for l in range(LANES):  # the error to the reference, in the stage-state rows (free before the step)
-            B[_Y * LANES + l] = B[_X * LANES + l] - r0
-            B[(_Y + 1) * LANES + l] = B[(_X + 1) * LANES + l] - r1
-            B[(_Y + 2) * LANES + l] = B[(_X + 2) * LANES + l] - r2
-            B[(_Y + 3) * LANES + l] = B[(_X + 3) * LANES + l] - r3
-        _wrap8(B, _Y)
-        _wrap8(B, _Y + 1)
-        Uk, fk, K0, K1, K2, K3 = U[k], kff[k], K[k, 0], K[k, 1], K[k, 2], K[k, 3]
-        for l in range(LANES):
-            v = Uk + B[_A * LANES + l] * fk + dot4(K0, K1, K2, K3, B[_Y * LANES + l], B[(_Y + 1) * LANES + l], B[(_Y + 2) * LANES + l],
-                                                    B[(_Y + 3) * LANES + l])  # fmt: skip
-            B[_U * LANES + l] = min(max(v, -u_max), u_max)
-        _step8(B, driven, p, dt, substeps)
+        for a in range(A):
+            D[0, a] = Z[0, a] - Xref[k, 0]
+            D[1, a] = Z[1, a] - Xref[k, 1]
+            D[2, a] = Z[2, a] - Xref[k, 2]
+            D[3, a] = Z[3, a] - Xref[k, 3]
+        wrap_lanes(D[0], A)
+        wrap_lanes(D[1], A)
+        for a in range(A):
+            v = U[k] + alphas[a] * kff[k] + dot4(K[k, 0], K[k, 1], K[k, 2], K[k, 3], D[0, a], D[1, a], D[2, a], D[3, a])
+            u[a] = min(max(v, -u_max), u_max)
+            Un[a, k] = u[a]
+        step_lanes(Z, u, driven, theta, dt, substeps, work, A)
         alive = False
         for a in range(A):
-            Un[a, k] = B[_U * LANES + a]
             for i in range(4):
-                X[a, k + 1, i] = B[(_X + i) * LANES + a]
-            ok[a] = ok[a] and np.isfinite(X[a, k + 1, 0]) and np.isfinite(X[a, k + 1, 1]) and np.isfinite(X[a, k + 1, 2]) and np.isfinite(
-                X[a, k + 1, 3])
+                X[a, k + 1, i] = Z[i, a]
+            ok[a] = ok[a] and np.isfinite(Z[0, a]) and np.isfinite(Z[1, a]) and np.isfinite(Z[2, a]) and np.isfinite(Z[3, a])
             alive |= ok[a]
         if not alive:
             return
@@ -330,46 +279,47 @@ def _rollout8(x0, U, Xref, kff, K, alphas, u_max, driven, theta, dt, substeps, X
 @njit
 def pumping_input(x, k_q, k_v, k_E, E_up, driven, theta, u_max):  # pragma: no cover - compiled
     """The energy-pumping law of :class:`controllers.swingup.SwingUpLQR` (its module docstring), clipped to
-    ``u_max``, at the state ``x`` (4,): one lane of the planner's blocks. The driven joint's acceleration is affine
+    ``u_max``, at the state ``x`` (4,): one lane of :func:`pumping_lanes`. The driven joint's acceleration is affine
     in ``u``, so the partial feedback linearization's input is ``(y - a(0)) / (a(1) - a(0))``, from two
     forward-dynamics calls (no mass matrix needed)."""
-    B = np.empty(WORK_SIZE)
-    for l in range(LANES):
-        for i in range(4):
-            B[(_X + i) * LANES + l] = x[i]
-        B[_G * LANES + l], B[(_G + 1) * LANES + l], B[(_G + 2) * LANES + l] = k_q, k_v, k_E
-    _pump8(B, E_up, driven, _lane_params(theta), u_max)
-    return B[_U * LANES]
+    X = np.empty((4, 1))
+    X[:, 0] = x
+    T, R0, R1, w, u = np.empty((4, 1)), np.empty((4, 1)), np.empty((4, 1)), np.empty(1), np.empty(1)
+    pumping_lanes(X, np.array([k_q]), np.array([k_v]), np.array([k_E]), E_up, driven, theta, u_max, T, R0, R1, w, u, 1)
+    return u[0]
 
 
-@njit(_nrt=False)
-def _pump_block(B, E_up, u_max, driven, theta, dt, substeps, steps, U, search, goal, S, patience, best, when, alive):  # pragma: no cover - compiled
-    """The pumping law for ``steps`` control steps from the block's states (rows ``_X``) with its gains (rows ``_G``):
-    writes the inputs of lane 0 into ``U`` (when its length is ``steps``) and, where ``search``, per lane the smallest
-    weighted cost-to-go (:func:`pumping_search`) into ``best`` and its step into ``when`` (``alive`` all True on entry)."""
-    p = _lane_params(theta)
-    for l in range(LANES):
+@njit
+def _pump(X, k_q, k_v, k_E, E_up, u_max, driven, theta, dt, substeps, steps, U, search, goal, S, patience, best, when):  # pragma: no cover - compiled
+    """The pumping law with gains ``k_q, k_v, k_E`` (L,) from the states ``X`` (4, L), ``steps`` control steps, a lane
+    per gain set: writes the inputs of lane 0 into ``U`` (when its length is ``steps``) and, where ``search``, per
+    lane the smallest weighted cost-to-go (:func:`pumping_search`) into ``best`` and its step into ``when``."""
+    L = X.shape[1]
+    T, R0, R1, E, w = np.empty((4, L)), np.empty((4, L)), np.empty((4, L)), np.empty((4, L)), np.empty(L)
+    u, work, alive = np.empty(L), np.empty((WORK_ROWS, L)), np.ones(L, np.bool_)
+    for l in range(L):
         best[l], when[l] = np.inf, 0
     for k in range(steps):
-        _pump8(B, E_up, driven, p, u_max)
+        pumping_lanes(X, k_q, k_v, k_E, E_up, driven, theta, u_max, T, R0, R1, w, u, L)
         if U.shape[0] == steps:
-            U[k] = B[_U * LANES]
-        _step8(B, driven, p, dt, substeps)
+            U[k] = u[0]
+        step_lanes(X, u, driven, theta, dt, substeps, work, L)
         if not search:
             continue
-        for l in range(LANES):
-            for i in range(4):
-                B[(_E + i) * LANES + l] = B[(_X + i) * LANES + l] - goal[i]
-        _wrap8(B, _E)
-        _wrap8(B, _E + 1)
+        for l in range(L):
+            E[0, l] = X[0, l] - goal[0]
+            E[1, l] = X[1, l] - goal[1]
+            E[2, l] = X[2, l] - goal[2]
+            E[3, l] = X[3, l] - goal[3]
+        wrap_lanes(E[0], L)
+        wrap_lanes(E[1], L)
         weight = np.exp(k / patience)
-        for l in range(LANES):
-            alive[l] = alive[l] and np.isfinite(B[_X * LANES + l]) and np.isfinite(B[(_X + 1) * LANES + l]) and np.isfinite(
-                B[(_X + 2) * LANES + l]) and np.isfinite(B[(_X + 3) * LANES + l])
+        for l in range(L):
+            alive[l] = alive[l] and np.isfinite(X[0, l]) and np.isfinite(X[1, l]) and np.isfinite(X[2, l]) and np.isfinite(X[3, l])
             c = 0.0
             for i in range(4):
                 for j in range(4):
-                    c += B[(_E + i) * LANES + l] * S[i, j] * B[(_E + j) * LANES + l]
+                    c += E[i, l] * S[i, j] * E[j, l]
             c *= weight
             if alive[l] and c < best[l]:
                 best[l], when[l] = c, k
@@ -380,42 +330,31 @@ def pumping_search(x0, gains, E_up, goal, S, u_max, driven, theta, dt, substeps,
     """Step 1 (module docstring): the row of ``gains`` (G, 3: ``k_q, k_v, k_E``) whose rollout from ``x0``
     comes closest to upright within ``steps`` control steps, by the cost-to-go ``dx^T S dx`` weighted by
     ``exp(k / patience)`` at step ``k`` (an approach ``e`` times as far is as good ``patience`` steps sooner); a
-    rollout counts up to its last finite state. The rows are lanes, :data:`LANES` at a time (:func:`_pump_block`);
-    ties go to the first row, and within a row to the first step. Returns ``(row, step, weighted cost)``: the
-    chosen state is reached after ``step + 1`` inputs."""
+    rollout counts up to its last finite state. Every row is a lane (:func:`_pump`); ties go to the first row, and
+    within a row to the first step. Returns ``(row, step, weighted cost)``: the chosen state is reached after
+    ``step + 1`` inputs."""
     G = gains.shape[0]
-    B = np.empty(WORK_SIZE)
-    best, when, alive = np.empty(LANES), np.empty(LANES, np.int64), np.empty(LANES, np.bool_)
-    bests, whens = np.full(G, np.inf), np.zeros(G, np.int64)
-    for b0 in range(0, G, LANES):
-        n = min(LANES, G - b0)
-        for l in range(LANES):
-            j = b0 + min(l, n - 1)  # a short block repeats its last row
-            for i in range(4):
-                B[(_X + i) * LANES + l] = x0[i]
-            B[_G * LANES + l], B[(_G + 1) * LANES + l], B[(_G + 2) * LANES + l] = gains[j, 0], gains[j, 1], gains[j, 2]
-            alive[l] = True
-        _pump_block(B, E_up, u_max, driven, theta, dt, substeps, steps, np.empty(0), True, goal, S, patience, best, when, alive)
-        for l in range(n):
-            bests[b0 + l], whens[b0 + l] = best[l], when[l]
+    X = np.empty((4, G))
+    for i in range(4):
+        X[i, :] = x0[i]
+    best, when = np.empty(G), np.empty(G, np.int64)
+    k_q, k_v, k_E = gains[:, 0].copy(), gains[:, 1].copy(), gains[:, 2].copy()
+    _pump(X, k_q, k_v, k_E, E_up, u_max, driven, theta, dt, substeps, steps, np.empty(0), True, goal, S, patience, best, when)
     row = 0
     for g in range(1, G):
-        if bests[g] < bests[row]:
+        if best[g] < best[row]:
             row = g
-    return row, whens[row], bests[row]
+    return row, when[row], best[row]
 
 
 @njit
 def pumping_rollout(x0, k_q, k_v, k_E, E_up, u_max, driven, theta, dt, substeps, U):  # pragma: no cover - compiled
-    """The pumping law's inputs ``U`` (H,) from ``x0``, written in place: lane 0 of a block (the bits of that row's
-    lane in :func:`pumping_search`)."""
-    B = np.empty(WORK_SIZE)
-    for l in range(LANES):
-        for i in range(4):
-            B[(_X + i) * LANES + l] = x0[i]
-        B[_G * LANES + l], B[(_G + 1) * LANES + l], B[(_G + 2) * LANES + l] = k_q, k_v, k_E
-    _pump_block(B, E_up, u_max, driven, theta, dt, substeps, U.shape[0], U, False, np.zeros(4), np.zeros((4, 4)), 1.0, np.empty(LANES),
-                np.empty(LANES, np.int64), np.ones(LANES, np.bool_))  # fmt: skip
+    """The pumping law's inputs ``U`` (H,) from ``x0``, written in place: one lane (the bits of that row's lane in
+    :func:`pumping_search`)."""
+    X = np.empty((4, 1))
+    X[:, 0] = x0
+    _pump(X, np.array([k_q]), np.array([k_v]), np.array([k_E]), E_up, u_max, driven, theta, dt, substeps, U.shape[0], U, False,
+          np.zeros(4), np.zeros((4, 4)), 1.0, np.empty(1), np.empty(1, np.int64))  # fmt: skip
 
 
 @njit
@@ -455,30 +394,24 @@ def jacobians(X, U, driven, theta, dt, substeps, A, b):  # pragma: no cover - co
     """``A_k = dF/dx`` and ``b_k = dF/du`` along ``(X, U)`` by forward differences (step 1e-7, from the stored
     ``X_{k+1} = F(X_k, U_k)``: five map calls per step, :data:`CHUNK` steps at a time as lanes), written into ``A``
     (>= H, 4, 4) and ``b`` (>= H, 4)."""
-    _jacobians8(X, U, driven, theta, dt, substeps, A, b, np.empty(WORK_SIZE))
-
-
-@njit(_nrt=False)
-def _jacobians8(X, U, driven, theta, dt, substeps, A, b, B):  # pragma: no cover - compiled
-    """:func:`jacobians` in the buffer ``B`` (:data:`WORK_SIZE`,)."""
     eps = 1e-7
     H = U.shape[0]
-    p = _lane_params(theta)
-    for k0 in range(0, H, LANES):
-        n = min(LANES, H - k0)
+    Z, v, work = np.empty((4, CHUNK)), np.empty(CHUNK), np.empty((WORK_ROWS, CHUNK))
+    for k0 in range(0, H, CHUNK):
+        n = min(CHUNK, H - k0)
         for j in range(5):
-            for l in range(LANES):
-                k = k0 + min(l, n - 1)  # a short block repeats its last step
-                B[_X * LANES + l] = X[k, 0] + (eps if j == 0 else 0.0)
-                B[(_X + 1) * LANES + l] = X[k, 1] + (eps if j == 1 else 0.0)
-                B[(_X + 2) * LANES + l] = X[k, 2] + (eps if j == 2 else 0.0)
-                B[(_X + 3) * LANES + l] = X[k, 3] + (eps if j == 3 else 0.0)
-                B[_U * LANES + l] = U[k] + (eps if j == 4 else 0.0)
-            _step8(B, driven, p, dt, substeps)
+            for l in range(n):
+                k = k0 + l
+                Z[0, l] = X[k, 0] + (eps if j == 0 else 0.0)
+                Z[1, l] = X[k, 1] + (eps if j == 1 else 0.0)
+                Z[2, l] = X[k, 2] + (eps if j == 2 else 0.0)
+                Z[3, l] = X[k, 3] + (eps if j == 3 else 0.0)
+                v[l] = U[k] + (eps if j == 4 else 0.0)
+            step_lanes(Z, v, driven, theta, dt, substeps, work, n)
             for l in range(n):
                 k = k0 + l
                 for i in range(4):
-                    d = (B[(_X + i) * LANES + l] - X[k + 1, i]) / eps
+                    d = (Z[i, l] - X[k + 1, i]) / eps
                     if j < 4:
                         A[k, i, j] = d
                     else:

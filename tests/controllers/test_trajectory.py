@@ -342,7 +342,7 @@ def _lane_states(rng, L):
 @pytest.mark.parametrize("env_id, params", [("mbs_envs/Acrobot-v1", {"b1": 0.05, "b2": 0.02}),
                                             ("mbs_envs/Pendubot-v1", {"f1": 0.1, "f2": 0.05, "b1": 0.01})])
 def test_one_lane_is_that_lane_of_many_and_the_map_to_round_off(env_id, params):
-    """The planner's map on lanes: every lane of a batch of 37 (a block's remainder) has the bits of the same
+    """The planner's map on lanes: every lane of a batch of 37 (a vector width's remainder) has the bits of the same
     state stepped alone, with angles beyond the fast sine's and wrap's ranges, a NaN lane, viscous friction only
     (the branch-free loop) and Coulomb friction; and each equals the scalar libm map :func:`step4` to round-off (the
     two sines differ by at most an ulp)."""
@@ -351,13 +351,16 @@ def test_one_lane_is_that_lane_of_many_and_the_map_to_round_off(env_id, params):
     X = _lane_states(rng, L)
     u = rng.uniform(-10, 10, L)
     many = X.copy()
-    traj.step_lanes(many, u, a, th, 0.01, 2, np.empty(traj.WORK_SIZE), L)
+    traj.step_lanes(many, u, a, th, 0.01, 2, np.empty((traj.WORK_ROWS, L)), L)
     for l in range(L):
         one = X[:, l : l + 1].copy()
-        traj.step_lanes(one, u[l : l + 1], a, th, 0.01, 2, np.empty(traj.WORK_SIZE), 1)
+        traj.step_lanes(one, u[l : l + 1], a, th, 0.01, 2, np.empty((traj.WORK_ROWS, 1)), 1)
         assert np.array_equal(one[:, 0], many[:, l], equal_nan=True)
         want = traj.step4(*X[:, l], u[l], a, th, 0.01, 2)
         assert np.allclose(many[:, l], want, rtol=1e-13, atol=1e-13, equal_nan=True)
+    w = X[0].copy()
+    traj.wrap_lanes(w, L)
+    assert np.array_equal(w, [(x + np.pi) % (2 * np.pi) - np.pi for x in X[0]], equal_nan=True)
 
 
 def test_the_pumping_search_is_the_row_by_row_search_on_its_lanes():
@@ -377,7 +380,7 @@ def test_the_pumping_search_is_the_row_by_row_search_on_its_lanes():
         x = x0[:, None].copy()
         for k in range(steps):
             u = traj.pumping_input(x[:, 0], k_q, k_v, k_E, E_up, a, th, u_max)
-            traj.step_lanes(x, np.array([u]), a, th, ctrl.dt, ctrl.substeps, np.empty(traj.WORK_SIZE), 1)
+            traj.step_lanes(x, np.array([u]), a, th, ctrl.dt, ctrl.substeps, np.empty((traj.WORK_ROWS, 1)), 1)
             if not np.isfinite(x).all():
                 runaway |= g == len(gains) - 1
                 break
@@ -400,7 +403,7 @@ def test_the_pumping_search_is_the_row_by_row_search_on_its_lanes():
     for k, u_k in enumerate(U):
         assert u_k == traj.pumping_input(x, *gains[want[0]], E_up, a, th, u_max)
         x1 = x[:, None].copy()
-        traj.step_lanes(x1, np.array([u_k]), a, th, ctrl.dt, ctrl.substeps, np.empty(traj.WORK_SIZE), 1)
+        traj.step_lanes(x1, np.array([u_k]), a, th, ctrl.dt, ctrl.substeps, np.empty((traj.WORK_ROWS, 1)), 1)
         x = x1[:, 0]
 
 
@@ -416,7 +419,7 @@ def test_the_jacobians_and_the_line_search_lanes_are_their_steps_one_at_a_time()
     X[0] = [0.2, -0.1, 0.3, 0.0]
     for k in range(H):
         x = X[k][:, None].copy()
-        traj.step_lanes(x, U[k : k + 1], 1, th, dt, n, np.empty(traj.WORK_SIZE), 1)
+        traj.step_lanes(x, U[k : k + 1], 1, th, dt, n, np.empty((traj.WORK_ROWS, 1)), 1)
         X[k + 1] = x[:, 0]
     A, b = np.empty((H, 4, 4)), np.empty((H, 4))
     traj.jacobians(X, U, 1, th, dt, n, A, b)
@@ -424,7 +427,7 @@ def test_the_jacobians_and_the_line_search_lanes_are_their_steps_one_at_a_time()
         for j in range(5):
             x = (X[k] + eps * (np.arange(4) == j))[:, None]
             v = U[k : k + 1] + (eps if j == 4 else 0.0)
-            traj.step_lanes(x, v, 1, th, dt, n, np.empty(traj.WORK_SIZE), 1)
+            traj.step_lanes(x, v, 1, th, dt, n, np.empty((traj.WORK_ROWS, 1)), 1)
             col = (x[:, 0] - X[k + 1]) / eps
             assert np.array_equal(col, A[k, :, j] if j < 4 else b[k])
     kff, K = rng.normal(0, 2, H), rng.normal(0, 1, (H, 4))
@@ -436,16 +439,4 @@ def test_the_jacobians_and_the_line_search_lanes_are_their_steps_one_at_a_time()
         X1, U1 = np.empty((H + 1, 4)), np.empty(H)
         assert traj._rollout(X[0], U, X, kff, K, alpha, 8.0, 1, th, dt, n, X1, U1) == ok[a]
         if ok[a]:
-            assert np.array_equal(X1, Xn[a]) and np.array_equal(U1, Un[a])
-    # a start far beyond the fast wrap's range (2^40): the wrap's libm pass, lane by lane, as Python wraps
-    x_far = np.array([3e12, -0.4, 0.1, 0.0])
-    traj.rollout_lanes(x_far, U, X, kff, K, alphas, 8.0, 1, th, dt, n, Xn, Un, ok)
-    assert ok.tolist() == [True, True, False, True, True]
-    d = x_far - X[0]
-    d[:2] = [(e + np.pi) % (2 * np.pi) - np.pi for e in d[:2]]
-    for a, alpha in enumerate(alphas):
-        if ok[a]:
-            assert Un[a, 0] == pytest.approx(np.clip(U[0] + alpha * kff[0] + K[0] @ d, -8.0, 8.0), rel=1e-13, abs=1e-13)
-            X1, U1 = np.empty((H + 1, 4)), np.empty(H)
-            assert traj._rollout(x_far, U, X, kff, K, alpha, 8.0, 1, th, dt, n, X1, U1)
             assert np.array_equal(X1, Xn[a]) and np.array_equal(U1, Un[a])
