@@ -34,7 +34,7 @@ from __future__ import annotations
 import numpy as np
 
 from mbs_envs.dynamics.jit import njit
-from mbs_envs.dynamics.trig import fma, in_range, sincos, sincos_libm, wrap, wrap_fast, wrap_python
+from mbs_envs.dynamics.trig import fma, in_range, sincos, sincos_libm, wrap, wrap_fast
 from mbs_envs.models.planar2r import _acceleration, _acceleration_of, _energy, _energy_of, _friction
 
 #: line-search step lengths of the iLQR (rolled out together, one lane each)
