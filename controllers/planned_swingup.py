@@ -130,6 +130,13 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
         current state for ``catch_time`` [s], the saturated LQR ends within ``catch_tol`` of upright (rad, rad/s;
         checked only within ``drop`` of upright): the LQR's region of attraction under the torque limit, sampled
         at the states the arm visits.
+    plan_step, plan_h : float
+        The plan's time grid [s]: its knots ``stride = max(1, round(plan_step / dt))`` control steps apart (inputs
+        held, gains and states per knot, the state between knots interpolated for the feedback), its model stepped
+        by RK4 in ``ceil(stride dt / plan_h)`` sub-steps (where ``stride`` is 1, the env's own sub-steps: our
+        swing-up scenes, ``dt = 0.01``, plan on their control steps as before). On the DFKI protocol (``dt =
+        0.002``) a plan's knots are 0.01 s apart, as on the scenes where this controller was built: a fifth of the
+        stages, 2 RK4 steps per knot.
     patience : float
         [s]: the initial guess trades a closer approach to upright against an earlier one, ``e`` times the
         cost-to-go for ``patience`` seconds sooner (:func:`controllers.trajectory.pumping_search`).
@@ -143,18 +150,23 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
                  plan_time: float = 3.0, horizon: float = 10.0, tail: float = 0.5, iterations: int = 100, refine_iterations: int = 10,
                  w_u: float = 0.1, w_T: float = 1e4, margin: float = 0.85, accept: float = 0.05, retry: float = 1.0,
                  refine_every: float = 0.5, funnel: float = 0.5, drop: float = 0.3, patience: float = 5.0, track_r: float = 1.0, w_x: float = 0.0, catch_time: float = 3.0,
-                 catch_tol: float = 0.01, gate: Any = None):  # fmt: skip
+                 catch_tol: float = 0.01, plan_step: float = 0.01, plan_h: float = 0.005, gate: Any = None):  # fmt: skip
         # a catch level only for the inherited switching rule, which this controller does not use (module docstring)
         catch = 1.0 if catch is None else catch
         super().__init__(env, k_q=k_q, k_v=k_v, k_E=k_E, catch=catch, release=release, lqr_r=lqr_r, window=window, prior=prior, obs_noise=obs_noise,
                          process_noise=process_noise, gate=gate)  # fmt: skip
-        def steps(t: Any, name: str, positive: bool = False) -> int:  # a duration [s] in control steps
-            return int(round(check.real(t, name, 0.0, 1e4, low_open=positive) / self.dt))
+        def steps(t: Any, name: str, positive: bool = False, step: float = self.dt) -> int:  # a duration [s] in steps of ``step``
+            return int(round(check.real(t, name, 0.0, 1e4, low_open=positive) / step))
 
+        # the plan's grid: ``stride`` control steps per knot, its model stepped by RK4 in steps of at most ``plan_h``
+        self.stride = max(1, steps(plan_step, "plan_step", positive=True))
+        h = check.real(plan_h, "plan_h", 0.0, 1.0, low_open=True)
+        self.plan_dt = self.stride * self.dt
+        self.plan_substeps = self.substeps if self.stride == 1 else max(1, int(np.ceil(round(self.plan_dt / h, 9))))
         self.plan_steps = steps(plan_time, "plan_time")
-        self.max_steps = max(2, steps(horizon, "horizon", positive=True))
-        self.tail = min(steps(tail, "tail"), self.max_steps - 1)
-        self.patience = max(1, steps(patience, "patience"))
+        self.max_steps = max(2, steps(horizon, "horizon", positive=True, step=self.plan_dt))
+        self.tail = min(steps(tail, "tail", step=self.plan_dt), self.max_steps - 1)
+        self.patience = max(1, steps(patience, "patience", step=self.plan_dt))
         self.retry_steps = max(1, steps(retry, "retry", positive=True))
         self.refine_steps = max(1, steps(refine_every, "refine_every", positive=True))
         self.iterations = check.integer(iterations, "iterations", 0, 10**6)
@@ -179,6 +191,23 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
         n, H = len(plan), self.max_steps
         return plan[:, :H], plan[:, H : H + 4 * (H + 1)].reshape(n, H + 1, 4), plan[:, H + 4 * (H + 1) :].reshape(n, H, 4)
 
+    def reference(self, X: np.ndarray, j: np.ndarray) -> np.ndarray:
+        """The planned state at control step ``j`` (n,) of each member's plan ``X`` (n, H + 1, 4): the knot
+        ``X[k]``, ``k = j // stride``, or between knots ``X[k] + f (X[k + 1] - X[k])`` (angle differences wrapped),
+        ``f = (j mod stride) / stride``; ``j`` at most ``H stride``."""
+        idx = np.arange(len(X))
+        k = np.minimum(j // self.stride, self.max_steps)
+        if self.stride == 1:
+            return X[idx, k]
+        f = (j - k * self.stride) / self.stride
+        between = f > 0.0
+        out = X[idx, k]
+        if between.any():
+            b = np.flatnonzero(between)
+            nxt = X[b, np.minimum(k[b] + 1, self.max_steps)]
+            out[b] = out[b] + f[b, None] * state_error(nxt, out[b])
+        return out
+
     def kernel_columns(self, row: np.ndarray, members: np.ndarray) -> list[np.ndarray]:
         """The identified model of each of ``members`` as the kernels take it: a contiguous column ``(P, 1)`` each."""
         return [np.ascontiguousarray(t[:, None]) for t in self.kernel_theta(row[members, THETA])]
@@ -197,13 +226,13 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
             U_new, X_new, K_new = np.empty(self.max_steps), np.empty((self.max_steps + 1, 4)), np.empty((self.max_steps, 4))
             S = row[i, S_].reshape(4, 4)
             if refine[j]:
-                k, H = int(row[i, STEP]), int(row[i, LENGTH])
+                k, H = int(row[i, STEP]) // self.stride, int(row[i, LENGTH])
                 H, err = traj.refine(x[i], Us[i, k:H].copy(), Xs[i, k : H + 1].copy(), Ks[i, k:H].copy(), self.goal, S, self.w_u, self.W, self.P_T,
-                                     self.Q, R, self.margin * u_max, driven, th, self.dt, self.substeps, self.refine_iterations, traj.ALPHAS,
+                                     self.Q, R, self.margin * u_max, driven, th, self.plan_dt, self.plan_substeps, self.refine_iterations, traj.ALPHAS,
                                      U_new, X_new, K_new)  # fmt: skip
             else:
                 H, err = traj.plan(x[i], PUMPING_GRID, traj.energy(self.goal, th), self.goal, S, self.w_u, self.W, self.P_T, self.Q, R, u_max,
-                                   self.margin * u_max, driven, th, self.dt, self.substeps, self.max_steps, self.tail, self.patience, self.iterations,
+                                   self.margin * u_max, driven, th, self.plan_dt, self.plan_substeps, self.max_steps, self.tail, self.patience, self.iterations,
                                    traj.ALPHAS, U_new, X_new, K_new)  # fmt: skip
             return H, err, U_new, X_new, K_new
 
@@ -245,13 +274,15 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
         x = np.concatenate([q, v], axis=1)
         dx = state_error(x, self.goal)
         idx = np.arange(n)
-        phase, k = row[:, PHASE], row[:, STEP].astype(int)
+        phase, j = row[:, PHASE], row[:, STEP].astype(int)
+        k = j // self.stride
         Us, Xs, Ks = self._views(plan)
         tracking = phase == 1.0
-        off = tracking & (np.abs(state_error(x, Xs[idx, np.minimum(k, self.max_steps)])[:, :2]).max(axis=1) > self.funnel)
+        off = tracking & (np.abs(state_error(x, self.reference(Xs, j))[:, :2]).max(axis=1) > self.funnel)
         fresh = ((phase == 0.0) & (row[:, CLOCK] > self.plan_steps) & (row[:, SINCE] >= self.retry_steps)) | off
         fresh |= (phase == 2.0) & (np.abs(dx[:, :2]).max(axis=1) > self.drop)
-        refine = tracking & ~off & (row[:, SINCE] >= self.refine_steps) & (row[:, LENGTH] - k > self.tail)
+        # a plan is refined at its knots (every control step where stride is 1)
+        refine = tracking & ~off & (row[:, SINCE] >= self.refine_steps) & (row[:, LENGTH] - k > self.tail) & (j % self.stride == 0)
         # inside the upright LQR's region of attraction (simulated on the identified model): balance, no plan needed
         near = (phase != 2.0) & (np.abs(dx[:, :2]).max(axis=1) < self.drop)
         if near.any():
@@ -263,11 +294,12 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
             members = np.flatnonzero(due)
             plan = self.make_plans(row, plan, members, x, refine[members])
             Us, Xs, Ks = self._views(plan)
-        phase, k = row[:, PHASE], row[:, STEP].astype(int)
-        row[(phase == 1.0) & (k >= row[:, LENGTH]), PHASE] = 2.0
+        phase, j = row[:, PHASE], row[:, STEP].astype(int)
+        row[(phase == 1.0) & (j // self.stride >= row[:, LENGTH]), PHASE] = 2.0
         phase = row[:, PHASE]
-        kk = np.minimum(k, self.max_steps - 1)
-        u_track = Us[idx, kk] + np.einsum("bi,bi->b", Ks[idx, kk], state_error(x, Xs[idx, kk]))
+        j = np.minimum(j, (self.max_steps - 1) * self.stride + self.stride - 1)
+        kk = j // self.stride
+        u_track = Us[idx, kk] + np.einsum("bi,bi->b", Ks[idx, kk], state_error(x, self.reference(Xs, j)))
         u_lqr = -np.einsum("bi,bi->b", row[:, K_], dx)
         u = np.where(phase == 1.0, u_track, u_lqr)
         pumping = np.flatnonzero(phase == 0.0)

@@ -12,7 +12,7 @@ import scipy.linalg
 import mbs_envs  # noqa: F401
 from controllers import PlannedSwingUp
 from controllers import trajectory as traj
-from controllers.control_map import rk4_map
+from controllers.control_map import rk4_map, state_error
 from controllers.planned_swingup import CLOCK, LENGTH, PHASE, PUMPING_GRID, SINCE
 from mbs_envs.envs.swingup import Q_UP
 
@@ -186,6 +186,76 @@ def test_the_plan_swings_up_within_its_torque_share(env_id):
     assert np.abs(traj.wrapped(X[H], GOAL)).max() == pytest.approx(err)
 
 
+@pytest.mark.parametrize("env_id", ["mbs_envs/AcrobotDFKI-v1", "mbs_envs/PendubotDFKI-v1"])
+def test_on_the_protocol_the_plan_has_a_knot_every_fifth_control_step(env_id):
+    """At 2-ms control steps the plan's knots are 0.01 s apart, its model stepped by two 5-ms RK4 steps with the
+    input held: every knot is that map's step (1e-12), and the plant's own map over the same 0.01 s (five 2-ms RK4
+    steps, the input held) differs from it by RK4's error only, which falls as h^4 (two steps against four)."""
+    env = gym.make(env_id)
+    ctrl = PlannedSwingUp(env)
+    assert (ctrl.stride, ctrl.plan_dt, ctrl.plan_substeps) == (5, 0.01, 2)
+    obs, _ = env.reset(seed=0)
+    state = None
+    for k in range(ctrl.plan_steps):
+        action, state = ctrl.predict(obs, state=state, episode_start=k == 0)
+        obs, *_ = env.step(action)
+    th, model = theta_of(env.unwrapped.model), env.unwrapped.model
+    u_max = float(env.unwrapped.u_max[0])
+    n = ctrl.max_steps
+    assert n == 1000 and ctrl.plan_size == n + 4 * (n + 1) + 4 * n
+    U, X, K = np.zeros(n), np.zeros((n + 1, 4)), np.zeros((n, 4))
+    x0 = np.concatenate([env.unwrapped.q, env.unwrapped.v])
+    H, err = traj.plan(x0, PUMPING_GRID, traj.energy(GOAL, th), GOAL, ctrl.S, ctrl.w_u, ctrl.W, ctrl.P_T, ctrl.Q,
+                       ctrl.track_r, u_max, ctrl.margin * u_max, int(model.driven[0]), th, ctrl.plan_dt, ctrl.plan_substeps, n,
+                       ctrl.tail, ctrl.patience, ctrl.iterations, traj.ALPHAS, U, X, K)  # fmt: skip
+    assert 0 < H <= n and err <= ctrl.accept
+    assert np.abs(U[:H]).max() <= ctrl.margin * u_max + 1e-12
+    assert np.allclose(rk4_map(model, X[:H], U[:H, None], 0.01, 2), X[1 : H + 1], rtol=0, atol=1e-12)
+    # RK4's error over a knot, against 40 sub-steps: fourth order (halving h divides it by ~16), and the plant's own
+    # map (five 2-ms steps) is as close to the plan's as that error allows (measured up to 1.7e-4 along the acrobot's
+    # swing at seed 0, 3e-8 along the pendubot's)
+    ref = rk4_map(model, X[:H], U[:H, None], 0.01, 40)
+    gap = {m: np.abs(rk4_map(model, X[:H], U[:H, None], 0.01, m) - ref).max() for m in (2, 4, 5)}
+    assert 12 < gap[2] / gap[4] < 20
+    assert np.abs(rk4_map(model, X[:H], U[:H, None], 0.01, 5) - X[1 : H + 1]).max() <= gap[2] + gap[5] < 1e-3
+
+
+def test_between_knots_the_feedback_follows_the_wrapped_interpolation_of_the_plan():
+    """The reference of control step ``j``: the knot ``X[j // stride]`` itself (bits) at a knot, the straight line to
+    the next knot between them, across the angles' wrap; never beyond the last knot."""
+    ctrl = PlannedSwingUp(gym.make("mbs_envs/AcrobotDFKI-v1"))
+    n = ctrl.max_steps
+    X = np.random.default_rng(0).normal(size=(3, n + 1, 4))
+    X[0, 3], X[0, 4] = (np.pi - 0.01, -1.0, 2.0, 3.0), (-np.pi + 0.04, -1.5, 2.0, 4.0)
+    ref = ctrl.reference(X, np.array([17, 15, 5 * n]))
+    assert np.array_equal(ref[1], X[1, 3]) and np.array_equal(ref[2], X[2, n])
+    expected = np.array([np.pi - 0.01 + 0.4 * 0.05, -1.2, 2.0, 3.4])
+    assert np.allclose(state_error(ref[0], expected), 0.0, rtol=0, atol=1e-15)
+    one = PlannedSwingUp(gym.make("mbs_envs/Acrobot-v1"))  # stride 1: the knots themselves
+    X1 = np.random.default_rng(1).normal(size=(2, one.max_steps + 1, 4))
+    assert np.array_equal(one.reference(X1, np.array([0, 7])), X1[[0, 1], [0, 7]])
+
+
+@pytest.mark.parametrize("env_id", ["mbs_envs/AcrobotDFKI-v1", "mbs_envs/PendubotDFKI-v1"])
+def test_the_protocols_episode_swings_up_on_knots_each_member_as_alone(env_id):
+    """The protocol's nominal episode (10 s from hanging at 2-ms steps, plans on 0.01-s knots): a member of a batch
+    of two (the other on a plant 20 % heavier) acts as it does alone, and swings up by the benchmark's rule."""
+    from controllers.tuned import stored_entry
+    from mbs_envs.studies import dfki
+
+    env = gym.make(env_id)
+    p = env.unwrapped.model.params
+    gains = stored_entry(env_id, "identified iLQR + TVLQR") or {}
+    runs = []
+    for n in (1, 2):
+        kwargs = {} if n == 1 else {"member_params": [{}, {"m2": 1.2 * p.m2}]}
+        venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", autoreset_mode="Disabled", **kwargs)
+        runs.append(dfki.record(venv, PlannedSwingUp(env, **gains), list(range(n)))[0])
+    for key in ("q", "v", "u"):
+        assert np.array_equal(runs[0][key], runs[1][key])
+    assert dfki.evaluate(runs[:1], p.l1, p.l2)[0]["success"] == 1.0
+
+
 @pytest.mark.parametrize("x0, inside", [((0.005, 0.0, 0.0, 0.0), True), ((-0.004, 0.01, 0.02, -0.05), True),
                                          ((0.02, -0.03, 0.05, 0.0), False), ((0.1, 0.0, 0.0, 0.0), False)])
 def test_the_lqr_takes_over_exactly_where_its_simulated_region_says(x0, inside):
@@ -228,7 +298,8 @@ def test_a_batch_acts_as_each_member_alone():
 
 @pytest.mark.parametrize("kwargs", [{"plan_time": -1.0}, {"horizon": 0.0}, {"iterations": 1.5}, {"w_u": 0.0}, {"w_T": -1.0},
                                     {"margin": 0.0}, {"margin": 1.5}, {"accept": 0.0}, {"funnel": np.nan}, {"drop": -0.3},
-                                    {"track_r": 0.0}, {"w_x": -1.0}, {"retry": np.inf}])
+                                    {"track_r": 0.0}, {"w_x": -1.0}, {"retry": np.inf}, {"plan_step": 0.0}, {"plan_step": np.nan},
+                                    {"plan_h": 0.0}, {"plan_h": -1.0}])
 def test_bad_settings_are_refused_by_name(kwargs):
     with pytest.raises(ValueError, match=next(iter(kwargs))):
         PlannedSwingUp(gym.make("mbs_envs/Acrobot-v1"), **kwargs)
