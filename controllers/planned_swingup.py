@@ -21,9 +21,11 @@ nominal and +-20 %: failures 0 % on the acrobot against 3-7 % for 1, 100, 1e3, 1
 1e4; 2 % on the pendubot against 5-27 %) and the guess's patience 5 s (tuning seeds 20000-20039: acrobot 97/88/88 % against 97/78/80 % without
 patience, pendubot 100/93/97 % against 100/80/100 %). The others (a 10-s horizon, 100 iterations, refinement every
 0.5 s, 85 % of the torque limit, the funnel and the catch test) were set while building it; a horizon of 3 s planned
-too rarely (3 of 10 nominal episodes while building, with 30 iterations). A plan costs about 0.27 s of one core on average
-since the planner's map runs on SIMD lanes (0.56 s before; :mod:`controllers.trajectory`, docs/performance.md). These
-settings were tuned with the earlier, scalar map, whose plans differ from today's in their last bits.
+too rarely (3 of 10 nominal episodes while building, with 30 iterations). These settings were tuned on our scenes
+(control steps of 0.01 s, where a plan's knots are the control steps) with the earlier, scalar map, whose plans differ
+from today's in their last bits. On the DFKI protocol (2-ms control steps) a plan's knots are 0.01 s apart as there
+(``plan_step``): a plan there costs about 0.09 s of one core on average (0.27 s on every control step, 0.56 s before the
+planner's map ran on SIMD lanes; :mod:`controllers.trajectory`, docs/performance.md).
 
 **Memory** (SB3's ``state``): a tuple ``(row, plan)``: ``row`` (n, :data:`ROW_SIZE`) holds the adaptive
 controller's memory (identification, filter, last inputs) followed by the phase, the step in the plan, the

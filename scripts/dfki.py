@@ -66,6 +66,8 @@ RATES_SUFFIX = " (rates from angles)"
 #: what ``--robust-catch`` appends to each policy's name, and to its name for the entry in ``controllers/tuned.json``
 CATCH_SUFFIX = " (robust catch)"
 CRITERIA = ("swingup_time", "energy", "tau_cost", "tau_smoothness", "velocity_cost")
+#: the most members of a default part of a model-based controller's sweep (:func:`sweep_parts_of`)
+PART_MEMBERS = 32
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -81,8 +83,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--values", type=int, default=dfki.N_VALUES, help=f"values per robustness axis (default {dfki.N_VALUES}, as theirs)")
     p.add_argument("--seed", type=int, default=0, help="seeds the sweep's noise and pulses")
     p.add_argument("--part-size", type=int, default=None,
-                   help="members per part of a model-based controller's sweep (default: about 8 parts per worker over "
-                        "their sweeps; an agent's sweep runs one batch per axis)")
+                   help="members per part of a model-based controller's sweep (default: about 4 parts per worker over "
+                        "their sweeps, at most 32 members; an agent's sweep runs one batch per axis)")
     p.add_argument("--workers", type=int, default=None, help="local processes (default: one per core, at most one per controller)")
     p.add_argument("--ray", nargs="?", const="local", default=None, help="run the controllers on Ray (cluster ADDRESS, or a local instance)")
     p.add_argument("--rates-from-angles", action="store_true",
@@ -175,17 +177,21 @@ def sweep_parts_of(jobs: list[tuple[str, str]], values: int, seed: int, workers:
                    ) -> tuple[list[tuple[int, dfki.SweepPart]], dict[int, dict]]:  # fmt: skip
     """The parts of every job's sweep, as ``(job index, part)``, and each job's axis descriptions.
 
-    A model-based controller's sweep is cut in parts of ``part_size`` members (default: about 8 parts per worker over
-    all of them); an agent's stays one batch per axis: its network's outputs move in the last bits with the batch size
-    (:func:`mbs_envs.studies.robustness.run`), so only whole batches give the committed runs' episodes."""
+    A model-based controller's sweep is cut in parts of ``part_size`` members (default: about 4 parts per worker over
+    all of them, at most :data:`PART_MEMBERS` members: a control step's Python is paid once per part, so parts of 16
+    cost the planner's acrobot sweep 194 core-seconds against 170 for parts of 32); an agent's stays one batch per
+    axis: its network's outputs move in the last bits with the batch size (:func:`mbs_envs.studies.robustness.run`),
+    so only whole batches give the committed runs' episodes. The parts go out largest first (stably: an axis' parts
+    stay in their order), so that the pool's last tasks are small ones."""
     model_based = {j for j, (_, name) in enumerate(jobs) if name in SWING_UP_CONTROLLERS}
     whole, metas = {}, {}
     for j, (scene, _) in enumerate(jobs):
         whole[j], metas[j] = dfki.sweep_parts(SCENES[scene], values, seed)
     members = sum(part.size for j in model_based for part in whole[j])
-    size = check.integer(part_size, "part_size", 1, 10**9) if part_size is not None else max(1, -(-members // (8 * workers)))
+    default = min(PART_MEMBERS, max(1, -(-members // (4 * workers))))
+    size = check.integer(part_size, "part_size", 1, 10**9) if part_size is not None else default
     out = [(j, piece) for j in whole for part in whole[j] for piece in (part.cut(size) if j in model_based else [part])]
-    return out, metas
+    return sorted(out, key=lambda jp: -(jp[1].members.stop - jp[1].members.start)), metas
 
 
 def policies(scene: str, agents: pathlib.Path | None) -> dict[str, str]:

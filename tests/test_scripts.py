@@ -701,7 +701,7 @@ def test_dfki_script_cuts_the_controllers_sweeps_in_parts_and_keeps_an_agents_wh
     jobs = [("Acrobot", "swing-up + LQR"), ("Acrobot", "PPO seed0"), ("Pendubot", "identified iLQR + TVLQR")]
     parts, metas = script["sweep_parts_of"](jobs, 3, 0, workers=2)
     mine = {j: [p for i, p in parts if i == j] for j in range(3)}
-    assert [p.axis for p in mine[1]] == list(dfki.AXES) and all(p.members == slice(0, p.size) for p in mine[1])
+    assert sorted(p.axis for p in mine[1]) == sorted(dfki.AXES) and all(p.members == slice(0, p.size) for p in mine[1])
     for j in (0, 2):
         assert len(mine[j]) > len(dfki.AXES) and max(p.members.stop - p.members.start for p in mine[j]) < max(p.size for p in mine[j])
         for axis in dfki.AXES:
@@ -710,6 +710,12 @@ def test_dfki_script_cuts_the_controllers_sweeps_in_parts_and_keeps_an_agents_wh
             assert rows[0].start == 0 and rows[-1].stop == axis_parts[0].size
             assert all(a.stop == b.start for a, b in zip(rows, rows[1:]))
     assert set(metas) == {0, 1, 2} and set(metas[0]) == set(dfki.AXES)
+    sizes = [p.members.stop - p.members.start for _, p in parts]
+    assert sizes == sorted(sizes, reverse=True)  # largest first, so the pool's last tasks are small
+    members = sum(p.size for j in (0, 2) for p in mine[j] if p.members.start == 0)
+    assert max(sizes[k] for k, (j, _) in enumerate(parts) if j != 1) == min(32, -(-members // 8))
+    full, _ = script["sweep_parts_of"]([("Acrobot", "identified iLQR + TVLQR")], 21, 0, workers=2)
+    assert max(p.members.stop - p.members.start for _, p in full) == 32  # the cap (250 members, 2 workers)
     fixed, _ = script["sweep_parts_of"](jobs, 3, 0, workers=2, part_size=1)
     assert all(p.members.stop - p.members.start == 1 for j, p in fixed if j != 1)
     with pytest.raises(ValueError, match="part_size"):
