@@ -8,8 +8,9 @@ Per member of the batch, in three phases:
    where observations are noisy, for ``plan_time`` seconds.
 1. **Plan and track**: from the (estimated) state, a swing-up trajectory optimized under the torque limit
    on the identified model and the time-varying LQR along it (:mod:`controllers.trajectory`); the input is
-   ``u = U_k + K_k (x - X_k)``. The member plans again, from where it is, when it leaves the plan's funnel
-   (an angle more than ``funnel`` rad off the planned one).
+   ``u = U_k + K_k (x - X_k)``, on knots ``plan_step`` apart (the control steps of our scenes; every fifth on the
+   DFKI protocol's, ``X`` interpolated between knots). The member plans again, from where it is, when it leaves the
+   plan's funnel (an angle more than ``funnel`` rad off the planned one).
 2. **Balance**: at the plan's end (upright, where its terminal cost put it), the upright LQR of the
    identified model. Where the LQR's cost-to-go ``dx^T S dx`` exceeds ``drop`` the member plans again.
 

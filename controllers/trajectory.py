@@ -291,7 +291,7 @@ def pumping_input(x, k_q, k_v, k_E, E_up, driven, theta, u_max):  # pragma: no c
 
 @njit
 def _pump(X, k_q, k_v, k_E, E_up, u_max, driven, theta, dt, substeps, steps, U, search, goal, S, patience, best, when):  # pragma: no cover - compiled
-    """The pumping law with gains ``k_q, k_v, k_E`` (L,) from the states ``X`` (4, L), ``steps`` control steps, a lane
+    """The pumping law with gains ``k_q, k_v, k_E`` (L,) from the states ``X`` (4, L), ``steps`` steps of ``dt``, a lane
     per gain set: writes the inputs of lane 0 into ``U`` (when its length is ``steps``) and, where ``search``, per
     lane the smallest weighted cost-to-go (:func:`pumping_search`) into ``best`` and its step into ``when``."""
     L = X.shape[1]
@@ -328,7 +328,7 @@ def _pump(X, k_q, k_v, k_E, E_up, u_max, driven, theta, dt, substeps, steps, U, 
 @njit
 def pumping_search(x0, gains, E_up, goal, S, u_max, driven, theta, dt, substeps, steps, patience):  # pragma: no cover - compiled
     """Step 1 (module docstring): the row of ``gains`` (G, 3: ``k_q, k_v, k_E``) whose rollout from ``x0``
-    comes closest to upright within ``steps`` control steps, by the cost-to-go ``dx^T S dx`` weighted by
+    comes closest to upright within ``steps`` steps of ``dt``, by the cost-to-go ``dx^T S dx`` weighted by
     ``exp(k / patience)`` at step ``k`` (an approach ``e`` times as far is as good ``patience`` steps sooner); a
     rollout counts up to its last finite state. Every row is a lane (:func:`_pump`); ties go to the first row, and
     within a row to the first step. Returns ``(row, step, weighted cost)``: the chosen state is reached after
@@ -540,7 +540,7 @@ def riccati_gains(A, b, Q, R, S_T, dt):  # pragma: no cover - compiled
 @njit(nogil=True)  # members plan on threads of their own (controllers.planned_swingup)
 def plan(x0, gains, E_up, goal, S, w_u, W, P_T, Q, R, u_max, u_plan, driven, theta, dt, substeps, steps, tail, patience, iterations,
          alphas, U_out, X_out, K_out):  # pragma: no cover - compiled  # fmt: skip
-    """Steps 1-3 (module docstring) from ``x0`` within ``steps`` control steps, the plan's inputs within
+    """Steps 1-3 (module docstring) from ``x0`` within ``steps`` steps of ``dt`` (the plan's knots), the plan's inputs within
     ``u_plan`` (<= ``u_max``, the feedback's margin), its gains' within ``u_max``: writes the inputs
     ``U_out[:H]``, states ``X_out[:H + 1]`` and gains ``K_out[:H]`` and returns ``(H, the largest entry of the
     wrapped terminal error |x_H - x_up|)``; ``H = 0`` where no finite plan was found."""
