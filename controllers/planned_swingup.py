@@ -300,7 +300,7 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
         phase, j = row[:, PHASE], row[:, STEP].astype(int)
         row[(phase == 1.0) & (j // self.stride >= row[:, LENGTH]), PHASE] = 2.0
         phase = row[:, PHASE]
-        j = np.minimum(j, (self.max_steps - 1) * self.stride + self.stride - 1)
+        j = np.minimum(j, self.max_steps * self.stride - 1)  # the last knot's last control step
         kk = j // self.stride
         u_track = Us[idx, kk] + np.einsum("bi,bi->b", Ks[idx, kk], state_error(x, self.reference(Xs, j)))
         u_lqr = -np.einsum("bi,bi->b", row[:, K_], dx)

@@ -178,8 +178,8 @@ def sweep_parts_of(jobs: list[tuple[str, str]], values: int, seed: int, workers:
     """The parts of every job's sweep, as ``(job index, part)``, and each job's axis descriptions.
 
     A model-based controller's sweep is cut in parts of ``part_size`` members (default: about 4 parts per worker over
-    all of them, at most :data:`PART_MEMBERS` members: a control step's Python is paid once per part, so parts of 16
-    cost the planner's acrobot sweep 194 core-seconds against 170 for parts of 32); an agent's stays one batch per
+    all of them, at most :data:`PART_MEMBERS` members: a control step's Python is paid once per part; the planner's
+    acrobot sweep took 194 core-seconds in parts of 16 against 170 in parts of 32, its protocol episode included); an agent's stays one batch per
     axis: its network's outputs move in the last bits with the batch size (:func:`mbs_envs.studies.robustness.run`),
     so only whole batches give the committed runs' episodes. The parts go out largest first (stably: an axis' parts
     stay in their order), so that the pool's last tasks are small ones."""

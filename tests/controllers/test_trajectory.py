@@ -212,12 +212,12 @@ def test_on_the_protocol_the_plan_has_a_knot_every_fifth_control_step(env_id):
     assert np.abs(U[:H]).max() <= ctrl.margin * u_max + 1e-12
     assert np.allclose(rk4_map(model, X[:H], U[:H, None], 0.01, 2), X[1 : H + 1], rtol=0, atol=1e-12)
     # RK4's error over a knot, against 40 sub-steps: fourth order (halving h divides it by ~16), and the plant's own
-    # map (five 2-ms steps) is as close to the plan's as that error allows (measured up to 1.7e-4 along the acrobot's
-    # swing at seed 0, 3e-8 along the pendubot's)
+    # map (five 2-ms steps) within 1e-3 of the plan's knots (measured up to 1.7e-4 along the acrobot's swing at
+    # seed 0, 3e-8 along the pendubot's)
     ref = rk4_map(model, X[:H], U[:H, None], 0.01, 40)
-    gap = {m: np.abs(rk4_map(model, X[:H], U[:H, None], 0.01, m) - ref).max() for m in (2, 4, 5)}
+    gap = {m: np.abs(rk4_map(model, X[:H], U[:H, None], 0.01, m) - ref).max() for m in (2, 4)}
     assert 12 < gap[2] / gap[4] < 20
-    assert np.abs(rk4_map(model, X[:H], U[:H, None], 0.01, 5) - X[1 : H + 1]).max() <= gap[2] + gap[5] < 1e-3
+    assert np.abs(rk4_map(model, X[:H], U[:H, None], 0.01, 5) - X[1 : H + 1]).max() < 1e-3
 
 
 def test_between_knots_the_feedback_follows_the_wrapped_interpolation_of_the_plan():
