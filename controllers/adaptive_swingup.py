@@ -140,7 +140,7 @@ class AdaptiveSwingUpLQR(SwingUpLQR):
         state = state.copy()
         n = len(state)
         theta = np.ascontiguousarray(self.kernel_theta(state[:, THETA]).T)
-        Q_w = np.where((state[:, MODE] > 0.5)[:, None, None], self.Q_w[0], self.Q_w[1])
+        Q_w = self.filter_noise(state)
         x, P = np.empty((n, 4)), np.empty((n, 4, 4))
         with np.errstate(all="ignore"):  # a diverging member is caught below
             traj.ekf_steps(np.ascontiguousarray(state[:, XH]), np.ascontiguousarray(state[:, P_].reshape(n, 4, 4)), self.applied(state),
@@ -153,6 +153,11 @@ class AdaptiveSwingUpLQR(SwingUpLQR):
         x[lost], P[lost] = y[lost], self.R_n
         state[:, XH], state[:, P_] = x, P.reshape(n, 16)
         return state
+
+    def filter_noise(self, state: np.ndarray) -> np.ndarray:
+        """The filter's process-noise covariance per member, shape ``(n, 4, 4)``: the balancing setting where the
+        member's mode is balancing (``MODE > 0.5``), else the swinging one (``process_noise``)."""
+        return np.where((state[:, MODE] > 0.5)[:, None, None], self.Q_w[0], self.Q_w[1])
 
     def identify(self, state: np.ndarray, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """The memory after observing ``(q, v)``: the last input's work added to the open window, the
@@ -239,10 +244,11 @@ class AdaptiveSwingUpLQR(SwingUpLQR):
             cache[key] = np.asarray(model.kernel_params(), float).reshape(len(th), -1)
         return cache[key].copy()
 
-    def gains(self, model: Any, n: int) -> tuple[np.ndarray, np.ndarray]:
-        """The LQR's ``(K, S)`` for each member of ``model`` (per-member parameters of shape ``(n,)``)."""
+    def gains(self, model: Any, n: int, Q: np.ndarray | None = None, R: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The LQR's ``(K, S)`` for each member of ``model`` (per-member parameters of shape ``(n,)``), with the
+        weights ``Q``, ``R`` (default: the upright LQR's)."""
         A, B = upright_linearization(model, (n,))
-        return care(A, B, self.Q, self.R)
+        return care(A, B, self.Q if Q is None else Q, self.R if R is None else R)
 
     def observe(self, obs: Any, state: Any, episode_start: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The memory after an observation: the filter's step (with ``obs_noise > 0``) and the identification's,

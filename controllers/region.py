@@ -284,17 +284,44 @@ def lqg_hold_share(A: np.ndarray, B: np.ndarray, dt: float, sigma: float, tol: f
         A_d, B_d = discretize(A, B, dt)
         n = A.shape[0]
         L = steady_kalman(A_d, sigma)[0]
-        K = np.stack([dlqr(A_d, B_d, np.diag([w_1, 1.0] + [w_v] * (n - 2)), rho)[0] for rho, w_1, w_v in grid])[:, None, :]  # (G, 1, n)
+        K = np.stack([dlqr(A_d, B_d, np.diag([w_1, 1.0] + [w_v] * (n - 2)), rho)[0] for rho, w_1, w_v in grid])
+    return float(hold_shares(A_d, B_d, L, K, sigma, tol, hold_steps, windows, settle_steps, seed).max())
+
+
+def hold_shares(A_d: np.ndarray, B_d: np.ndarray, L: np.ndarray, K: np.ndarray, sigma: float, tol: float, hold_steps: int,
+                windows: int = 2000, settle_steps: int = 300, seed: int = 0, u_max: float = np.inf) -> np.ndarray:  # fmt: skip
+    """The share of windows of ``hold_steps`` control steps in which both angles stay within ``tol`` of upright, for
+    each gain of ``K`` with the filter gain ``L``, on the discrete linearization ``x' = A_d x + B_d u`` observed as in
+    :func:`noise_floor` (every state entry with white Gaussian noise of std ``sigma``).
+
+    Each controller (``x^+ = x^- + L (y - x^-)``, ``u = clip(-K x^+, -u_max, u_max)``) runs ``windows`` independent
+    episodes from upright with an exact estimate, ``settle_steps`` steps to reach its stationary spread, then the
+    window; every controller sees the same noise (drawn from ``seed``), all of them in one batch.
+
+    Parameters
+    ----------
+    A_d, B_d : ndarray, shapes (n, n), (n, 1)
+    L : ndarray, shape (n, n)
+    K : ndarray, shape (G, n)
+        ``G`` gains [N m per unit of the state].
+
+    Returns
+    -------
+    ndarray, shape (G,)
+        The shares, in ``[0, 1]``.
+    """
+    n = A_d.shape[0]
+    G = len(K)
+    K = np.asarray(K, float)[:, None, :]  # (G, 1, n)
     rng = np.random.default_rng(seed)
-    G = len(grid)
     x, xh = np.zeros((G, windows, n)), np.zeros((G, windows, n))
     held = np.ones((G, windows), bool)
     flat = lambda a: a.reshape(G * windows, n)  # noqa: E731  (2-D products: one BLAS call each)
     for k in range(settle_steps + hold_steps):
         xh = xh + (flat(x + rng.normal(0.0, sigma, (windows, n)) - xh) @ L.T).reshape(G, windows, n)  # the filter's update
-        u = -np.sum(xh * K, axis=-1, keepdims=True)
+        u = np.clip(-np.sum(xh * K, axis=-1, keepdims=True), -u_max, u_max)
         # the plant's step and the filter's prediction
         x, xh = (flat(x) @ A_d.T).reshape(G, windows, n) + u * B_d.T, (flat(xh) @ A_d.T).reshape(G, windows, n) + u * B_d.T
         if k >= settle_steps:
             held &= np.all(np.abs(x[..., : n // 2]) <= tol, axis=-1)
-    return float(held.mean(axis=1).max())
+    return held.mean(axis=1)

@@ -569,15 +569,18 @@ def refine(x0, U, X_ref, K_ref, goal, S, w_u, W, P_T, Q, R, u_plan, driven, thet
 
 
 @njit
-def lqr_catches(x0, K, goal, u_max, driven, theta, dt, substeps, steps, tol):  # pragma: no cover - compiled
+def lqr_catches(x0, K, goal, u_max, driven, theta, dt, substeps, steps, tol, bound):  # pragma: no cover - compiled
     """Whether the saturated LQR ``u = clip(-K dx)`` brings ``x0`` within ``tol`` of upright (largest wrapped entry
-    [rad, rad/s]) and keeps it there for the last tenth of ``steps`` control steps, simulated on the map: one point of
-    the LQR's region of attraction under the torque limit, by simulation."""
+    [rad, rad/s]) and keeps it there for the last tenth of ``steps`` control steps, with neither angle ever more than
+    ``bound`` [rad] off upright on the way (``inf``: no bound), simulated on the map: one point of the LQR's region of
+    attraction under the torque limit, by simulation."""
     x0_, x1, x2, x3 = x0[0], x0[1], x0[2], x0[3]
     hold = max(1, steps // 10)
     for k in range(steps):
         d0, d1, d2, d3 = error4(x0_, x1, x2, x3, goal[0], goal[1], goal[2], goal[3])
         if k >= steps - hold and max(abs(d0), abs(d1), abs(d2), abs(d3)) > tol:
+            return False
+        if max(abs(d0), abs(d1)) > bound:
             return False
         u = min(max(-(K[0] * d0 + K[1] * d1 + K[2] * d2 + K[3] * d3), -u_max), u_max)
         x0_, x1, x2, x3 = step4(x0_, x1, x2, x3, u, driven, theta, dt, substeps)
