@@ -276,6 +276,8 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
             raise ValueError(f"hold_noise must be (angle, rate) standard deviations, positive, got {hold_noise!r}")
         self.Q_w_hold = np.diag(np.repeat(sigma, 2) ** 2)
         self.hold = hold_pays(self, getattr(unwrapped_env(env), "upright_tolerance", 0.1)) if hold is None else check.boolean(hold, "hold")
+        if self.hold and self.obs_noise <= 0:
+            raise ValueError("hold=True needs the filter (obs_noise > 0): its consistency test measures innovations in units of obs_noise")
         H = self.max_steps
         self.plan_size = H + 4 * (H + 1) + 4 * H
 

@@ -397,7 +397,8 @@ def test_a_batch_acts_as_each_member_alone():
                                     {"margin": 0.0}, {"margin": 1.5}, {"accept": 0.0}, {"funnel": np.nan}, {"drop": -0.3},
                                     {"track_r": 0.0}, {"w_x": -1.0}, {"retry": np.inf}, {"plan_step": 0.0}, {"plan_step": np.nan},
                                     {"plan_h": 0.0}, {"plan_h": -1.0}, {"hold": "yes"}, {"hold_q": (1.0, 1.0)}, {"hold_q": (1.0, -1.0, 1.0)},
-                                    {"hold_r": 0.0}, {"hold_noise": (1e-5, np.nan)}, {"hold_noise": 1e-5}])
+                                    {"hold_r": 0.0}, {"hold_noise": (1e-5, np.nan)}, {"hold_noise": 1e-5},
+                                    {"hold": True, "obs_noise": 0.0}])
 def test_bad_settings_are_refused_by_name(kwargs):
     with pytest.raises(ValueError, match=next(iter(kwargs))):
         PlannedSwingUp(gym.make("mbs_envs/Acrobot-v1"), **kwargs)
