@@ -189,7 +189,8 @@ class Score:
 
 def score(scene: str, name: str, entry: dict[str, Any] | None, seeds: list[int],
           conditions: tuple[Condition, ...] = TUNING_CONDITIONS, max_episode_steps: int | None = None) -> Score:  # fmt: skip
-    """Roll out one candidate on ``seeds`` under ``conditions`` (batched, one rollout per condition)."""
+    """Roll out one candidate on ``seeds`` under ``conditions`` (batched, one rollout per condition; a condition's
+    observation noise and input delay applied as the comparison applies them)."""
     env_id, kwargs, _ = SCENES[scene]
     scoring = registry.scene(scene).scoring
     nominal = gym.make(env_id, **kwargs)
@@ -199,7 +200,7 @@ def score(scene: str, name: str, entry: dict[str, Any] | None, seeds: list[int],
         extra = {} if max_episode_steps is None else {"max_episode_steps": max_episode_steps}
         venv = gym.make_vec(env_id, num_envs=len(seeds), vectorization_mode="vector_entry_point",
                             autoreset_mode="Disabled", **plant_kwargs(scene, cond), **extra)  # fmt: skip
-        episodes = rollout_batch(venv, policy, seeds)
+        episodes = rollout_batch(venv, policy, seeds, obs_noise=cond.obs_noise, noise_seed=1, delay=cond.delay)  # as the comparison
         venv.close()
         scored = [SCORING[scoring](ep) for ep in episodes]
         ok = [m[ERROR_METRIC[scoring]] for m, failed in scored if not failed]
