@@ -320,6 +320,28 @@ def test_a_balancing_member_holds_exactly_where_the_hold_lqrs_simulated_region_s
     assert np.abs(info["tracking_error"]).max() < 0.01
 
 
+def test_holding_members_of_a_batch_act_as_each_alone():
+    """The hold stage (its consistency test, gains and switches) is per member: two acrobots near upright, observed
+    with noise, one of them pushed by torque noise, give in a batch exactly the actions and memories each gives alone."""
+    envs = [gym.make("mbs_envs/Acrobot-v1", start_noise=0.0) for _ in range(2)]
+    ctrl = PlannedSwingUp(envs[0], plan_time=10.0)
+    obs = np.stack([env.reset(options={"q": GOAL[:2] + dq, "v": np.zeros(2)})[0] for env, dq in zip(envs, ([0.003, 0.0], [-0.002, 0.01]))])
+    rng = np.random.default_rng(1)
+    state, states, start, phases = None, [None, None], np.ones(2, bool), set()
+    for k in range(150):
+        seen = obs + rng.normal(0.0, 0.01, obs.shape).astype(obs.dtype)
+        action, state = ctrl.predict(seen, state=state, episode_start=start)
+        for i in range(2):
+            a_i, states[i] = ctrl.predict(seen[i], state=states[i], episode_start=bool(start[i]))
+            assert np.array_equal(a_i, action[i])
+            assert np.array_equal(states[i][0], state[0][i]) and np.array_equal(states[i][1], state[1][i])
+        start[:] = False
+        phases |= set(state[0][:, PHASE].tolist())
+        push = np.array([0.0, rng.normal(0.0, 0.18)])
+        obs = np.stack([env.step(np.clip(a + p, -1.0, 1.0))[0] for env, a, p in zip(envs, action, push)])
+    assert 3.0 in phases and 2.0 in phases
+
+
 @pytest.mark.parametrize("torque_noise", [0.0, 1.8])
 def test_the_hold_trusts_the_model_only_while_the_observations_agree_with_it(torque_noise):
     """The consistency test of the hold: on the model it identifies (here pinned to the nominal one by a strong prior:
