@@ -330,11 +330,7 @@ def test_holding_members_of_a_batch_act_as_each_alone():
     state, states, start, phases = None, [None, None], np.ones(2, bool), set()
     for k in range(150):
         seen = obs + rng.normal(0.0, 0.01, obs.shape).astype(obs.dtype)
-        action, state = ctrl.predict(seen, state=state, episode_start=start)
-        for i in range(2):
-            a_i, states[i] = ctrl.predict(seen[i], state=states[i], episode_start=bool(start[i]))
-            assert np.array_equal(a_i, action[i])
-            assert np.array_equal(states[i][0], state[0][i]) and np.array_equal(states[i][1], state[1][i])
+        action, state = predict_as_alone(ctrl, seen, state, states, start)
         start[:] = False
         phases |= set(state[0][:, PHASE].tolist())
         push = np.array([0.0, rng.normal(0.0, 0.18)])
@@ -398,6 +394,17 @@ def test_the_hold_pays_on_the_acrobot_and_not_on_the_pendubot():
     assert hold >= catch + 0.1 and hold >= best - 0.03
 
 
+def predict_as_alone(ctrl, obs, state, states, start):
+    """``ctrl.predict`` on the batch ``obs`` and on each member alone (``states[i]``, updated in place): asserts equal
+    actions and memories; returns the batch's ``(action, state)``."""
+    action, state = ctrl.predict(obs, state=state, episode_start=start)
+    for i in range(len(obs)):
+        a_i, states[i] = ctrl.predict(obs[i], state=states[i], episode_start=bool(start[i]))
+        assert np.array_equal(a_i, action[i])
+        assert np.array_equal(states[i][0], state[0][i]) and np.array_equal(states[i][1], state[1][i])
+    return action, state
+
+
 def test_a_batch_acts_as_each_member_alone():
     env_id = "mbs_envs/Pendubot-v1"
     ctrl = PlannedSwingUp(gym.make(env_id), plan_time=0.5)
@@ -405,11 +412,7 @@ def test_a_batch_acts_as_each_member_alone():
     obs, _ = venv.reset(seed=[4, 5])
     state, states, start = None, [None, None], np.ones(2, bool)
     for k in range(80):
-        action, state = ctrl.predict(obs, state=state, episode_start=start)
-        for i in range(2):
-            a_i, states[i] = ctrl.predict(obs[i], state=states[i], episode_start=bool(start[i]))
-            assert np.array_equal(a_i, action[i])
-            assert np.array_equal(states[i][0], state[0][i]) and np.array_equal(states[i][1], state[1][i])
+        action, state = predict_as_alone(ctrl, obs, state, states, start)
         start[:] = False
         obs, *_ = venv.step(action)
     assert (state[0][:, SINCE] < state[0][:, CLOCK]).all()  # both tried to plan (at 0.5 s), each alike alone
