@@ -13,6 +13,9 @@ Two figures for a 2R arm with one motor about upright, both on the linearization
   controller does.
 - :func:`noise_floor` -- **what observation noise allows**: the smallest stationary spread about upright any
   controller achieves with the observations noisy (the LQG optimum as the input weight vanishes).
+- :func:`hold_shares` (and :func:`lqg_hold_share`, the best of a grid of LQG controllers) -- **what observation noise
+  leaves of a hold**: the share of windows in which given gains with a given filter keep both angles within a
+  tolerance on the noisy linearization, by simulation (an estimate, not a bound).
 - :func:`estimate_region` -- **what a given feedback catches**, by simulation: states are
   drawn uniformly in a box about upright, then below the level found so far, and each is run in closed loop ``u = clip(-K x)`` on
   the discrete map the env integrates (:func:`controllers.control_map.fast_map`: compiled for the 2R arm), on every plant
