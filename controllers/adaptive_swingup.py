@@ -66,6 +66,12 @@ DELAY_EVIDENCE = 0.5
 RESTART_SIGMAS = 50.0
 
 
+def unwrapped_env(env: Any) -> Any:
+    """The env under Gymnasium's wrappers (and under an adapter's ``env``)."""
+    unwrapped = env.unwrapped
+    return getattr(unwrapped, "env", unwrapped)
+
+
 class AdaptiveSwingUpLQR(SwingUpLQR):
     """:class:`SwingUpLQR` on the base parameters identified online (module docstring).
 
@@ -112,8 +118,7 @@ class AdaptiveSwingUpLQR(SwingUpLQR):
             raise ValueError(f"process_noise must be ((angle, rate) balancing, (angle, rate) swinging), positive, got {process_noise!r}")
         self.Q_w = np.array([np.diag(np.repeat(row, 2) ** 2) for row in sigma])  # (2, 4, 4): balancing, swinging
         self.R_n = self.obs_noise**2 * np.eye(4)
-        unwrapped = env.unwrapped
-        unwrapped = getattr(unwrapped, "env", unwrapped)
+        unwrapped = unwrapped_env(env)
         self.dt, self.substeps = float(unwrapped.dt), int(getattr(unwrapped, "substeps", 1))
         self.prior_weight = check.positive(prior, "prior")
         self.theta0 = ident.base_parameters(self.model.params)

@@ -20,8 +20,9 @@ Per member of the batch, in three phases:
    innovations grow past it goes back to the upright LQR, so torque noise, a lagging or late input or a wrong model
    do not meet a filter that trusts the model), a balancing member switches to it: an LQR designed to keep both
    angles within the success tolerance under observation noise rather than to catch, with the filter's process
-   noise lowered to its hold setting (the model is trusted near upright). Its weights (the passive angle 100, the driven 1, the rates 0.1, the input 1e-3) are among the LQG
-   controllers that, on the acrobot's linearization observed with noise 0.01 (the filter's assumed ``obs_noise``),
+   noise lowered to its hold setting (the model is trusted near upright). Its weights (the passive angle 100, the
+   driven 1, the rates 0.1, the input 1e-3) are among the LQG controllers that, on the acrobot's linearization
+   observed with noise 0.01 (the filter's assumed ``obs_noise``),
    hold both angles within 0.1 rad for 2 s in the most windows (:func:`controllers.region.hold_shares`, 2,000
    windows: 39 % with the steady Kalman filter, against 26-30 % for the upright LQR's ``diag(10, 10, 1, 1)``, ``R =
    10``, with that filter or the balancing one). Where an angle is more than ``drop`` off upright the member plans
@@ -78,7 +79,7 @@ from . import trajectory as traj
 from .base import care
 from .swingup import upright_linearization
 from .control_map import fast_map, state_error
-from .adaptive_swingup import K_, MODE, S_, STATE_SIZE, THETA, XH, AdaptiveSwingUpLQR
+from .adaptive_swingup import K_, MODE, S_, STATE_SIZE, THETA, XH, AdaptiveSwingUpLQR, unwrapped_env
 
 #: columns after the adaptive controller's: phase (0 pump, 1 track, 2 balance, 3 hold), step in the plan, plan length,
 #: steps since the episode started, steps since the last plan (or attempt), the hold LQR's gain (4)
@@ -133,12 +134,6 @@ HOLD_GAIN = 0.05
 #: the consistency test of the hold: the running mean's time constant [s] and the limit above which the model is not
 #: trusted (the member balances, or goes back to balancing)
 NIS_TAU, NIS_LIMIT = 0.5, 3.0
-
-
-def unwrapped_env(env: Any) -> Any:
-    """The env under Gymnasium's wrappers (and under an adapter's ``env``)."""
-    unwrapped = env.unwrapped
-    return getattr(unwrapped, "env", unwrapped)
 
 
 def hold_pays(ctrl: Any, tol: float, windows: int = 1000, seed: int = 0) -> bool:
