@@ -90,8 +90,8 @@ def work_arrays(N):  # pragma: no cover - compiled
     """The work arrays of one member, views of one allocation made once per kernel call: frames ``R (N, 3, 3)``,
     joint positions ``p``, axes ``z``, centres ``c`` ``(N, 3)``, world inertias about the centres ``Ic (N, 3, 3)``,
     motion subspaces ``S (N, 6)``; the ABA's articulated inertia and the child's ``(2, 6, 6)``, bias forces
-    ``pA``, velocity products ``cb``, ``U (N, 6)``, ``D``, ``u (N,)``; RNEA's forces ``F (N, 6)``; the joint
-    angles' sines and cosines ``(N,)``; the ABA's child bias force and ``IA c`` ``(2, 6)``; the rotation and its
+    ``pA``, ``U (N, 6)``, ``D``, ``u (N,)``; RNEA's forces ``F (N, 6)``; the joint angles' sines and cosines
+    ``(N,)``; the ABA's child bias force (and CRBA's ``Ic S``) ``(2, 6)``; the rotation and its
     product ``(2, 3, 3)`` of :func:`frames_into`; the recursions' spatial vectors ``(4, 6)``."""
     return _work_views(np.empty(work_size(N)), N)
 
@@ -99,7 +99,7 @@ def work_arrays(N):  # pragma: no cover - compiled
 @njit(inline="always")
 def work_size(N):  # pragma: no cover - compiled
     """The doubles :func:`work_arrays` takes for ``N`` links."""
-    return 18 * N + 9 * N + 30 * N + 4 * N + 72 + 12 + 18 + 24
+    return 18 * N + 9 * N + 24 * N + 4 * N + 72 + 12 + 18 + 24
 
 
 @njit(inline="always")
@@ -109,8 +109,8 @@ def _work_views(buf, N):  # pragma: no cover - compiled
     o = 18 * N
     P = buf[o : o + 9 * N].reshape((3, N, 3))
     o += 9 * N
-    F = buf[o : o + 30 * N].reshape((5, N, 6))
-    o += 30 * N
+    F = buf[o : o + 24 * N].reshape((4, N, 6))
+    o += 24 * N
     s = buf[o : o + 4 * N].reshape((4, N))
     o += 4 * N
     IA = buf[o : o + 72].reshape((2, 6, 6))
@@ -121,19 +121,27 @@ def _work_views(buf, N):  # pragma: no cover - compiled
     o += 18
     VA = buf[o : o + 24].reshape((4, 6))
     return (R[0], P[0], P[1], P[2], R[1], F[0],
-            IA, F[1], F[2], F[3], s[0], s[1],
-            F[4], s[2], s[3], pa, JT, VA)  # fmt: skip
+            IA, F[1], F[2], s[0], s[1],
+            F[3], s[2], s[3], pa, JT, VA)  # fmt: skip
+
+
+@njit(inline="always")
+def _diagonal(inertia, i):  # pragma: no cover - compiled
+    """Whether link ``i``'s inertia tensor is diagonal (it is symmetric by validation): ``inertia R^T`` is then a
+    scaling (the terms the full product would add are zeros)."""
+    return inertia[i, 0, 1] == 0.0 and inertia[i, 0, 2] == 0.0 and inertia[i, 1, 2] == 0.0
 
 
 @njit(_nrt=False)
 def frames_into(q, axis, offset, com, inertia, w):  # pragma: no cover - compiled
     """Forward kinematics into the work arrays ``w`` (:func:`work_arrays`): ``R_i = R_{i-1} Rot(a_i, q_i)``,
     ``p_i = p_{i-1} + R_{i-1} offset_i``, ``z_i = R_{i-1} a_i`` (= ``R_i a_i``: a rotation keeps its axis),
-    ``c_i = p_i + R_i com_i``, ``S_i = (z_i, p_i x z_i)``, ``Ic_i = R_i inertia_i R_i^T`` (two 3 x 3 products);
+    ``c_i = p_i + R_i com_i``, ``S_i = (z_i, p_i x z_i)``, ``Ic_i = R_i inertia_i R_i^T`` (two 3 x 3 products, the
+    second on the upper triangle; the first a scaling where ``inertia_i`` is diagonal, as the default rods');
     the sines and cosines of ``q`` by :func:`mbs_envs.dynamics.trig.sincos_columns` (1 ulp of libm's)."""
-    R, p, z, c, Ic, S, sn, cs = w[0], w[1], w[2], w[3], w[4], w[5], w[13], w[14]
+    R, p, z, c, Ic, S, sn, cs = w[0], w[1], w[2], w[3], w[4], w[5], w[12], w[13]
     N = q.shape[0]
-    J, T = w[16][0], w[16][1]
+    J, T = w[15][0], w[15][1]
     sincos_columns(q, sn, cs)  # one SIMD pass (libm for arguments out of its range)
     for i in range(N):
         J[0, 0], J[0, 1], J[0, 2], J[1, 0], J[1, 1], J[1, 2], J[2, 0], J[2, 1], J[2, 2] = _rot_entries(
@@ -156,12 +164,19 @@ def frames_into(q, axis, offset, com, inertia, w):  # pragma: no cover - compile
         S[i, 3] = p[i, 1] * z[i, 2] - p[i, 2] * z[i, 1]
         S[i, 4] = p[i, 2] * z[i, 0] - p[i, 0] * z[i, 2]
         S[i, 5] = p[i, 0] * z[i, 1] - p[i, 1] * z[i, 0]
-        for r in range(3):  # T = inertia R^T
-            for k in range(3):
-                T[r, k] = inertia[i, r, 0] * R[i, k, 0] + inertia[i, r, 1] * R[i, k, 1] + inertia[i, r, 2] * R[i, k, 2]
-        for r in range(3):  # Ic = R T
-            for k in range(3):
-                Ic[i, r, k] = R[i, r, 0] * T[0, k] + R[i, r, 1] * T[1, k] + R[i, r, 2] * T[2, k]
+        if _diagonal(inertia, i):  # T = inertia R^T
+            for r in range(3):
+                for k in range(3):
+                    T[r, k] = inertia[i, r, r] * R[i, k, r]
+        else:
+            for r in range(3):
+                for k in range(3):
+                    T[r, k] = inertia[i, r, 0] * R[i, k, 0] + inertia[i, r, 1] * R[i, k, 1] + inertia[i, r, 2] * R[i, k, 2]
+        for r in range(3):  # Ic = R T, the upper triangle mirrored
+            for k in range(r, 3):
+                x = R[i, r, 0] * T[0, k] + R[i, r, 1] * T[1, k] + R[i, r, 2] * T[2, k]
+                Ic[i, r, k] = x
+                Ic[i, k, r] = x
 
 
 @njit(inline="always")
@@ -219,8 +234,8 @@ def rnea_into(q, v, a, axis, offset, com, inertia, m, armature, g_vec, gravity, 
     leaves ``G`` out. Each body's force in 3 x 3 form (:func:`_body_force`)."""
     N = q.shape[0]
     frames_into(q, axis, offset, com, inertia, w)
-    c, Ic, S, F = w[3], w[4], w[5], w[12]
-    VA = w[17]
+    c, Ic, S, F = w[3], w[4], w[5], w[11]
+    VA = w[16]
     VA[:, :] = 0.0
     V, A, Sv, tmp = VA[0], VA[1], VA[2], VA[3]
     if gravity:
@@ -249,7 +264,7 @@ def crba_into(q, axis, offset, com, inertia, m, armature, w, M):  # pragma: no c
     c, Ic, S = w[3], w[4], w[5]
     Icomp, I = w[6][0], w[6][1]  # noqa: E741
     Icomp[:, :] = 0.0
-    F = w[15]
+    F = w[14]
     for j in range(N - 1, -1, -1):
         spatial_inertia_into(m[j], c, Ic, j, I)
         for r in range(6):
@@ -270,26 +285,34 @@ def crba_into(q, axis, offset, com, inertia, m, armature, w, M):  # pragma: no c
 def aba_into(q, v, tau, axis, offset, com, inertia, m, armature, g_vec, w, acc):  # pragma: no cover - compiled
     """Accelerations ``M^-1 (tau - C v - G)`` by the ABA (module docstring), written into ``acc (N,)``.
 
-    The inward pass carries one 6 x 6 articulated inertia and one bias force from child to parent
-    (``IA_i = I_i + Ia_{i+1}``, ``pA_i = V_i x* I_i V_i + pa_{i+1}``), using their symmetry: ``U_i = IA_i S_i``
-    and ``IA_i c_i`` in one pass over ``IA_i``, ``Ia_i = IA_i - U_i U_i^T / D_i`` on the upper triangle,
-    ``pa_i = pA_i + IA_i c_i - U_i (U_i^T c_i - u_i) / D_i``."""
+    The velocity products enter through the **bias accelerations** ``A0_i = A0_{i-1} + c_i`` (``A0_{-1} = (0,
+    -g_vec)``: each body's acceleration at ``a = 0``, gravity included): the bias force ``pA_i = I_i A0_i + V_i x*
+    I_i V_i`` is the body's force at that acceleration, so the accelerations relative to it, ``dA_i = dA_{i-1} +
+    S_i a_i`` (``dA_{-1} = 0``), follow from the articulated inertias alone: ``F_i = IA_i dA_i + pA_i``, passed to
+    the parent as ``Ia_i = IA_i - U_i U_i^T / D_i`` and ``pa_i = pA_i + U_i u_i / D_i``; forwards ``a_i = (u_i -
+    U_i^T dA_{i-1}) / D_i``. (Featherstone's form with ``c_i`` in the inward pass, ``pa_i = pA_i + Ia_i c_i +
+    U_i u_i / D_i``, costs a 6 x 6 product per link more.) ``Ia_i`` on its upper triangle, mirrored."""
     N = q.shape[0]
     frames_into(q, axis, offset, com, inertia, w)
-    c, Ic, S, pA, cb, U, D, u = w[3], w[4], w[5], w[7], w[8], w[9], w[10], w[11]
-    VA = w[17]
+    c, Ic, S, pA, U, D, u = w[3], w[4], w[5], w[7], w[8], w[9], w[10]
+    VA = w[16]
     VA[:3, :] = 0.0
     V, Sv, A = VA[0], VA[1], VA[2]
+    A[3], A[4], A[5] = -g_vec[0], -g_vec[1], -g_vec[2]
     for i in range(N):
         for k in range(6):
             Sv[k] = S[i, k] * v[i]
             V[k] += Sv[k]
-        cb[i, 0], cb[i, 1], cb[i, 2], cb[i, 3], cb[i, 4], cb[i, 5] = _cross_motion_entries(
-            V[0], V[1], V[2], V[3], V[4], V[5], Sv[0], Sv[1], Sv[2], Sv[3], Sv[4], Sv[5])
-        # the bias force V x* I V: the body's force at zero spatial acceleration
-        _body_force(m[i], c, Ic, i, V[0], V[1], V[2], V[3], V[4], V[5], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, pA)
+        c0, c1, c2, c3, c4, c5 = _cross_motion_entries(V[0], V[1], V[2], V[3], V[4], V[5], Sv[0], Sv[1], Sv[2], Sv[3], Sv[4], Sv[5])
+        A[0] += c0
+        A[1] += c1
+        A[2] += c2
+        A[3] += c3
+        A[4] += c4
+        A[5] += c5
+        _body_force(m[i], c, Ic, i, V[0], V[1], V[2], V[3], V[4], V[5], A[0], A[1], A[2], A[3], A[4], A[5], pA)
     IA, Ia = w[6][0], w[6][1]  # the link's articulated inertia, and its child's as passed up
-    pa, Ac = w[15][0], w[15][1]
+    pa = w[14][0]
     Ia[:] = 0.0
     pa[:] = 0.0
     for i in range(N - 1, -1, -1):
@@ -299,12 +322,9 @@ def aba_into(q, v, tau, axis, offset, com, inertia, m, armature, g_vec, w, acc):
                 IA[r, k] += Ia[r, k]
         for r in range(6):
             x = 0.0
-            y = 0.0
             for k in range(6):
                 x += IA[r, k] * S[i, k]
-                y += IA[r, k] * cb[i, k]
             U[i, r] = x
-            Ac[r] = y
         D[i] = _dot6(S, i, U, i) + armature[i]
         for k in range(6):
             pA[i, k] += pa[k]
@@ -317,13 +337,11 @@ def aba_into(q, v, tau, axis, offset, com, inertia, m, armature, g_vec, w, acc):
                     x = IA[r, k] - ur * U[i, k]
                     Ia[r, k] = x
                     Ia[k, r] = x
-            s_ = (_dot6(U, i, cb, i) - u[i]) * inv
+            s_ = u[i] * inv
             for k in range(6):
-                pa[k] = pA[i, k] + Ac[k] - U[i, k] * s_
-    A[3], A[4], A[5] = -g_vec[0], -g_vec[1], -g_vec[2]
+                pa[k] = pA[i, k] + U[i, k] * s_
+    A[:] = 0.0
     for i in range(N):
-        for k in range(6):
-            A[k] += cb[i, k]
         acc[i] = (u[i] - (U[i, 0] * A[0] + U[i, 1] * A[1] + U[i, 2] * A[2] + U[i, 3] * A[3] + U[i, 4] * A[4]
                           + U[i, 5] * A[5])) / D[i]  # fmt: skip
         for k in range(6):
@@ -337,7 +355,7 @@ def energy_member(q, v, axis, offset, com, inertia, m, armature, g_vec, w):  # p
     N = q.shape[0]
     frames_into(q, axis, offset, com, inertia, w)
     c, Ic, S = w[3], w[4], w[5]
-    Vel = w[17][0]
+    Vel = w[16][0]
     Vel[:] = 0.0
     T = 0.0
     U = 0.0
@@ -512,7 +530,7 @@ def _acceleration_members(q, v, tau, theta, buf, a):  # pragma: no cover - compi
             a[i, k] = acc[i]
 
 
-#: members per tile of :func:`aba_tiles` (the tile's work arrays, about 53 N TILE doubles, stay in L2 to N ~ 100)
+#: members per tile of :func:`aba_tiles` (the tile's work arrays, about 32 N TILE doubles, stay in L2 to N ~ 200)
 TILE = 32
 
 
@@ -538,69 +556,79 @@ def aba_tiles(q, v, tau, axis, offset, com, inertia, m, armature, b, g_vec, a): 
     N, B = q.shape
     W = TILE
     sn, cs, net = np.empty((N, W)), np.empty((N, W)), np.empty((N, W))
-    R, Ic = np.empty((N, 3, 3, W)), np.empty((N, 3, 3, W))
-    p, z, c = np.empty((N, 3, W)), np.empty((N, 3, W)), np.empty((N, 3, W))
-    S, pA, cb, U = np.empty((N, 6, W)), np.empty((N, 6, W)), np.empty((N, 6, W)), np.empty((N, 6, W))
+    R, p, z, T = np.empty((3, 3, W)), np.empty((3, W)), np.empty((3, W)), np.empty((3, 3, W))  # link i's frame
+    c, Ic = np.empty((N, 3, W)), np.empty((N, 6, W))  # Ic by its upper triangle, row by row
+    S, pA, U = np.empty((N, 6, W)), np.empty((N, 6, W)), np.empty((N, 6, W))
     D, u = np.empty((N, W)), np.empty((N, W))
-    T = np.empty((3, 3, W))
-    V, Sv, pa, Ac, A = np.empty((6, W)), np.empty((6, W)), np.empty((6, W)), np.empty((6, W)), np.empty((6, W))
+    V, A, pa = np.empty((6, W)), np.empty((6, W)), np.empty((6, W))
     IA, Ia = np.empty((6, 6, W)), np.empty((6, 6, W))
     for b0 in range(0, B - B % W, W):
         for i in range(N):
             sincos_columns(q[i, b0 : b0 + W], sn[i], cs[i])
             for l in range(W):
                 net[i, l] = tau[i, b0 + l] - b[i] * v[i, b0 + l]
-        # frames_into, lane by lane: one pass per link for the frame, one for what follows from it
+        for l in range(W):
+            for k in range(6):
+                V[k, l] = 0.0
+            A[0, l], A[1, l], A[2, l] = 0.0, 0.0, 0.0
+            A[3, l], A[4, l], A[5, l] = -g_vec[0], -g_vec[1], -g_vec[2]
+        # outwards, one link at a time: frames_into's frame, then aba_into's velocities, bias accelerations and forces
         for i in range(N):
             x, y, zz = axis[i, 0], axis[i, 1], axis[i, 2]
+            o0, o1, o2 = offset[i, 0], offset[i, 1], offset[i, 2]
             if i == 0:
                 for l in range(W):
                     J00, J01, J02, J10, J11, J12, J20, J21, J22 = _rot_entries(x, y, zz, sn[i, l], cs[i, l])
-                    p[i, 0, l], p[i, 1, l], p[i, 2, l] = offset[i, 0], offset[i, 1], offset[i, 2]
-                    z[i, 0, l], z[i, 1, l], z[i, 2, l] = x, y, zz
-                    R[i, 0, 0, l], R[i, 0, 1, l], R[i, 0, 2, l] = J00, J01, J02
-                    R[i, 1, 0, l], R[i, 1, 1, l], R[i, 1, 2, l] = J10, J11, J12
-                    R[i, 2, 0, l], R[i, 2, 1, l], R[i, 2, 2, l] = J20, J21, J22
+                    p[0, l], p[1, l], p[2, l] = o0, o1, o2
+                    z[0, l], z[1, l], z[2, l] = x, y, zz
+                    R[0, 0, l], R[0, 1, l], R[0, 2, l] = J00, J01, J02
+                    R[1, 0, l], R[1, 1, l], R[1, 2, l] = J10, J11, J12
+                    R[2, 0, l], R[2, 1, l], R[2, 2, l] = J20, J21, J22
             else:
-                o0, o1, o2 = offset[i, 0], offset[i, 1], offset[i, 2]
                 for l in range(W):
                     J00, J01, J02, J10, J11, J12, J20, J21, J22 = _rot_entries(x, y, zz, sn[i, l], cs[i, l])
+                    for r in range(3):  # row r of R_i from row r of R_{i-1}, in place
+                        a0, a1, a2 = R[r, 0, l], R[r, 1, l], R[r, 2, l]
+                        p[r, l] = p[r, l] + a0 * o0 + a1 * o1 + a2 * o2
+                        z[r, l] = a0 * x + a1 * y + a2 * zz
+                        R[r, 0, l] = a0 * J00 + a1 * J10 + a2 * J20
+                        R[r, 1, l] = a0 * J01 + a1 * J11 + a2 * J21
+                        R[r, 2, l] = a0 * J02 + a1 * J12 + a2 * J22
+            if _diagonal(inertia, i):
+                for l in range(W):
                     for r in range(3):
-                        a0, a1, a2 = R[i - 1, r, 0, l], R[i - 1, r, 1, l], R[i - 1, r, 2, l]
-                        p[i, r, l] = p[i - 1, r, l] + a0 * o0 + a1 * o1 + a2 * o2
-                        z[i, r, l] = a0 * x + a1 * y + a2 * zz
-                        R[i, r, 0, l] = a0 * J00 + a1 * J10 + a2 * J20
-                        R[i, r, 1, l] = a0 * J01 + a1 * J11 + a2 * J21
-                        R[i, r, 2, l] = a0 * J02 + a1 * J12 + a2 * J22
-            for l in range(W):
-                for r in range(3):
-                    c[i, r, l] = p[i, r, l] + R[i, r, 0, l] * com[i, 0] + R[i, r, 1, l] * com[i, 1] + R[i, r, 2, l] * com[i, 2]
-                S[i, 0, l], S[i, 1, l], S[i, 2, l] = z[i, 0, l], z[i, 1, l], z[i, 2, l]
-                S[i, 3, l] = p[i, 1, l] * z[i, 2, l] - p[i, 2, l] * z[i, 1, l]
-                S[i, 4, l] = p[i, 2, l] * z[i, 0, l] - p[i, 0, l] * z[i, 2, l]
-                S[i, 5, l] = p[i, 0, l] * z[i, 1, l] - p[i, 1, l] * z[i, 0, l]
-                for r in range(3):
-                    for k in range(3):
-                        T[r, k, l] = inertia[i, r, 0] * R[i, k, 0, l] + inertia[i, r, 1] * R[i, k, 1, l] + inertia[i, r, 2] * R[i, k, 2, l]
-                for r in range(3):
-                    for k in range(3):
-                        Ic[i, r, k, l] = R[i, r, 0, l] * T[0, k, l] + R[i, r, 1, l] * T[1, k, l] + R[i, r, 2, l] * T[2, k, l]
-        # aba_into: velocities, velocity products and bias forces outwards
-        V[:, :] = 0.0
-        for i in range(N):
+                        for k in range(3):
+                            T[r, k, l] = inertia[i, r, r] * R[k, r, l]
+            else:
+                for l in range(W):
+                    for r in range(3):
+                        for k in range(3):
+                            T[r, k, l] = inertia[i, r, 0] * R[k, 0, l] + inertia[i, r, 1] * R[k, 1, l] + inertia[i, r, 2] * R[k, 2, l]
             mi = m[i]
             for l in range(W):
-                for k in range(6):
-                    Sv[k, l] = S[i, k, l] * v[i, b0 + l]
-                    V[k, l] += Sv[k, l]
-                w0, w1, w2, v0, v1, v2 = V[0, l], V[1, l], V[2, l], V[3, l], V[4, l], V[5, l]
-                cb[i, 0, l], cb[i, 1, l], cb[i, 2, l], cb[i, 3, l], cb[i, 4, l], cb[i, 5, l] = _cross_motion_entries(
-                    w0, w1, w2, v0, v1, v2, Sv[0, l], Sv[1, l], Sv[2, l], Sv[3, l], Sv[4, l], Sv[5, l])
-                # the bias force V x* I V: the body's force at zero spatial acceleration
+                for r in range(3):
+                    c[i, r, l] = p[r, l] + R[r, 0, l] * com[i, 0] + R[r, 1, l] * com[i, 1] + R[r, 2, l] * com[i, 2]
+                S[i, 0, l], S[i, 1, l], S[i, 2, l] = z[0, l], z[1, l], z[2, l]
+                S[i, 3, l] = p[1, l] * z[2, l] - p[2, l] * z[1, l]
+                S[i, 4, l] = p[2, l] * z[0, l] - p[0, l] * z[2, l]
+                S[i, 5, l] = p[0, l] * z[1, l] - p[1, l] * z[0, l]
+                for r in range(3):
+                    for k in range(r, 3):
+                        Ic[i, _SYM[r][k], l] = R[r, 0, l] * T[0, k, l] + R[r, 1, l] * T[1, k, l] + R[r, 2, l] * T[2, k, l]
+                vi = v[i, b0 + l]
+                Sv0, Sv1, Sv2 = S[i, 0, l] * vi, S[i, 1, l] * vi, S[i, 2, l] * vi
+                Sv3, Sv4, Sv5 = S[i, 3, l] * vi, S[i, 4, l] * vi, S[i, 5, l] * vi
+                w0, w1, w2 = V[0, l] + Sv0, V[1, l] + Sv1, V[2, l] + Sv2
+                v0, v1, v2 = V[3, l] + Sv3, V[4, l] + Sv4, V[5, l] + Sv5
+                V[0, l], V[1, l], V[2, l], V[3, l], V[4, l], V[5, l] = w0, w1, w2, v0, v1, v2
+                c0, c1, c2, c3, c4, c5 = _cross_motion_entries(w0, w1, w2, v0, v1, v2, Sv0, Sv1, Sv2, Sv3, Sv4, Sv5)
+                al0, al1, al2 = A[0, l] + c0, A[1, l] + c1, A[2, l] + c2
+                ac0, ac1, ac2 = A[3, l] + c3, A[4, l] + c4, A[5, l] + c5
+                A[0, l], A[1, l], A[2, l], A[3, l], A[4, l], A[5, l] = al0, al1, al2, ac0, ac1, ac2
+                I00, I01, I02, I11, I12, I22 = Ic[i, 0, l], Ic[i, 1, l], Ic[i, 2, l], Ic[i, 3, l], Ic[i, 4, l], Ic[i, 5, l]
                 pA[i, 0, l], pA[i, 1, l], pA[i, 2, l], pA[i, 3, l], pA[i, 4, l], pA[i, 5, l] = _body_force_entries(
-                    mi, c[i, 0, l], c[i, 1, l], c[i, 2, l], Ic[i, 0, 0, l], Ic[i, 0, 1, l], Ic[i, 0, 2, l], Ic[i, 1, 0, l],
-                    Ic[i, 1, 1, l], Ic[i, 1, 2, l], Ic[i, 2, 0, l], Ic[i, 2, 1, l], Ic[i, 2, 2, l],
-                    w0, w1, w2, v0, v1, v2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+                    mi, c[i, 0, l], c[i, 1, l], c[i, 2, l], I00, I01, I02, I01, I11, I12, I02, I12, I22,
+                    w0, w1, w2, v0, v1, v2, al0, al1, al2, ac0, ac1, ac2,
                 )  # fmt: skip
         # articulated inertias and bias forces inwards
         Ia[:, :, :] = 0.0
@@ -612,7 +640,7 @@ def aba_tiles(q, v, tau, axis, offset, com, inertia, m, armature, b, g_vec, a): 
                 cc = cx * cx + cy * cy + cz * cz
                 for r in range(3):
                     for k in range(3):
-                        IA[r, k, l] = (Ic[i, r, k, l] + mi * ((cc if r == k else 0.0) - c[i, r, l] * c[i, k, l])) + Ia[r, k, l]
+                        IA[r, k, l] = (Ic[i, _SYM[r][k], l] + mi * ((cc if r == k else 0.0) - c[i, r, l] * c[i, k, l])) + Ia[r, k, l]
                         IA[3 + r, 3 + k, l] = (mi if r == k else 0.0) + Ia[3 + r, 3 + k, l]
                 mc0 = (0.0, -mi * cz, mi * cy)  # the block m [c]x, by rows; its transpose below (Ia is symmetric)
                 mc1 = (mi * cz, 0.0, -mi * cx)
@@ -627,12 +655,9 @@ def aba_tiles(q, v, tau, axis, offset, com, inertia, m, armature, b, g_vec, a): 
             for r in range(6):
                 for l in range(W):
                     x = 0.0
-                    y = 0.0
                     for k in range(6):
                         x += IA[r, k, l] * S[i, k, l]
-                        y += IA[r, k, l] * cb[i, k, l]
                     U[i, r, l] = x
-                    Ac[r, l] = y
             for l in range(W):
                 D[i, l] = (S[i, 0, l] * U[i, 0, l] + S[i, 1, l] * U[i, 1, l] + S[i, 2, l] * U[i, 2, l] + S[i, 3, l] * U[i, 3, l]
                            + S[i, 4, l] * U[i, 4, l] + S[i, 5, l] * U[i, 5, l]) + armature[i]  # fmt: skip
@@ -649,23 +674,24 @@ def aba_tiles(q, v, tau, axis, offset, com, inertia, m, armature, b, g_vec, a): 
                             x = IA[r, k, l] - ur * U[i, k, l]
                             Ia[r, k, l] = x
                             Ia[k, r, l] = x
-                    s_ = ((U[i, 0, l] * cb[i, 0, l] + U[i, 1, l] * cb[i, 1, l] + U[i, 2, l] * cb[i, 2, l] + U[i, 3, l] * cb[i, 3, l]
-                           + U[i, 4, l] * cb[i, 4, l] + U[i, 5, l] * cb[i, 5, l]) - u[i, l]) * inv  # fmt: skip
+                    s_ = u[i, l] * inv
                     for k in range(6):
-                        pa[k, l] = pA[i, k, l] + Ac[k, l] - U[i, k, l] * s_
-        # accelerations outwards
+                        pa[k, l] = pA[i, k, l] + U[i, k, l] * s_
+        # accelerations outwards, relative to the bias accelerations
         for l in range(W):
-            A[0, l], A[1, l], A[2, l] = 0.0, 0.0, 0.0
-            A[3, l], A[4, l], A[5, l] = -g_vec[0], -g_vec[1], -g_vec[2]
+            for k in range(6):
+                A[k, l] = 0.0
         for i in range(N):
             for l in range(W):
-                for k in range(6):
-                    A[k, l] += cb[i, k, l]
                 acc = (u[i, l] - (U[i, 0, l] * A[0, l] + U[i, 1, l] * A[1, l] + U[i, 2, l] * A[2, l] + U[i, 3, l] * A[3, l]
                                   + U[i, 4, l] * A[4, l] + U[i, 5, l] * A[5, l])) / D[i, l]  # fmt: skip
                 a[i, b0 + l] = acc
                 for k in range(6):
                     A[k, l] += S[i, k, l] * acc
+
+
+#: the upper triangle's index of entry ``(r, k)`` of a symmetric 3 x 3 stored as ``00 01 02 11 12 22``
+_SYM = ((0, 1, 2), (1, 3, 4), (2, 4, 5))
 
 
 @njit

@@ -230,16 +230,22 @@ def test_aba_and_rnea_scale_linearly():
     assert np.all(ratios <= 12), ratios
 
 
-@pytest.mark.parametrize("n", [1, 2, 7, 10, 50])
-def test_tiled_aba_gives_each_member_the_bits_of_the_member_by_member_aba(n):
+@pytest.mark.parametrize("n, full", [(1, False), (2, False), (7, False), (10, False), (50, False), (2, True), (7, True)])
+def test_tiled_aba_gives_each_member_the_bits_of_the_member_by_member_aba(n, full):
     """The vector env's kernel with shared parameters runs members in SIMD tiles (``aba_tiles``); each member's
     result is the member-by-member ``aba_into``'s bit for bit, for batches that fill tiles and leave a remainder, at states
-    beyond the fast sine's range (its libm fallback) and with damping."""
+    beyond the fast sine's range (its libm fallback) and with damping; with the default rods' diagonal inertia
+    tensors (a scaling in the frames) and with full ones (``full``: random, some links' diagonal)."""
     from mbs_envs.dynamics.compiled import batch_theta
     from mbs_envs.models.spatial_chain import TILE, acceleration_kernel, tiled_acceleration_kernel
 
     rng = np.random.default_rng(n)
-    chain = SpatialChain(n_links=n, params={"b": 0.3})
+    params = {"b": 0.3}
+    if full:
+        L = rng.normal(size=(n, 3, 3)) * 0.1
+        params["inertia"] = L @ np.swapaxes(L, 1, 2) + 0.01 * np.eye(3)
+        params["inertia"][0] = np.diag([0.01, 0.02, 0.03])
+    chain = SpatialChain(n_links=n, params=params)
     theta = batch_theta(chain, 1)
     for B in (2, TILE, 2 * TILE + 5):
         q = rng.uniform(-4, 4, (n, B))
