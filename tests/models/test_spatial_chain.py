@@ -45,9 +45,16 @@ def pinocchio_model(chain: SpatialChain):
 
 
 @pytest.mark.parametrize("n", [1, 2, 7, pytest.param(50, marks=pytest.mark.slow), pytest.param(500, marks=pytest.mark.slow)])  # 50, 500: the slow set (scripts/bench_chain.py checks N = 500 on every run)
-def test_agrees_with_pinocchio(n):
+@pytest.mark.parametrize("axes", ["random", "coordinate"])
+def test_agrees_with_pinocchio(n, axes):
+    """Random chains, with random joint axes (the full rotation) or coordinate axes of either sign (the frames'
+    two-column turn, ``_coordinate_axis``)."""
     rng = np.random.default_rng(n)
     chain = random_chain(n, rng)
+    if axes == "coordinate":
+        axis = np.zeros((n, 3))
+        axis[np.arange(n), rng.integers(0, 3, n)] = rng.choice([-1.0, 1.0], n)
+        chain = SpatialChain(params=chain.params.replace(axis=axis))
     pin, model, data = pinocchio_model(chain)
     for _ in range(3):
         q, v, a = rng.normal(size=(3, n)) * 2
@@ -234,8 +241,9 @@ def test_aba_and_rnea_scale_linearly():
 def test_tiled_aba_gives_each_member_the_bits_of_the_member_by_member_aba(n, full):
     """The vector env's kernel with shared parameters runs members in SIMD tiles (``aba_tiles``); each member's
     result is the member-by-member ``aba_into``'s bit for bit, for batches that fill tiles and leave a remainder, at states
-    beyond the fast sine's range (its libm fallback) and with damping; with the default rods' diagonal inertia
-    tensors (a scaling in the frames) and with full ones (``full``: random, some links' diagonal)."""
+    beyond the fast sine's range (its libm fallback) and with damping; with the default chain (joints about z and y,
+    turning two columns of the frame; the rods' diagonal inertia tensors, a scaling) and with ``full`` ones (random
+    axes and inertia tensors, the first link's axis -x and inertia diagonal, the last's axis -y)."""
     from mbs_envs.dynamics.compiled import batch_theta
     from mbs_envs.models.spatial_chain import TILE, acceleration_kernel, tiled_acceleration_kernel
 
@@ -245,6 +253,8 @@ def test_tiled_aba_gives_each_member_the_bits_of_the_member_by_member_aba(n, ful
         L = rng.normal(size=(n, 3, 3)) * 0.1
         params["inertia"] = L @ np.swapaxes(L, 1, 2) + 0.01 * np.eye(3)
         params["inertia"][0] = np.diag([0.01, 0.02, 0.03])
+        params["axis"] = rng.normal(size=(n, 3))
+        params["axis"][0], params["axis"][-1] = (-2.0, 0.0, 0.0), (0.0, -1.0, 0.0)
     chain = SpatialChain(n_links=n, params=params)
     theta = batch_theta(chain, 1)
     for B in (2, TILE, 2 * TILE + 5):
