@@ -321,10 +321,7 @@ def aba_into(q, v, tau, axis, offset, com, inertia, m, armature, g_vec, w, acc):
             for k in range(6):
                 IA[r, k] += Ia[r, k]
         for r in range(6):
-            x = 0.0
-            for k in range(6):
-                x += IA[r, k] * S[i, k]
-            U[i, r] = x
+            U[i, r] = _dot6(IA, r, S, i)
         D[i] = _dot6(S, i, U, i) + armature[i]
         for k in range(6):
             pA[i, k] += pa[k]
@@ -561,7 +558,7 @@ def aba_tiles(q, v, tau, axis, offset, com, inertia, m, armature, b, g_vec, a): 
     S, pA, U = np.empty((N, 6, W)), np.empty((N, 6, W)), np.empty((N, 6, W))
     D, u = np.empty((N, W)), np.empty((N, W))
     V, A, pa = np.empty((6, W)), np.empty((6, W)), np.empty((6, W))
-    IA, Ia = np.empty((6, 6, W)), np.empty((6, 6, W))
+    Ia = np.empty((21, W))  # the articulated inertia by its upper triangle (_S6)
     for b0 in range(0, B - B % W, W):
         for i in range(N):
             sincos_columns(q[i, b0 : b0 + W], sn[i], cs[i])
@@ -630,50 +627,73 @@ def aba_tiles(q, v, tau, axis, offset, com, inertia, m, armature, b, g_vec, a): 
                     mi, c[i, 0, l], c[i, 1, l], c[i, 2, l], I00, I01, I02, I01, I11, I12, I02, I12, I22,
                     w0, w1, w2, v0, v1, v2, al0, al1, al2, ac0, ac1, ac2,
                 )  # fmt: skip
-        # articulated inertias and bias forces inwards
-        Ia[:, :, :] = 0.0
+        # articulated inertias and bias forces inwards: IA_i = I_i + Ia_{i+1} in place, by its upper triangle (Ia, 21
+        # entries, _S6's order), written out entry by entry (loops over a triangle are not unrolled and lose the SIMD)
+        Ia[:, :] = 0.0
         pa[:, :] = 0.0
         for i in range(N - 1, -1, -1):
             mi = m[i]
-            for l in range(W):  # spatial_inertia_into, then + the child's, in one pass
+            for l in range(W):  # spatial_inertia_into, then + the child's
                 cx, cy, cz = c[i, 0, l], c[i, 1, l], c[i, 2, l]
                 cc = cx * cx + cy * cy + cz * cz
-                for r in range(3):
-                    for k in range(3):
-                        IA[r, k, l] = (Ic[i, _SYM[r][k], l] + mi * ((cc if r == k else 0.0) - c[i, r, l] * c[i, k, l])) + Ia[r, k, l]
-                        IA[3 + r, 3 + k, l] = (mi if r == k else 0.0) + Ia[3 + r, 3 + k, l]
-                mc0 = (0.0, -mi * cz, mi * cy)  # the block m [c]x, by rows; its transpose below (Ia is symmetric)
-                mc1 = (mi * cz, 0.0, -mi * cx)
-                mc2 = (-mi * cy, mi * cx, 0.0)
-                for k in range(3):
-                    IA[0, 3 + k, l] = mc0[k] + Ia[0, 3 + k, l]
-                    IA[1, 3 + k, l] = mc1[k] + Ia[1, 3 + k, l]
-                    IA[2, 3 + k, l] = mc2[k] + Ia[2, 3 + k, l]
-                    IA[3 + k, 0, l] = mc0[k] + Ia[3 + k, 0, l]
-                    IA[3 + k, 1, l] = mc1[k] + Ia[3 + k, 1, l]
-                    IA[3 + k, 2, l] = mc2[k] + Ia[3 + k, 2, l]
-            for r in range(6):
-                for l in range(W):
-                    x = 0.0
-                    for k in range(6):
-                        x += IA[r, k, l] * S[i, k, l]
-                    U[i, r, l] = x
-            for l in range(W):
-                D[i, l] = (S[i, 0, l] * U[i, 0, l] + S[i, 1, l] * U[i, 1, l] + S[i, 2, l] * U[i, 2, l] + S[i, 3, l] * U[i, 3, l]
-                           + S[i, 4, l] * U[i, 4, l] + S[i, 5, l] * U[i, 5, l]) + armature[i]  # fmt: skip
+                Ia[0, l] = (Ic[i, 0, l] + mi * (cc - cx * cx)) + Ia[0, l]
+                Ia[1, l] = (Ic[i, 1, l] + mi * (0.0 - cx * cy)) + Ia[1, l]
+                Ia[2, l] = (Ic[i, 2, l] + mi * (0.0 - cx * cz)) + Ia[2, l]
+                Ia[6, l] = (Ic[i, 3, l] + mi * (cc - cy * cy)) + Ia[6, l]
+                Ia[7, l] = (Ic[i, 4, l] + mi * (0.0 - cy * cz)) + Ia[7, l]
+                Ia[11, l] = (Ic[i, 5, l] + mi * (cc - cz * cz)) + Ia[11, l]
+                Ia[15, l] = mi + Ia[15, l]  # the lower right block m 1; its zeros add nothing
+                Ia[18, l] = mi + Ia[18, l]  # the lower right block m 1; its zeros add nothing
+                Ia[20, l] = mi + Ia[20, l]  # the lower right block m 1; its zeros add nothing
+                Ia[4, l] = -mi * cz + Ia[4, l]  # m [c]x
+                Ia[5, l] = mi * cy + Ia[5, l]  # m [c]x
+                Ia[8, l] = mi * cz + Ia[8, l]  # m [c]x
+                Ia[10, l] = -mi * cx + Ia[10, l]  # m [c]x
+                Ia[12, l] = -mi * cy + Ia[12, l]  # m [c]x
+                Ia[13, l] = mi * cx + Ia[13, l]  # m [c]x
+                S0, S1, S2, S3, S4, S5 = S[i, 0, l], S[i, 1, l], S[i, 2, l], S[i, 3, l], S[i, 4, l], S[i, 5, l]
+                U[i, 0, l] = (Ia[0, l] * S0 + Ia[1, l] * S1 + Ia[2, l] * S2 + Ia[3, l] * S3 + Ia[4, l] * S4 + Ia[5, l] * S5)
+                U[i, 1, l] = (Ia[1, l] * S0 + Ia[6, l] * S1 + Ia[7, l] * S2 + Ia[8, l] * S3 + Ia[9, l] * S4 + Ia[10, l] * S5)
+                U[i, 2, l] = (Ia[2, l] * S0 + Ia[7, l] * S1 + Ia[11, l] * S2 + Ia[12, l] * S3 + Ia[13, l] * S4 + Ia[14, l] * S5)
+                U[i, 3, l] = (Ia[3, l] * S0 + Ia[8, l] * S1 + Ia[12, l] * S2 + Ia[15, l] * S3 + Ia[16, l] * S4 + Ia[17, l] * S5)
+                U[i, 4, l] = (Ia[4, l] * S0 + Ia[9, l] * S1 + Ia[13, l] * S2 + Ia[16, l] * S3 + Ia[18, l] * S4 + Ia[19, l] * S5)
+                U[i, 5, l] = (Ia[5, l] * S0 + Ia[10, l] * S1 + Ia[14, l] * S2 + Ia[17, l] * S3 + Ia[19, l] * S4 + Ia[20, l] * S5)
+                D[i, l] = (S0 * U[i, 0, l] + S1 * U[i, 1, l] + S2 * U[i, 2, l] + S3 * U[i, 3, l] + S4 * U[i, 4, l] + S5 * U[i, 5, l]) + armature[i]
                 for k in range(6):
                     pA[i, k, l] += pa[k, l]
-                u[i, l] = net[i, l] - (S[i, 0, l] * pA[i, 0, l] + S[i, 1, l] * pA[i, 1, l] + S[i, 2, l] * pA[i, 2, l]
-                                       + S[i, 3, l] * pA[i, 3, l] + S[i, 4, l] * pA[i, 4, l] + S[i, 5, l] * pA[i, 5, l])  # fmt: skip
-            if i > 0:
+                u[i, l] = net[i, l] - (S0 * pA[i, 0, l] + S1 * pA[i, 1, l] + S2 * pA[i, 2, l] + S3 * pA[i, 3, l] + S4 * pA[i, 4, l]
+                                       + S5 * pA[i, 5, l])  # fmt: skip
+            if i > 0:  # Ia_i = IA_i - U_i U_i^T / D_i, in place
                 for l in range(W):
                     inv = 1.0 / D[i, l]
-                    for r in range(6):
-                        ur = U[i, r, l] * inv
-                        for k in range(r, 6):
-                            x = IA[r, k, l] - ur * U[i, k, l]
-                            Ia[r, k, l] = x
-                            Ia[k, r, l] = x
+                    U0, U1, U2, U3, U4, U5 = U[i, 0, l], U[i, 1, l], U[i, 2, l], U[i, 3, l], U[i, 4, l], U[i, 5, l]
+                    ur = U0 * inv
+                    Ia[0, l] = Ia[0, l] - ur * U0
+                    Ia[1, l] = Ia[1, l] - ur * U1
+                    Ia[2, l] = Ia[2, l] - ur * U2
+                    Ia[3, l] = Ia[3, l] - ur * U3
+                    Ia[4, l] = Ia[4, l] - ur * U4
+                    Ia[5, l] = Ia[5, l] - ur * U5
+                    ur = U1 * inv
+                    Ia[6, l] = Ia[6, l] - ur * U1
+                    Ia[7, l] = Ia[7, l] - ur * U2
+                    Ia[8, l] = Ia[8, l] - ur * U3
+                    Ia[9, l] = Ia[9, l] - ur * U4
+                    Ia[10, l] = Ia[10, l] - ur * U5
+                    ur = U2 * inv
+                    Ia[11, l] = Ia[11, l] - ur * U2
+                    Ia[12, l] = Ia[12, l] - ur * U3
+                    Ia[13, l] = Ia[13, l] - ur * U4
+                    Ia[14, l] = Ia[14, l] - ur * U5
+                    ur = U3 * inv
+                    Ia[15, l] = Ia[15, l] - ur * U3
+                    Ia[16, l] = Ia[16, l] - ur * U4
+                    Ia[17, l] = Ia[17, l] - ur * U5
+                    ur = U4 * inv
+                    Ia[18, l] = Ia[18, l] - ur * U4
+                    Ia[19, l] = Ia[19, l] - ur * U5
+                    ur = U5 * inv
+                    Ia[20, l] = Ia[20, l] - ur * U5
                     s_ = u[i, l] * inv
                     for k in range(6):
                         pa[k, l] = pA[i, k, l] + U[i, k, l] * s_
@@ -692,6 +712,9 @@ def aba_tiles(q, v, tau, axis, offset, com, inertia, m, armature, b, g_vec, a): 
 
 #: the upper triangle's index of entry ``(r, k)`` of a symmetric 3 x 3 stored as ``00 01 02 11 12 22``
 _SYM = ((0, 1, 2), (1, 3, 4), (2, 4, 5))
+
+#: the same for a symmetric 6 x 6 (21 entries, row by row)
+_S6 = tuple(tuple((min(r, k) * (11 - min(r, k))) // 2 + max(r, k) for k in range(6)) for r in range(6))
 
 
 @njit
