@@ -9,6 +9,9 @@ Per registered scene (``gym.make`` defaults; the registry's ``bench_kwargs``: Se
 - ``batched``: per env-step [us] of the vector env (``vector_entry_point``,
   ``full_info=False``) at ``--num-envs`` members, and the ratio to CartPole-v1's
   vector env timed in the same process;
+- ``--sizes N1 N2 ...``: the batched per env-step again at each of these ``num_envs``, every scene and
+  CartPole-v1 interleaved (CartPole's vector env pays a fixed numpy cost per call, so its time per env-step
+  falls with the batch while a compiled step's stays about flat: the ratio depends on the batch size);
 - ``cold start``: a fresh process's ``import`` + ``gym.make`` + ``reset`` +
   first ``step`` [s], with numba's on-disk cache empty (``NUMBA_CACHE_DIR`` a new
   folder: every kernel compiled) and then warm (the same folder again), in the default
@@ -22,8 +25,9 @@ a subprocess and prints both tables: before and after, same run.
 
     python scripts/bench_scenes.py --out results/scenes                     # ~3 min
     python scripts/bench_scenes.py --out results/scenes --baseline /tmp/old
+    python scripts/bench_scenes.py --out results/scenes --no-cold --sizes 64 256 1024 4096
 
-Writes ``scenes.json`` (and ``baseline.json``) and ``scenes.md`` to ``--out``.
+Writes ``scenes.json`` (and ``baseline.json``, ``sizes.json``) and ``scenes.md`` to ``--out``.
 """
 
 from __future__ import annotations
@@ -155,6 +159,54 @@ def measure(repeats: int, steps: int, num_envs: int, cold: bool) -> dict:
     return out
 
 
+def sweep(sizes: list[int], repeats: int, steps: int) -> dict:
+    """Batched per env-step [us] of every scene and CartPole-v1's vector env at each of ``sizes`` members
+    (``full_info=False``; medians over ``repeats``, the scenes interleaved), with the ratios to CartPole."""
+    os.environ.setdefault("MBS_ENVS_JIT", "sync")
+    import gymnasium as gym
+
+    import mbs_envs  # noqa: F401
+
+    try:
+        from tqdm import tqdm
+    except ImportError:  # pragma: no cover
+        tqdm = lambda x, **k: x  # noqa: E731
+    rng = np.random.default_rng(0)
+    n_calls = max(steps // 10, 20)
+    out: dict = {"sizes": sizes, "per_env_step_us": {}, "ratio_to_cartpole": {}}
+    for n in tqdm(sizes, desc="sizes", file=sys.stderr):
+        vectors = {"CartPole-v1": (gym.make_vec("CartPole-v1", num_envs=n, vectorization_mode="vector_entry_point"),
+                                   [rng.integers(0, 2, n) for _ in range(n_calls)])}  # fmt: skip
+        for name, (env_id, kwargs) in scenes().items():
+            if "n_links=100" in name:
+                continue
+            v = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", full_info=False, **kwargs)
+            vectors[name] = (v, list(rng.uniform(-1, 1, (n_calls, n, v.single_action_space.shape[0]))))
+        times: dict = {k: [] for k in vectors}
+        for _ in range(repeats):
+            for name, (env, acts) in vectors.items():
+                times[name].append(step_time(env, acts, reset_every=10**9))
+        per = {k: float(np.median(t)) / n * 1e6 for k, t in times.items()}
+        out["per_env_step_us"][str(n)] = per
+        out["ratio_to_cartpole"][str(n)] = {k: v / per["CartPole-v1"] for k, v in per.items()}
+        for env, _ in vectors.values():
+            env.close()
+    return out
+
+
+def sweep_table(r: dict) -> str:
+    sizes = [str(n) for n in r["sizes"]]
+    lines = ["### Batched per env-step by batch size [us] (ratio to CartPole-v1's vector env)", "",
+             "| scene | " + " | ".join(f"{n} envs" for n in sizes) + " |", "|---|" + "---|" * len(sizes)]  # fmt: skip
+    for name in r["per_env_step_us"][sizes[0]]:
+        cells = []
+        for n in sizes:
+            t, x = r["per_env_step_us"][n][name], r["ratio_to_cartpole"][n][name]
+            cells.append(f"{t:.3f}" if name == "CartPole-v1" else f"{t:.3f} ({x:.1f}x)")
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
 def table(r: dict, title: str) -> str:
     lines = [
         f"### {title}", "",
@@ -185,6 +237,7 @@ def main(argv=None) -> None:
     ap.add_argument("--num-envs", type=int, default=1024)
     ap.add_argument("--no-cold", action="store_true", help="skip the fresh-process first-step timings")
     ap.add_argument("--baseline", type=pathlib.Path, help="another checkout to measure the same way (before/after)")
+    ap.add_argument("--sizes", type=int, nargs="+", help="also time the batched step at each of these num_envs")
     ap.add_argument("--json-only", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
@@ -203,6 +256,10 @@ def main(argv=None) -> None:
     now = measure(args.repeats, args.steps, args.num_envs, not args.no_cold)
     (args.out / "scenes.json").write_text(json.dumps(now, indent=2))
     sections.append(table(now, f"After: {now['python_path']}" if args.baseline else "This checkout"))
+    if args.sizes:
+        sizes = sweep(args.sizes, args.repeats, args.steps)
+        (args.out / "sizes.json").write_text(json.dumps(sizes, indent=2))
+        sections.append(sweep_table(sizes))
     text = "\n".join(sections)
     (args.out / "scenes.md").write_text(text)
     print(text)

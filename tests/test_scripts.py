@@ -440,6 +440,19 @@ def test_bench_scenes_times_every_registered_scene():
     assert "Pendubot-v0" in script["table"](r, "test")
 
 
+def test_bench_scenes_sweeps_batch_sizes():
+    """``--sizes``: every batched scene and CartPole at each batch size, the ratio to CartPole of the same size."""
+    script = load_script("bench_scenes.py")
+    r = script["sweep"]([2, 3], repeats=1, steps=5)
+    for n in ("2", "3"):
+        per, ratio = r["per_env_step_us"][n], r["ratio_to_cartpole"][n]
+        assert "CartPole-v1" in per and "SpatialChain-v0 (n_links=10)" in per and "SerialChain-v0 (n_links=100)" not in per
+        assert ratio["CartPole-v1"] == 1.0 and all(np.isfinite(v) and v > 0 for v in per.values())
+        assert all(ratio[k] == per[k] / per["CartPole-v1"] for k in per)
+    text = script["sweep_table"](r)
+    assert "| 2 envs | 3 envs |" in text and "Pendubot-v0" in text
+
+
 def test_train_continues_an_earlier_versions_agent_on_the_new_reward(tmp_path):
     script = load_script("train.py")
     first = ["--env", "mbs_envs/Acrobot-v0", "--algo", "ppo", "--steps", "1024", "--n-envs", "4", "--action-repeat", "4",
