@@ -535,7 +535,10 @@ TILE = 32
 def aba_tiles(q, v, tau, axis, offset, com, inertia, m, armature, b, g_vec, a):  # pragma: no cover - compiled
     """:func:`aba_into` of the whole tiles of a batch in columns with shared parameters, ``TILE`` members at a time
     with the member index innermost (SIMD across members): every member's arithmetic is :func:`aba_into`'s,
-    expression by expression (the same bits; tested), on the net torque ``tau - b v``. The members beyond the
+    expression by expression (the same bits; tested; the tile leaves out its additions of exact zeros), on the net
+    torque ``tau - b v``. A tile keeps one link's frame at a time (the outward pass computes each link's frame, then
+    its velocities, bias accelerations and bias force) and the articulated inertia by its upper triangle, updated in
+    place from child to parent: a third of the memory of the arrays per link and member. The members beyond the
     last whole tile are left to the caller (:func:`tiled_acceleration_kernel`): every member loop runs exactly
     ``TILE`` times, a constant LLVM unrolls and vectorizes without remainders (about a fifth faster than loops
     over a tile's run-time length).
