@@ -26,10 +26,12 @@ frame ``dS_i/dt = V_i x S_i`` and no coordinate transforms are needed between li
   ``tau_i = S_i^T F_i``, ``F_{i-1} += F_i``; plus ``armature_i a_i``. O(N).
 - **CRBA** (mass matrix): composite inertias ``Ic_i = I_i + Ic_{i+1}``, ``M_ij = S_i^T Ic_j S_j`` for
   ``i <= j``; plus ``diag(armature)``. O(N^2) (the matrix).
-- **ABA** (forward dynamics): articulated inertias ``IA_i``, bias forces ``pA_i``;
-  ``U_i = IA_i S_i``, ``D_i = S_i^T U_i + armature_i``, ``u_i = tau_i - S_i^T pA_i``, passed to the
-  parent as ``IA - U U^T / D`` and ``pA + (IA - U U^T / D) c_i + U u_i / D`` with
-  ``c_i = V_i x S_i v_i``; forwards ``a_i = (u_i - U_i^T (A_{i-1} + c_i)) / D_i``. O(N).
+- **ABA** (forward dynamics): the bias accelerations ``A0_i = A0_{i-1} + c_i`` outwards (``c_i = V_i x S_i v_i``,
+  ``A0_{-1} = (0, -g_vec)``: each body's acceleration at ``a = 0``), the bias forces ``pA_i = I_i A0_i + V_i x*
+  I_i V_i`` and articulated inertias ``IA_i`` inwards; ``U_i = IA_i S_i``, ``D_i = S_i^T U_i + armature_i``,
+  ``u_i = tau_i - S_i^T pA_i``, passed to the parent as ``IA - U U^T / D`` and ``pA + U u_i / D``; forwards,
+  relative to the bias accelerations, ``a_i = (u_i - U_i^T dA_{i-1}) / D_i``, ``dA_i = dA_{i-1} + S_i a_i``
+  (``dA_{-1} = 0``). O(N).
 
 Everything runs in numba kernels, one member at a time over a flattened batch, in work arrays
 allocated once per call (:func:`work_arrays`); ``Ic_i = R_i inertia_i R_i^T`` as two 3 x 3 products. With all axes
