@@ -9,6 +9,10 @@ Per registered scene (``gym.make`` defaults; the registry's ``bench_kwargs``: Se
 - ``batched``: per env-step [us] of the vector env (``vector_entry_point``,
   ``full_info=False``) at ``--num-envs`` members, and the ratio to CartPole-v1's
   vector env timed in the same process;
+- ``--processes K``: every figure above measured in ``K`` fresh processes (with ``--baseline``, the two checkouts'
+  processes alternating) and the median of each taken, ratios per process first: the time of a compiled step moves
+  by up to +-15 % from one process to the next on our machines (where the heap puts a kernel's work arrays), which
+  repeats within one process do not see; the cold starts in the first process only;
 - ``--sizes N1 N2 ...``: the batched per env-step again at each of these ``num_envs``, every scene and
   CartPole-v1 interleaved (CartPole's vector env pays a fixed numpy cost per call, so its time per env-step
   falls with the batch while a compiled step's stays about flat: the ratio depends on the batch size);
@@ -159,6 +163,33 @@ def measure(repeats: int, steps: int, num_envs: int, cold: bool) -> dict:
     return out
 
 
+#: the figures :func:`combine` takes the median of, over processes (ratios per process first)
+PER_PROCESS = ("single_step_us", "single_ratio_to_acrobot", "batched_per_env_step_us", "batched_ratio_to_cartpole")
+
+
+def combine(runs: list[dict]) -> dict:
+    """One result from :func:`measure`'s results in several processes: the median of each figure of
+    :data:`PER_PROCESS`, the range of the batched ratios, every run kept (``runs``), the cold starts of the first."""
+    out = {k: v for k, v in runs[0].items() if k not in PER_PROCESS}
+    for key in PER_PROCESS:
+        out[key] = {name: float(np.median([r[key][name] for r in runs])) for name in runs[0][key]}
+    out["batched_ratio_range"] = {name: [min(r["batched_ratio_to_cartpole"][name] for r in runs),
+                                         max(r["batched_ratio_to_cartpole"][name] for r in runs)]
+                                  for name in runs[0]["batched_ratio_to_cartpole"]}  # fmt: skip
+    out["processes"] = len(runs)
+    out["runs"] = runs
+    return out
+
+
+def child(root: pathlib.Path, args: argparse.Namespace, cold: bool) -> dict:
+    """:func:`measure` in a fresh process on the checkout ``root`` (this script's copy of it runs there)."""
+    cmd = [sys.executable, __file__, "--out", str(args.out), "--repeats", str(args.repeats), "--steps", str(args.steps),
+           "--num-envs", str(args.num_envs), "--json-only"] + ([] if cold else ["--no-cold"])  # fmt: skip
+    env = {**os.environ, "PYTHONPATH": str(root.resolve())}
+    res = subprocess.run(cmd, env=env, capture_output=True, text=True, check=True, cwd=root)
+    return json.loads(res.stdout.strip().splitlines()[-1])
+
+
 def sweep(sizes: list[int], repeats: int, steps: int) -> dict:
     """Batched per env-step [us] of every scene and CartPole-v1's vector env at each of ``sizes`` members
     (``full_info=False``; medians over ``repeats``, the scenes interleaved), with the ratios to CartPole."""
@@ -208,6 +239,9 @@ def sweep_table(r: dict) -> str:
 
 
 def table(r: dict, title: str) -> str:
+    if "processes" in r:
+        lo_hi = r["batched_ratio_range"]
+        title += f" (medians of {r['processes']} fresh processes; the batched ratios' range in brackets)"
     lines = [
         f"### {title}", "",
         f"| scene | single step [us] | vs Acrobot-v1 ({r['single_step_us'][PEER]:.0f} us) "
@@ -220,7 +254,8 @@ def table(r: dict, title: str) -> str:
         fs = r.get("first_step_s", {}).get(name)
         lines.append(
             f"| {name} | {r['single_step_us'][name]:,.1f} | {r['single_ratio_to_acrobot'][name]:.2f}x | "
-            + ("- | - |" if b is None else f"{b:.3f} | {r['batched_ratio_to_cartpole'][name]:.1f}x |")
+            + ("- | - |" if b is None else f"{b:.3f} | {r['batched_ratio_to_cartpole'][name]:.1f}x"
+               + (f" [{lo_hi[name][0]:.1f}, {lo_hi[name][1]:.1f}]" if "processes" in r else "") + " |")
             + ("" if fs is None else f" {fs['cold_s']:.1f} ({fs.get('cold_compiled_s', fs['cold_s']):.1f}) / {fs['warm_s']:.2f} |")
         )
     if "first_step_s" in r:
@@ -238,6 +273,7 @@ def main(argv=None) -> None:
     ap.add_argument("--no-cold", action="store_true", help="skip the fresh-process first-step timings")
     ap.add_argument("--baseline", type=pathlib.Path, help="another checkout to measure the same way (before/after)")
     ap.add_argument("--sizes", type=int, nargs="+", help="also time the batched step at each of these num_envs")
+    ap.add_argument("--processes", type=int, default=1, help="measure in this many fresh processes, take medians")
     ap.add_argument("--json-only", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
@@ -245,17 +281,29 @@ def main(argv=None) -> None:
         print(json.dumps(measure(args.repeats, args.steps, args.num_envs, not args.no_cold)))
         return
     sections = []
-    if args.baseline is not None:
-        cmd = [sys.executable, __file__, "--out", str(args.out), "--repeats", str(args.repeats), "--steps", str(args.steps),
-               "--num-envs", str(args.num_envs), "--json-only"] + (["--no-cold"] if args.no_cold else [])  # fmt: skip
-        env = {**os.environ, "PYTHONPATH": str(args.baseline.resolve())}
-        res = subprocess.run(cmd, env=env, capture_output=True, text=True, check=True, cwd=args.baseline)
-        base = json.loads(res.stdout.strip().splitlines()[-1])
+    if args.processes > 1:
+        here = pathlib.Path(__file__).resolve().parent.parent
+        roots = ([args.baseline] if args.baseline is not None else []) + [here]
+        runs: list[list[dict]] = [[] for _ in roots]
+        for p in range(args.processes):  # alternating: drift hits both checkouts alike
+            print(f"process {p + 1} of {args.processes}", file=sys.stderr)
+            for j, root in enumerate(roots):
+                runs[j].append(child(root, args, cold=not args.no_cold and p == 0))
+        results = [combine(r) for r in runs]
+        for root, r in zip(roots, results):
+            name = "baseline.json" if args.baseline is not None and root is args.baseline else "scenes.json"
+            (args.out / name).write_text(json.dumps(r, indent=2))
+        if args.baseline is not None:
+            sections.append(table(results[0], f"Before: {args.baseline}"))
+        sections.append(table(results[-1], f"After: {here}" if args.baseline is not None else "This checkout"))
+    elif args.baseline is not None:
+        base = child(args.baseline, args, cold=not args.no_cold)
         (args.out / "baseline.json").write_text(json.dumps(base, indent=2))
         sections.append(table(base, f"Before: {args.baseline}"))
-    now = measure(args.repeats, args.steps, args.num_envs, not args.no_cold)
-    (args.out / "scenes.json").write_text(json.dumps(now, indent=2))
-    sections.append(table(now, f"After: {now['python_path']}" if args.baseline else "This checkout"))
+    if args.processes <= 1:
+        now = measure(args.repeats, args.steps, args.num_envs, not args.no_cold)
+        (args.out / "scenes.json").write_text(json.dumps(now, indent=2))
+        sections.append(table(now, f"After: {now['python_path']}" if args.baseline else "This checkout"))
     if args.sizes:
         sizes = sweep(args.sizes, args.repeats, args.steps)
         (args.out / "sizes.json").write_text(json.dumps(sizes, indent=2))

@@ -440,6 +440,23 @@ def test_bench_scenes_times_every_registered_scene():
     assert "Pendubot-v0" in script["table"](r, "test")
 
 
+def test_bench_scenes_takes_medians_over_processes():
+    """``--processes``: each figure the median over the processes (the ratios per process first), the batched
+    ratios' range beside it, every run kept; the table shows the range."""
+    script = load_script("bench_scenes.py")
+    runs = []
+    for t_env, t_cart, t_acro in ((2.0, 0.5, 10.0), (3.0, 0.5, 12.0), (9.0, 1.0, 11.0)):
+        runs.append({"num_envs": 8, "python_path": "x", "single_step_us": {script["PEER"]: t_acro, "S": 2 * t_env},
+                     "single_ratio_to_acrobot": {script["PEER"]: 1.0, "S": 2 * t_env / t_acro},
+                     "batched_per_env_step_us": {"CartPole-v1": t_cart, "S": t_env},
+                     "batched_ratio_to_cartpole": {"CartPole-v1": 1.0, "S": t_env / t_cart}})  # fmt: skip
+    r = script["combine"](runs)
+    assert r["processes"] == 3 and r["runs"] == runs
+    assert r["batched_per_env_step_us"]["S"] == 3.0 and r["batched_ratio_to_cartpole"]["S"] == 6.0  # not 3.0 / 0.5
+    assert r["batched_ratio_range"]["S"] == [4.0, 9.0] and r["single_step_us"][script["PEER"]] == 11.0
+    assert "6.0x [4.0, 9.0]" in script["table"](r, "t") and "medians of 3 fresh processes" in script["table"](r, "t")
+
+
 def test_bench_scenes_sweeps_batch_sizes():
     """``--sizes``: every batched scene and CartPole at each batch size, the ratio to CartPole of the same size."""
     script = load_script("bench_scenes.py")
