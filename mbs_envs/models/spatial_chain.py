@@ -671,34 +671,8 @@ def aba_tiles(q, v, tau, axis, offset, com, inertia, m, armature, b, g_vec, a): 
             if i > 0:  # Ia_i = IA_i - U_i U_i^T / D_i, in place
                 for l in range(W):
                     inv = 1.0 / D[i, l]
-                    U0, U1, U2, U3, U4, U5 = U[i, 0, l], U[i, 1, l], U[i, 2, l], U[i, 3, l], U[i, 4, l], U[i, 5, l]
-                    ur = U0 * inv
-                    Ia[0, l] = Ia[0, l] - ur * U0
-                    Ia[1, l] = Ia[1, l] - ur * U1
-                    Ia[2, l] = Ia[2, l] - ur * U2
-                    Ia[3, l] = Ia[3, l] - ur * U3
-                    Ia[4, l] = Ia[4, l] - ur * U4
-                    Ia[5, l] = Ia[5, l] - ur * U5
-                    ur = U1 * inv
-                    Ia[6, l] = Ia[6, l] - ur * U1
-                    Ia[7, l] = Ia[7, l] - ur * U2
-                    Ia[8, l] = Ia[8, l] - ur * U3
-                    Ia[9, l] = Ia[9, l] - ur * U4
-                    Ia[10, l] = Ia[10, l] - ur * U5
-                    ur = U2 * inv
-                    Ia[11, l] = Ia[11, l] - ur * U2
-                    Ia[12, l] = Ia[12, l] - ur * U3
-                    Ia[13, l] = Ia[13, l] - ur * U4
-                    Ia[14, l] = Ia[14, l] - ur * U5
-                    ur = U3 * inv
-                    Ia[15, l] = Ia[15, l] - ur * U3
-                    Ia[16, l] = Ia[16, l] - ur * U4
-                    Ia[17, l] = Ia[17, l] - ur * U5
-                    ur = U4 * inv
-                    Ia[18, l] = Ia[18, l] - ur * U4
-                    Ia[19, l] = Ia[19, l] - ur * U5
-                    ur = U5 * inv
-                    Ia[20, l] = Ia[20, l] - ur * U5
+                    for r in range(6):  # row r of the triangle starts at entry _S6[r][r]
+                        _downdate_row(Ia, U, i, l, inv, r, _S6[r][r])
                     s_ = u[i, l] * inv
                     for k in range(6):
                         pa[k, l] = pA[i, k, l] + U[i, k, l] * s_
@@ -713,6 +687,15 @@ def aba_tiles(q, v, tau, axis, offset, com, inertia, m, armature, b, g_vec, a): 
                 a[i, b0 + l] = acc
                 for k in range(6):
                     A[k, l] += S[i, k, l] * acc
+
+
+@njit(inline="always")
+def _downdate_row(Ia, U, i, l, inv, r, n0):  # pragma: no cover - compiled
+    """Row ``r`` of ``Ia - U U^T / D`` in place on member ``l`` of a tile (``Ia`` by its upper triangle, the row's
+    first entry ``n0``; ``inv = 1 / D``), each entry as :func:`aba_into` computes it."""
+    ur = U[i, r, l] * inv
+    for k in range(r, 6):
+        Ia[n0 + k - r, l] = Ia[n0 + k - r, l] - ur * U[i, k, l]
 
 
 #: the upper triangle's index of entry ``(r, k)`` of a symmetric 3 x 3 stored as ``00 01 02 11 12 22``
