@@ -633,7 +633,8 @@ def aba_tiles(q, v, tau, axis, offset, com, inertia, m, armature, b, g_vec, a): 
                     w0, w1, w2, v0, v1, v2, al0, al1, al2, ac0, ac1, ac2,
                 )  # fmt: skip
         # articulated inertias and bias forces inwards: IA_i = I_i + Ia_{i+1} in place, by its upper triangle (Ia, 21
-        # entries, _S6's order), written out entry by entry (loops over a triangle are not unrolled and lose the SIMD)
+        # entries, _S6's order); the sum and U written out entry by entry, the downdate row by row through an inlined
+        # function (the two loops of a triangle written in place were not unrolled, and lost the SIMD: about 3x slower)
         Ia[:, :] = 0.0
         pa[:, :] = 0.0
         for i in range(N - 1, -1, -1):
