@@ -167,6 +167,10 @@ def test_the_lqg_hold_share_falls_with_the_noise_and_matches_the_stationary_spre
     one = lqg_hold_share(A, B, dt, 0.01, 0.1, 1)  # one step: P(both angles inside) at the stationary spread
     p_elbow = scipy.stats.norm.cdf(0.1 / floor[1]) * 2 - 1  # the elbow alone, at the floor: an upper estimate
     assert one <= p_elbow + 0.035 and one > 0.5
+    # from the most favourable start (exactly upright, the estimate exact; no settling) a window is held more often
+    # than once stationary, less so the longer the controllers settle first (Anderson: a wider Gaussian holds fewer)
+    by_settle = [lqg_hold_share(A, B, dt, 0.01, 0.1, 200, windows=1000, settle_steps=n, grid=grid) for n in (0, 50, 300)]
+    assert by_settle[0] > by_settle[1] > by_settle[2] and by_settle[0] < 1.0
     # the batch of controllers gives each its own share: a grid of one is that controller's share in the whole grid
     whole = lqg_hold_share(A, B, dt, 0.01, 0.1, 50, windows=300, grid=grid)
     alone = [lqg_hold_share(A, B, dt, 0.01, 0.1, 50, windows=300, grid=(g,)) for g in grid]
