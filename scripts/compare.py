@@ -500,10 +500,11 @@ def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: 
               "times the second, the rates 1e-12 to 10; input unbounded, the state estimated by the Kalman filter) holds "
               "on the linearization once stationary, 2,000 windows each, the same for every controller "
               "(`controllers.region.lqg_hold_share`; an estimate of what a controller that knows the plant achieves, "
-              "not a bound), and in brackets from the most favourable start: the window beginning exactly upright with "
-              "an exact estimate (for a linear controller no start holds more windows, by Anderson's theorem: the "
-              "window's states are jointly Gaussian, their covariance independent of the start; an arrival timed to the "
-              "episode's last 2 s with a perfect estimate could do no better):", "", catch_table(catch), ""]  # fmt: skip
+              "not a bound), and in brackets from the most favourable start for those controllers: the window beginning "
+              "exactly upright with an exact estimate (for such a fixed linear controller no start holds more windows, by "
+              "Anderson's theorem: the window's states are jointly Gaussian, their covariance independent of the start; "
+              "a filter that trusted an accurate estimate at the window's start more than the stationary one could "
+              "hold more):", "", catch_table(catch), ""]  # fmt: skip
     L += ["**Two metrics.** The error columns are the tracking error after the first second; the agents were trained on the "
           "reward, whose return also counts the start transient and the effort: per step "
           "`-(w_e |e|^2 + w_de |v_ref - v|^2 + w_u |a|^2)` with `(w_e, w_de, w_u) = (1, 0.1, 1e-3)` on the joint-tracking "

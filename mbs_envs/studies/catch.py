@@ -12,9 +12,11 @@ smallest stationary spread of each angle about upright that any controller achie
 success tolerance of a few such deviations fails often whatever the controller; and the share of the success
 rule's windows (both angles within the tolerance for the last 2 s) that the best of a grid of LQG controllers
 holds on the linearization (:func:`controllers.region.lqg_hold_share`, an estimate, not a bound), once stationary and
-from the most favourable start (exactly upright, the estimate exact: for a linear controller and Gaussian noise the
-window's states are jointly Gaussian with a covariance that does not depend on the start, so by Anderson's theorem no
-start, random or not, holds more of them; an arrival timed to the last 2 s with a perfect estimate would do no better).
+from the most favourable start for those controllers (exactly upright, the estimate exact: for a fixed linear
+controller and Gaussian noise the window's states are jointly Gaussian with a covariance that does not depend on the
+start, so by Anderson's theorem no start, random or not, holds more of them). A controller whose filter trusted an
+accurate estimate at the window's start more than the stationary filter does could hold more (with an exact estimate
+and no process noise, every window); how accurate an estimate a swing-up delivers is not computed.
 """
 
 from __future__ import annotations
