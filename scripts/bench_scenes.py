@@ -112,6 +112,27 @@ def cold_start(env_id: str, kwargs: dict, python_path: str) -> dict:
     return {"cold_s": out["cold"], "warm_s": min(out["warm"], out["warm again"]), "cold_compiled_s": compiled["cold"]}
 
 
+def batch_timed(name: str) -> bool:
+    """Whether the batched step is timed for the configuration ``name`` (not at 100 links)."""
+    return "n_links=100" not in name
+
+
+def cartpole_vector(num_envs: int, n_calls: int, rng: np.random.Generator) -> tuple:
+    """Gymnasium's CartPole-v1 vector env of ``num_envs`` members and ``n_calls`` random actions for it."""
+    import gymnasium as gym
+
+    env = gym.make_vec("CartPole-v1", num_envs=num_envs, vectorization_mode="vector_entry_point")
+    return env, [rng.integers(0, 2, num_envs) for _ in range(n_calls)]
+
+
+def scene_vector(env_id: str, kwargs: dict, num_envs: int, n_calls: int, rng: np.random.Generator) -> tuple:
+    """A scene's vector env (``full_info=False``) of ``num_envs`` members and ``n_calls`` random actions for it."""
+    import gymnasium as gym
+
+    env = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", full_info=False, **kwargs)
+    return env, list(rng.uniform(-1, 1, (n_calls, num_envs, env.single_action_space.shape[0])))
+
+
 def measure(repeats: int, steps: int, num_envs: int, cold: bool) -> dict:
     os.environ.setdefault("MBS_ENVS_JIT", "sync")  # steps timed here are compiled ones (not the kernels' Python meanwhile)
     import gymnasium as gym
@@ -119,20 +140,14 @@ def measure(repeats: int, steps: int, num_envs: int, cold: bool) -> dict:
     import mbs_envs
 
     rng = np.random.default_rng(0)
+    n_calls = max(steps // 10, 20)
     singles = {PEER: (gym.make("Acrobot-v1"), [int(a) for a in rng.integers(0, 3, steps)])}
-    vectors = {
-        "CartPole-v1": (
-            gym.make_vec("CartPole-v1", num_envs=num_envs, vectorization_mode="vector_entry_point"),
-            [rng.integers(0, 2, num_envs) for _ in range(max(steps // 10, 20))],
-        )
-    }
+    vectors = {"CartPole-v1": cartpole_vector(num_envs, n_calls, rng)}
     for name, (env_id, kwargs) in scenes().items():
         e = gym.make(env_id, **kwargs)
-        nu = e.action_space.shape[0]
-        singles[name] = (e, list(rng.uniform(-1, 1, (steps, nu)).astype(np.float32)))
-        if "n_links=100" not in name:
-            v = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", full_info=False, **kwargs)
-            vectors[name] = (v, list(rng.uniform(-1, 1, (max(steps // 10, 20), num_envs, nu))))
+        singles[name] = (e, list(rng.uniform(-1, 1, (steps, e.action_space.shape[0])).astype(np.float32)))
+        if batch_timed(name):
+            vectors[name] = scene_vector(env_id, kwargs, num_envs, n_calls, rng)
     single_t = {k: [] for k in singles}
     vector_t = {k: [] for k in vectors}
     try:
@@ -194,8 +209,6 @@ def sweep(sizes: list[int], repeats: int, steps: int) -> dict:
     """Batched per env-step [us] of every scene and CartPole-v1's vector env at each of ``sizes`` members
     (``full_info=False``; medians over ``repeats``, the scenes interleaved), with the ratios to CartPole."""
     os.environ.setdefault("MBS_ENVS_JIT", "sync")
-    import gymnasium as gym
-
     import mbs_envs  # noqa: F401
 
     try:
@@ -206,13 +219,8 @@ def sweep(sizes: list[int], repeats: int, steps: int) -> dict:
     n_calls = max(steps // 10, 20)
     out: dict = {"sizes": sizes, "per_env_step_us": {}, "ratio_to_cartpole": {}}
     for n in tqdm(sizes, desc="sizes", file=sys.stderr):
-        vectors = {"CartPole-v1": (gym.make_vec("CartPole-v1", num_envs=n, vectorization_mode="vector_entry_point"),
-                                   [rng.integers(0, 2, n) for _ in range(n_calls)])}  # fmt: skip
-        for name, (env_id, kwargs) in scenes().items():
-            if "n_links=100" in name:
-                continue
-            v = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", full_info=False, **kwargs)
-            vectors[name] = (v, list(rng.uniform(-1, 1, (n_calls, n, v.single_action_space.shape[0]))))
+        vectors = {"CartPole-v1": cartpole_vector(n, n_calls, rng)}
+        vectors.update({name: scene_vector(env_id, kwargs, n, n_calls, rng) for name, (env_id, kwargs) in scenes().items() if batch_timed(name)})
         times: dict = {k: [] for k in vectors}
         for _ in range(repeats):
             for name, (env, acts) in vectors.items():
@@ -290,8 +298,8 @@ def main(argv=None) -> None:
             for j, root in enumerate(roots):
                 runs[j].append(child(root, args, cold=not args.no_cold and p == 0))
         results = [combine(r) for r in runs]
-        for root, r in zip(roots, results):
-            name = "baseline.json" if args.baseline is not None and root is args.baseline else "scenes.json"
+        names = (["baseline.json"] if args.baseline is not None else []) + ["scenes.json"]
+        for name, r in zip(names, results):
             (args.out / name).write_text(json.dumps(r, indent=2))
         if args.baseline is not None:
             sections.append(table(results[0], f"Before: {args.baseline}"))
