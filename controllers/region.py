@@ -291,15 +291,48 @@ def lqg_hold_share(A: np.ndarray, B: np.ndarray, dt: float, sigma: float, tol: f
     return float(hold_shares(A_d, B_d, L, K, sigma, tol, hold_steps, windows, settle_steps, seed).max())
 
 
+def edge_switched(x: np.ndarray, K: np.ndarray, K_e: np.ndarray, edge: Any, lead: Any, joint: int) -> np.ndarray:
+    """The hold's input law with its edge gain: ``u = -K_e x`` where the angle ``joint`` is heading out, ``|x_j + lead
+    v_j| > edge`` (the angle ``lead`` seconds ahead at its present rate beyond ``edge``), else ``u = -K x``.
+
+    An LQR weighs the state's spread, not the chance of leaving a box: near the box's edge a second gain that
+    stops the angle (at the other angle's expense, which has room) keeps more windows inside
+    (:func:`hold_shares`, docs/physics.md §7).
+
+    Parameters
+    ----------
+    x : ndarray, shape (..., 2 m)
+        The state about upright ``(angles [rad], rates [rad/s])``.
+    K, K_e : ndarray, shapes broadcasting with ``x``, (..., 2 m)
+        The gains inside and at the edge [N m per unit of the state].
+    edge : float or ndarray
+        [rad]; ``inf``: never the edge gain.
+    lead : float or ndarray
+        [s].
+    joint : int
+        The angle watched (``0 <= joint < m``).
+
+    Returns
+    -------
+    ndarray, shape (...)
+        The input [N m], unsaturated.
+    """
+    m = x.shape[-1] // 2
+    out = np.abs(x[..., joint] + lead * x[..., m + joint]) > edge
+    return np.where(out, -np.sum(x * K_e, axis=-1), -np.sum(x * K, axis=-1))
+
+
 def hold_shares(A_d: np.ndarray, B_d: np.ndarray, L: np.ndarray, K: np.ndarray, sigma: float, tol: float, hold_steps: int,
-                windows: int = 2000, settle_steps: int = 300, seed: int = 0, u_max: float = np.inf) -> np.ndarray:  # fmt: skip
+                windows: int = 2000, settle_steps: int = 300, seed: int = 0, u_max: float = np.inf, K_e: np.ndarray | None = None,
+                edge: Any = np.inf, lead: Any = 0.0, joint: int = 1) -> np.ndarray:  # fmt: skip
     """The share of windows of ``hold_steps`` control steps in which both angles stay within ``tol`` of upright, for
     each gain of ``K`` with the filter gain ``L``, on the discrete linearization ``x' = A_d x + B_d u`` observed as in
     :func:`noise_floor` (every state entry with white Gaussian noise of std ``sigma``).
 
-    Each controller (``x^+ = x^- + L (y - x^-)``, ``u = clip(-K x^+, -u_max, u_max)``) runs ``windows`` independent
-    episodes from upright with an exact estimate, ``settle_steps`` steps to reach its stationary spread, then the
-    window; every controller sees the same noise (drawn from ``seed``), all of them in one batch.
+    Each controller (``x^+ = x^- + L (y - x^-)``, ``u = clip(-K x^+, -u_max, u_max)``, or with ``K_e`` the edge rule
+    :func:`edge_switched` on ``x^+``) runs ``windows`` independent episodes from upright with an exact estimate,
+    ``settle_steps`` steps to reach its stationary spread, then the window; every controller sees the same noise
+    (drawn from ``seed``), all of them in one batch.
 
     Parameters
     ----------
@@ -307,6 +340,12 @@ def hold_shares(A_d: np.ndarray, B_d: np.ndarray, L: np.ndarray, K: np.ndarray, 
     L : ndarray, shape (n, n)
     K : ndarray, shape (G, n)
         ``G`` gains [N m per unit of the state].
+    K_e : ndarray, shape (G, n), optional
+        The edge gains of :func:`edge_switched` (default: none, ``u = -K x^+``).
+    edge, lead : float or ndarray of shape (G,)
+        :func:`edge_switched`'s threshold [rad] and lead [s], per controller.
+    joint : int
+        The angle it watches.
 
     Returns
     -------
@@ -316,13 +355,15 @@ def hold_shares(A_d: np.ndarray, B_d: np.ndarray, L: np.ndarray, K: np.ndarray, 
     n = A_d.shape[0]
     G = len(K)
     K = np.asarray(K, float)[:, None, :]  # (G, 1, n)
+    K_e = K if K_e is None else np.asarray(K_e, float)[:, None, :]
+    edge, lead = (np.broadcast_to(np.asarray(a, float), (G,))[:, None] for a in (edge, lead))
     rng = np.random.default_rng(seed)
     x, xh = np.zeros((G, windows, n)), np.zeros((G, windows, n))
     held = np.ones((G, windows), bool)
     flat = lambda a: a.reshape(G * windows, n)  # noqa: E731  (2-D products: one BLAS call each)
     for k in range(settle_steps + hold_steps):
         xh = xh + (flat(x + rng.normal(0.0, sigma, (windows, n)) - xh) @ L.T).reshape(G, windows, n)  # the filter's update
-        u = np.clip(-np.sum(xh * K, axis=-1, keepdims=True), -u_max, u_max)
+        u = np.clip(edge_switched(xh, K, K_e, edge, lead, joint), -u_max, u_max)[..., None]
         # the plant's step and the filter's prediction
         x, xh = (flat(x) @ A_d.T).reshape(G, windows, n) + u * B_d.T, (flat(xh) @ A_d.T).reshape(G, windows, n) + u * B_d.T
         if k >= settle_steps:
