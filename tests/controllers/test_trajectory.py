@@ -13,7 +13,7 @@ import mbs_envs  # noqa: F401
 from controllers import PlannedSwingUp
 from controllers import trajectory as traj
 from controllers.control_map import rk4_map, state_error
-from controllers.planned_swingup import CLOCK, KH_, LENGTH, NIS, NIS_LIMIT, PHASE, PUMPING_GRID, SINCE, hold_pays
+from controllers.planned_swingup import CLOCK, KE_, KH_, LENGTH, NIS, NIS_LIMIT, PHASE, PUMPING_GRID, SINCE, hold_pays
 from mbs_envs.envs.swingup import Q_UP
 
 GOAL = np.concatenate([Q_UP, np.zeros(2)])
@@ -282,16 +282,19 @@ def test_the_lqr_takes_over_exactly_where_its_simulated_region_says(x0, inside):
 @pytest.mark.parametrize("x0", [(0.005, 0.0, 0.0, 0.0), (0.004, 0.0, 0.02, 0.0), (0.004, 0.0, 0.04, 0.0)])
 def test_a_balancing_member_holds_exactly_where_the_hold_lqrs_simulated_region_says(x0):
     """Phase 3: a member balancing since the step before switches to the hold LQR exactly where its filter is
-    consistent (the running mean of its normalized innovations below :data:`NIS_LIMIT`) and that saturated LQR,
-    simulated on its identified model from its estimate, ends upright with both angles within ``drop`` on the way
-    (from ``(0.004, 0, 0.02, 0)`` its saturated transient would pass 0.3 rad and the member balances first); the hold
-    gain is python-control's LQR of the identified model's linearization with the hold weights (1e-9); holding, the
-    filter runs with its hold process noise; the noise-free arm ends held within 0.01 of upright (after 5 s: from
+    consistent (the running mean of its normalized innovations below :data:`NIS_LIMIT`), its estimate is within
+    ``hold_back`` of upright and the hold's inner saturated LQR, simulated on its identified model from its estimate,
+    ends upright with both angles within ``edge`` on the way (so that the edge gain, which stops the driven angle, does
+    not park a noise-free arm at the edge; from ``(0.004, 0, 0.02, 0)`` the member balances first); the hold's two gains are python-control's discrete LQR (``control.dlqr``)
+    of the identified model's linearization sampled on the control step (input held), with the hold's and the edge's
+    weights (1e-9); holding, the filter runs with its hold process noise and the estimate stays within ``hold_band``;
+    the noise-free arm ends held within 0.01 of upright (after 5 s: from
     ``(0.004, 0, 0.04, 0)`` the upright LQR's catch can pass ``drop`` and plan again, on an AMD EPYC twice before
     it holds at 1.8 s, within 0.01 by 4 s; the catch's transient is not bounded by ``drop``)."""
     import control
 
     from controllers import identification as ident
+    from controllers import region
     from controllers.adaptive_swingup import MODE, THETA, XH
     from controllers.swingup import upright_linearization
 
@@ -308,14 +311,16 @@ def test_a_balancing_member_holds_exactly_where_the_hold_lqrs_simulated_region_s
         row = state[0]
         model = ident.identified_model(row[THETA][None], ctrl.model)
         A, B = upright_linearization(model, (1,))
-        K_hold = control.lqr(A[0], B[0], ctrl.Q_hold, ctrl.R_hold)[0].reshape(4)
+        A_d, B_d = region.discretize(A[0], B[0], 0.01)
+        K_hold, K_edge = (np.asarray(control.dlqr(A_d, B_d, Q, ctrl.R_hold)[0]).reshape(4) for Q in (ctrl.Q_hold, ctrl.Q_edge))
+        off = np.abs(row[XH][:2] - GOAL[:2]).max()
         if before == 2.0:
             theta = np.ascontiguousarray(np.asarray(model.kernel_params(), float).reshape(-1, 1))
-            region_says = traj.lqr_catches(row[XH], K_hold, GOAL, 10.0, 1, theta, 0.01, 2, ctrl.catch_steps, ctrl.catch_tol, ctrl.drop)
-            assert (row[PHASE] == 3.0) == (region_says and row[NIS] < NIS_LIMIT)
+            region_says = traj.lqr_catches(row[XH], K_hold, GOAL, 10.0, 1, theta, 0.01, 2, ctrl.catch_steps, ctrl.catch_tol, ctrl.edge)
+            assert (row[PHASE] == 3.0) == (region_says and row[NIS] < NIS_LIMIT and off <= ctrl.hold_back)
         if row[PHASE] == 3.0:
-            assert np.allclose(row[KH_], K_hold, rtol=1e-9, atol=0)
-            assert row[MODE] == 2.0 and np.array_equal(ctrl.filter_noise(row[None])[0], ctrl.Q_w_hold)
+            assert np.allclose(row[KH_], K_hold, rtol=1e-9, atol=0) and np.allclose(row[KE_], K_edge, rtol=1e-9, atol=0)
+            assert row[MODE] == 2.0 and np.array_equal(ctrl.filter_noise(row[None])[0], ctrl.Q_w_hold) and off <= ctrl.hold_band
         phases.append(row[PHASE])
         obs, _, _, _, info = env.step(action)
     assert phases[0] == 2.0 and phases[-1] == 3.0
@@ -347,24 +352,31 @@ def test_the_hold_trusts_the_model_only_while_the_observations_agree_with_it(tor
     assumes), the running mean of the normalized squared innovations stays near 1 and the member holds (in swing-up
     episodes, after identifying while pumping, its median over the last 2 s was 1.05 on 40 tuning seeds); with torque
     noise of 1.8 N m (std, the scene sweep's largest: a plant doing what the model does not) it rises above
-    :data:`NIS_LIMIT` and the member balances with the upright LQR and its filter's balancing noise instead."""
+    :data:`NIS_LIMIT` and the member balances with the upright LQR and its filter's balancing noise instead. Without
+    torque noise a holding member leaves the hold only where its estimate leaves ``hold_band`` (the band rule, not
+    the consistency test)."""
+    from controllers.adaptive_swingup import XH
+
     env = gym.make("mbs_envs/Acrobot-v1", start_noise=0.0)
     ctrl = PlannedSwingUp(env, plan_time=10.0, prior=1e9)
     x = GOAL + np.array([0.003, 0.0, 0.0, 0.0])
     obs, _ = env.reset(options={"q": x[:2], "v": x[2:]})
     rng = np.random.default_rng(0)
-    state, start, nis, phases = None, True, [], []
+    state, start, nis, phases, off = None, True, [], [], []
     for k in range(300):
         seen = obs + rng.normal(0.0, 0.01, obs.shape).astype(obs.dtype)
         action, state = ctrl.predict(seen, state=state, episode_start=start)
         start = False
         nis.append(state[0][NIS])
         phases.append(state[0][PHASE])
+        off.append(np.abs(state[0][XH][:2] - GOAL[:2]).max())
         obs, _, terminated, _, info = env.step(np.clip(action + rng.normal(0.0, torque_noise / 10.0), -1.0, 1.0))
         assert not terminated
-    nis, phases = np.array(nis[100:]), np.array(phases[100:])
+    nis, phases, off = np.array(nis[100:]), np.array(phases[100:]), np.array(off[100:])
     if torque_noise == 0.0:
-        assert 0.5 < nis.mean() < 2.0 and (phases == 3.0).all()
+        left = (phases[1:] == 2.0) & (phases[:-1] == 3.0)
+        assert 0.5 < nis.mean() < 2.0 and nis.max() < NIS_LIMIT and (phases == 3.0).mean() > 0.8
+        assert (off[1:][left] > ctrl.hold_band).all()
     else:
         assert nis.min() > NIS_LIMIT and (phases == 2.0).all()
 
@@ -374,7 +386,6 @@ def test_the_hold_pays_on_the_acrobot_and_not_on_the_pendubot():
     the success rule's windows than the upright LQR, on the pendubot's both hold every window; without observation
     noise (no filter) the stage is off; ``hold`` set by hand overrides the rule."""
     from controllers import region
-    from controllers.base import care
 
     acrobot, pendubot = PlannedSwingUp(gym.make("mbs_envs/Acrobot-v1")), PlannedSwingUp(gym.make("mbs_envs/Pendubot-v1"))
     assert acrobot.hold and not pendubot.hold
@@ -383,17 +394,19 @@ def test_the_hold_pays_on_the_acrobot_and_not_on_the_pendubot():
     assert not PlannedSwingUp(gym.make("mbs_envs/Acrobot-v1"), obs_noise=0.0).hold
     assert PlannedSwingUp(gym.make("mbs_envs/Pendubot-v1"), hold=True).hold
     assert not PlannedSwingUp(gym.make("mbs_envs/Acrobot-v1"), hold=False).hold
-    # the rule's shares against the LQG controllers of the report on the same linearization: the hold LQR is within
-    # a few points of the best of them
+    # the rule's shares against the LQG controllers of the report on the same linearization: the hold with its edge
+    # gain holds far more windows than the upright LQR and than the best of them (on tuning runs 73 % against 39 %)
     from controllers.swingup import upright_linearization
 
     A, B = upright_linearization(acrobot.model)
     A_d, B_d = region.discretize(A, B, 0.01)
     L = region.steady_kalman(A_d, 0.01)[0]
-    K = np.stack([acrobot.K.reshape(4), care(A, B, acrobot.Q_hold, acrobot.R_hold)[0].reshape(4)])
-    catch, hold = region.hold_shares(A_d, B_d, L, K, 0.01, 0.1, 200, 500)
+    K_hold, K_edge = acrobot.hold_gains_of(A[None], B[None])[0].reshape(2, 4)
+    K = np.stack([acrobot.K.reshape(4), K_hold])
+    catch, hold = region.hold_shares(A_d, B_d, L, K, 0.01, 0.1, 200, 500, u_max=10.0, K_e=np.stack([K[0], K_edge]),
+                                     edge=[np.inf, acrobot.edge], lead=[0.0, acrobot.edge_lead])  # fmt: skip
     best = region.lqg_hold_share(A, B, 0.01, 0.01, 0.1, 200, windows=500)  # the same 500 noise sequences
-    assert hold >= catch + 0.1 and hold >= best - 0.03
+    assert hold >= catch + 0.3 and hold >= best + 0.2
 
 
 def predict_as_alone(ctrl, obs, state, states, start):
@@ -424,7 +437,9 @@ def test_a_batch_acts_as_each_member_alone():
                                     {"margin": 0.0}, {"margin": 1.5}, {"accept": 0.0}, {"funnel": np.nan}, {"drop": -0.3},
                                     {"track_r": 0.0}, {"w_x": -1.0}, {"retry": np.inf}, {"plan_step": 0.0}, {"plan_step": np.nan},
                                     {"plan_h": 0.0}, {"plan_h": -1.0}, {"hold": "yes"}, {"hold_q": (1.0, 1.0)}, {"hold_q": (1.0, -1.0, 1.0)},
-                                    {"hold_r": 0.0}, {"hold_noise": (1e-5, np.nan)}, {"hold_noise": 1e-5},
+                                    {"hold_r": 0.0}, {"hold_noise": (1e-5, np.nan)}, {"hold_noise": 1e-5}, {"edge_q": (1.0, 0.0, 1.0)},
+                                    {"edge_q": 300.0}, {"edge": 0.0}, {"edge": np.inf}, {"edge_lead": -0.01}, {"hold_band": 0.0},
+                                    {"hold_back": 0.2}, {"hold_back": 0.0},
                                     {"hold": True, "obs_noise": 0.0}])
 def test_bad_settings_are_refused_by_name(kwargs):
     with pytest.raises(ValueError, match=next(iter(kwargs))):
