@@ -16,7 +16,10 @@ from the most favourable start for those controllers (exactly upright, the estim
 controller and Gaussian noise the window's states are jointly Gaussian with a covariance that does not depend on the
 start, so by Anderson's theorem no start, random or not, holds more of them). A controller whose filter trusted an
 accurate estimate at the window's start more than the stationary filter does could hold more (with an exact estimate
-and no process noise, every window); how accurate an estimate a swing-up delivers is not computed.
+and no process noise, every window); how accurate an estimate a swing-up delivers is not computed. A controller that is
+not linear can hold more too: beside it, the share the hold of :class:`controllers.PlannedSwingUp` (two discrete LQRs
+switched at the driven angle's edge, :func:`controllers.region.edge_switched`) holds on the same linearization with the
+steady Kalman filter and the torque limit, once stationary (:func:`edge_hold_share`).
 """
 
 from __future__ import annotations
@@ -26,7 +29,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from controllers.region import PlantCase, axis_catch, lqg_hold_share, noise_floor, saturation_bound
+from controllers.region import PlantCase, axis_catch, discretize, hold_shares, lqg_hold_share, noise_floor, saturation_bound, steady_kalman
+from controllers.planned_swingup import PlannedSwingUp
 from controllers.swingup import SwingUpLQR, upright_linearization
 from ..envs.swingup import Q_UP
 from .comparison import SCENES, Condition, plant_kwargs
@@ -44,6 +48,22 @@ def applies(scene: str) -> bool:
     return isinstance(gym.make(SCENES[scene][0]).unwrapped, SwingUpEnv)
 
 
+def edge_hold_share(ctrl: Any, A: np.ndarray, B: np.ndarray, sigma: float, tol: float, windows: int = 2000, seed: int = 0) -> float:
+    """The share of the success rule's windows (both angles within ``tol`` [rad] for :data:`~.evaluation.HOLD` seconds) that
+    the hold of ``ctrl`` (a :class:`controllers.PlannedSwingUp`: its two gains on its own nominal model, switched by
+    :func:`controllers.region.edge_switched`, saturated at its torque limit) holds on the plant linearized as ``(A, B)``,
+    observed with noise ``sigma`` on every state entry through the steady Kalman filter, once stationary (3 s of
+    settling; :func:`controllers.region.hold_shares`, the noise drawn from ``seed``)."""
+    from controllers.swingup import upright_linearization
+
+    A_n, B_n = upright_linearization(ctrl.model)
+    K_hold, K_edge = ctrl.hold_gains_of(A_n[None], B_n[None])[0].reshape(2, 4)
+    A_d, B_d = discretize(A, B, ctrl.dt)
+    L = steady_kalman(A_d, sigma)[0]
+    return float(hold_shares(A_d, B_d, L, K_hold[None], sigma, tol, int(round(HOLD / ctrl.dt)), windows, int(round(3.0 / ctrl.dt)), seed,
+                             float(ctrl.u_max[0]), K_e=K_edge[None], edge=ctrl.edge, lead=ctrl.edge_lead, joint=ctrl.driven)[0])  # fmt: skip
+
+
 def catch_rows(scene: str, conditions: list[Condition]) -> list[dict[str, Any]]:
     """One row per condition: ``bound`` and ``lqr_catch`` per coordinate of :data:`AXES` (module docstring)."""
     env_id = SCENES[scene][0]
@@ -59,24 +79,26 @@ def catch_rows(scene: str, conditions: list[Condition]) -> list[dict[str, Any]]:
         case = PlantCase(plant, cond.delay)
         caught = [axis_catch(case, x_up, lqr.K, u_max, dt, substeps, j, 1.5 * b if np.isfinite(b) else 5.0) for j, b in enumerate(bound)]
         floor = noise_floor(A, B, dt, cond.obs_noise)[:2].tolist() if cond.obs_noise > 0 else None
-        hold = start = None
+        hold = start = edge = None
         if cond.obs_noise > 0:
             hold, start = (lqg_hold_share(A, B, dt, cond.obs_noise, nominal.upright_tolerance, int(round(HOLD / dt)), settle_steps=n)
                            for n in (300, 0))  # fmt: skip
+            edge = edge_hold_share(PlannedSwingUp(nominal), A, B, cond.obs_noise, nominal.upright_tolerance)
         rows.append({"scene": scene, "condition": cond.name, "bound": [float(b) for b in bound], "lqr_catch": caught, "noise_floor": floor,
-                     "lqg_hold": hold, "lqg_hold_from_start": start})  # fmt: skip
+                     "lqg_hold": hold, "lqg_hold_from_start": start, "edge_hold": edge})  # fmt: skip
     return rows
 
 
 def catch_table(rows: list[dict[str, Any]]) -> str:
     """A markdown table of :func:`catch_rows`: ``LQR catch / bound`` per coordinate."""
-    lines = ["| scene | condition | " + " | ".join(f"{a}: LQR / bound" for a in AXES) + " | noise floor: std q1 / q2 [rad] | LQG holds |",
-             "|---|---|" + "---|" * (len(AXES) + 2)]  # fmt: skip
+    lines = ["| scene | condition | " + " | ".join(f"{a}: LQR / bound" for a in AXES) + " | noise floor: std q1 / q2 [rad] | LQG holds | "
+             "edge-switched hold holds |", "|---|---|" + "---|" * (len(AXES) + 3)]  # fmt: skip
     for r in rows:
         cells = [f"{c:.3f} / {b:.3f}" for c, b in zip(r["lqr_catch"], r["bound"])]
         floor = r.get("noise_floor")
         cells.append(f"{floor[0]:.4f} / {floor[1]:.4f}" if floor else "")
         held, start = r.get("lqg_hold"), r.get("lqg_hold_from_start")
         cells.append("" if held is None else f"{held:.0%}" + ("" if start is None else f" ({start:.0%} from upright)"))
+        cells.append("" if r.get("edge_hold") is None else f"{r['edge_hold']:.0%}")
         lines.append(f"| {r['scene']} | {r['condition']} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
