@@ -16,7 +16,8 @@ Per member of the batch, in three phases:
 3. **Hold** (where it pays, below): where, simulated on the identified model from the current estimate, the hold's
    inner saturated LQR (below) brings the arm to upright with both angles within ``edge`` on the way (its region of
    attraction, sampled as the catch's; within the edge, so that the edge gain, which stops the driven angle, does not
-   park a noise-free arm there: entered on the way out of a catch, it held the elbow near 0.09 rad for seconds), while the filter's innovations agree with the identified model
+   park a noise-free arm there: entered on the way out of a catch, it held the elbow near 0.09 rad for seconds),
+   while the filter's innovations agree with the identified model
    (:meth:`PlannedSwingUp.consistency`: their running normalized square below :data:`NIS_LIMIT`; a member whose
    innovations grow past it goes back to the upright LQR, so torque noise, a lagging or late input or a wrong model
    do not meet a filter that trusts the model) and with both estimated angles within ``hold_back`` of upright, a
