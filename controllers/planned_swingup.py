@@ -157,24 +157,36 @@ HOLD_GAIN = 0.05
 NIS_TAU, NIS_LIMIT = 0.5, 3.0
 
 
+def hold_window_shares(ctrl: Any, A: np.ndarray, B: np.ndarray, sigma: float, tol: float, windows: int, seed: int = 0,
+                       upright: bool = True) -> np.ndarray:  # fmt: skip
+    """The shares of windows of :data:`HOLD_WINDOW` seconds, after :data:`HOLD_SETTLE` seconds of settling, in which
+    both angles stay within ``tol`` [rad]: on the plant linearized about upright as ``(A, B)`` (continuous), discretized
+    on ``ctrl``'s control step and observed with noise ``sigma`` on every entry through its steady Kalman filter, under
+    the upright LQR of ``ctrl`` (a :class:`PlannedSwingUp`; where ``upright``) and its hold (the two gains of its
+    nominal model switched at the driven angle's edge), both saturated at its torque limit, on the same noise
+    (:func:`controllers.region.hold_shares`, drawn from ``seed``). Shape ``(2,)``, or ``(1,)`` (the hold's alone)."""
+    A_n, B_n = upright_linearization(ctrl.model)
+    with region.quiet_riccati():
+        A_d, B_d = region.discretize(A, B, ctrl.dt)
+        L = region.steady_kalman(A_d, sigma)[0]
+    K_hold, K_edge = ctrl.hold_gains_of(A_n[None], B_n[None])[0].reshape(2, 4)
+    K_up = np.asarray(ctrl.K, float).reshape(4)
+    K, K_e = (np.stack([K_up, k]) if upright else k[None] for k in (K_hold, K_edge))
+    edge, lead = ([np.inf, ctrl.edge], [0.0, ctrl.edge_lead]) if upright else (ctrl.edge, ctrl.edge_lead)
+    return region.hold_shares(A_d, B_d, L, K, sigma, tol, int(round(HOLD_WINDOW / ctrl.dt)), windows, int(round(HOLD_SETTLE / ctrl.dt)),
+                              seed, float(ctrl.u_max[0]), K_e=K_e, edge=edge, lead=lead, joint=ctrl.driven)  # fmt: skip
+
+
 def hold_pays(ctrl: Any, tol: float, windows: int = 1000, seed: int = 0) -> bool:
-    """Whether the hold stage of ``ctrl`` (a :class:`PlannedSwingUp`) pays on its nominal model: on the linearization
-    about upright, discretized on its control step and observed with noise ``ctrl.obs_noise`` on every entry (its
-    steady Kalman filter), the hold (its two gains switched at the driven angle's edge, saturated) keeps both angles
-    within ``tol`` [rad] for :data:`HOLD_WINDOW` seconds in at least :data:`HOLD_GAIN` more of ``windows`` windows than
-    the upright LQR (:func:`controllers.region.hold_shares`, the same noise for both). False without observation noise
-    (``obs_noise = 0``: no filter)."""
+    """Whether the hold stage of ``ctrl`` (a :class:`PlannedSwingUp`) pays on its nominal model: observed with noise
+    ``ctrl.obs_noise`` on every entry, the hold keeps both angles within ``tol`` [rad] for :data:`HOLD_WINDOW` seconds in
+    at least :data:`HOLD_GAIN` more of ``windows`` windows than the upright LQR (:func:`hold_window_shares` on the
+    nominal model's linearization, the same noise for both). False without observation noise (``obs_noise = 0``: no
+    filter)."""
     if ctrl.obs_noise <= 0:
         return False
     A, B = upright_linearization(ctrl.model)
-    with region.quiet_riccati():
-        A_d, B_d = region.discretize(A, B, ctrl.dt)
-        L = region.steady_kalman(A_d, ctrl.obs_noise)[0]
-    K_hold, K_edge = ctrl.hold_gains_of(A[None], B[None])[0].reshape(2, 4)
-    K = np.stack([np.asarray(ctrl.K, float).reshape(4), K_hold])
-    shares = region.hold_shares(A_d, B_d, L, K, ctrl.obs_noise, tol, int(round(HOLD_WINDOW / ctrl.dt)), windows,
-                                int(round(HOLD_SETTLE / ctrl.dt)), seed, float(ctrl.u_max[0]), K_e=np.stack([K[0], K_edge]),
-                                edge=[np.inf, ctrl.edge], lead=[0.0, ctrl.edge_lead], joint=ctrl.driven)  # fmt: skip
+    shares = hold_window_shares(ctrl, A, B, ctrl.obs_noise, tol, windows, seed)
     return bool(shares[1] >= shares[0] + HOLD_GAIN)
 
 

@@ -29,8 +29,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from controllers.region import PlantCase, axis_catch, discretize, hold_shares, lqg_hold_share, noise_floor, saturation_bound, steady_kalman
-from controllers.planned_swingup import PlannedSwingUp
+from controllers.planned_swingup import PlannedSwingUp, hold_window_shares
+from controllers.region import PlantCase, axis_catch, lqg_hold_share, noise_floor, saturation_bound
 from controllers.swingup import SwingUpLQR, upright_linearization
 from ..envs.swingup import Q_UP
 from .comparison import SCENES, Condition, plant_kwargs
@@ -49,19 +49,12 @@ def applies(scene: str) -> bool:
 
 
 def edge_hold_share(ctrl: Any, A: np.ndarray, B: np.ndarray, sigma: float, tol: float, windows: int = 2000, seed: int = 0) -> float:
-    """The share of the success rule's windows (both angles within ``tol`` [rad] for :data:`~.evaluation.HOLD` seconds) that
+    """The share of the success rule's windows (both angles within ``tol`` [rad] for 2 s, after 3 s of settling) that
     the hold of ``ctrl`` (a :class:`controllers.PlannedSwingUp`: its two gains on its own nominal model, switched by
     :func:`controllers.region.edge_switched`, saturated at its torque limit) holds on the plant linearized as ``(A, B)``,
-    observed with noise ``sigma`` on every state entry through the steady Kalman filter, once stationary (3 s of
-    settling; :func:`controllers.region.hold_shares`, the noise drawn from ``seed``)."""
-    from controllers.swingup import upright_linearization
-
-    A_n, B_n = upright_linearization(ctrl.model)
-    K_hold, K_edge = ctrl.hold_gains_of(A_n[None], B_n[None])[0].reshape(2, 4)
-    A_d, B_d = discretize(A, B, ctrl.dt)
-    L = steady_kalman(A_d, sigma)[0]
-    return float(hold_shares(A_d, B_d, L, K_hold[None], sigma, tol, int(round(HOLD / ctrl.dt)), windows, int(round(3.0 / ctrl.dt)), seed,
-                             float(ctrl.u_max[0]), K_e=K_edge[None], edge=ctrl.edge, lead=ctrl.edge_lead, joint=ctrl.driven)[0])  # fmt: skip
+    observed with noise ``sigma`` on every state entry through the steady Kalman filter
+    (:func:`controllers.planned_swingup.hold_window_shares`, the noise drawn from ``seed``)."""
+    return float(hold_window_shares(ctrl, A, B, sigma, tol, windows, seed, upright=False)[0])
 
 
 def catch_rows(scene: str, conditions: list[Condition]) -> list[dict[str, Any]]:
@@ -71,6 +64,7 @@ def catch_rows(scene: str, conditions: list[Condition]) -> list[dict[str, Any]]:
     lqr = SwingUpLQR(nominal)
     u_max, dt, substeps = float(nominal.u_max[0]), float(nominal.dt), int(nominal.substeps)
     x_up = np.concatenate([Q_UP, np.zeros(2)])
+    planner = PlannedSwingUp(nominal) if any(cond.obs_noise > 0 for cond in conditions) else None  # its hold's share
     rows = []
     for cond in conditions:
         plant = gym.make(env_id, **plant_kwargs(scene, cond)).unwrapped.model
@@ -83,7 +77,7 @@ def catch_rows(scene: str, conditions: list[Condition]) -> list[dict[str, Any]]:
         if cond.obs_noise > 0:
             hold, start = (lqg_hold_share(A, B, dt, cond.obs_noise, nominal.upright_tolerance, int(round(HOLD / dt)), settle_steps=n)
                            for n in (300, 0))  # fmt: skip
-            edge = edge_hold_share(PlannedSwingUp(nominal), A, B, cond.obs_noise, nominal.upright_tolerance)
+            edge = edge_hold_share(planner, A, B, cond.obs_noise, nominal.upright_tolerance)
         rows.append({"scene": scene, "condition": cond.name, "bound": [float(b) for b in bound], "lqr_catch": caught, "noise_floor": floor,
                      "lqg_hold": hold, "lqg_hold_from_start": start, "edge_hold": edge})  # fmt: skip
     return rows
