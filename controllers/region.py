@@ -80,6 +80,23 @@ class PlantCase:
     delay: int = 0
 
 
+@dataclasses.dataclass(frozen=True)
+class ArmMap:
+    """The arm's own discrete map about a goal, for :func:`hold_shares` instead of its linearization: ``model`` stepped
+    by :func:`controllers.control_map.fast_map` (``dt`` [s], ``substeps``) from ``x_goal + x``; a run with an angle
+    more than ``drop`` [rad] off the goal is over (where :class:`controllers.PlannedSwingUp` plans again)."""
+
+    model: Any
+    x_goal: np.ndarray
+    dt: float
+    substeps: int
+    drop: float = np.inf
+
+    def step(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """``x' - x_goal`` (angles wrapped) from ``x - x_goal`` under the input ``u`` (shape ``x.shape[:-1] + (1,)``)."""
+        return state_error(fast_map(self.model, self.x_goal + x, u, self.dt, self.substeps), self.x_goal)
+
+
 def closed_loop_final(cases: list[PlantCase], x0: np.ndarray, x_goal: np.ndarray, K: np.ndarray, u_max: float,
                       dt: float, substeps: int, steps: int, box: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
     """The error ``x_N - x_goal`` after ``steps`` of ``u = clip(-K (x - x_goal))`` from each start, on each plant.
@@ -322,15 +339,41 @@ def edge_switched(x: np.ndarray, K: np.ndarray, K_e: np.ndarray, edge: Any, lead
     return np.where(out, -np.sum(x * K_e, axis=-1), -np.sum(x * K, axis=-1))
 
 
+def recovering(x: np.ndarray, before: np.ndarray, band: Any, back: Any) -> np.ndarray:
+    """The hold's band rule with hysteresis: whether each member recovers (with its recovery gain) at state ``x``,
+    having recovered (``before``) or held at the previous step: a holding member starts to recover where an angle is
+    more than ``band`` off upright, a recovering one holds again where both are within ``back``.
+
+    Parameters
+    ----------
+    x : ndarray, shape (..., 2 m)
+        The (estimated) state about upright [rad, rad/s].
+    before : ndarray of bool, shape (...)
+    band, back : float or ndarray broadcasting with ``before``
+        [rad], ``back <= band``.
+
+    Returns
+    -------
+    ndarray of bool, shape (...)
+    """
+    off = np.abs(x[..., : x.shape[-1] // 2]).max(axis=-1)
+    return np.where(before, off > back, off > band)
+
+
 def hold_shares(A_d: np.ndarray, B_d: np.ndarray, L: np.ndarray, K: np.ndarray, sigma: float, tol: float, hold_steps: int,
                 windows: int = 2000, settle_steps: int = 300, seed: int = 0, u_max: float = np.inf, K_e: np.ndarray | None = None,
-                edge: Any = np.inf, lead: Any = 0.0, joint: int = 1) -> np.ndarray:  # fmt: skip
+                edge: Any = np.inf, lead: Any = 0.0, joint: int = 1, K_r: np.ndarray | None = None, band: Any = np.inf,
+                back: Any = np.inf, arm: ArmMap | None = None) -> np.ndarray:  # fmt: skip
     """The share of windows of ``hold_steps`` control steps in which both angles stay within ``tol`` of upright, for
     each gain of ``K`` with the filter gain ``L``, on the discrete linearization ``x' = A_d x + B_d u`` observed as in
     :func:`noise_floor` (every state entry with white Gaussian noise of std ``sigma``).
 
     Each controller (``x^+ = x^- + L (y - x^-)``, ``u = clip(-K x^+, -u_max, u_max)``, or with ``K_e`` the edge rule
-    :func:`edge_switched` on ``x^+``) runs ``windows`` independent episodes from upright with an exact estimate,
+    :func:`edge_switched` on ``x^+``; with ``K_r``, where an estimated angle leaves ``band`` it recovers with
+    ``u = clip(-K_r x^+, ...)`` until both are within ``back`` again: :func:`recovering`) runs ``windows`` independent
+    episodes from upright with an exact estimate (with ``arm``, on the arm's own map instead, the filter predicting
+    with it as an extended Kalman filter of the exact model does, its gain still ``L``; a run past ``arm.drop`` holds
+    nothing more),
     ``settle_steps`` steps to reach its stationary spread, then the window; every controller sees the same noise
     (drawn from ``seed``), all of them in one batch.
 
@@ -346,6 +389,12 @@ def hold_shares(A_d: np.ndarray, B_d: np.ndarray, L: np.ndarray, K: np.ndarray, 
         :func:`edge_switched`'s threshold [rad] and lead [s], per controller.
     joint : int
         The angle it watches.
+    K_r : ndarray, shape (G, n), optional
+        The recovery gains (default: none, no band).
+    band, back : float or ndarray of shape (G,)
+        [rad], ``back <= band``.
+    arm : ArmMap, optional
+        The nonlinear plant (default: the linearization ``A_d, B_d``).
 
     Returns
     -------
@@ -356,16 +405,25 @@ def hold_shares(A_d: np.ndarray, B_d: np.ndarray, L: np.ndarray, K: np.ndarray, 
     G = len(K)
     K = np.asarray(K, float)[:, None, :]  # (G, 1, n)
     K_e = K if K_e is None else np.asarray(K_e, float)[:, None, :]
-    edge, lead = (np.broadcast_to(np.asarray(a, float), (G,))[:, None] for a in (edge, lead))
+    K_r = K if K_r is None else np.asarray(K_r, float)[:, None, :]
+    edge, lead, band, back = (np.broadcast_to(np.asarray(a, float), (G,))[:, None] for a in (edge, lead, band, back))
     rng = np.random.default_rng(seed)
     x, xh = np.zeros((G, windows, n)), np.zeros((G, windows, n))
-    held = np.ones((G, windows), bool)
+    held, recover, over = np.ones((G, windows), bool), np.zeros((G, windows), bool), np.zeros((G, windows), bool)
     flat = lambda a: a.reshape(G * windows, n)  # noqa: E731  (2-D products: one BLAS call each)
     for k in range(settle_steps + hold_steps):
         xh = xh + (flat(x + rng.normal(0.0, sigma, (windows, n)) - xh) @ L.T).reshape(G, windows, n)  # the filter's update
-        u = np.clip(edge_switched(xh, K, K_e, edge, lead, joint), -u_max, u_max)[..., None]
+        recover = recovering(xh, recover, band, back)
+        u = np.where(recover, -np.sum(xh * K_r, axis=-1), edge_switched(xh, K, K_e, edge, lead, joint))
+        u = np.clip(u, -u_max, u_max)[..., None]
         # the plant's step and the filter's prediction
-        x, xh = (flat(x) @ A_d.T).reshape(G, windows, n) + u * B_d.T, (flat(xh) @ A_d.T).reshape(G, windows, n) + u * B_d.T
+        if arm is None:
+            x, xh = (flat(x) @ A_d.T).reshape(G, windows, n) + u * B_d.T, (flat(xh) @ A_d.T).reshape(G, windows, n) + u * B_d.T
+        else:
+            with np.errstate(all="ignore"):
+                x, xh = arm.step(x, u), arm.step(xh, u)
+            over |= ~(np.abs(x[..., : n // 2]) <= arm.drop).all(axis=-1)
+            x, xh = (np.where(over[..., None], 0.0, a) for a in (x, xh))  # (over: no longer stepped)
         if k >= settle_steps:
-            held &= np.all(np.abs(x[..., : n // 2]) <= tol, axis=-1)
+            held &= np.all(np.abs(x[..., : n // 2]) <= tol, axis=-1) & ~over
     return held.mean(axis=1)

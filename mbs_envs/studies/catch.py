@@ -18,8 +18,9 @@ start, so by Anderson's theorem no start, random or not, holds more of them). A 
 accurate estimate at the window's start more than the stationary filter does could hold more (with an exact estimate
 and no process noise, every window); how accurate an estimate a swing-up delivers is not computed. A controller that is
 not linear can hold more too: beside it, the share the hold of :class:`controllers.PlannedSwingUp` (two discrete LQRs
-switched at the driven angle's edge, :func:`controllers.region.edge_switched`) holds on the same linearization with the
-steady Kalman filter and the torque limit, once stationary (:func:`edge_hold_share`).
+switched at the driven angle's edge, :func:`controllers.region.edge_switched`, and a third that recovers outside the
+tolerance, :func:`controllers.region.recovering`) holds on the same linearization with the steady Kalman filter and
+the torque limit, once stationary (:func:`edge_hold_share`).
 """
 
 from __future__ import annotations
@@ -50,8 +51,9 @@ def applies(scene: str) -> bool:
 
 def edge_hold_share(ctrl: Any, A: np.ndarray, B: np.ndarray, sigma: float, tol: float, windows: int = 2000, seed: int = 0) -> float:
     """The share of the success rule's windows (both angles within ``tol`` [rad] for 2 s, after 3 s of settling) that
-    the hold of ``ctrl`` (a :class:`controllers.PlannedSwingUp`: its two gains on its own nominal model, switched by
-    :func:`controllers.region.edge_switched`, saturated at its torque limit) holds on the plant linearized as ``(A, B)``,
+    the hold of ``ctrl`` (a :class:`controllers.PlannedSwingUp`: its gains on its own nominal model, switched by
+    :func:`controllers.region.edge_switched`, recovering outside its band by :func:`controllers.region.recovering`,
+    saturated at its torque limit) holds on the plant linearized as ``(A, B)``,
     observed with noise ``sigma`` on every state entry through the steady Kalman filter
     (:func:`controllers.planned_swingup.hold_window_shares`, the noise drawn from ``seed``)."""
     return float(hold_window_shares(ctrl, A, B, sigma, tol, windows, seed, upright=False)[0])
