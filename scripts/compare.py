@@ -506,9 +506,10 @@ def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: 
               "a filter that trusted an accurate estimate at the window's start more than the stationary one could "
               "hold more). A controller that is not linear can also hold more: \"edge-switched hold holds\" is the share "
               "the hold of identified iLQR + TVLQR (two discrete LQRs of the nominal model, the second, which stops the "
-              "driven angle, taking over where that angle 0.03 s ahead is more than 0.08 rad off upright; "
-              "`controllers.region.edge_switched`) holds on the same linearization, stationary, with the steady Kalman "
-              "filter and the torque limit (`mbs_envs.studies.catch.edge_hold_share`, 2,000 windows). Neither share is a "
+              "driven angle, taking over where that angle 0.025 s ahead is more than 0.083 rad off upright, "
+              "`controllers.region.edge_switched`; a third bringing it back in where an angle leaves 0.1 rad, until both "
+              "are within 0.085 rad, `controllers.region.recovering`) holds on the same linearization, stationary, with the "
+              "steady Kalman filter and the torque limit (`mbs_envs.studies.catch.edge_hold_share`, 2,000 windows). Neither share is a "
               "bound on what physics allows under noise; the noise floor is:", "", catch_table(catch), ""]  # fmt: skip
     L += ["**Two metrics.** The error columns are the tracking error after the first second; the agents were trained on the "
           "reward, whose return also counts the start transient and the effort: per step "
