@@ -882,3 +882,22 @@ def test_bench_derived_first_make_leaves_no_child_writing_into_its_temporary_cac
     while (alive := [pid for pid in os.listdir("/proc") if pid.isdigit() and uses_cache(pid)]) and time.monotonic() < end:
         time.sleep(0.05)
     assert alive == []  # without the wait: still compiling the scene's kernels some seconds on
+
+
+def test_tune_hold_scores_candidates_on_the_arms_map_and_checks_the_best_beside_the_defaults(tmp_path, capsys):
+    """``scripts/tune_hold.py`` at a tiny size: every candidate scored (a share in [0, 1]), the best checked beside the
+    defaults (their weights as ``PlannedSwingUp`` has them), the three files written."""
+    from controllers import PlannedSwingUp
+    from controllers.planned_swingup import EDGE_Q, HOLD_Q, RECOVER_Q
+
+    script = load_script("tune_hold.py")
+    assert script["main"](["--out", str(tmp_path), "--candidates", "4", "--windows", "40", "--check-windows", "40", "--top", "2"]) == 0
+    with open(tmp_path / "hold_search.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 4 and all(0.0 <= float(r["share"]) <= 1.0 for r in rows)
+    checked = json.loads((tmp_path / "hold_search.json").read_text())["checked"]
+    assert len(checked) == 3 and [c["default"] for c in checked] == [False, False, True]
+    default = PlannedSwingUp(gym.make("mbs_envs/Acrobot-v1"), hold=False)
+    assert checked[-1]["hold_q"] == list(HOLD_Q) and checked[-1]["edge_q"] == list(EDGE_Q) and checked[-1]["recover_q"] == list(RECOVER_Q)
+    assert checked[-1]["edge"] == default.edge and checked[-1]["hold_back"] == default.hold_back
+    assert (tmp_path / "hold_search.png").stat().st_size > 0 and "(defaults)" in capsys.readouterr().out
