@@ -101,8 +101,8 @@ hold's simulated region was bounded by ``drop``): the filter's hold noise at the
 
 **Memory** (SB3's ``state``): a tuple ``(row, plan)``: ``row`` (n, :data:`ROW_SIZE`) holds the adaptive
 controller's memory (identification, filter, last inputs) followed by the phase, the step in the plan, the
-plan's length, the steps since the episode started, those since the last plan (or attempt) and the hold's two gains; ``plan`` (n, :attr:`plan_size`) the plan's inputs,
-states and gains. ``plan`` is only replaced (never written in place) when a member plans, so a state
+plan's length, the steps since the episode started, those since the last plan (or attempt), the hold's three gains
+and the filter's consistency; ``plan`` (n, :attr:`plan_size`) the plan's inputs, states and gains. ``plan`` is only replaced (never written in place) when a member plans, so a state
 passed to ``predict`` is never changed by it.
 """
 
