@@ -35,7 +35,7 @@ Per member of the batch, in three phases:
    weighs the spread of the state, not the chance of leaving a box. Under observation noise the acrobot's elbow must
    swing to correct the shoulder (its stationary spread is at least 0.054 rad whatever the controller,
    :func:`controllers.region.noise_floor`), and the best of 80 LQG controllers keeps both angles within 0.1 rad for
-   2 s in 37-39 % of windows on the linearization (the report's physics table); a gain that arrests the elbow near
+   2 s in 37-40 % of windows on the linearization (the report's physics table); a gain that arrests the elbow near
    its edge, spending the shoulder's unused margin (its spread is about 0.02 rad), holds 75 % of them (4,000
    windows, noise seed 11, torque limit included), 79 % with the band and the recovery (the arm's own map, not the
    linearization: 79 %, against 78 % recovering with the upright LQR and 75 % without the band). **How the settings
