@@ -26,6 +26,7 @@ import csv
 import json
 import pathlib
 import sys
+from collections.abc import Callable
 
 import gymnasium as gym
 import numpy as np
@@ -33,7 +34,7 @@ from tqdm import tqdm
 
 import mbs_envs  # noqa: F401
 from controllers import PlannedSwingUp, region
-from controllers.planned_swingup import HOLD_SETTLE, HOLD_WINDOW
+from controllers.planned_swingup import EDGE_Q, HOLD_Q, HOLD_SETTLE, HOLD_WINDOW, RECOVER_Q
 from controllers.swingup import upright_linearization
 from mbs_envs.studies.plotting import pyplot, save
 
@@ -56,7 +57,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     return p.parse_args(argv)
 
 
-def draw(rng: np.random.Generator, make: "callable", n: int) -> list[dict]:
+def draw(rng: np.random.Generator, make: Callable[..., np.ndarray], n: int) -> list[dict]:
     """``n`` candidates whose three gains all exist and stabilize the linearization (``make`` returns them or raises)."""
     out: list[dict] = []
     while len(out) < n:
@@ -102,11 +103,8 @@ def main(argv: list[str] | None = None) -> int:
     cands = draw(np.random.default_rng(args.seed), make, args.candidates)
     shares = score(cands, args.windows, 100 + args.seed, "search")
     order = np.argsort(shares)[::-1][: args.top]
-    default = PlannedSwingUp(env, hold=False)
-    defaults = {"hold_q": default.Q_hold, "edge_q": default.Q_edge, "recover_q": default.Q_recover}
-    default_cand = {k: np.array([Q[1 - base.driven, 1 - base.driven], Q[base.driven, base.driven], Q[2, 2]]) for k, Q in defaults.items()}
-    default_cand.update(K=default.hold_gains_of(A[None], B[None])[0].reshape(3, 4), edge=default.edge, edge_lead=default.edge_lead,
-                        hold_back=default.hold_back)  # fmt: skip
+    default_cand = {"hold_q": HOLD_Q, "edge_q": EDGE_Q, "recover_q": RECOVER_Q, "K": make(HOLD_Q, EDGE_Q, RECOVER_Q), "edge": base.edge,
+                    "edge_lead": base.edge_lead, "hold_back": base.hold_back}  # fmt: skip  (base has the default settings)
     checked = [cands[i] for i in order] + [default_cand]
     check = score(checked, args.check_windows, 999, "check")
     fields = ["hold_q", "edge_q", "recover_q", "edge", "edge_lead", "hold_back"]
