@@ -574,9 +574,10 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
         j = np.minimum(j, self.max_steps * self.stride - 1)  # the last knot's last control step
         kk = j // self.stride
         u_track = Us[idx, kk] + np.einsum("bi,bi->b", Ks[idx, kk], state_error(x, self.reference(Xs, j)))
-        holding, recovering = (phase == 3.0)[:, None], (phase == 4.0)[:, None]
-        K_in = np.where(holding, row[:, KH_], np.where(recovering, row[:, KR_], row[:, K_]))
-        u_lqr = region.edge_switched(dx, K_in, np.where(holding, row[:, KE_], K_in), self.edge, self.edge_lead, self.driven)
+        holding = (phase == 3.0)[:, None]
+        K_in = np.where(holding, row[:, KH_], row[:, K_])  # (balancing: the upright LQR, no edge)
+        u_lqr = region.hold_input(dx, phase == 4.0, K_in, np.where(holding, row[:, KE_], K_in), row[:, KR_], self.edge, self.edge_lead,
+                                  self.driven)  # fmt: skip
         u = np.where(phase == 1.0, u_track, u_lqr)
         pumping = np.flatnonzero(phase == 0.0)
         if len(pumping):

@@ -360,6 +360,13 @@ def recovering(x: np.ndarray, before: np.ndarray, band: Any, back: Any) -> np.nd
     return np.where(before, off > back, off > band)
 
 
+def hold_input(x: np.ndarray, recover: np.ndarray, K: np.ndarray, K_e: np.ndarray, K_r: np.ndarray, edge: Any, lead: Any,
+               joint: int) -> np.ndarray:  # fmt: skip
+    """The hold's input law, unsaturated: ``u = -K_r x`` where a member recovers (``recover``, :func:`recovering`),
+    else :func:`edge_switched` between ``K`` and ``K_e``; shapes as there, ``recover`` of shape ``(...)``."""
+    return np.where(recover, -np.sum(x * K_r, axis=-1), edge_switched(x, K, K_e, edge, lead, joint))
+
+
 def hold_shares(A_d: np.ndarray, B_d: np.ndarray, L: np.ndarray, K: np.ndarray, sigma: float, tol: float, hold_steps: int,
                 windows: int = 2000, settle_steps: int = 300, seed: int = 0, u_max: float = np.inf, K_e: np.ndarray | None = None,
                 edge: Any = np.inf, lead: Any = 0.0, joint: int = 1, K_r: np.ndarray | None = None, band: Any = np.inf,
@@ -414,8 +421,7 @@ def hold_shares(A_d: np.ndarray, B_d: np.ndarray, L: np.ndarray, K: np.ndarray, 
     for k in range(settle_steps + hold_steps):
         xh = xh + (flat(x + rng.normal(0.0, sigma, (windows, n)) - xh) @ L.T).reshape(G, windows, n)  # the filter's update
         recover = recovering(xh, recover, band, back)
-        u = np.where(recover, -np.sum(xh * K_r, axis=-1), edge_switched(xh, K, K_e, edge, lead, joint))
-        u = np.clip(u, -u_max, u_max)[..., None]
+        u = np.clip(hold_input(xh, recover, K, K_e, K_r, edge, lead, joint), -u_max, u_max)[..., None]
         # the plant's step and the filter's prediction
         if arm is None:
             x, xh = (flat(x) @ A_d.T).reshape(G, windows, n) + u * B_d.T, (flat(xh) @ A_d.T).reshape(G, windows, n) + u * B_d.T
