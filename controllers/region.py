@@ -361,16 +361,23 @@ def recovering(x: np.ndarray, before: np.ndarray, band: Any, back: Any) -> np.nd
 
 
 def hold_input(x: np.ndarray, recover: np.ndarray, K: np.ndarray, K_e: np.ndarray, K_r: np.ndarray, edge: Any, lead: Any,
-               joint: int) -> np.ndarray:  # fmt: skip
+               joint: int, coef: np.ndarray | None = None, zd: tuple = (1.0, 1.0, 1.0)) -> np.ndarray:  # fmt: skip
     """The hold's input law, unsaturated: ``u = -K_r x`` where a member recovers (``recover``, :func:`recovering`),
-    else :func:`edge_switched` between ``K`` and ``K_e``; shapes as there, ``recover`` of shape ``(...)``."""
-    return np.where(recover, -np.sum(x * K_r, axis=-1), edge_switched(x, K, K_e, edge, lead, joint))
+    else :func:`zero_dynamics_input` where ``coef`` (:func:`zero_dynamics`' coefficients, shape broadcasting with
+    ``(..., 7)``) is finite, with ``zd = (rate, reach, omega)``, else :func:`edge_switched` between ``K`` and ``K_e``;
+    shapes as there, ``recover`` of shape ``(...)``."""
+    inside = edge_switched(x, K, K_e, edge, lead, joint)
+    if coef is not None:
+        finite = np.isfinite(coef).all(axis=-1)
+        with np.errstate(all="ignore"):  # (NaN rows: not used)
+            inside = np.where(finite, zero_dynamics_input(x, coef, *zd, joint), inside)
+    return np.where(recover, -np.sum(x * K_r, axis=-1), inside)
 
 
 def hold_shares(A_d: np.ndarray, B_d: np.ndarray, L: np.ndarray, K: np.ndarray, sigma: float, tol: float, hold_steps: int,
                 windows: int = 2000, settle_steps: int = 300, seed: int = 0, u_max: float = np.inf, K_e: np.ndarray | None = None,
                 edge: Any = np.inf, lead: Any = 0.0, joint: int = 1, K_r: np.ndarray | None = None, band: Any = np.inf,
-                back: Any = np.inf, arm: ArmMap | None = None) -> np.ndarray:  # fmt: skip
+                back: Any = np.inf, arm: ArmMap | None = None, coef: np.ndarray | None = None, zd: tuple = (1.0, 1.0, 1.0)) -> np.ndarray:  # fmt: skip
     """The share of windows of ``hold_steps`` control steps in which both angles stay within ``tol`` of upright, for
     each gain of ``K`` with the filter gain ``L``, on the discrete linearization ``x' = A_d x + B_d u`` observed as in
     :func:`noise_floor` (every state entry with white Gaussian noise of std ``sigma``).
@@ -402,6 +409,9 @@ def hold_shares(A_d: np.ndarray, B_d: np.ndarray, L: np.ndarray, K: np.ndarray, 
         [rad], ``back <= band``.
     arm : ArmMap, optional
         The nonlinear plant (default: the linearization ``A_d, B_d``).
+    coef : ndarray, shape (G, 7), optional
+        Per controller, :func:`zero_dynamics`' coefficients: where finite, the law inside the band is
+        :func:`zero_dynamics_input` with ``zd = (rate, reach, omega)`` instead of the gains (:func:`hold_input`).
 
     Returns
     -------
@@ -413,6 +423,7 @@ def hold_shares(A_d: np.ndarray, B_d: np.ndarray, L: np.ndarray, K: np.ndarray, 
     K = np.asarray(K, float)[:, None, :]  # (G, 1, n)
     K_e = K if K_e is None else np.asarray(K_e, float)[:, None, :]
     K_r = K if K_r is None else np.asarray(K_r, float)[:, None, :]
+    coef = None if coef is None else np.asarray(coef, float)[:, None, :]
     edge, lead, band, back = (np.broadcast_to(np.asarray(a, float), (G,))[:, None] for a in (edge, lead, band, back))
     rng = np.random.default_rng(seed)
     x, xh = np.zeros((G, windows, n)), np.zeros((G, windows, n))
@@ -421,7 +432,7 @@ def hold_shares(A_d: np.ndarray, B_d: np.ndarray, L: np.ndarray, K: np.ndarray, 
     for k in range(settle_steps + hold_steps):
         xh = xh + (flat(x + rng.normal(0.0, sigma, (windows, n)) - xh) @ L.T).reshape(G, windows, n)  # the filter's update
         recover = recovering(xh, recover, band, back)
-        u = np.clip(hold_input(xh, recover, K, K_e, K_r, edge, lead, joint), -u_max, u_max)[..., None]
+        u = np.clip(hold_input(xh, recover, K, K_e, K_r, edge, lead, joint, coef, zd), -u_max, u_max)[..., None]
         # the plant's step and the filter's prediction
         if arm is None:
             x, xh = (flat(x) @ A_d.T).reshape(G, windows, n) + u * B_d.T, (flat(xh) @ A_d.T).reshape(G, windows, n) + u * B_d.T
@@ -433,3 +444,79 @@ def hold_shares(A_d: np.ndarray, B_d: np.ndarray, L: np.ndarray, K: np.ndarray, 
         if k >= settle_steps:
             held &= np.all(np.abs(x[..., : n // 2]) <= tol, axis=-1) & ~over
     return held.mean(axis=1)
+
+
+def zero_dynamics(A: np.ndarray, B: np.ndarray, joint: int) -> np.ndarray:
+    """The unactuated combination of a two-link arm's linearization about upright and its zero dynamics.
+
+    With ``q'' = M q + beta u`` (the rate rows of ``A``, ``B``), ``c = (beta_1, -beta_0)`` is blind to the input:
+    ``p = c . q`` obeys ``p'' = c M q``, which in ``p`` and the driven angle ``q_j`` reads ``p'' = a p - g q_j``. Where
+    ``a > 0`` (the arm with its driven joint locked falls: the acrobot's zero dynamics), ``z = p' + lam p``, ``lam =
+    sqrt(a)``, is its unstable mode, ``z' = lam z - g q_j``: the driven angle is the input that keeps it, and so the
+    arm, upright (docs/physics.md §7).
+
+    Parameters
+    ----------
+    A, B : ndarray, shapes (..., 4, 4), (..., 4, 1)
+        Continuous linearizations about upright, state ``(q, v)`` [rad, rad/s].
+    joint : int
+        The driven joint (0 or 1).
+
+    Returns
+    -------
+    ndarray, shape (..., 7)
+        ``(c_0, c_1, lam, g, M_j0, M_j1, beta_j)``: ``c`` [N m per rad/s^2 of each angle's response, as ``beta``],
+        ``lam`` [1/s], ``g`` [1/s^2 per unit of ``c``], the driven joint's row of ``M`` [1/s^2] and its input gain
+        [rad/s^2 per N m]; NaN where ``a <= 0`` or the driven joint does not respond to the input.
+    """
+    M, beta = A[..., 2:, :2], B[..., 2:, 0]
+    c = np.stack([beta[..., 1], -beta[..., 0]], axis=-1)
+    r = np.einsum("...i,...ij->...j", c, M)
+    i = 1 - joint
+    with np.errstate(divide="ignore", invalid="ignore"):
+        a = r[..., i] / c[..., i]
+        g = a * c[..., joint] - r[..., joint]
+        lam = np.where(a > 0, np.sqrt(np.abs(a)), np.nan)
+    lam = np.where(np.abs(beta[..., joint]) > 0, lam, np.nan)
+    return np.concatenate([c, lam[..., None], g[..., None], M[..., joint, :], beta[..., joint, None]], axis=-1)
+
+
+def zero_dynamics_input(x: np.ndarray, coef: np.ndarray, rate: Any, reach: Any, omega: Any, joint: int) -> np.ndarray:
+    """The hold's input law on the zero dynamics (:func:`zero_dynamics`), unsaturated.
+
+    The driven angle is asked to be ``q_j* = reach tanh(k z / reach)``, ``k = (lam + rate) / g`` (the unstable mode
+    ``z`` decays at ``rate`` where the request is linear, and the request never leaves ``reach``: near the box's edge
+    the driven angle stops and the mode is pushed back as hard as the box allows), with ``q_j*' = k z' sech^2(k z /
+    reach)``, ``z' = lam z - g q_j``; the driven angle follows it as a critically damped second-order loop of natural
+    frequency ``omega``, its acceleration asked of the linearization: ``u = (a_j - M_j . q) / beta_j``, ``a_j = -omega^2
+    (q_j - q_j*) - 2 omega (v_j - q_j*')``.
+
+    Parameters
+    ----------
+    x : ndarray, shape (..., 4)
+        The state about upright ``(q, v)`` [rad, rad/s].
+    coef : ndarray, shape broadcasting with ``(..., 7)``
+        :func:`zero_dynamics`' coefficients.
+    rate : float or ndarray
+        The unstable mode's closed-loop decay rate [1/s] (> 0).
+    reach : float or ndarray
+        The most the driven angle is asked off upright [rad].
+    omega : float or ndarray
+        The driven angle's loop [rad/s].
+    joint : int
+        The driven joint.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        The input [N m], unsaturated.
+    """
+    c, lam, g, M_j, beta_j = coef[..., :2], coef[..., 2], coef[..., 3], coef[..., 4:6], coef[..., 6]
+    q, v = x[..., :2], x[..., 2:]
+    z = np.sum(c * v, axis=-1) + lam * np.sum(c * q, axis=-1)
+    k = (lam + rate) / g
+    s = k * z / reach
+    target = reach * np.tanh(s)
+    target_rate = k * (lam * z - g * q[..., joint]) / np.cosh(np.clip(s, -50.0, 50.0)) ** 2
+    a_j = -(omega**2) * (q[..., joint] - target) - 2.0 * omega * (v[..., joint] - target_rate)
+    return (a_j - np.sum(M_j * q, axis=-1)) / beta_j

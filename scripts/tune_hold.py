@@ -87,7 +87,7 @@ def main(argv: list[str] | None = None) -> int:
         K = PlannedSwingUp(env, hold=False, hold_q=hold_q, edge_q=edge_q, recover_q=recover_q).hold_gains_of(A[None], B[None])[0]
         if not np.isfinite(K).all():
             raise ValueError("no stabilizing gain")
-        return K.reshape(3, 4)
+        return K[:12].reshape(3, 4)  # (the edge law: inside, edge, recovery)
 
     def score(cands: list[dict], windows: int, seed: int, progress: str) -> np.ndarray:
         out = []

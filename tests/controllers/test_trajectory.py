@@ -13,7 +13,7 @@ import mbs_envs  # noqa: F401
 from controllers import PlannedSwingUp
 from controllers import trajectory as traj
 from controllers.control_map import rk4_map, state_error
-from controllers.planned_swingup import CLOCK, KE_, KH_, KR_, LENGTH, NIS, NIS_LIMIT, PHASE, PUMPING_GRID, SINCE, hold_pays
+from controllers.planned_swingup import CLOCK, KE_, KH_, KR_, ZD_, LENGTH, NIS, NIS_LIMIT, PHASE, PUMPING_GRID, SINCE, hold_pays
 from mbs_envs.envs.swingup import Q_UP
 
 GOAL = np.concatenate([Q_UP, np.zeros(2)])
@@ -279,15 +279,17 @@ def test_the_lqr_takes_over_exactly_where_its_simulated_region_says(x0, inside):
         assert info["upright"] and np.abs(info["tracking_error"]).max() < 0.01 and state[0][PHASE] == 3.0
 
 
-@pytest.mark.parametrize("x0", [(0.005, 0.0, 0.0, 0.0), (0.004, 0.0, 0.02, 0.0), (0.004, 0.0, 0.04, 0.0)])
-def test_a_balancing_member_holds_exactly_where_the_hold_lqrs_simulated_region_says(x0):
+@pytest.mark.parametrize("x0, law", [((0.005, 0.0, 0.0, 0.0), "edge"), ((0.004, 0.0, 0.02, 0.0), "edge"), ((0.004, 0.0, 0.04, 0.0), "edge"),
+                                     ((0.004, 0.0, 0.04, 0.0), "zero_dynamics")])
+def test_a_balancing_member_holds_exactly_where_the_hold_lqrs_simulated_region_says(x0, law):
     """Phase 3: a member balancing since the step before switches to the hold LQR exactly where its filter is
     consistent (the running mean of its normalized innovations below :data:`NIS_LIMIT`), its estimate is within
     ``hold_back`` of upright and the hold's inner saturated LQR, simulated on its identified model from its estimate,
     ends upright with both angles within ``edge`` on the way (so that the edge gain, which stops the driven angle, does
     not park a noise-free arm at the edge; from ``(0.004, 0, 0.02, 0)`` the member balances first); the hold's two gains are python-control's discrete LQR (``control.dlqr``)
     of the identified model's linearization sampled on the control step (input held), with the hold's and the edge's
-    weights (1e-9); holding, the filter runs with its hold process noise and the estimate stays within ``hold_band``;
+    weights (1e-9), or with ``hold_law="zero_dynamics"`` the zero dynamics' coefficients (``c`` against the input's
+    rates, ``lam`` the square root of ``p''``'s coefficient on ``p = c . q``, 1e-9) with the recovery gain; holding, the filter runs with its hold process noise and the estimate stays within ``hold_band``;
     the noise-free arm ends held within 0.01 of upright (after 5 s: from
     ``(0.004, 0, 0.04, 0)`` the upright LQR's catch can pass ``drop`` and plan again, on an AMD EPYC twice before
     it holds at 1.8 s, within 0.01 by 4 s; the catch's transient is not bounded by ``drop``)."""
@@ -299,7 +301,7 @@ def test_a_balancing_member_holds_exactly_where_the_hold_lqrs_simulated_region_s
     from controllers.swingup import upright_linearization
 
     env = gym.make("mbs_envs/Acrobot-v1", start_noise=0.0)
-    ctrl = PlannedSwingUp(env, plan_time=10.0)
+    ctrl = PlannedSwingUp(env, plan_time=10.0, hold_law=law)
     assert ctrl.hold
     x = GOAL + np.array(x0)
     obs, _ = env.reset(options={"q": x[:2], "v": x[2:]})
@@ -318,8 +320,12 @@ def test_a_balancing_member_holds_exactly_where_the_hold_lqrs_simulated_region_s
             theta = np.ascontiguousarray(np.asarray(model.kernel_params(), float).reshape(-1, 1))
             region_says = traj.lqr_catches(row[XH], K_hold, GOAL, 10.0, 1, theta, 0.01, 2, ctrl.catch_steps, ctrl.catch_tol, ctrl.edge)
             assert (row[PHASE] == 3.0) == (region_says and row[NIS] < NIS_LIMIT and off <= ctrl.hold_back)
-        if row[PHASE] == 3.0:
+        if row[PHASE] == 3.0 and law == "edge":
             assert all(np.allclose(row[c], k, rtol=1e-9, atol=0) for c, k in ((KH_, K_hold), (KE_, K_edge), (KR_, K_rec)))
+        elif row[PHASE] == 3.0:
+            beta, a = B[0][2:, 0], (np.array([B[0][3, 0], -B[0][2, 0]]) @ A[0][2:, 0]) / B[0][3, 0]  # p'' = a p - g q_2
+            assert np.allclose(row[ZD_][:3], [beta[1], -beta[0], np.sqrt(a)], rtol=1e-9, atol=0) and row[ZD_.stop] == 0.0
+            assert np.allclose(row[KR_], K_rec, rtol=1e-9, atol=0)
             assert row[MODE] == 2.0 and np.array_equal(ctrl.filter_noise(row[None])[0], ctrl.Q_w_hold) and off <= ctrl.hold_band
         phases.append(row[PHASE])
         obs, _, _, _, info = env.step(action)
@@ -429,7 +435,7 @@ def test_the_hold_pays_on_the_acrobot_and_not_on_the_pendubot():
     A, B = upright_linearization(acrobot.model)
     A_d, B_d = region.discretize(A, B, 0.01)
     L = region.steady_kalman(A_d, 0.01)[0]
-    K_hold, K_edge = acrobot.hold_gains_of(A[None], B[None])[0].reshape(3, 4)[:2]
+    K_hold, K_edge = acrobot.hold_gains_of(A[None], B[None])[0][:12].reshape(3, 4)[:2]
     K = np.stack([acrobot.K.reshape(4), K_hold])
     catch, hold = region.hold_shares(A_d, B_d, L, K, 0.01, 0.1, 200, 500, u_max=10.0, K_e=np.stack([K[0], K_edge]),
                                      edge=[np.inf, acrobot.edge], lead=[0.0, acrobot.edge_lead])  # fmt: skip
@@ -467,7 +473,8 @@ def test_a_batch_acts_as_each_member_alone():
                                     {"plan_h": 0.0}, {"plan_h": -1.0}, {"hold": "yes"}, {"hold_q": (1.0, 1.0)}, {"hold_q": (1.0, -1.0, 1.0)},
                                     {"hold_r": 0.0}, {"hold_noise": (1e-5, np.nan)}, {"hold_noise": 1e-5}, {"edge_q": (1.0, 0.0, 1.0)}, {"recover_q": (1.0, np.inf, 1.0)},
                                     {"edge_q": 300.0}, {"edge": 0.0}, {"edge": np.inf}, {"edge_lead": -0.01}, {"hold_band": 0.0},
-                                    {"hold_back": 0.2}, {"hold_back": 0.0},
+                                    {"hold_back": 0.2}, {"hold_back": 0.0}, {"hold_law": "lqr"}, {"hold_rate": 0.0},
+                                    {"hold_reach": 0.2}, {"hold_reach": -0.05}, {"hold_omega": np.inf}, {"hold_omega": 0.0},
                                     {"hold": True, "obs_noise": 0.0}])
 def test_bad_settings_are_refused_by_name(kwargs):
     with pytest.raises(ValueError, match=next(iter(kwargs))):
