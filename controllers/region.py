@@ -361,23 +361,24 @@ def recovering(x: np.ndarray, before: np.ndarray, band: Any, back: Any) -> np.nd
 
 
 def hold_input(x: np.ndarray, recover: np.ndarray, K: np.ndarray, K_e: np.ndarray, K_r: np.ndarray, edge: Any, lead: Any,
-               joint: int, coef: np.ndarray | None = None, zd: tuple = (1.0, 1.0, 1.0)) -> np.ndarray:  # fmt: skip
-    """The hold's input law, unsaturated: ``u = -K_r x`` where a member recovers (``recover``, :func:`recovering`),
-    else :func:`zero_dynamics_input` where ``coef`` (:func:`zero_dynamics`' coefficients, shape broadcasting with
-    ``(..., 7)``) is finite, with ``zd = (rate, reach, omega)``, else :func:`edge_switched` between ``K`` and ``K_e``;
-    shapes as there, ``recover`` of shape ``(...)``."""
-    inside = edge_switched(x, K, K_e, edge, lead, joint)
+               joint: int, coef: np.ndarray | None = None, zd: ZeroDynamicsHold | None = None) -> np.ndarray:  # fmt: skip
+    """The hold's input law, unsaturated: where ``coef`` (:func:`zero_dynamics`' coefficients, shape broadcasting
+    with ``(..., 7)``) is finite, :func:`zero_dynamics_input` with ``zd``'s settings (its rescue reach where a member
+    recovers, ``recover``: :func:`rescuing`); elsewhere ``u = -K_r x`` where a member recovers (:func:`recovering`),
+    else :func:`edge_switched` between ``K`` and ``K_e``; shapes as there, ``recover`` of shape ``(...)``."""
+    out = np.where(recover, -np.sum(x * K_r, axis=-1), edge_switched(x, K, K_e, edge, lead, joint))
     if coef is not None:
         finite = np.isfinite(coef).all(axis=-1)
+        reach = np.where(recover, zd.rescue_reach, zd.reach)
         with np.errstate(all="ignore"):  # (NaN rows: not used)
-            inside = np.where(finite, zero_dynamics_input(x, coef, *zd, joint), inside)
-    return np.where(recover, -np.sum(x * K_r, axis=-1), inside)
+            out = np.where(finite, zero_dynamics_input(x, coef, zd.rate, reach, zd.omega, joint), out)
+    return out
 
 
 def hold_shares(A_d: np.ndarray, B_d: np.ndarray, L: np.ndarray, K: np.ndarray, sigma: float, tol: float, hold_steps: int,
                 windows: int = 2000, settle_steps: int = 300, seed: int = 0, u_max: float = np.inf, K_e: np.ndarray | None = None,
                 edge: Any = np.inf, lead: Any = 0.0, joint: int = 1, K_r: np.ndarray | None = None, band: Any = np.inf,
-                back: Any = np.inf, arm: ArmMap | None = None, coef: np.ndarray | None = None, zd: tuple = (1.0, 1.0, 1.0)) -> np.ndarray:  # fmt: skip
+                back: Any = np.inf, arm: ArmMap | None = None, coef: np.ndarray | None = None, zd: ZeroDynamicsHold | None = None) -> np.ndarray:  # fmt: skip
     """The share of windows of ``hold_steps`` control steps in which both angles stay within ``tol`` of upright, for
     each gain of ``K`` with the filter gain ``L``, on the discrete linearization ``x' = A_d x + B_d u`` observed as in
     :func:`noise_floor` (every state entry with white Gaussian noise of std ``sigma``).
@@ -410,8 +411,11 @@ def hold_shares(A_d: np.ndarray, B_d: np.ndarray, L: np.ndarray, K: np.ndarray, 
     arm : ArmMap, optional
         The nonlinear plant (default: the linearization ``A_d, B_d``).
     coef : ndarray, shape (G, 7), optional
-        Per controller, :func:`zero_dynamics`' coefficients: where finite, the law inside the band is
-        :func:`zero_dynamics_input` with ``zd = (rate, reach, omega)`` instead of the gains (:func:`hold_input`).
+        Per controller, :func:`zero_dynamics`' coefficients: where finite, the hold is :func:`zero_dynamics_input`
+        with ``zd``'s settings and its rescue rule (:func:`rescuing`) instead of the gains and the band
+        (:func:`hold_input`).
+    zd : ZeroDynamicsHold, optional
+        Needed with ``coef``.
 
     Returns
     -------
@@ -431,7 +435,8 @@ def hold_shares(A_d: np.ndarray, B_d: np.ndarray, L: np.ndarray, K: np.ndarray, 
     flat = lambda a: a.reshape(G * windows, n)  # noqa: E731  (2-D products: one BLAS call each)
     for k in range(settle_steps + hold_steps):
         xh = xh + (flat(x + rng.normal(0.0, sigma, (windows, n)) - xh) @ L.T).reshape(G, windows, n)  # the filter's update
-        recover = recovering(xh, recover, band, back)
+        banded = recovering(xh, recover, band, back)
+        recover = banded if coef is None else np.where(np.isfinite(coef).all(axis=-1), rescuing(xh, coef, recover, zd, back), banded)
         u = np.clip(hold_input(xh, recover, K, K_e, K_r, edge, lead, joint, coef, zd), -u_max, u_max)[..., None]
         # the plant's step and the filter's prediction
         if arm is None:
@@ -481,6 +486,52 @@ def zero_dynamics(A: np.ndarray, B: np.ndarray, joint: int) -> np.ndarray:
     return np.concatenate([c, lam[..., None], g[..., None], M[..., joint, :], beta[..., joint, None]], axis=-1)
 
 
+@dataclasses.dataclass(frozen=True)
+class ZeroDynamicsHold:
+    """The settings of the hold on the zero dynamics (:func:`zero_dynamics_input`, :func:`rescuing`).
+
+    rate : float
+        The unstable mode's closed-loop decay rate [1/s] where the driven angle's request is linear.
+    reach : float
+        The most the driven angle is asked off upright while holding [rad].
+    omega : float
+        The driven angle's loop [rad/s] (critically damped).
+    rescue_reach : float
+        The reach while rescuing [rad]: beyond the box, where the mode has escaped what the box allows.
+    trigger, release : float
+        A holding member rescues where ``|z|`` exceeds ``trigger`` times the mode's capture within ``reach``,
+        ``g reach / lam``, and holds again where it is below ``release`` times it with both angles within the way
+        back.
+    """
+
+    rate: float = 22.5
+    reach: float = 0.095
+    omega: float = 60.0
+    rescue_reach: float = 0.2
+    trigger: float = 1.2
+    release: float = 0.5
+
+
+def zero_dynamics_mode(x: np.ndarray, coef: np.ndarray) -> np.ndarray:
+    """The unstable mode ``z = c . v + lam c . q`` of :func:`zero_dynamics` at the states ``x`` (shape (..., 4)) [units
+    of ``c`` times rad/s], shape (...)."""
+    return np.sum(coef[..., :2] * x[..., 2:], axis=-1) + coef[..., 2] * np.sum(coef[..., :2] * x[..., :2], axis=-1)
+
+
+def rescuing(x: np.ndarray, coef: np.ndarray, before: np.ndarray, zd: ZeroDynamicsHold, back: Any) -> np.ndarray:
+    """The zero-dynamics hold's rescue rule with hysteresis: whether each member rescues (the law with
+    ``zd.rescue_reach``) at state ``x``, having rescued (``before``) or held at the previous step. Within ``reach``
+    the driven angle pulls the mode back only while ``|z| < g reach / lam`` (``z' = lam z - g q_j``): past
+    ``zd.trigger`` times that a holding member rescues (the box is lost for a while, the arm is not), and holds again
+    where ``|z|`` is below ``zd.release`` times it and both angles are within ``back`` [rad]. Shapes as
+    :func:`recovering`, ``coef`` broadcasting with ``(..., 7)``."""
+    z = np.abs(zero_dynamics_mode(x, coef))
+    with np.errstate(invalid="ignore", divide="ignore"):  # (rows without coefficients: not used)
+        capture = np.abs(coef[..., 3]) * zd.reach / coef[..., 2]
+    inside = np.abs(x[..., : x.shape[-1] // 2]).max(axis=-1) <= back
+    return np.where(before, ~((z < zd.release * capture) & inside), z > zd.trigger * capture)
+
+
 def zero_dynamics_input(x: np.ndarray, coef: np.ndarray, rate: Any, reach: Any, omega: Any, joint: int) -> np.ndarray:
     """The hold's input law on the zero dynamics (:func:`zero_dynamics`), unsaturated.
 
@@ -511,9 +562,9 @@ def zero_dynamics_input(x: np.ndarray, coef: np.ndarray, rate: Any, reach: Any, 
     ndarray, shape (...)
         The input [N m], unsaturated.
     """
-    c, lam, g, M_j, beta_j = coef[..., :2], coef[..., 2], coef[..., 3], coef[..., 4:6], coef[..., 6]
+    lam, g, M_j, beta_j = coef[..., 2], coef[..., 3], coef[..., 4:6], coef[..., 6]
     q, v = x[..., :2], x[..., 2:]
-    z = np.sum(c * v, axis=-1) + lam * np.sum(c * q, axis=-1)
+    z = zero_dynamics_mode(x, coef)
     k = (lam + rate) / g
     s = k * z / reach
     target = reach * np.tanh(s)

@@ -75,7 +75,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     env = gym.make(args.env).unwrapped
-    base = PlannedSwingUp(env, hold=False)
+    base = PlannedSwingUp(env, hold=False, hold_law="edge")  # (the law this search tunes)
     A, B = upright_linearization(base.model)
     with region.quiet_riccati():
         A_d, B_d = region.discretize(A, B, base.dt)
@@ -84,7 +84,7 @@ def main(argv: list[str] | None = None) -> int:
     tol = float(getattr(env, "upright_tolerance", 0.1))
 
     def make(hold_q: np.ndarray, edge_q: np.ndarray, recover_q: np.ndarray) -> np.ndarray:
-        K = PlannedSwingUp(env, hold=False, hold_q=hold_q, edge_q=edge_q, recover_q=recover_q).hold_gains_of(A[None], B[None])[0]
+        K = PlannedSwingUp(env, hold=False, hold_law="edge", hold_q=hold_q, edge_q=edge_q, recover_q=recover_q).hold_gains_of(A[None], B[None])[0]
         if not np.isfinite(K).all():
             raise ValueError("no stabilizing gain")
         return K[:12].reshape(3, 4)  # (the edge law: inside, edge, recovery)

@@ -897,7 +897,7 @@ def test_tune_hold_scores_candidates_on_the_arms_map_and_checks_the_best_beside_
     assert len(rows) == 4 and all(0.0 <= float(r["share"]) <= 1.0 for r in rows)
     checked = json.loads((tmp_path / "hold_search.json").read_text())["checked"]
     assert len(checked) == 3 and [c["default"] for c in checked] == [False, False, True]
-    default = PlannedSwingUp(gym.make("mbs_envs/Acrobot-v1"), hold=False)
+    default = PlannedSwingUp(gym.make("mbs_envs/Acrobot-v1"), hold=False, hold_law="edge")
     assert checked[-1]["hold_q"] == list(HOLD_Q) and checked[-1]["edge_q"] == list(EDGE_Q) and checked[-1]["recover_q"] == list(RECOVER_Q)
     assert checked[-1]["edge"] == default.edge and checked[-1]["hold_back"] == default.hold_back
     assert (tmp_path / "hold_search.png").stat().st_size > 0 and "(defaults)" in capsys.readouterr().out

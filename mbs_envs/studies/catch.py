@@ -17,10 +17,11 @@ controller and Gaussian noise the window's states are jointly Gaussian with a co
 start, so by Anderson's theorem no start, random or not, holds more of them). A controller whose filter trusted an
 accurate estimate at the window's start more than the stationary filter does could hold more (with an exact estimate
 and no process noise, every window); how accurate an estimate a swing-up delivers is not computed. A controller that is
-not linear can hold more too: beside it, the share the hold of :class:`controllers.PlannedSwingUp` (two discrete LQRs
-switched at the driven angle's edge, :func:`controllers.region.edge_switched`, and a third that recovers outside the
-tolerance, :func:`controllers.region.recovering`) holds on the same linearization with the steady Kalman filter and
-the torque limit, once stationary (:func:`edge_hold_share`).
+not linear can hold more too: beside it, the share the hold of :class:`controllers.PlannedSwingUp` (its law, by
+default the driven angle steering the arm's unstable zero dynamics within a reach, :func:`controllers.region.
+zero_dynamics_input`, with its rescue, :func:`controllers.region.rescuing`) holds on the same linearization with the
+steady Kalman filter and the torque limit, once stationary (:func:`planner_hold_share`), where the planner uses its
+hold (:func:`controllers.planned_swingup.hold_pays`; not on the pendubot, whose upright LQR holds every window).
 """
 
 from __future__ import annotations
@@ -49,11 +50,10 @@ def applies(scene: str) -> bool:
     return isinstance(gym.make(SCENES[scene][0]).unwrapped, SwingUpEnv)
 
 
-def edge_hold_share(ctrl: Any, A: np.ndarray, B: np.ndarray, sigma: float, tol: float, windows: int = 2000, seed: int = 0) -> float:
+def planner_hold_share(ctrl: Any, A: np.ndarray, B: np.ndarray, sigma: float, tol: float, windows: int = 2000, seed: int = 0) -> float:
     """The share of the success rule's windows (both angles within ``tol`` [rad] for 2 s, after 3 s of settling) that
-    the hold of ``ctrl`` (a :class:`controllers.PlannedSwingUp`: its gains on its own nominal model, switched by
-    :func:`controllers.region.edge_switched`, recovering outside its band by :func:`controllers.region.recovering`,
-    saturated at its torque limit) holds on the plant linearized as ``(A, B)``,
+    the hold of ``ctrl`` (a :class:`controllers.PlannedSwingUp`: its law of ``ctrl.hold_law`` on its own nominal
+    model, with its rescue or recovery, saturated at its torque limit) holds on the plant linearized as ``(A, B)``,
     observed with noise ``sigma`` on every state entry through the steady Kalman filter
     (:func:`controllers.planned_swingup.hold_window_shares`, the noise drawn from ``seed``)."""
     return float(hold_window_shares(ctrl, A, B, sigma, tol, windows, seed, upright=False)[0])
@@ -75,26 +75,27 @@ def catch_rows(scene: str, conditions: list[Condition]) -> list[dict[str, Any]]:
         case = PlantCase(plant, cond.delay)
         caught = [axis_catch(case, x_up, lqr.K, u_max, dt, substeps, j, 1.5 * b if np.isfinite(b) else 5.0) for j, b in enumerate(bound)]
         floor = noise_floor(A, B, dt, cond.obs_noise)[:2].tolist() if cond.obs_noise > 0 else None
-        hold = start = edge = None
+        hold = start = planner_hold = None
         if cond.obs_noise > 0:
             hold, start = (lqg_hold_share(A, B, dt, cond.obs_noise, nominal.upright_tolerance, int(round(HOLD / dt)), settle_steps=n)
                            for n in (300, 0))  # fmt: skip
-            edge = edge_hold_share(planner, A, B, cond.obs_noise, nominal.upright_tolerance)
+            if planner.hold:  # (where the planner uses no hold, none: on the pendubot its upright LQR holds every window)
+                planner_hold = planner_hold_share(planner, A, B, cond.obs_noise, nominal.upright_tolerance)
         rows.append({"scene": scene, "condition": cond.name, "bound": [float(b) for b in bound], "lqr_catch": caught, "noise_floor": floor,
-                     "lqg_hold": hold, "lqg_hold_from_start": start, "edge_hold": edge})  # fmt: skip
+                     "lqg_hold": hold, "lqg_hold_from_start": start, "planner_hold": planner_hold})  # fmt: skip
     return rows
 
 
 def catch_table(rows: list[dict[str, Any]]) -> str:
     """A markdown table of :func:`catch_rows`: ``LQR catch / bound`` per coordinate."""
     lines = ["| scene | condition | " + " | ".join(f"{a}: LQR / bound" for a in AXES) + " | noise floor: std q1 / q2 [rad] | LQG holds | "
-             "edge-switched hold holds |", "|---|---|" + "---|" * (len(AXES) + 3)]  # fmt: skip
+             "planner's hold holds |", "|---|---|" + "---|" * (len(AXES) + 3)]  # fmt: skip
     for r in rows:
         cells = [f"{c:.3f} / {b:.3f}" for c, b in zip(r["lqr_catch"], r["bound"])]
         floor = r.get("noise_floor")
         cells.append(f"{floor[0]:.4f} / {floor[1]:.4f}" if floor else "")
         held, start = r.get("lqg_hold"), r.get("lqg_hold_from_start")
         cells.append("" if held is None else f"{held:.0%}" + ("" if start is None else f" ({start:.0%} from upright)"))
-        cells.append("" if r.get("edge_hold") is None else f"{r['edge_hold']:.0%}")
+        cells.append("" if r.get("planner_hold") is None else f"{r['planner_hold']:.0%}")
         lines.append(f"| {r['scene']} | {r['condition']} | " + " | ".join(cells) + " |")
     return "\n".join(lines)

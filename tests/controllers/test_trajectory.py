@@ -388,7 +388,7 @@ def test_the_hold_trusts_the_model_only_while_the_observations_agree_with_it(tor
 
 
 def test_a_holding_member_that_leaves_the_band_recovers_into_the_hold():
-    """Phase 4: a holding acrobot observed with noise 0.01 (the model pinned) leaves the band now and then (the noise
+    """Phase 4 of the edge-switched hold (``hold_law="edge"``): a holding acrobot observed with noise 0.01 (the model pinned) leaves the band now and then (the noise
     alone: about once per 1,000 steps on the linearization); it then recovers with its recovery gain (phase 4, the
     hold's filter setting kept) and holds again once both estimated angles are within ``hold_back``, never planning
     again nor falling back to the upright LQR (its filter stays consistent). A torque pulse is no test of this: the
@@ -396,7 +396,7 @@ def test_a_holding_member_that_leaves_the_band_recovers_into_the_hold():
     from controllers.adaptive_swingup import MODE, XH
 
     env = gym.make("mbs_envs/Acrobot-v1", start_noise=0.0)
-    ctrl = PlannedSwingUp(env, plan_time=30.0, prior=1e9)
+    ctrl = PlannedSwingUp(env, plan_time=30.0, prior=1e9, hold_law="edge")
     x = GOAL + np.array([0.003, 0.0, 0.0, 0.0])
     obs, _ = env.reset(options={"q": x[:2], "v": x[2:]})
     rng = np.random.default_rng(0)
@@ -420,7 +420,7 @@ def test_the_hold_pays_on_the_acrobot_and_not_on_the_pendubot():
     noise (no filter) the stage is off; ``hold`` set by hand overrides the rule."""
     from controllers import region
 
-    acrobot, pendubot = PlannedSwingUp(gym.make("mbs_envs/Acrobot-v1")), PlannedSwingUp(gym.make("mbs_envs/Pendubot-v1"))
+    acrobot, pendubot = PlannedSwingUp(gym.make("mbs_envs/Acrobot-v1"), hold_law="edge"), PlannedSwingUp(gym.make("mbs_envs/Pendubot-v1"))
     assert acrobot.hold and not pendubot.hold
     assert hold_pays(acrobot, 0.1) and not hold_pays(pendubot, 0.1)
     assert not hold_pays(acrobot, 1.0)  # a tolerance both hold always: no gain
@@ -475,6 +475,8 @@ def test_a_batch_acts_as_each_member_alone():
                                     {"edge_q": 300.0}, {"edge": 0.0}, {"edge": np.inf}, {"edge_lead": -0.01}, {"hold_band": 0.0},
                                     {"hold_back": 0.2}, {"hold_back": 0.0}, {"hold_law": "lqr"}, {"hold_rate": 0.0},
                                     {"hold_reach": 0.2}, {"hold_reach": -0.05}, {"hold_omega": np.inf}, {"hold_omega": 0.0},
+                                    {"hold_rescue_reach": 0.05}, {"hold_rescue_reach": 0.5}, {"hold_trigger": 0.4}, {"hold_release": 0.0},
+                                    {"hold_release": 1.5},
                                     {"hold": True, "obs_noise": 0.0}])
 def test_bad_settings_are_refused_by_name(kwargs):
     with pytest.raises(ValueError, match=next(iter(kwargs))):
