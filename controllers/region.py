@@ -470,9 +470,10 @@ def zero_dynamics(A: np.ndarray, B: np.ndarray, joint: int) -> np.ndarray:
     Returns
     -------
     ndarray, shape (..., 7)
-        ``(c_0, c_1, lam, g, M_j0, M_j1, beta_j)``: ``c`` [N m per rad/s^2 of each angle's response, as ``beta``],
-        ``lam`` [1/s], ``g`` [1/s^2 per unit of ``c``], the driven joint's row of ``M`` [1/s^2] and its input gain
-        [rad/s^2 per N m]; NaN where ``a <= 0`` or the driven joint does not respond to the input.
+        ``(c_0, c_1, lam, g, M_j0, M_j1, beta_j)``: ``c`` [rad/s^2 per N m, as ``beta``], ``lam`` [1/s], ``g``
+        [1/s^2 times the units of ``c``], the driven joint's row of ``M`` [1/s^2] and its input gain [rad/s^2 per
+        N m]; ``lam`` NaN where ``a <= 0`` (no unstable zero dynamics) or the driven joint does not respond to the
+        input.
     """
     M, beta = A[..., 2:, :2], B[..., 2:, 0]
     c = np.stack([beta[..., 1], -beta[..., 0]], axis=-1)
@@ -504,12 +505,12 @@ class ZeroDynamicsHold:
         back.
     """
 
-    rate: float = 22.5
-    reach: float = 0.095
-    omega: float = 60.0
+    rate: float = 35.0
+    reach: float = 0.0975
+    omega: float = 45.0
     rescue_reach: float = 0.2
-    trigger: float = 1.2
-    release: float = 0.5
+    trigger: float = 1.35
+    release: float = 0.7
 
 
 def zero_dynamics_mode(x: np.ndarray, coef: np.ndarray) -> np.ndarray:

@@ -507,7 +507,7 @@ def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: 
               "hold more). A controller that is not linear can also hold more: \"planner's hold holds\" is the share "
               "the hold of identified iLQR + TVLQR (on the nominal model's linearization: the elbow steers the arm's "
               "unstable zero dynamics, the mode `z` of the shoulder-elbow combination the input does not reach, asked "
-              "at most 0.095 rad off upright, `controllers.region.zero_dynamics_input`; past what that reach can pull "
+              "at most 0.0975 rad off upright, `controllers.region.zero_dynamics_input`; past what that reach can pull "
               "back it rescues the arm with a reach of 0.2 rad, `controllers.region.rescuing`) holds on the same "
               "linearization, stationary, with the steady Kalman filter and the torque limit "
               "(`mbs_envs.studies.catch.planner_hold_share`, 2,000 windows; blank where the planner uses no hold: on the "

@@ -884,6 +884,28 @@ def test_bench_derived_first_make_leaves_no_child_writing_into_its_temporary_cac
     assert alive == []  # without the wait: still compiling the scene's kernels some seconds on
 
 
+def test_tune_zero_dynamics_hold_scores_every_setting_and_picks_the_best_over_the_plants(tmp_path, capsys):
+    """``scripts/tune_zero_dynamics_hold.py`` at a tiny size: every law setting scored (a share in [0, 1]), the rescue
+    stage run with the best of them on every plant, its pick the best mean over the plants (the last row: no
+    rescue), the four files written."""
+    script = load_script("tune_zero_dynamics_hold.py")
+    argv = ["--out", str(tmp_path), "--rates", "22.5", "--reaches", "0.09", "0.095", "--omegas", "60", "--rescue-reaches", "0.2",
+            "--triggers", "1.2", "--releases", "0.5", "--mismatch", "0.01", "--windows", "30"]  # fmt: skip
+    assert script["main"](argv) == 0
+    with open(tmp_path / "zd_law.csv") as f:
+        laws = list(csv.DictReader(f))
+    assert len(laws) == 2 and all(0.0 <= float(r["share"]) <= 1.0 for r in laws)
+    with open(tmp_path / "zd_rescue.csv") as f:
+        rescues = list(csv.DictReader(f))
+    assert len(rescues) == 2 and rescues[-1]["trigger"] == "inf"
+    found = json.loads((tmp_path / "zd_search.json").read_text())
+    best = max(laws, key=lambda r: float(r["share"]))
+    assert found["best_law"]["reach"] == float(best["reach"]) and found["plants"] == [0.0, 0.01]
+    means = [float(r["mean"]) for r in rescues]
+    assert np.mean(found["pick_shares"]) == pytest.approx(max(means), abs=1e-4)
+    assert (tmp_path / "zd_search.png").stat().st_size > 0 and "best law" in capsys.readouterr().out
+
+
 def test_tune_hold_scores_candidates_on_the_arms_map_and_checks_the_best_beside_the_defaults(tmp_path, capsys):
     """``scripts/tune_hold.py`` at a tiny size: every candidate scored (a share in [0, 1]), the best checked beside the
     defaults (their weights as ``PlannedSwingUp`` has them), the three files written."""
