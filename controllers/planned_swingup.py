@@ -257,12 +257,11 @@ def hold_window_shares(ctrl: Any, A: np.ndarray, B: np.ndarray, sigma: float, to
         A_d, B_d = region.discretize(A, B, ctrl.dt)
         L = region.steady_kalman(A_d, sigma)[0]
     terms = ctrl.hold_gains_of(A_n[None], B_n[None])[0]
-    K_hold, K_edge, K_rec = (terms[12:], terms[4:8], terms[8:12]) if ctrl.hold_law == "zero_dynamics" else terms[:12].reshape(3, 4)
-    coef = np.stack([np.full(7, np.nan), terms[:7]]) if ctrl.hold_law == "zero_dynamics" else None
+    zd_law = ctrl.hold_law == "zero_dynamics"
+    K_hold, K_edge, K_rec = terms[12:], terms[12:] if zd_law else terms[4:8], terms[8:12]  # (the inside gain: last)
     K_up = np.asarray(ctrl.K, float).reshape(4)
-    K, K_e, K_r = (np.stack([K_up, k]) if upright else k[None] for k in (K_hold, K_hold if coef is not None else K_edge, K_rec))
-    if coef is not None and not upright:
-        coef = coef[1:]
+    K, K_e, K_r = (np.stack([K_up, k]) if upright else k[None] for k in (K_hold, K_edge, K_rec))
+    coef = None if not zd_law else np.stack([np.full(7, np.nan), terms[:7]]) if upright else terms[None, :7]
     edge, lead, band, back = ctrl.edge, ctrl.edge_lead, ctrl.hold_band, ctrl.hold_back
     if upright:  # the upright LQR first: no edge, no band
         edge, lead, band, back = ([none, h] for none, h in zip((np.inf, 0.0, np.inf, np.inf), (edge, lead, band, back)))
