@@ -503,6 +503,9 @@ class ZeroDynamicsHold:
         A holding member rescues where ``|z|`` exceeds ``trigger`` times the mode's capture within ``reach``,
         ``g reach / lam``, and holds again where it is below ``release`` times it with both angles within the way
         back.
+
+    Each field is a float, or an array broadcasting with the members (``(G, 1)`` in :func:`hold_shares`: ``G``
+    settings scored in one batch).
     """
 
     rate: float = 35.0
