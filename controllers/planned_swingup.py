@@ -23,7 +23,7 @@ Per member of the batch, in three phases:
    do not meet a filter that trusts the model) and with both estimated angles within ``hold_back`` of upright, a
    balancing member switches to it, with the filter's process noise lowered to its hold setting (the model is
    trusted near upright). The hold keeps both angles within the success tolerance under observation noise rather
-   than catching. **Its law** (``hold_law="zero_dynamics"``, the default since session 31): the driven angle steers
+   than catching. **Its law** (``hold_law="zero_dynamics"``, the default; ``hold_law="edge"`` the edge-switched LQRs of docs/physics.md §7): the driven angle steers
    the arm's unstable zero dynamics (:func:`controllers.region.zero_dynamics`, on the identified model's
    linearization: ``p = c . q`` with ``c`` blind to the input obeys ``p'' = a p - g q_j``, its unstable mode ``z =
    p' + sqrt(a) p`` obeys ``z' = sqrt(a) z - g q_j``), asked ``q_j* = reach tanh(k z / reach)`` and followed by a
@@ -31,129 +31,25 @@ Per member of the batch, in three phases:
    rad/s: :class:`controllers.region.ZeroDynamicsHold`); **phase 4, rescue**: where ``|z|`` passes 1.35 times what
    the reach can pull back (``g reach / sqrt(a)``) the member asks up to 0.2 rad of the driven angle (the box is
    lost for a while, the arm is not), until ``|z|`` is below 0.7 times it with both angles within ``hold_back``
-   (:func:`controllers.region.rescuing`). Why, and what it measured: below (**The hold on the zero dynamics**).
-   **Session 29's law** (``hold_law="edge"``): two discrete LQRs of the identified model sampled on the control step (input held), switched by
-   :func:`controllers.region.edge_switched`: inside, one that holds the passive angle hard (weights: passive angle
-   3e4, driven 5, rates 0.2, input 1e-3: :data:`HOLD_Q`); where the driven angle, ``edge_lead`` seconds ahead at its
-   present rate, is beyond ``edge`` (0.083 rad, 0.025 s), one that stops the driven angle at the passive angle's
-   expense (0.006, 3, 100: :data:`EDGE_Q`). **Its phase 4, recover**: a holding member whose estimated angles leave
-   ``hold_band`` (0.1 rad, the tolerance) of upright recovers with a third discrete LQR, which brings the driven
-   angle back in (0.2, 400, 10: :data:`RECOVER_Q`), until both are within ``hold_back`` (0.085 rad), then holds
-   again (:func:`controllers.region.recovering`; its filter keeps the hold's setting; an inconsistent filter sends
-   it to the upright LQR as it does a holding member); beyond ``drop`` it plans again. **Why a switch**: an LQR
-   weighs the spread of the state, not the chance of leaving a box. Under observation noise the acrobot's elbow must
-   swing to correct the shoulder (its stationary spread is at least 0.054 rad whatever the controller,
-   :func:`controllers.region.noise_floor`), and the best of 80 LQG controllers keeps both angles within 0.1 rad for
-   2 s in 37-40 % of windows on the linearization (the report's physics table); a gain that arrests the elbow near
-   its edge, spending the shoulder's unused margin (its spread is about 0.02 rad), holds 75 % of them (4,000
-   windows, noise seed 11, torque limit included), 79 % with the band and the recovery (the arm's own map, not the
-   linearization: 79 %, against 78 % recovering with the upright LQR and 75 % without the band). **How the settings
-   were found** (``scripts/tune_hold.py``, session 29): a random search of the three gains' weights (log-uniform),
-   the edge, the lead and ``hold_back`` scored on the arm's own map (:class:`controllers.region.ArmMap`: gains that
-   chatter between the torque limits swing the rates by rad/s, where the linearization misleads: a hold picked on it,
-   recovery weights (0.2, 1e4, 0.3), held 82 % of the linearization's windows and 73 % of the map's, 26 % of the
-   map's runs ending past ``drop``), 320 candidates on 1,500 windows per seed (seeds 1 and 2), the best ten of each
-   checked on 4,000 others (77-81 %; session 28's hold 75-78 % on the map, four seeds of 3,000 windows); the best of
-   seed 2, rounded, then its recovery gain replaced by seed 1's
-   best (rounded), whose runs almost never end past ``drop`` on the map (0.07 % of windows against 1.2 %) for
-   0.7 points of held windows. **Where it pays** (``hold=None``, the default): the stage is
+   (:func:`controllers.region.rescuing`). Why it works: docs/physics.md §7.
+   **The edge law** (``hold_law="edge"``): two discrete LQRs of the identified model sampled on the control step
+   (input held), switched by :func:`controllers.region.edge_switched`: inside, one that holds the passive angle hard
+   (:data:`HOLD_Q`); where the driven angle, ``edge_lead`` seconds ahead at its present rate, is beyond ``edge``, one
+   that stops the driven angle at the passive angle's expense (:data:`EDGE_Q`); a holding member whose estimated
+   angles leave ``hold_band`` recovers with a third (:data:`RECOVER_Q`) until both are within ``hold_back``
+   (:func:`controllers.region.recovering`); its settings are the picks of ``scripts/tune_hold.py`` on the arm's own
+   map. **Where it pays** (``hold=None``, the default): the stage is
    used only where, on the nominal model's linearization observed with noise ``obs_noise``, the hold holds at least
    5 points more of such windows than the upright LQR (:func:`hold_pays`): on the acrobot, not on the pendubot
-   (the upright LQR holds every window there; on tuning seeds an earlier hold, forced on, lost 2 of 40 episodes at
-   +20 % and 2 of 40 with noise) nor on the DFKI protocol's scenes.
+   (the upright LQR holds every window there) nor on the DFKI protocol's scenes.
 
-**Settings.** The prior toward the nominal base parameters is 0.1 J^2 (not the adaptive controller's 1: on tuning
-seeds 20000-20019 the pendubot at +20 % held 18 of 20 episodes with it against 8 of 20), the time-varying LQR's input
-weight 1 (against 100, both with the prior at 1: acrobot 100/80/70 % nominal/+20/-20 against 100/65/70 %, pendubot
-alike), the upright LQR's input weight 10 on both scenes (``scripts/tune.py --refine-only``, tuning seeds 20000-20019,
-nominal and +-20 %: failures 0 % on the acrobot against 3-7 % for 1, 100, 1e3, 1e4 and the adaptive controller's tuned
-1e4; 2 % on the pendubot against 5-27 %) and the guess's patience 5 s (tuning seeds 20000-20039: acrobot 97/88/88 % against 97/78/80 % without
-patience, pendubot 100/93/97 % against 100/80/100 %). The others (a 10-s horizon, 100 iterations, refinement every
-0.5 s, 85 % of the torque limit, the funnel and the catch test) were set while building it; a horizon of 3 s planned
-too rarely (3 of 10 nominal episodes while building, with 30 iterations). These settings were tuned on our scenes
-(control steps of 0.01 s, where a plan's knots are the control steps) with the earlier, scalar map, whose plans differ
-from today's in their last bits. On the DFKI protocol (2-ms control steps) a plan's knots are 0.01 s apart as there
-(``plan_step``): a plan there costs about 0.09 s of one core on average (0.27 s on every control step, 0.56 s before the
-planner's map ran on SIMD lanes; :mod:`controllers.trajectory`, docs/performance.md).
-
-**The hold's settings** (session 29; the acrobot, tuning seeds 20000-20199, noise seed 5, on the same machine as the
-comparison): with observation noise 0.01, 75 % of the episodes ended within 0.1 rad for the last 2 s (89 % within 0.2
-rad) against 69.5 % (86 %) with session 28's hold below on the same seeds; nominal, +20 %, -20 % and the one-step
-delay 100 / 99 / 94 / 100 %, as before. The search's best of seed 2 with its own recovery gain, (2, 200, 0.3): 74.5 %
-(79.5 %: its recoveries end past ``drop`` more often, and a member that plans again near the window's start misses
-it); the best of seed 1 whole: 73 % (86.5 %). What is left, diagnosed on these episodes: 92 % of them balance
-through the whole window and 81.5 % of those hold it; the others were still on a plan when it began (8 %), after a
-catch the drop rule ended (35 % of the episodes have one, almost all within 0.1 s of the catch, at about 0.28 rad:
-the catch is tried as soon as the arm is within ``drop``); those succeed in 63 % against 81.5 %. Not kept: the
-catch's simulation bounded by ``drop`` (with seed 2's hold: 72.5 % against 74.5 %, its drops from 120 to 85), and
-trying the catch only within 0.2 rad (74 %; 90 drops against 112), the drop rule at 0.45 rad with the catch at 0.3 or
-0.2 rad (74.5 / 74 %; 72 / 66 drops, still within 0.2 s of the catch: the catches that fail are accepted wrongly, not
-cut short), no catch while tracking a plan (71.5 %; 43 drops, but 28.5 % of the episodes arrive after 11 s against
-15 %) and a catch only in a plan's last second (70 %). With the model known (the prior pinned to the nominal
-parameters, the noise condition's plant) the same hold ends 75 % of these episodes within 0.1 rad (94.5 % within
-0.2 rad): the identification under noise costs the strict rule nothing here, the wide one 5.5 points.
-
-**A lookahead on the hold** (session 30; tried, not kept: branch ``tried/hold-lookahead``, commit 3c6626e): at each
-control step five inputs, the hold's own and that input +-1 and +-3 N m, scored by 16 Monte Carlo rollouts of 0.5 s of
-the hold itself with its filter on the identified model's linearization (the steps with an angle out of 0.1 rad; a
-rollout algorithm, the samples drawn once). On the arm's own map with 3 s of settling before the 2-s window it held 82
-and 86 % of 200 windows (two sample seeds) against 81.5 %, but after 7 s of settling 65-67 % against 82 % (300
-windows, the same two seeds; with rollouts past 0.2 rad charged a whole horizon, or offsets of +-0.5 and +-1 N m, 81.3
-and 81.7 %): chosen greedily over half a second, its inputs keep the angles in by swinging the rates, and when the arm
-leaves the band it leaves fast. On the 200 tuning episodes with noise: 71 % (73.5 % within 0.2 rad) against 75 %
-(89 %), 62 of its 79 recoveries ending past ``drop`` within 0.13 s; rollouts past 0.2 or 0.3 rad charged a whole
-horizon (74.5 / 74 %), a 1-s horizon (70 %), the lookahead in phase 3 only (72.5 %) and with the model known (73.5 %
-against 75 %) did no better.
-
-**The hold on the zero dynamics** (session 31, the default). Why: observed with noise 0.01 the filter's estimate is
-within about 0.001 rad of the state, and the information each observation adds kicks the estimate almost wholly
-along the zero dynamics' unstable mode ``z`` (0.0145 per step): the elbow's noise floor (0.054 rad) is the least
-spread of an elbow angle proportional to ``z`` that keeps it bounded, and an LQR, linear, pays it. Steered instead
-within a reach, the elbow pushes ``z`` back as hard as the box allows, and the box is left only where ``z`` escapes
-what the reach pulls back (docs/physics.md §7). **Its settings** (``scripts/tune_zero_dynamics_hold.py``, its
-default grids): the 80 laws (rate 10-50 /s, reach 0.085-0.0975 rad, loop 30-80 rad/s) on the arm's own map after 3 s
-of settling (1,000 windows, noise seed 13: the best 96.4 %, the reach mattering most: every law within 0.4 points of
-it has the largest reach; loops of 80 rad/s, 0.8 of the control step's Nyquist rate, lose most windows), then with the
-best law the 18 rescues (reach 0.15-0.3 rad, trigger 1.1-1.35, release 0.5 / 0.7) after 7 s of settling on the
-nominal plant and on plants whose masses are off the model's by +-1 and +-2 % (the identification's errors on the
-tuning episodes are about those of 0.5-1 %: median 0.2-0.8 % per coefficient), ranked by the mean: the pick holds
-94.7 / 92.1 / 93.3 / 94.0 / 91.7 % (nominal, -2, -1, +1, +2 %) against 89.4 / 83.2 / 87.0 / 88.0 / 84.4 % without a
-rescue. Earlier, by hand (grids on the linearization, the rescue on the map with masses 0, +-1, +-2 and +-5 % off;
-none of the rescues survives -5 %, where the mode rests beyond the trigger): rate 22.5 /s, reach 0.095 rad, loop
-60 rad/s, trigger 1.2, release 0.5. With the earlier settings, of 2-s windows after 3 s of settling the
-law alone held 96.8 % on the noisy linearization (1,500 windows, noise seed 11; session 29's 79.3 % of 4,000) and
-96.2 % on the map (2,000, seed 13; session 29's 80.3 %); after 7 s of settling on the map 88 % without the rescue (its
-losses are falls past ``drop``, 11 %), 93.7 % with it (falls 0.5 %). **On the 200 tuning episodes** with noise 0.01
-(seeds 20000-20199, noise seed 5) the defaults end **87 %** within 0.1 rad for the last 2 s (89 % within 0.2 rad)
-against 75 % (89 %) with session 29's hold: 90.5 % of them are in the hold through the window and 96 % of those hold
-it. The earlier settings: 84 % (87.5 %; 90 % in the hold through the window, 93 % of those holding it), with the reach
-0.0975 rad alone 85 %, with the loop at 45 rad/s 83.5 %; without the rescue 75.5 % (76.5 %): only 76 % were in the
-hold through the window (its falls sent members back to planning), 99 % of those held it; with the model known
-(prior 1e9) 90 % (95 %), without the rescue 80.5 %. Nominal, +20 %, -20 % and the one-step delay (seeds
-20000-20099): 100 / 100 / 95 / 100 % with the defaults as with the earlier settings (session 29's 100 / 99 / 94 /
-100 % on 200). On the report's 100 test seeds: **87 %** [80, 93] (88 % within 0.2 rad) against 70 % [61, 79] (88 %)
-with session 29's hold (84 % [76, 91] with the earlier settings). Its actions without the rescue were those of a prototype computing its coefficients afresh at
-each step (20 noisy episodes through all five phases, hashed).
-
-**Session 28's hold** (weights (1e6, 1, 10) inside and (0.1, 1, 300) at the edge, 0.08 rad, 0.03 s, the
-upright LQR outside the band until within 0.05 rad; session 28; the acrobot, tuning seeds 20000-20399 with observation noise 0.01, 20000-20199
-for the other conditions): with noise 74 % of the episodes ended within 0.1 rad for the last 2 s (88 % within 0.2 rad)
-against 34 % (91.5 %) with session 26's hold (below, on the same seeds and machine: of the episodes holding the
-whole window, 37 % held it with that hold, every one with this one, whose band ends a hold outside 0.1 rad); nominal,
-+20 %, -20 % and the one-step delay 100 / 99 / 94 / 100 % against 100 / 98.5 / 94 / 100 %. Without the return to the
-upright LQR outside the band it held 56 % (72 %); with it but without the hysteresis (``hold_back = hold_band``) 65 %
-(81 %); ``hold_back`` 0.05 and 0.08 gave 74.5 % (88 %) alike. Its catch bounded by ``drop`` instead of the edge: 74.5 %
-(88 %), the same within the seeds' spread, but a noise-free arm started 0.005 rad off upright ended parked at 0.09 rad.
-
-**The first hold's settings** (session 26; tuning seeds 20000-20099, the acrobot, compared by hand after the weights were
-chosen on the linearization): with observation noise 0.01 it held 25 % of the episodes within 0.1 rad for the last 2 s
-(87 % within 0.2 rad) against 21 % (85 %) without the stage; nominal, +20 %, -20 % and the one-step delay 100 / 99 / 92
-/ 100 % against 100 / 98 / 92 / 100 %. With the model known (the prior pinned to the nominal parameters) 30 % (91 %)
-against 20 % (91 %): the identification under noise costs about 5 points. Other settings on the noisy episodes (before the
-hold's simulated region was bounded by ``drop``): the filter's hold noise at the balancing setting (1e-4, 1e-2) 13 %,
-(1e-5, 1e-3) 24 %, (1e-6, 1e-5) 26 %; ``hold_r`` 1e-4 21 %, 1e-2 23 %; weights (1000, 1, 1) with ``R`` 1e-2 26 %, (10,
-1, 0.01) with 1e-4 23 %, the upright LQR's own (10, 10, 1) with 10 13 %. Forced on the pendubot (40 seeds) it lost
-2 episodes at +20 % and 2 with noise, hence the rule.
+**Settings.** Picked on tuning seeds (20000-), never on the test seeds, nominal and with the plant's masses and
+lengths +-20 %: the prior toward the nominal base parameters (0.1 J^2), the time-varying LQR's input weight (1), the
+upright LQR's input weight (10, ``scripts/tune.py --refine-only``) and the guess's patience (5 s). The plan's horizon
+(10 s), its iterations (100), the refinement period (0.5 s), its share of the torque limit (85 %), the funnel and the
+catch test are design settings. The hold's settings are the picks of ``scripts/tune_zero_dynamics_hold.py`` on the
+arm's own map (``controllers.region.ArmMap``); the reasoning and the evidence for the hold are in docs/physics.md §7.
+On the DFKI protocol (2-ms control steps) a plan's knots are 0.01 s apart as on our scenes (``plan_step``).
 
 **Memory** (SB3's ``state``): a tuple ``(row, plan)``: ``row`` (n, :data:`ROW_SIZE`) holds the adaptive
 controller's memory (identification, filter, last inputs) followed by the phase, the step in the plan, the
@@ -188,7 +84,7 @@ PHASE, STEP, LENGTH, CLOCK, SINCE = range(STATE_SIZE, STATE_SIZE + 5)
 KH_, KE_, KR_ = (slice(STATE_SIZE + 5 + 4 * i, STATE_SIZE + 9 + 4 * i) for i in range(3))
 ZD_ = slice(STATE_SIZE + 5, STATE_SIZE + 12)
 #: the hold's laws inside its band: the unstable zero dynamics steered by the driven angle
-#: (:func:`controllers.region.zero_dynamics_input`), or two LQRs switched at the driven angle's edge (session 29's)
+#: (:func:`controllers.region.zero_dynamics_input`), or two LQRs switched at the driven angle's edge
 HOLD_LAWS = ("zero_dynamics", "edge")
 #: the filter's consistency while balancing: a running mean of its normalized squared innovations (1 where the
 #: observations scatter about the model's predictions as the observation noise alone would)
@@ -350,9 +246,9 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
         The hold's law (:data:`HOLD_LAWS`): ``"zero_dynamics"`` (default): the driven angle steers the arm's
         unstable zero dynamics (:func:`controllers.region.zero_dynamics_input` with ``hold_rate``, ``hold_reach``,
         ``hold_omega``, on the identified model's linearization), rescuing the arm past what its reach can pull
-        back (``hold_rescue_reach``, ``hold_trigger``, ``hold_release``; session 31, module docstring);
+        back (``hold_rescue_reach``, ``hold_trigger``, ``hold_release``; module docstring);
         ``"edge"``: the two LQRs of ``hold_q`` and ``edge_q`` switched at ``edge``, with the band and the recovery
-        gain (session 29's hold).
+        gain (the edge law).
     hold_rate : float
         [1/s]: the zero dynamics' unstable mode's closed-loop decay rate where the driven angle's request is linear.
     hold_reach : float

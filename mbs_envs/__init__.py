@@ -5,24 +5,8 @@ with Gymnasium.
 """
 
 import functools
-import sys
 
 from gymnasium.envs.registration import register, registry
-
-from .lazy import ModuleAliases
-
-#: module paths of earlier versions (the top level was flat) -> where they live now
-#: (``mbs_envs.simulate`` is a module of its own: the name is also the function)
-MOVED = {
-    **{f"mbs_envs.{m}": f"mbs_envs.dynamics.{m}"
-       for m in ("constraints", "integrators", "linalg", "compiled", "jit", "trig")},
-    **{f"mbs_envs.{m}": f"mbs_envs.envs.{m}" for m in ("references", "sb3")},
-    **{f"mbs_envs.{m}": f"mbs_envs.studies.{m}"
-       for m in ("comparison", "training", "evaluation", "sizing", "reliability", "numerics", "stiff_cases",
-                 "benchmarking", "tuning", "parallel", "residual", "plotting", "seeds")},
-}  # fmt: skip
-if not any(isinstance(f, ModuleAliases) for f in sys.meta_path):
-    sys.meta_path.append(ModuleAliases(MOVED))
 
 from . import models
 from .dynamics import integrators
@@ -31,7 +15,7 @@ from .envs.registry import SCENES
 from .envs.vector import make_vector as _make_vector
 from .simulate import Trajectory, simulate  # the module first, then the name is the function
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 __all__ = ["SCENES", "Trajectory", "integrators", "models", "simulate", "__version__"]
 
 #: id -> (entry point, max_episode_steps), from the scene registry (:mod:`mbs_envs.envs.registry`)

@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Derived scenes against their hand-written twins, in one run (issue 36's step-time and first-make targets).
+"""Derived scenes against their hand-written twins, in one run.
 
 Two mechanisms written as a student would (``T`` and ``V``, and the loop closure; ``mbs_envs.models.symbolic``)
 and registered by ``mbs_envs.envs.derived.register`` with the hand-written scene's limits, reference ranges and

@@ -54,7 +54,7 @@ PEER = "gymnasium Acrobot-v1"
 def scenes() -> dict[str, tuple[str, dict]]:
     """Label -> (id, kwargs) of every configuration timed: each registered scene's ``bench_kwargs``
     (:mod:`mbs_envs.envs.registry`; a checkout without them: its ``kwargs``; one from before the
-    registry, e.g. issue 18's baseline: the four scenes it had, the chain at 10 and 100 links)."""
+    registry, e.g. an older checkout's scenes)."""
     try:
         from mbs_envs.envs import registry
     except ImportError:

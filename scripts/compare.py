@@ -52,9 +52,9 @@ import numpy as np
 from tqdm import tqdm
 
 import mbs_envs  # noqa: F401  (registers the ids)
-from controllers import tuned
-from mbs_envs import comparison as cmp
-from mbs_envs import seeds as seed_ranges
+from mbs_envs.controllers import tuned
+from mbs_envs.studies import comparison as cmp
+from mbs_envs.studies import seeds as seed_ranges
 from mbs_envs.envs import registry
 from mbs_envs.envs.presets import PROTOCOL_IDS
 from mbs_envs.studies.catch import applies, catch_rows, catch_table
@@ -178,7 +178,7 @@ def robustness(args: argparse.Namespace, policies: dict[str, dict[str, list[str]
 
 def portable(obj: Any) -> Any:
     """``obj`` with every string path inside this repository made relative to its root (``agents/...``), so a
-    committed ``summary.json`` holds no path of the machine that made it (issue 37); other strings unchanged."""
+    committed ``summary.json`` holds no path of the machine that made it; other strings unchanged."""
     if isinstance(obj, dict):
         return {k: portable(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
@@ -260,7 +260,7 @@ def headline(summary: dict) -> str:
 
     An RL or residual agent that does not beat PD at the nominal plant is
     shown, but marked as such: it is not a "best" of its side by the rule of
-    issue 16, only the strongest there is.
+    only the strongest there is.
     """
     lines = ["| scene | side | policy | nominal: error [95 % CI] | success | -20 %: error | success | +20 %: error | success | "
              "nominal: return [95 % CI] | us per action (noisy obs) |",
@@ -475,7 +475,7 @@ def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: 
              "observation at every call. Training wall times are as each run recorded them (one torch thread, evaluation "
              "excluded); runs may have shared the machine with other runs, so they bound the cost from above.")  # fmt: skip
     L += ["", f"Run on: {provenance.summary_line(provenance.record())} (`mbs_envs/studies/provenance.py`: what the numbers "
-          "depend on besides the code; a re-run on the same stack reproduced every non-timing value, measured on 2026-11-24).", ""]  # fmt: skip
+          "depend on besides the code; a re-run on the same stack reproduced every non-timing value).", ""]  # fmt: skip
     L += ["", "## Headline", "", headline(summary), ""]
     if swing_up_headline(summary):
         L += ["**Swing-up scenes** (Acrobot-v1, Pendubot-v1: one motor, 15 s episodes; CartPoleSwingUp-v0: the cart's force, "

@@ -216,7 +216,7 @@ def protocol_gains(scene: str, name: str) -> tuple[dict | None, str]:
     where ``controllers/tuned.json`` has them (``--tune --write``; for a controller without an entry of its own, that
     of the controller whose laws it shares; ``"protocol"``), else those the project's tuning picked on our own scene
     of the same task (``mbs_envs/<scene>-v1``; ``"own scene"``)."""
-    from controllers.tuned import stored_entry, tuned_gains
+    from mbs_envs.controllers.tuned import stored_entry, tuned_gains
     from mbs_envs.studies.evaluation import controller_class
 
     tuned_name = getattr(controller_class(SWING_UP_CONTROLLERS[name]), "tuned_name", None)
@@ -238,7 +238,7 @@ def catch_group(name: str) -> str:
 def robust_catch_entry(scene: str, name: str) -> dict | None:
     """The catch tuned for robustness (``{"lqr_r", "catch"}``, and ``release`` after the second stage) stored for this
     policy on the protocol id, or None."""
-    from controllers.tuned import stored_entry
+    from mbs_envs.controllers.tuned import stored_entry
 
     return stored_entry(SCENES[scene], catch_group(name) + CATCH_SUFFIX)
 
@@ -319,7 +319,7 @@ def release_stage(scene: str, pols: dict, groups: dict[str, list[str]], args: ar
 def write_tuning(out: pathlib.Path, stem: str, rows: list[dict], record: dict, store: bool) -> None:
     """``<stem>.csv`` (one row per candidate; a column missing from a row left empty) and ``<stem>.json`` to ``out``;
     with ``store`` the record's ``gains`` and ``scores`` into ``controllers/tuned.json`` (other entries kept)."""
-    from controllers import tuned
+    from mbs_envs.controllers import tuned
 
     with open(out / f"{stem}.csv", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(dict.fromkeys(k for r in rows for k in r)))

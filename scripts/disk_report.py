@@ -29,7 +29,7 @@ import numpy as np
 from tqdm import tqdm
 
 import mbs_envs  # noqa: F401  (registers the ids)
-from controllers import LQR, NoControl, SteeringPD
+from mbs_envs.controllers import LQR, NoControl, SteeringPD
 from mbs_envs import simulate
 from mbs_envs.studies.evaluation import episode_metrics, rollout
 from mbs_envs.models import RollingDisk

@@ -74,7 +74,7 @@ def run(args: argparse.Namespace) -> dict:
     return record
 
 
-def gallery(args: argparse.Namespace, budget: int = 400_000) -> dict:
+def gallery(args: argparse.Namespace, budget: int = 1_200_000, panel: int = 320) -> dict:
     """The README gallery: one GIF per scene, model-based controller beside PPO (module docstring);
     a GIF over ``budget`` bytes is written again with every other frame (half the frame rate)."""
     from PIL import Image
@@ -90,7 +90,7 @@ def gallery(args: argparse.Namespace, budget: int = 400_000) -> dict:
         tic = time.perf_counter()
         seconds = 10.0 if registry.scene(env_id).scoring == "swing-up" else 8.0
         recordings = [record_episode(env_id, name, 0, seconds, 10.0) for name in (controller, agent)]
-        frames, fps = side_by_side(recordings, 200), recordings[0].fps
+        frames, fps = side_by_side(recordings, panel), recordings[0].fps
         still = args.out / f"{env_id.split('/')[-1]}.png"  # one full-size frame of the controller's episode, at mid-way
         Image.fromarray(recordings[0].frames[len(recordings[0].frames) // 2]).save(still)
         path = args.out / f"{env_id.split('/')[-1]}_{controller}_vs_{agent}_seed0.gif"

@@ -15,7 +15,7 @@
    non-finite outputs, exceptions, hangs (a single step over 60 s), divergences
    flagged, and the worst wall time of a diverging step.
 6. Adversarial sequences on every id's batched env beside a twin
-   (:func:`mbs_envs.studies.reliability.adversarial_soak`, issue 34): steps with NaN actions for
+   (:func:`mbs_envs.studies.reliability.adversarial_soak`): steps with NaN actions for
    the members being reset, copies and pickles mid-episode, ``set_attr`` of every setting with bad
    values and of names that are not settings, refused resets, seeds, masks and actions: refusals
    accepted, state changed by a refusal, disagreements with the twin, exceptions other than ``ValueError``.
@@ -39,8 +39,8 @@ from tqdm import tqdm
 import mbs_envs
 from mbs_envs import integrators
 from mbs_envs.envs import registry
-from mbs_envs import reliability as rl
-from mbs_envs import stiff_cases as sc
+from mbs_envs.studies import reliability as rl
+from mbs_envs.studies import stiff_cases as sc
 from mbs_envs.studies.plotting import pyplot, save
 
 
@@ -100,7 +100,7 @@ def report(r: dict) -> str:
         for e in x["errors"]:
             L.append(f"|  | error: {e} | | | | | | | | | |")
     if r.get("adversarial"):
-        L += ["", "## Adversarial sequences (batched env beside a twin; issue 34)", "",
+        L += ["", "## Adversarial sequences (batched env beside a twin)", "",
               "| id | rounds | copies | refused calls | refusals accepted | state changed by a refusal | disagreements with the twin | other exceptions |",
               "|---|---|---|---|---|---|---|---|"]  # fmt: skip
         for x in r["adversarial"]:

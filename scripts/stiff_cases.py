@@ -32,8 +32,9 @@ import sys
 import numpy as np
 from tqdm import tqdm
 
-from mbs_envs import integrators, numerics
-from mbs_envs import stiff_cases as sc
+from mbs_envs import integrators
+from mbs_envs.studies import numerics
+from mbs_envs.studies import stiff_cases as sc
 from mbs_envs.studies.plotting import pyplot, save
 
 RK4_BETA = 2.785  # RK4's real stability interval [-2.785, 0]

@@ -32,8 +32,8 @@ import numpy as np
 from tqdm import tqdm
 
 import mbs_envs  # noqa: F401
-from controllers import tuned
-from mbs_envs import tuning
+from mbs_envs.controllers import tuned
+from mbs_envs.studies import tuning
 from mbs_envs.studies.comparison import SCENES
 from mbs_envs.studies.plotting import pyplot, save
 

@@ -24,7 +24,7 @@ import numpy as np
 from tqdm import tqdm
 
 import mbs_envs  # noqa: F401
-from controllers import tuned
+from mbs_envs.controllers import tuned
 from mbs_envs.envs import registry
 from mbs_envs.studies.comparison import SCENES, find_agents, kind_of
 from mbs_envs.studies.handover import TUNED_NAME, tune_catch

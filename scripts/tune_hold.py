@@ -15,7 +15,7 @@ plan again). All candidates see the same noise (``--seed``); the best ``--top`` 
 
     python scripts/tune_hold.py --out results/hold --seed 2    # about 4 minutes on one core
 
-The defaults (session 29) are the rounded best of ``--seed 1`` and ``--seed 2`` (320 candidates each), checked on tuning
+The defaults are the rounded best of ``--seed 1`` and ``--seed 2`` (320 candidates each), checked on tuning
 episodes of the whole swing-up (``controllers/planned_swingup.py``'s docstring).
 """
 
@@ -33,9 +33,9 @@ import numpy as np
 from tqdm import tqdm
 
 import mbs_envs  # noqa: F401
-from controllers import PlannedSwingUp, region
-from controllers.planned_swingup import EDGE_Q, HOLD_Q, HOLD_SETTLE, HOLD_WINDOW, RECOVER_Q
-from controllers.swingup import upright_linearization
+from mbs_envs.controllers import PlannedSwingUp, region
+from mbs_envs.controllers.planned_swingup import EDGE_Q, HOLD_Q, HOLD_SETTLE, HOLD_WINDOW, RECOVER_Q
+from mbs_envs.controllers.swingup import upright_linearization
 from mbs_envs.studies.plotting import pyplot, save
 
 #: the search's ranges: log10 of the weights (passive angle, driven angle, rates) of each gain, and the edge [rad],

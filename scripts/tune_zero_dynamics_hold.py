@@ -20,7 +20,7 @@ Writes ``zd_law.csv``, ``zd_rescue.csv``, ``zd_search.json`` (the settings, the 
 
     python scripts/tune_zero_dynamics_hold.py --out results/zd_hold    # about 2 minutes on one core
 
-The defaults (session 31) are this search's picks with its default arguments; on the tuning episodes of the whole
+The defaults are this search's picks with its default arguments; on the tuning episodes of the whole
 swing-up they end 87 % within 0.1 rad with noise 0.01 (``controllers/planned_swingup.py``'s docstring).
 """
 
@@ -39,9 +39,9 @@ import numpy as np
 from tqdm import tqdm
 
 import mbs_envs  # noqa: F401
-from controllers import PlannedSwingUp, region
-from controllers.planned_swingup import HOLD_WINDOW
-from controllers.swingup import upright_linearization
+from mbs_envs.controllers import PlannedSwingUp, region
+from mbs_envs.controllers.planned_swingup import HOLD_WINDOW
+from mbs_envs.controllers.swingup import upright_linearization
 from mbs_envs.studies.plotting import pyplot, save
 
 

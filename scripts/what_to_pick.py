@@ -26,8 +26,9 @@ import time
 
 from tqdm import tqdm
 
-from mbs_envs import integrators, numerics
-from mbs_envs import stiff_cases as sc
+from mbs_envs import integrators
+from mbs_envs.studies import numerics
+from mbs_envs.studies import stiff_cases as sc
 
 METHODS = ("euler", "semi_implicit_euler", "midpoint", "rk4", "implicit_euler", "sdirk2", "sdirk3", "joint_implicit_euler")
 

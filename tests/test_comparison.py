@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 import mbs_envs  # noqa: F401
-from controllers import ComputedTorque, tuned
-from mbs_envs import comparison as cmp
-from mbs_envs import seeds, tuning
+from mbs_envs.controllers import ComputedTorque, tuned
+from mbs_envs.studies import comparison as cmp
+from mbs_envs.studies import seeds, tuning
 from mbs_envs.studies.residual import ResidualPolicy, check_bound, combine
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -232,7 +232,7 @@ def test_swing_up_agents_also_run_as_rl_plus_lqr_on_the_model_based_plus_rl_side
 
 
 def test_a_reward_only_version_takes_its_plants_tuned_gains_even_with_entries_of_its_own():
-    from controllers import tuned
+    from mbs_envs.controllers import tuned
 
     v0, v1 = gym.make("mbs_envs/Acrobot-v0"), gym.make("mbs_envs/Acrobot-v1")
     assert tuned.tuned_gains(v1, "swing-up + LQR") == tuned.tuned_gains(v0, "swing-up + LQR") != tuned.FALLBACK["swing-up + LQR"]

@@ -38,7 +38,7 @@ def test_the_registry_is_the_one_list_of_scenes():
     import pytest
 
     import mbs_envs
-    from mbs_envs import comparison
+    from mbs_envs.studies import comparison
     from mbs_envs.envs import registry
     from mbs_envs.studies.training import residual_base
 
@@ -76,22 +76,21 @@ def test_every_scene_names_its_model_edge_parameters_and_a_consistent_moving_sta
             assert np.max(model.constraint_violation(q, v)) < 1e-9  # consistency_tol of the envs
 
 
-def test_the_module_paths_of_earlier_versions_still_import_the_same_modules():
-    """The flat top level was grouped (dynamics / envs / studies); old paths are served from the new ones."""
-    import importlib
+def test_no_module_aliases_and_nothing_generic_at_the_top_level():
+    """Modules are imported by their own paths; the controllers live under the package's namespace."""
+    import importlib.util
     import pickle
 
     import mbs_envs
+    from mbs_envs.studies.residual import ResidualPolicy
 
-    for old, new in mbs_envs.MOVED.items():
-        module = importlib.import_module(old)
-        assert module is importlib.import_module(new) and module.__spec__.name == new, old
-    from mbs_envs.residual import ResidualPolicy  # shipped agents' pickles may name old paths
-    from mbs_envs.sb3 import make_sb3_vec_env  # noqa: F401  (the README's adapter import)
-    from mbs_envs.simulate import advance  # noqa: F401
-
+    assert not hasattr(mbs_envs, "MOVED")
+    assert importlib.util.find_spec("mbs_envs.sb3") is None  # old flat paths are gone, not served
     assert pickle.loads(pickle.dumps(ResidualPolicy)) is ResidualPolicy
     assert callable(mbs_envs.simulate)  # the name stays the function after its module was imported
+    import mbs_envs.controllers
+
+    assert mbs_envs.controllers.PD.__module__ == "mbs_envs.controllers.joint"
     top = sorted(p.stem for p in mbs_envs.dynamics.jit.PACKAGE.glob("*.py"))
     assert top == ["__init__", "lazy", "simulate", "validation"], top
 

@@ -76,7 +76,7 @@ def test_local_tasks_show_progress_and_keep_their_order(capsys):
 
 
 def _plan_threads(_):
-    from controllers.planned_swingup import plan_threads
+    from mbs_envs.controllers.planned_swingup import plan_threads
 
     return plan_threads()
 

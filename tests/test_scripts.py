@@ -118,11 +118,11 @@ def test_train_residual_writes_a_residual_agent(tmp_path):
     from mbs_envs.studies.training import load_agent
 
     policy, cfg = load_agent(tmp_path)
-    from controllers.tuned import tuned_gains
+    from mbs_envs.controllers.tuned import tuned_gains
 
     env = gym.make("mbs_envs/FourBar-v0")
     assert isinstance(policy, ResidualPolicy)
-    assert cfg["residual"] == {"base": "controllers:ComputedTorque", "gains": tuned_gains(env, "computed torque"), "bound": 0.25}
+    assert cfg["residual"] == {"base": "mbs_envs.controllers:ComputedTorque", "gains": tuned_gains(env, "computed torque"), "bound": 0.25}
     assert cfg["training_member_seeds"] == [100_000, 100_007]
     obs, _ = env.reset(seed=0)
     assert policy.predict(obs)[0].shape == (1,)
@@ -195,7 +195,7 @@ def test_train_with_action_repeat_counts_control_steps_and_the_agent_holds_its_d
     with pytest.raises(ValueError, match="action_repeat"):
         TrainConfig("mbs_envs/Acrobot-v0", "ppo", 1000, action_repeat=0)
     with pytest.raises(ValueError, match="residual"):
-        TrainConfig("mbs_envs/FourBar-v0", "ppo", 1000, residual="controllers:ComputedTorque", action_repeat=2)
+        TrainConfig("mbs_envs/FourBar-v0", "ppo", 1000, residual="mbs_envs.controllers:ComputedTorque", action_repeat=2)
 
 
 def test_hyperparameter_overrides_reach_sb3_and_bad_ones_are_refused():
@@ -614,7 +614,7 @@ def tuning_replaced(tmp_path, monkeypatch, fake):
     for the DFKI script's tuning runs; the caller undoes both (``monkeypatch.undo()``, ``tuned.clear_cache()``)."""
     import shutil
 
-    from controllers import tuned
+    from mbs_envs.controllers import tuned
     from mbs_envs.studies import dfki_tuning
 
     monkeypatch.setattr(dfki_tuning, "robust_catch", fake)
@@ -629,7 +629,7 @@ def test_dfki_script_tunes_a_robust_catch_stores_it_and_runs_with_it(tmp_path, m
     """``--tune-robust-catch --write`` (the tuning itself replaced by its picks: it is tested in test_dfki_tuning) stores
     one entry per group (an agent's seeds share one) beside the others; ``--robust-catch`` runs only the policies with
     one, with it, named so and said so in the report."""
-    from controllers import tuned
+    from mbs_envs.controllers import tuned
 
     script = load_script("dfki.py")
     assert script["catch_group"]("PPO + LQR seed12") == "PPO + LQR" and script["catch_group"]("swing-up + LQR") == "swing-up + LQR"
@@ -670,7 +670,7 @@ def test_dfki_script_release_stage_keeps_each_stored_catch_and_tries_the_release
     catch with each factor of ``ROBUST_RELEASE`` (today's 4 first), the group's members only; the pick, release included,
     replaces the stored entry, and ``--robust-catch`` runs with it. A group without a stored catch is not tuned; the stage
     alone (without --tune-robust-catch) is refused."""
-    from controllers import tuned
+    from mbs_envs.controllers import tuned
     from mbs_envs.studies import dfki_tuning
 
     script = load_script("dfki.py")
@@ -909,8 +909,8 @@ def test_tune_zero_dynamics_hold_scores_every_setting_and_picks_the_best_over_th
 def test_tune_hold_scores_candidates_on_the_arms_map_and_checks_the_best_beside_the_defaults(tmp_path, capsys):
     """``scripts/tune_hold.py`` at a tiny size: every candidate scored (a share in [0, 1]), the best checked beside the
     defaults (their weights as ``PlannedSwingUp`` has them), the three files written."""
-    from controllers import PlannedSwingUp
-    from controllers.planned_swingup import EDGE_Q, HOLD_Q, RECOVER_Q
+    from mbs_envs.controllers import PlannedSwingUp
+    from mbs_envs.controllers.planned_swingup import EDGE_Q, HOLD_Q, RECOVER_Q
 
     script = load_script("tune_hold.py")
     assert script["main"](["--out", str(tmp_path), "--candidates", "4", "--windows", "40", "--check-windows", "40", "--top", "2"]) == 0

@@ -1,4 +1,4 @@
-"""Scene: a double pendulum on a cart, written as a user writes a mechanism (issue 36): its Lagrangian, derived.
+"""Scene: a double pendulum on a cart, written as a user writes a mechanism: its Lagrangian, derived.
 
 A cart (mass ``m0``, position ``x`` on a horizontal rail, driven by a force) carries a double pendulum of two uniform rods: the
 first at angle ``th1`` from upright (driven at the pivot), the second at ``th2`` relative to the first (driven at
@@ -34,7 +34,52 @@ CartDoublePendulum = type(symbolic.derive("CartDoublePendulum", [x, th1, th2], T
 
 
 class CartDoublePendulumEnv(DerivedTrackingEnv):
-    """``mbs_envs/CartDoublePendulum-v0``: track about upright with <= (40 N, 10 N m, 3 N m)."""
+    """Double pendulum on a cart, every coordinate driven, derived from its Lagrangian: track a reference about upright.
+
+    ## Description
+
+    A cart (mass ``m0``, position ``x`` on a horizontal rail, driven by a force) carries a double pendulum of two
+    uniform rods: the first at ``th1`` from upright (driven at the pivot), the second at ``th2`` relative to the
+    first (driven at the elbow); gravity along -y. The equations are derived by
+    :func:`mbs_envs.models.symbolic.derive` from the energies written in the module. The task tracks a random
+    smooth reference about the upright posture, where gravity pulls every link away: computed torque's model of
+    the whole chain against PD's springs.
+
+    ## Action Space
+
+    ``Box(-1, 1, (3,), float32)``: the cart force and the two joint torques over ``torque_limit`` (40 N, 10 N m, 3 N m).
+    Finite out-of-range actions saturate; NaN/inf or wrongly shaped actions raise ``ValueError``.
+
+    ## Observation Space
+
+    ``Box((18,), float32)``: ``[cos q (3), sin q (3), v (3), e (3), v_ref (3), a_ref (3)]`` with
+    ``q = (x, th1, th2)``, the tracking error ``e = wrap(q_ref - q)`` of the tracked coordinates (all three) and its
+    reference's rate and acceleration (:func:`mbs_envs.envs.tracking.decode_tracking`).
+
+    ## Rewards
+
+    ``r = -(w_e |e|^2 + w_de |v_ref - v|^2 + w_u |action|^2)`` over the tracked coordinates, default weights
+    ``(1, 0.1, 0.001)``; the terms are in ``info`` (``reward_tracking``, ``reward_velocity``, ``reward_effort``).
+
+    ## Starting State
+
+    Reference centres ``U(-0.5, 0.5)`` m for the cart and ``U(-0.3, 0.3)`` rad for the angles, total amplitudes
+    at most 0.3; the start is the reference's state plus ``U(-0.1, 0.1)``.
+
+    ## Episode End
+
+    Truncation after ``max_episode_steps`` (500, 5 s at ``dt = 0.01``); termination only on divergence
+    (``info["diverged"]``).
+
+    ## Arguments
+
+    ``gym.make("mbs_envs/CartDoublePendulum-v0", params=None, torque_limit=(40.0, 10.0, 3.0), dt=0.01, integrator="rk4", substeps=..., compiled=True,
+    render_mode=None)``; ``params`` overrides the derived model's parameters (``m0, m1, m2, l1, l2, g, b_x, b_1, b_2``).
+
+    ## Version History
+
+    - v0: initial version.
+    """
 
     step_kernel = DerivedTrackingEnv.step_kernel  # the same task: its compiled step
 

@@ -1,4 +1,4 @@
-"""An environment from a derived model (issue 36): joint tracking on a model of :mod:`mbs_envs.models.symbolic`.
+"""An environment from a derived model: joint tracking on a model of :mod:`mbs_envs.models.symbolic`.
 
 A user's mechanism becomes a registered Gymnasium id in a few lines::
 

@@ -1,4 +1,4 @@
-"""Swing-up on a derived underactuated model (issue 36): a user's mechanism, its upright and hanging configurations.
+"""Swing-up on a derived underactuated model: a user's mechanism, its upright and hanging configurations.
 
 A mechanism derived by :func:`mbs_envs.models.symbolic.derive` with fewer inputs than coordinates (an
 ``actuation`` matrix that selects the driven ones) becomes a swing-up task in a few lines::

@@ -30,7 +30,7 @@ def step_kernel(theta, stepper, control, task, state, out):  # pragma: no cover 
 
 
 class FourBarEnv(JointTrackingEnv):
-    """Planar four-bar linkage whose crank must follow a rippled spin reference.
+    """Four-bar linkage (a closed loop, crank driven): the crank follows a rippled spin reference.
 
     ## Description
 
@@ -88,6 +88,10 @@ class FourBarEnv(JointTrackingEnv):
     ``info`` holds ``t``, ``energy``, ``diverged``, ``constraint_residual``
     (max ``|phi|`` [m]), ``multipliers`` (force of the rocker on the coupler at
     B [N]), ``tracking_error``, ``q_ref``, the reward terms and ``u``.
+
+    ## Version History
+
+    - v0: initial version.
     """
 
     step_kernel = staticmethod(step_kernel)

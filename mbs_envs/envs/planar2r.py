@@ -27,7 +27,7 @@ def step_kernel(theta, stepper, control, task, state, out):  # pragma: no cover 
 
 
 class Planar2REnv(JointTrackingEnv):
-    """Planar 2R manipulator tracking a random smooth joint reference under gravity.
+    """Planar 2R arm under gravity, both joints driven: track a random smooth joint reference.
 
     ## Description
 
@@ -84,6 +84,10 @@ class Planar2REnv(JointTrackingEnv):
 
     ``info`` holds ``t``, ``energy``, ``diverged``, ``tracking_error``,
     ``q_ref``, the reward terms and the applied torque ``u``.
+
+    ## Version History
+
+    - v0: initial version.
     """
 
     step_kernel = staticmethod(step_kernel)

@@ -20,13 +20,13 @@ from types import MappingProxyType
 
 #: the tracking task's model-based controllers (fully actuated scenes)
 JOINT_CONTROLLERS = MappingProxyType(
-    {"PD": "controllers:PD", "PD+gravity": "controllers:PDGravity", "computed torque": "controllers:ComputedTorque"}
+    {"PD": "mbs_envs.controllers:PD", "PD+gravity": "mbs_envs.controllers:PDGravity", "computed torque": "mbs_envs.controllers:ComputedTorque"}
 )
 
 #: the swing-up scenes' model-based controller (underactuated: no joint tracking controller applies)
-SWING_UP_CONTROLLERS = MappingProxyType({"swing-up + LQR": "controllers:SwingUpLQR",
-                                         "adaptive swing-up + LQR": "controllers:AdaptiveSwingUpLQR",
-                                         "identified iLQR + TVLQR": "controllers:PlannedSwingUp"})
+SWING_UP_CONTROLLERS = MappingProxyType({"swing-up + LQR": "mbs_envs.controllers:SwingUpLQR",
+                                         "adaptive swing-up + LQR": "mbs_envs.controllers:AdaptiveSwingUpLQR",
+                                         "identified iLQR + TVLQR": "mbs_envs.controllers:PlannedSwingUp"})
 
 
 @dataclasses.dataclass(frozen=True)
@@ -81,7 +81,7 @@ class Scene:
     entry_point: str
     max_episode_steps: int
     controllers: Mapping[str, str] = dataclasses.field(default_factory=lambda: JOINT_CONTROLLERS)
-    residual_base: str = "controllers:ComputedTorque"
+    residual_base: str = "mbs_envs.controllers:ComputedTorque"
     sizing: bool = True
     kwargs: Mapping = dataclasses.field(default_factory=dict)
     model: str = ""
@@ -111,8 +111,8 @@ SCENES: tuple[Scene, ...] = (
           free_motions="mbs_envs.envs.spatial_chain:free_motions", stiff_cases="mbs_envs.envs.spatial_chain:stiff_cases"),
     Scene(
         "RollingDisk", "mbs_envs/RollingDisk-v0", "mbs_envs.envs.rolling_disk:RollingDiskEnv", 1000,
-        controllers=MappingProxyType({"LQR": "controllers:LQR", "PD steering": "controllers:SteeringPD", "no control": "controllers:NoControl"}),
-        residual_base="controllers:LQR", sizing=False,
+        controllers=MappingProxyType({"LQR": "mbs_envs.controllers:LQR", "PD steering": "mbs_envs.controllers:SteeringPD", "no control": "mbs_envs.controllers:NoControl"}),
+        residual_base="mbs_envs.controllers:LQR", sizing=False,
         model="mbs_envs.models.rolling_disk:RollingDisk", edge_parameters=(("m", {}), ("r", {})),
         free_motions="mbs_envs.envs.rolling_disk:free_motions", stiff_cases="mbs_envs.envs.rolling_disk:stiff_cases",
         singular_cases="mbs_envs.envs.rolling_disk:singular_cases",
@@ -124,14 +124,14 @@ SCENES: tuple[Scene, ...] = (
           model="mbs_envs.envs.cart_double_pendulum:CartDoublePendulum", edge_parameters=(("m2", {}), ("l1", {})),
           free_motions="mbs_envs.envs.cart_double_pendulum:free_motions"),
     Scene("CartPoleSwingUp", "mbs_envs/CartPoleSwingUp-v0", "mbs_envs.envs.cart_pole:CartPoleSwingUpEnv", 1000,
-          controllers=MappingProxyType({"energy swing-up + LQR": "controllers:EnergySwingUpLQR"}),
-          residual_base="controllers:EnergySwingUpLQR", sizing=False, scoring="swing-up",
+          controllers=MappingProxyType({"energy swing-up + LQR": "mbs_envs.controllers:EnergySwingUpLQR"}),
+          residual_base="mbs_envs.controllers:EnergySwingUpLQR", sizing=False, scoring="swing-up",
           model="mbs_envs.envs.cart_pole:CartPole", edge_parameters=(("m", {}), ("l", {})),
           free_motions="mbs_envs.envs.cart_pole:free_motions"),
     *(
         Scene(
             name + suffix, f"mbs_envs/{name}-{version}", f"mbs_envs.envs.swingup:{name}{cls}Env", 1500,
-            controllers=SWING_UP_CONTROLLERS, residual_base="controllers:SwingUpLQR", sizing=False, scoring="swing-up",
+            controllers=SWING_UP_CONTROLLERS, residual_base="mbs_envs.controllers:SwingUpLQR", sizing=False, scoring="swing-up",
             model="mbs_envs.models.planar2r:Planar2R", edge_parameters=(("m2", {}), ("l1", {})), compared=compared,
         )
         # v1 (the hold bonus) is the compared task; v0 stays registered under its own name

@@ -219,7 +219,7 @@ MIN_CRITICAL_SPIN = 1e-3
 
 
 class RollingDiskEnv(MBSEnv):
-    """A thin disk rolling without slipping: stay upright, follow a heading, hold a speed.
+    """Thin disk rolling without slipping (drive and steer): stay upright, follow a heading, hold a spin.
 
     ## Description
 
@@ -273,6 +273,10 @@ class RollingDiskEnv(MBSEnv):
     (``|z - r cos lean|`` [m]), ``multipliers`` (the contact force of the ground
     on the disk [N], world frame), ``lean``, ``fell``, ``tracking_error`` (the
     heading error), ``spin_error``, the reward terms and ``u``.
+
+    ## Version History
+
+    - v0: initial version.
     """
 
     step_kernel = staticmethod(step_kernel)

@@ -26,7 +26,7 @@ def step_kernel(theta, stepper, control, task, state, out):  # pragma: no cover 
 
 
 class SerialChainEnv(ChainTrackingEnv):
-    """An N-link planar chain, every joint driven, tracking a random smooth joint reference.
+    """Planar N-link chain, every joint driven: track a random smooth joint reference.
 
     ## Description
 
@@ -92,6 +92,10 @@ class SerialChainEnv(ChainTrackingEnv):
     ``J_i = 1 / (M^-1)_ii`` the apparent inertia of joint i at the hanging
     posture (computed torque's bandwidth joint by joint; a uniform 100 N m/rad,
     or gains on ``M_ii``, are unstable on light links).
+
+    ## Version History
+
+    - v0: initial version.
     """
 
     step_kernel = staticmethod(step_kernel)

@@ -77,7 +77,7 @@ def hanging_posture(model: SpatialChain) -> np.ndarray:
 
 
 class SpatialChainEnv(ChainTrackingEnv):
-    """An N-link chain in space, every joint driven, tracking a random smooth joint reference.
+    """N-link chain in space, every joint driven: track a random smooth joint reference.
 
     ## Description
 
@@ -135,6 +135,10 @@ class SpatialChainEnv(ChainTrackingEnv):
     The chain seen obliquely from above (azimuth -60 deg, elevation 30 deg, orthographic) over a floor grid
     with its shadow, the reference pose faint underneath and the base's vertical axis as a line; legible
     at 100 links.
+
+    ## Version History
+
+    - v0: initial version.
     """
 
     step_kernel = staticmethod(step_kernel)

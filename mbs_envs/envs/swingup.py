@@ -244,9 +244,7 @@ class SwingUpEnv(MBSEnv):
     Truncation after ``max_episode_steps`` (1500: 15 s); termination only on
     divergence (``info["diverged"]``). An episode *succeeds* when both joints stay
     within ``upright_tolerance`` (default 0.1 rad) of upright for its last 2 s. The torque limits
-    make a swing-up take several pumps: with the tuned swing-up + LQR controller the LQR takes the
-    acrobot over after 4-5 half-swings of link 1 (5.9-9.9 s; 17 of the 20 test seeds end balanced),
-    the pendubot after 5 (4.5 s; the 1 of 20 that ends balanced).
+    make a swing-up take several pumps of the arm.
 
     ## Arguments
 
@@ -356,7 +354,19 @@ class SwingUpEnv(MBSEnv):
 
 
 class AcrobotEnv(SwingUpEnv):
-    """``mbs_envs/Acrobot-v0``: only the elbow driven (:class:`SwingUpEnv`); torque limit 10 N m."""
+    """Acrobot (2R arm, only the elbow driven, 10 N m): swing up from hanging and balance upright.
+
+    ## Description
+
+    The Planar2R arm (uniform 1 kg, 1 m rods, no friction; ``docs/physics.md``) with a motor at the elbow only:
+    the shoulder is passive. The arm starts hanging and must be swung up with a torque too small to lift it
+    directly, then balanced upright. ``Acrobot-v1`` adds a bonus for holding within the success tolerance.
+
+    ## Version History
+
+    - v1: a hold bonus of 1 per step while both joints are within the success tolerance (``Acrobot-v1``).
+    - v0: initial version (this id), kept registered.
+    """
 
     step_kernel = staticmethod(step_kernel)  # declared per class: the same task (see MBSEnv.compiled)
     driven = 1
@@ -364,7 +374,19 @@ class AcrobotEnv(SwingUpEnv):
 
 
 class PendubotEnv(SwingUpEnv):
-    """``mbs_envs/Pendubot-v0``: only the shoulder driven (:class:`SwingUpEnv`); torque limit 5 N m."""
+    """Pendubot (2R arm, only the shoulder driven, 5 N m): swing up from hanging and balance upright.
+
+    ## Description
+
+    The Planar2R arm (uniform 1 kg, 1 m rods, no friction; ``docs/physics.md``) with a motor at the shoulder
+    only: the elbow is passive. The arm starts hanging and must be swung up, then balanced upright.
+    ``Pendubot-v1`` adds a bonus for holding within the success tolerance.
+
+    ## Version History
+
+    - v1: a hold bonus of 1 per step while both joints are within the success tolerance (``Pendubot-v1``).
+    - v0: initial version (this id), kept registered.
+    """
 
     step_kernel = staticmethod(step_kernel)
     driven = 0
@@ -372,12 +394,20 @@ class PendubotEnv(SwingUpEnv):
 
 
 class AcrobotV1Env(AcrobotEnv):
-    """``mbs_envs/Acrobot-v1``: Acrobot-v0 with the hold bonus ``w_b = 1``.
+    """Acrobot (2R arm, only the elbow driven, 10 N m): swing up from hanging and balance, paid for holding upright.
 
-    ``r = h - 0.05 |e|^2 - 0.01 a^2 + 1[|e_1| <= tol and |e_2| <= tol]``: holding within the
-    success tolerance earns about twice what hovering just outside it does (v0 paid 0.951 with the
-    first joint 0.3 rad off upright against 0.995 at 0.1 rad), so the return ranks a policy that stays up above one that
-    swings through. Everything else as v0.
+    ## Rewards
+
+    ``r = h - 0.05 |e|^2 - 0.01 a^2 + 1[|e_1| <= tol and |e_2| <= tol]`` with the tip's height
+    ``h = (sin th1 + sin(th1 + th2)) / 2``, the error from upright ``e`` and the success tolerance ``tol``
+    (0.1 rad): holding within the tolerance earns about twice what hovering just outside it does, so the return
+    ranks a policy that stays up above one that swings through. The terms are in ``info``
+    (``reward_height``, ``reward_upright``, ``reward_effort``, ``reward_hold``).
+
+    ## Version History
+
+    - v1: a hold bonus of 1 per step while both joints are within the success tolerance (this id).
+    - v0: initial version (``Acrobot-v0``), kept registered.
     """
 
     step_kernel = staticmethod(step_kernel)
@@ -385,7 +415,17 @@ class AcrobotV1Env(AcrobotEnv):
 
 
 class PendubotV1Env(PendubotEnv):
-    """``mbs_envs/Pendubot-v1``: Pendubot-v0 with the hold bonus ``w_b = 1`` (:class:`AcrobotV1Env`)."""
+    """Pendubot (2R arm, only the shoulder driven, 5 N m): swing up from hanging and balance, paid for holding upright.
+
+    ## Rewards
+
+    As ``Acrobot-v1``'s: ``r = h - 0.05 |e|^2 - 0.01 a^2 + 1[|e_1| <= tol and |e_2| <= tol]``.
+
+    ## Version History
+
+    - v1: a hold bonus of 1 per step while both joints are within the success tolerance (this id).
+    - v0: initial version (``Pendubot-v0``), kept registered.
+    """
 
     step_kernel = staticmethod(step_kernel)
     default_hold_bonus = 1.0

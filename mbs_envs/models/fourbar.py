@@ -432,9 +432,12 @@ def advance_kernel(theta, stepper, q, v, tau):  # pragma: no cover - compiled
 class FourBar(ConstrainedModel):
     """Four-bar linkage as a DAE with Lagrange multipliers (docs/physics.md §4).
 
-    ``phi(q) = (l1 c1 + l2 cos(th1 + ph2) - l0 - l3 cos ph1,
-                l1 s1 + l2 sin(th1 + ph2) - l3 sin ph1)``:
-    the position of joint B reached through the chain minus through the rocker.
+    The loop closure::
+
+        phi(q) = (l1 c1 + l2 cos(th1 + ph2) - l0 - l3 cos ph1,
+                  l1 s1 + l2 sin(th1 + ph2) - l3 sin ph1)
+
+    is the position of joint B reached through the chain minus through the rocker.
     The multipliers ``lam`` are then the force [N] the rocker exerts on the
     coupler at B (the rocker feels ``-lam``).
     """

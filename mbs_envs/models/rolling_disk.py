@@ -7,7 +7,7 @@ symmetry axis). ``R = Rz(th1) Rx(th2) Ry(th3)``; ``v = dq/dt``.
 With ``A = Ixx = Izz`` and ``C = Iyy`` the body inertias and ``n = R e_y =
 (-s1 c2, c1 c2, s2)`` the spin axis, the world inertia is
 ``A I + (C - A) n n^T`` and ``w = Jw(q) (dth1, dth2, dth3)`` with
-``Jw = [[0, c1, -s1 c2], [0, s1, c1 c2], [1, 0, s2]]``. Hence
+``Jw = [[0, c1, -s1 c2], [0, s1, c1 c2], [1, 0, s2]]``. Hence::
 
     M = blockdiag(m I3, [[A c2^2 + C s2^2, 0, C s2], [0, A, 0], [C s2, 0, C]]),
 
@@ -334,7 +334,7 @@ def energy_kernel(q, v, theta, E):  # pragma: no cover - compiled
         E[b] = 0.5 * K + m * theta[_G, b] * q[2, b]
 
 
-#: |lean| beyond this is "flat" (:attr:`RollingDisk.flat_lean`)
+#: ``|lean|`` beyond this is "flat" (:attr:`RollingDisk.flat_lean`)
 FLAT_LEAN = np.pi / 2 - 0.05
 
 
@@ -484,7 +484,7 @@ class RollingDisk(ConstrainedModel):
     position_rows: ClassVar[tuple[int, ...]] = (2,)
     #: the heading, lean and spin rates parametrize the allowed motions
     independent: ClassVar[tuple[int, ...]] = (3, 4, 5)
-    #: |lean| beyond this is "flat": the Euler angles are near their singularity
+    #: ``|lean|`` beyond this is "flat": the Euler angles are near their singularity
     flat_lean: ClassVar[float] = FLAT_LEAN
 
     # -- compiled path (see :mod:`mbs_envs.dynamics.compiled`) -----------------------------

@@ -1,4 +1,4 @@
-"""Models derived from a Lagrangian (issue 36): SymPy derives, code generation compiles.
+"""Models derived from a Lagrangian: SymPy derives, code generation compiles.
 
 The lecture's method: write the kinetic and the potential energy in generalized coordinates, let a
 computer-algebra system derive the equations of motion, simulate. Here

@@ -31,9 +31,9 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from controllers.planned_swingup import PlannedSwingUp, hold_window_shares
-from controllers.region import PlantCase, axis_catch, lqg_hold_share, noise_floor, saturation_bound
-from controllers.swingup import SwingUpLQR, upright_linearization
+from mbs_envs.controllers.planned_swingup import PlannedSwingUp, hold_window_shares
+from mbs_envs.controllers.region import PlantCase, axis_catch, lqg_hold_share, noise_floor, saturation_bound
+from mbs_envs.controllers.swingup import SwingUpLQR, upright_linearization
 from ..envs.swingup import Q_UP
 from .comparison import SCENES, Condition, plant_kwargs
 from .evaluation import HOLD

@@ -403,7 +403,7 @@ def sweep(env_id: str, make_policy: Any, n: int = N_VALUES, seed: int = 0, axes:
     return assemble_sweep(meta, parts, success)
 
 
-# -- the published leaderboards (read 2026-11-25), to print our numbers beside -----------------------------
+# -- the published leaderboards (real_ai_gym_leaderboard, 2024-09-03 release), to print our numbers beside -----------------------------
 
 #: simulation performance v2: controller -> (swing-up time, energy, torque cost, smoothness, velocity cost, score)
 PUBLISHED_SIMULATION_V2 = MappingProxyType({
@@ -417,6 +417,12 @@ PUBLISHED_SIMULATION_V2 = MappingProxyType({
             "iLQR Riccati Gains": (4.04, 10.55, 1.98, 0.067, 106.49, 0.396),
             "evolsac": (0.96, 9.26, 2.71, 0.03, 96.56, 0.524),
             "iLQR MPC stabilization": (4.86, 11.54, 2.68, 0.096, 110.4, 0.345),
+        }),
+    }),
+    "Pendubot": MappingProxyType({
+        "url": "https://dfki-ric-underactuated-lab.github.io/real_ai_gym_leaderboard/pendubot_simulation_performance_leaderboard_v2.html",
+        "rows": MappingProxyType({
+            "History SAC": (1.15, 7.67, 2.36, 0.007, 62.07, 0.682),
         }),
     }),
 })  # fmt: skip
@@ -480,7 +486,7 @@ def controller_job(task: Mapping[str, Any]) -> dict[str, Any]:
         else:  # a controller with its defaults, an agent, or an agent + LQR (with the catch given, where given)
             policy = load_policy(task["spec"], env, over)
         if task.get("rates_from_angles"):
-            from controllers.estimator import RatesFromAngles
+            from mbs_envs.controllers.estimator import RatesFromAngles
 
             policy = RatesFromAngles(policy, env)
         return policy

@@ -51,8 +51,8 @@ from .comparison import listed, scaled_params
 from .tuning import TUNING_CONDITIONS, swing_up_grid, swing_up_refine_grid
 
 #: the controllers tuned on the protocol: display name -> ``"module:Class"``
-TUNED = {"swing-up + LQR": "controllers:SwingUpLQR", "adaptive swing-up + LQR": "controllers:AdaptiveSwingUpLQR",
-         "identified iLQR + TVLQR": "controllers:PlannedSwingUp"}
+TUNED = {"swing-up + LQR": "mbs_envs.controllers:SwingUpLQR", "adaptive swing-up + LQR": "mbs_envs.controllers:AdaptiveSwingUpLQR",
+         "identified iLQR + TVLQR": "mbs_envs.controllers:PlannedSwingUp"}
 #: the LQR's input weight [(N m)^-2] of the first stage's candidates (the scenes' first stage, :mod:`mbs_envs.studies.tuning`)
 FIRST_STAGE_R = 1.0
 #: the gains a member may carry (:func:`with_member_gains`)
@@ -86,8 +86,8 @@ def with_member_gains(controller: Any, entries: list[dict[str, Any]]) -> Any:
     ValueError
         Where the entries' ``lqr_r`` differ on a controller that solves its LQR online.
     """
-    from controllers.adaptive_swingup import AdaptiveSwingUpLQR
-    from controllers.swingup import upright_lqr
+    from mbs_envs.controllers.adaptive_swingup import AdaptiveSwingUpLQR
+    from mbs_envs.controllers.swingup import upright_lqr
 
     for key in MEMBER_GAINS:
         setattr(controller, key, np.array([float(e[key]) for e in entries]))
@@ -233,7 +233,7 @@ def tune(env_id: str, start: dict[str, Any] | None = None, grid: Callable[[], li
 def own_scene_entry(env_id: str, name: str) -> dict[str, Any]:
     """The entry ``name`` takes on our own scene of the protocol's task (``mbs_envs/AcrobotDFKI-v1`` ->
     ``mbs_envs/Acrobot-v1``)."""
-    from controllers.tuned import tuned_gains
+    from mbs_envs.controllers.tuned import tuned_gains
 
     return tuned_gains(gym.make(env_id.replace("DFKI-v1", "-v1")), name)
 

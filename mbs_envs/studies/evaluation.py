@@ -15,7 +15,7 @@ import numpy as np
 
 
 def controller_class(spec: str) -> Any:
-    """The class named ``"module:Class"`` (e.g. ``"controllers:LQR"``).
+    """The class named ``"module:Class"`` (e.g. ``"mbs_envs.controllers:LQR"``).
 
     Raises
     ------
@@ -51,7 +51,7 @@ def make_controller(spec: str, env: gym.Env, gains: dict[str, Any] | None = None
 
 def default_gains_entry(spec: str, env: gym.Env) -> dict[str, Any] | None:
     """The tuned-gains entry ``spec`` takes by default on ``env`` (None for a controller without gains)."""
-    from controllers.tuned import tuned_gains
+    from mbs_envs.controllers.tuned import tuned_gains
 
     name = getattr(controller_class(spec), "tuned_name", None)
     return None if name is None else tuned_gains(env, name)

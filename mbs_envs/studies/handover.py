@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from controllers.swingup import SwingUpLQR
+from mbs_envs.controllers.swingup import SwingUpLQR
 from .. import validation as check
 
 
@@ -38,7 +38,7 @@ def catching_controller(env: Any, lqr_r: float | None = None) -> Any:
     """The scene's model-based swing-up controller whose LQR catches: :class:`controllers.swingup.SwingUpLQR` on the
     arm, :class:`controllers.energy_swingup.EnergySwingUpLQR` on a derived mechanism (with its tuned gains; on the arm
     with the LQR's input weight ``lqr_r`` [(N m)^-2] where given)."""
-    from controllers.energy_swingup import EnergySwingUpLQR
+    from mbs_envs.controllers.energy_swingup import EnergySwingUpLQR
 
     if isinstance(env.unwrapped, SwingUpLQR.fits):
         return SwingUpLQR(env) if lqr_r is None else SwingUpLQR(env, lqr_r=lqr_r)
@@ -53,7 +53,7 @@ def hand_over(agent: Any, env: Any, catch: float | None = None, release: float |
               ) -> "HandOverPolicy":  # fmt: skip
     """``agent`` with the scene's upright LQR catching at the pair's tuned level (module docstring),
     or at ``catch`` / ``release`` where given, the LQR with the input weight ``lqr_r`` where given."""
-    from controllers.tuned import tuned_gains
+    from mbs_envs.controllers.tuned import tuned_gains
 
     lqr = catching_controller(env, lqr_r)
     entry = tuned_gains(env, TUNED_NAME) or {}

@@ -251,7 +251,7 @@ BAD_VALUES = (float("nan"), float("inf"), -1.0, "0.01", None, True, 1j, [float("
 
 
 def adversarial_soak(env_id: str, rounds: int = 500, num_envs: int = 4, seed: int = 0, **kwargs: Any) -> dict:
-    """Random sequences of the calls issue 34's classes were found with, on the batched env beside a twin.
+    """Random sequences of calls that change state, copy, refuse, seed, autoreset and set, on the batched env beside a twin.
 
     Each round is one of: a step (random actions; NaN for members being reset, whose action is ignored),
     a seeded reset, a deepcopy or pickle round trip of the env mid-episode, a valid ``set_attr`` of

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import mbs_envs  # noqa: F401
-from controllers import LQR, SteeringPD
-from controllers.disk import steady_lean
+from mbs_envs.controllers import LQR, SteeringPD
+from mbs_envs.controllers.disk import steady_lean
 from mbs_envs.studies.evaluation import episode_metrics, rollout_batch
 
 ENV_ID = "mbs_envs/RollingDisk-v0"

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 import mbs_envs  # noqa: F401
-from controllers import SwingUpLQR
+from mbs_envs.controllers import SwingUpLQR
 from mbs_envs.envs.swingup import Q_DOWN, Q_UP, encode_swingup
 from mbs_envs.studies.evaluation import rollout_batch, swing_up_metrics
-from controllers.region import PlantCase, estimate_region
+from mbs_envs.controllers.region import PlantCase, estimate_region
 from mbs_envs.studies.handover import HandOverPolicy, hand_over
 
 
@@ -50,7 +50,7 @@ def test_hands_over_inside_the_region_only_and_keeps_the_agent_state(acrobot):
 
 
 def test_hand_over_uses_the_pairs_tuned_catch_else_the_controllers():
-    from controllers.tuned import tuned_gains
+    from mbs_envs.controllers.tuned import tuned_gains
     from mbs_envs.studies.handover import TUNED_NAME
 
     for env_id in ("mbs_envs/Acrobot-v1", "mbs_envs/Pendubot-v1"):

@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 
 import mbs_envs  # noqa: F401
-from controllers import AdaptiveSwingUpLQR, SwingUpLQR
-from controllers import identification as ident
-from controllers.base import care, linearize
-from controllers.swingup import upright_linearization
-from controllers.tuned import tuned_gains
+from mbs_envs.controllers import AdaptiveSwingUpLQR, SwingUpLQR
+from mbs_envs.controllers import identification as ident
+from mbs_envs.controllers.base import care, linearize
+from mbs_envs.controllers.swingup import upright_linearization
+from mbs_envs.controllers.tuned import tuned_gains
 from mbs_envs.envs.swingup import Q_UP
 from mbs_envs.models import Planar2R
 from mbs_envs.studies.comparison import Condition, plant_kwargs
@@ -122,7 +122,7 @@ def test_the_estimate_converges_to_the_plant_and_the_lqr_to_its_own(env_id, scal
     th_true = ident.base_parameters(true.params)
     th0 = ident.base_parameters(nominal.unwrapped.model.params)
     assert np.abs(th0 / th_true - 1).max() > 0.3  # the prior is far off
-    from controllers.adaptive_swingup import K_, THETA
+    from mbs_envs.controllers.adaptive_swingup import K_, THETA
 
     assert np.abs(state[:, THETA] / th_true - 1).max() < 2e-3
     oracle = SwingUpLQR(gym.make(env_id, **plant_kwargs(env_id.split("/")[1].split("-")[0], Condition("c", scale))), lqr_r=policy.lqr_r)
@@ -147,7 +147,7 @@ def test_memory_is_per_member_and_reset_at_episode_start():
         obs, *_ = venv.step(action)
     fresh = policy.initial_state(*(np.atleast_2d(x) for x in (policy.decode_observation(obs).q, policy.decode_observation(obs).v)))
     _, after = policy.predict(obs, state=state, episode_start=np.array([False, True, False]))
-    from controllers.adaptive_swingup import MODE, U
+    from mbs_envs.controllers.adaptive_swingup import MODE, U
 
     kept = np.ones(after.shape[1], bool)
     kept[[MODE, U]] = False  # this step's mode and input
@@ -167,7 +167,7 @@ def test_bad_settings_are_refused_by_name(kwargs):
 def test_gains_fall_back_to_the_swing_up_entry_only_without_an_own_entry():
     env = gym.make("mbs_envs/Acrobot-v1")
     base, own = tuned_gains(env, "swing-up + LQR"), tuned_gains(env, "adaptive swing-up + LQR")
-    from controllers import tuned
+    from mbs_envs.controllers import tuned
 
     table = tuned._table()
     entry = table.get("mbs_envs/Acrobot-v1", {}).get("adaptive swing-up + LQR") or table.get("mbs_envs/Acrobot-v0", {}).get("adaptive swing-up + LQR")
@@ -207,8 +207,8 @@ def test_the_filter_converges_to_the_steady_kalman_filter_on_a_noisy_linear_plan
     20,000 steps equals the filter's own within sampling error (10 %), and is below the observation noise."""
     import scipy.linalg
 
-    from controllers.control_map import rk4_map
-    from controllers.estimator import ekf_step, map_jacobian
+    from mbs_envs.controllers.control_map import rk4_map
+    from mbs_envs.controllers.estimator import ekf_step, map_jacobian
 
     plant, dt = LinearPlant(), 0.01
     Ad = map_jacobian(plant, np.zeros((1, 4)), np.zeros((1, 2)), dt, 2)[1][0]
@@ -241,7 +241,7 @@ def test_the_filter_follows_the_nonlinear_arm_through_a_swing_up():
     obs, _ = venv.reset(seed=list(range(20000, 20008)))
     rng = np.random.default_rng(5)
     state, start, err = None, np.ones(8, bool), []
-    from controllers.adaptive_swingup import XH
+    from mbs_envs.controllers.adaptive_swingup import XH
 
     for k in range(300):
         seen = obs + rng.normal(0, 0.01, obs.shape).astype(np.float32)
@@ -257,7 +257,7 @@ def test_the_filter_follows_the_nonlinear_arm_through_a_swing_up():
 def test_without_the_filter_the_observation_is_the_state():
     """With ``obs_noise = 0`` the filter's memory does not enter the action; with the filter it does."""
     env_id = "mbs_envs/Acrobot-v1"
-    from controllers.adaptive_swingup import XH
+    from mbs_envs.controllers.adaptive_swingup import XH
 
     for obs_noise, enters in ((0.0, False), (0.01, True)):
         policy = AdaptiveSwingUpLQR(gym.make(env_id), obs_noise=obs_noise)
@@ -316,7 +316,7 @@ def test_a_lost_filter_restarts_from_the_observation():
     venv = gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point", autoreset_mode="Disabled")
     obs, _ = venv.reset(seed=[0, 1, 2])
     _, state = policy.predict(obs, episode_start=np.ones(3, bool))
-    from controllers.adaptive_swingup import XH
+    from mbs_envs.controllers.adaptive_swingup import XH
 
     state[0, XH] = np.nan
     state[1, XH] = state[1, XH] + [3.0, 0.0, 50.0, 0.0]
@@ -331,7 +331,7 @@ def test_a_lost_filter_restarts_from_the_observation():
 def test_a_one_step_input_delay_is_detected_and_identified_through(delay):
     """The plant applies the input chosen ``delay`` steps earlier: the energy balance under the right hypothesis fits
     (its residuals are the smaller), the estimate is the plant's, and the filter predicts with the applied input."""
-    from controllers.adaptive_swingup import THETA
+    from mbs_envs.controllers.adaptive_swingup import THETA
 
     env_id = "mbs_envs/Acrobot-v1"
     policy = AdaptiveSwingUpLQR(gym.make(env_id), obs_noise=0.0)
@@ -379,7 +379,7 @@ def test_a_push_does_not_bias_the_gated_estimate_and_a_batch_of_gates_acts_as_ea
     0.05 s at 1.2 s): without the gate the base parameters end 23 % off, with a gate of 0.1 within 0.7 % (measured;
     bounds 10 % and 1 %). Members with different gates (:func:`mbs_envs.studies.dfki_tuning.with_member_gains`) move
     as each alone, to 1e-12."""
-    from controllers.adaptive_swingup import THETA
+    from mbs_envs.controllers.adaptive_swingup import THETA
     from mbs_envs.studies.dfki_tuning import MEMBER_GAINS, with_member_gains
     from mbs_envs.studies.robustness import Perturbation, run
 

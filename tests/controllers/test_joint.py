@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import mbs_envs  # noqa: F401
-from controllers import PD, ComputedTorque, PDGravity
+from mbs_envs.controllers import PD, ComputedTorque, PDGravity
 from mbs_envs import simulate
 from mbs_envs.envs import TrackingObservation
 from mbs_envs.envs.references import SumOfSines

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import mbs_envs  # noqa: F401
-from controllers import SwingUpLQR
-from controllers.estimator import RatesFromAngles, rates_from_angles
+from mbs_envs.controllers import SwingUpLQR
+from mbs_envs.controllers.estimator import RatesFromAngles, rates_from_angles
 from mbs_envs.envs.swingup import encode_swingup
 
 DT = 0.002
@@ -143,7 +143,7 @@ def test_stable_baselines3s_evaluate_policy_runs_the_wrapped_controller():
     from stable_baselines3.common.evaluation import evaluate_policy
     from stable_baselines3.common.vec_env import DummyVecEnv
 
-    from controllers import RatesFromAngles as exported
+    from mbs_envs.controllers import RatesFromAngles as exported
 
     assert exported is RatesFromAngles
     env = gym.make("mbs_envs/AcrobotDFKI-v1", max_episode_steps=600)

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 import mbs_envs  # noqa: F401
-from controllers import SwingUpLQR
-from controllers.base import linearize
-from controllers.control_map import rk4_map
-from controllers.region import PlantCase, axis_catch, closed_loop_final, estimate_region, saturation_bound
+from mbs_envs.controllers import SwingUpLQR
+from mbs_envs.controllers.base import linearize
+from mbs_envs.controllers.control_map import rk4_map
+from mbs_envs.controllers.region import PlantCase, axis_catch, closed_loop_final, estimate_region, saturation_bound
 from mbs_envs.envs.swingup import Q_UP
 
 
@@ -108,8 +108,8 @@ def test_the_noise_floor_is_what_the_lqg_achieves_in_simulation_and_no_lqr_beats
     grid with the same filter (none holds q2 tighter)."""
     import scipy.linalg
 
-    from controllers.region import discretize, lqg_stationary, noise_floor
-    from controllers.swingup import upright_linearization
+    from mbs_envs.controllers.region import discretize, lqg_stationary, noise_floor
+    from mbs_envs.controllers.swingup import upright_linearization
 
     model = gym.make("mbs_envs/Acrobot-v1").unwrapped.model
     A, B = upright_linearization(model)
@@ -153,8 +153,8 @@ def test_the_lqg_hold_share_falls_with_the_noise_and_matches_the_stationary_spre
     less), within sampling error (2,000 windows: 0.035)."""
     import scipy.stats
 
-    from controllers.region import LQG_GRID, lqg_hold_share, noise_floor
-    from controllers.swingup import upright_linearization
+    from mbs_envs.controllers.region import LQG_GRID, lqg_hold_share, noise_floor
+    from mbs_envs.controllers.swingup import upright_linearization
 
     env = gym.make("mbs_envs/Acrobot-v1").unwrapped
     A, B = upright_linearization(env.model)
@@ -185,8 +185,8 @@ def test_no_lqg_controller_of_the_grid_beats_the_floor_in_one_step():
     (2,000 windows: 0.035)."""
     import scipy.stats
 
-    from controllers.region import lqg_hold_share, noise_floor
-    from controllers.swingup import upright_linearization
+    from mbs_envs.controllers.region import lqg_hold_share, noise_floor
+    from mbs_envs.controllers.swingup import upright_linearization
 
     env = gym.make("mbs_envs/Acrobot-v1").unwrapped
     A, B = upright_linearization(env.model)
@@ -198,7 +198,7 @@ def test_no_lqg_controller_of_the_grid_beats_the_floor_in_one_step():
 def test_the_edge_rule_switches_per_member_on_the_angle_ahead():
     """edge_switched: ``-K_e x`` exactly where ``|x_j + lead v_j| > edge`` (the watched angle ahead beyond the edge,
     either side), ``-K x`` elsewhere, per member; ``edge = inf`` is ``-K x`` everywhere."""
-    from controllers.region import edge_switched
+    from mbs_envs.controllers.region import edge_switched
 
     rng = np.random.default_rng(3)
     x = rng.normal(0.0, 0.1, (500, 4))
@@ -219,9 +219,9 @@ def test_an_edge_gain_holds_more_windows_than_any_lqg_controller_of_the_grid():
     that stops the elbow) keeps both angles within 0.1 rad for 2 s in far more windows than the best of the report's
     80 LQG controllers on the same noise (tuning runs of 4,000 windows: 75 % against 37 %): the LQG share is what
     linear controllers hold, not what physics allows. With the edge rule off, the same hold gain holds fewer."""
-    from controllers import PlannedSwingUp
-    from controllers.region import discretize, hold_shares, lqg_hold_share, steady_kalman
-    from controllers.swingup import upright_linearization
+    from mbs_envs.controllers import PlannedSwingUp
+    from mbs_envs.controllers.region import discretize, hold_shares, lqg_hold_share, steady_kalman
+    from mbs_envs.controllers.swingup import upright_linearization
 
     ctrl = PlannedSwingUp(gym.make("mbs_envs/Acrobot-v1"), hold_law="edge")
     A, B = upright_linearization(ctrl.model)
@@ -245,7 +245,7 @@ def test_an_edge_gain_holds_more_windows_than_any_lqg_controller_of_the_grid():
 def test_the_band_rule_recovers_outside_the_band_until_within_the_way_back():
     """:func:`recovering`: a holding member recovers where an angle is more than ``band`` off upright (not where only
     a rate is large), a recovering one holds again only where both angles are within ``back`` (hysteresis)."""
-    from controllers.region import recovering
+    from mbs_envs.controllers.region import recovering
 
     x = np.array([[0.09, 0.0, 5.0, -5.0], [0.0, -0.11, 0.0, 0.0], [0.07, 0.0, 0.0, 0.0], [0.05, -0.05, 0.0, 0.0]])
     assert recovering(x, np.zeros(4, bool), 0.1, 0.06).tolist() == [False, True, False, False]
@@ -260,9 +260,9 @@ def test_recovering_into_the_hold_keeps_more_windows():
     windows held than without the band (tuning runs of 2,000 windows, 8 seeds: 3.8-4.75 points more, 79-81 %
     against 74-77 %) and than with the upright LQR (0.45-1.1 points; on the arm's own map with 4,000 windows 79.1 %
     against 78.3 %). Without a band (``band = inf``) the recovery gain is never used."""
-    from controllers import PlannedSwingUp
-    from controllers.region import discretize, hold_shares, steady_kalman
-    from controllers.swingup import upright_linearization
+    from mbs_envs.controllers import PlannedSwingUp
+    from mbs_envs.controllers.region import discretize, hold_shares, steady_kalman
+    from mbs_envs.controllers.swingup import upright_linearization
 
     ctrl = PlannedSwingUp(gym.make("mbs_envs/Acrobot-v1"), hold_law="edge")
     A, B = upright_linearization(ctrl.model)
@@ -283,9 +283,9 @@ def test_the_arms_map_about_upright_agrees_with_its_linearization_to_third_order
     upright: the difference of one step shrinks with the cube of the offset (ratio 8 when it halves; no second-order
     term, the arm's dynamics being odd about upright), down to the map's own discretization (RK4 sub-steps against the
     exact exponential: below 1e-8 of the step at 1e-6); past ``drop`` a run of :func:`hold_shares` holds nothing."""
-    from controllers import PlannedSwingUp
-    from controllers.region import ArmMap, discretize, hold_shares, steady_kalman
-    from controllers.swingup import upright_linearization
+    from mbs_envs.controllers import PlannedSwingUp
+    from mbs_envs.controllers.region import ArmMap, discretize, hold_shares, steady_kalman
+    from mbs_envs.controllers.swingup import upright_linearization
 
     ctrl = PlannedSwingUp(gym.make("mbs_envs/Acrobot-v1"), hold=False)
     A, B = upright_linearization(ctrl.model)
@@ -303,8 +303,8 @@ def test_the_arms_map_about_upright_agrees_with_its_linearization_to_third_order
 
 
 def zd_setup():
-    from controllers import PlannedSwingUp
-    from controllers.swingup import upright_linearization
+    from mbs_envs.controllers import PlannedSwingUp
+    from mbs_envs.controllers.swingup import upright_linearization
 
     ctrl = PlannedSwingUp(gym.make("mbs_envs/Acrobot-v1"))
     A, B = upright_linearization(ctrl.model)
@@ -318,9 +318,9 @@ def test_the_zero_dynamics_are_the_driven_angles_transmission_zeros():
     driven, the same checks where its zeros are real, NaN where they are imaginary (no unstable zero dynamics)."""
     import control
 
-    from controllers import PlannedSwingUp
-    from controllers.region import zero_dynamics
-    from controllers.swingup import upright_linearization
+    from mbs_envs.controllers import PlannedSwingUp
+    from mbs_envs.controllers.region import zero_dynamics
+    from mbs_envs.controllers.swingup import upright_linearization
 
     for env_id in ("mbs_envs/Acrobot-v1", "mbs_envs/Pendubot-v1"):
         ctrl = PlannedSwingUp(gym.make(env_id), hold=False)
@@ -351,7 +351,7 @@ def test_the_zero_dynamics_law_places_the_closed_loop_where_its_derivation_says(
     ``e = q_j - k z``, derived by hand in the docstring's terms: ``z' = -r z - g e``, ``e'' = -omega^2 e - 2 omega e' -
     k z''`` with ``z'' = r^2 z + r g e - g e'`` (1e-7 relative: the closed loop's entries reach 2e5 and
     LAPACK gives its eigenvalues to about 1e-9; a term of the derivation missing moves them by units)."""
-    from controllers.region import zero_dynamics, zero_dynamics_input
+    from mbs_envs.controllers.region import zero_dynamics, zero_dynamics_input
 
     ctrl, A, B = zd_setup()
     coef = zero_dynamics(A, B, 1)
@@ -379,8 +379,8 @@ def test_the_zero_dynamics_law_holds_more_windows_than_the_edge_switched_lqrs():
     the zero-dynamics law keeps both angles within 0.1 rad for 2 s in far more windows than the edge-switched LQRs on
     the same noise (1,000 windows here, noise seed 3: 95.8 % against 80.2 %; on the arm's own map, module docstring
     of :mod:`controllers.planned_swingup`): a difference of 0.1 is about 4 standard errors below the measured one."""
-    from controllers import PlannedSwingUp
-    from controllers.planned_swingup import hold_window_shares
+    from mbs_envs.controllers import PlannedSwingUp
+    from mbs_envs.controllers.planned_swingup import hold_window_shares
 
     env = gym.make("mbs_envs/Acrobot-v1")
     ctrl, A, B = zd_setup()
@@ -395,7 +395,7 @@ def test_the_rescue_rule_starts_past_the_trigger_and_ends_below_the_release_with
     """:func:`rescuing`: on the acrobot's zero dynamics, a holding member rescues only where ``|z|`` exceeds
     ``trigger`` times the mode's capture within the reach, ``g reach / lam`` (whatever its angles), and a rescuing one
     holds again only where ``|z|`` is below ``release`` times it and both angles are within ``back``."""
-    from controllers.region import ZeroDynamicsHold, rescuing, zero_dynamics, zero_dynamics_mode
+    from mbs_envs.controllers.region import ZeroDynamicsHold, rescuing, zero_dynamics, zero_dynamics_mode
 
     ctrl, A, B = zd_setup()
     coef = zero_dynamics(A, B, 1)
@@ -418,8 +418,8 @@ def test_the_rescue_saves_the_arms_that_the_reach_alone_lets_fall():
     (``scripts/tune_zero_dynamics_hold.py``, 1,000 windows, noise seed 13: 94.7 % against 89.4 %; the earlier
     settings on the tuning episodes 84 % against 75.5 %). 600 windows here (measured 94.7 % against 89.3 %): the
     paired difference's standard error is about 1 point, the margin 2."""
-    from controllers import PlannedSwingUp
-    from controllers.region import ArmMap, discretize, hold_shares, steady_kalman
+    from mbs_envs.controllers import PlannedSwingUp
+    from mbs_envs.controllers.region import ArmMap, discretize, hold_shares, steady_kalman
 
     env = gym.make("mbs_envs/Acrobot-v1")
     shares = []

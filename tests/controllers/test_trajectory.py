@@ -10,10 +10,10 @@ import pytest
 import scipy.linalg
 
 import mbs_envs  # noqa: F401
-from controllers import PlannedSwingUp
-from controllers import trajectory as traj
-from controllers.control_map import rk4_map, state_error
-from controllers.planned_swingup import CLOCK, KE_, KH_, KR_, ZD_, LENGTH, NIS, NIS_LIMIT, PHASE, PUMPING_GRID, SINCE, hold_pays
+from mbs_envs.controllers import PlannedSwingUp
+from mbs_envs.controllers import trajectory as traj
+from mbs_envs.controllers.control_map import rk4_map, state_error
+from mbs_envs.controllers.planned_swingup import CLOCK, KE_, KH_, KR_, ZD_, LENGTH, NIS, NIS_LIMIT, PHASE, PUMPING_GRID, SINCE, hold_pays
 from mbs_envs.envs.swingup import Q_UP
 
 GOAL = np.concatenate([Q_UP, np.zeros(2)])
@@ -40,9 +40,9 @@ def test_compiled_filter_step_is_the_numpy_filter_step(env_id):
     """The adaptive controllers' compiled EKF step equals controllers.estimator.ekf_step, per member on its own
     identified model, with angles far from [-pi, pi) and covariances of every size. Tolerance 1e-8: both take F_x
     by central differences of 1e-6, which turn the maps' 1e-16 round-off into ~1e-10 in F_x."""
-    from controllers import identification as ident
-    from controllers.adaptive_swingup import AdaptiveSwingUpLQR
-    from controllers.estimator import EPS, ekf_step
+    from mbs_envs.controllers import identification as ident
+    from mbs_envs.controllers.adaptive_swingup import AdaptiveSwingUpLQR
+    from mbs_envs.controllers.estimator import EPS, ekf_step
 
     c = AdaptiveSwingUpLQR(gym.make(env_id))
     rng = np.random.default_rng(3)
@@ -67,8 +67,8 @@ def test_the_fast_map_is_the_numpy_map_for_every_model_and_shape():
     """controllers.control_map.fast_map (compiled for the one-motor 2R arm) equals rk4_map to round-off with
     per-member parameters broadcast against leading axes, a scalar model, NaN and far-off states; a model it does
     not compile (two motors) takes rk4_map itself."""
-    from controllers import identification as ident
-    from controllers.control_map import fast_map
+    from mbs_envs.controllers import identification as ident
+    from mbs_envs.controllers.control_map import fast_map
 
     rng = np.random.default_rng(5)
     for env_id in ["mbs_envs/Acrobot-v1", "mbs_envs/Pendubot-v1"]:
@@ -240,7 +240,7 @@ def test_between_knots_the_feedback_follows_the_wrapped_interpolation_of_the_pla
 def test_the_protocols_episode_swings_up_on_knots_each_member_as_alone(env_id):
     """The protocol's nominal episode (10 s from hanging at 2-ms steps, plans on 0.01-s knots): a member of a batch
     of two (the other on a plant 20 % heavier) acts as it does alone, and swings up by the benchmark's rule."""
-    from controllers.tuned import stored_entry
+    from mbs_envs.controllers.tuned import stored_entry
     from mbs_envs.studies import dfki
 
     env = gym.make(env_id)
@@ -295,10 +295,10 @@ def test_a_balancing_member_holds_exactly_where_the_hold_lqrs_simulated_region_s
     it holds at 1.8 s, within 0.01 by 4 s; the catch's transient is not bounded by ``drop``)."""
     import control
 
-    from controllers import identification as ident
-    from controllers import region
-    from controllers.adaptive_swingup import MODE, THETA, XH
-    from controllers.swingup import upright_linearization
+    from mbs_envs.controllers import identification as ident
+    from mbs_envs.controllers import region
+    from mbs_envs.controllers.adaptive_swingup import MODE, THETA, XH
+    from mbs_envs.controllers.swingup import upright_linearization
 
     env = gym.make("mbs_envs/Acrobot-v1", start_noise=0.0)
     ctrl = PlannedSwingUp(env, plan_time=10.0, hold_law=law)
@@ -361,7 +361,7 @@ def test_the_hold_trusts_the_model_only_while_the_observations_agree_with_it(tor
     :data:`NIS_LIMIT` and the member balances with the upright LQR and its filter's balancing noise instead. Without
     torque noise a holding member leaves the hold only to recover, where its estimate leaves ``hold_band``, and comes
     back within ``hold_back`` (the band rule, not the consistency test)."""
-    from controllers.adaptive_swingup import XH
+    from mbs_envs.controllers.adaptive_swingup import XH
 
     env = gym.make("mbs_envs/Acrobot-v1", start_noise=0.0)
     ctrl = PlannedSwingUp(env, plan_time=10.0, prior=1e9)
@@ -393,7 +393,7 @@ def test_a_holding_member_that_leaves_the_band_recovers_into_the_hold():
     hold's filter setting kept) and holds again once both estimated angles are within ``hold_back``, never planning
     again nor falling back to the upright LQR (its filter stays consistent). A torque pulse is no test of this: the
     consistency test hands such a member to the upright LQR, as it should."""
-    from controllers.adaptive_swingup import MODE, XH
+    from mbs_envs.controllers.adaptive_swingup import MODE, XH
 
     env = gym.make("mbs_envs/Acrobot-v1", start_noise=0.0)
     ctrl = PlannedSwingUp(env, plan_time=30.0, prior=1e9, hold_law="edge")
@@ -418,7 +418,7 @@ def test_the_hold_pays_on_the_acrobot_and_not_on_the_pendubot():
     """:func:`hold_pays`: on the acrobot's linearization observed with noise 0.01 the hold LQR holds 5 points more of
     the success rule's windows than the upright LQR, on the pendubot's both hold every window; without observation
     noise (no filter) the stage is off; ``hold`` set by hand overrides the rule."""
-    from controllers import region
+    from mbs_envs.controllers import region
 
     acrobot, pendubot = PlannedSwingUp(gym.make("mbs_envs/Acrobot-v1"), hold_law="edge"), PlannedSwingUp(gym.make("mbs_envs/Pendubot-v1"))
     assert acrobot.hold and not pendubot.hold
@@ -430,7 +430,7 @@ def test_the_hold_pays_on_the_acrobot_and_not_on_the_pendubot():
     # the rule's shares against the LQG controllers of the report on the same linearization: the hold with its edge
     # gain (no band here) holds far more windows than the upright LQR and than the best of them (on tuning runs 75 %
     # against 37 %)
-    from controllers.swingup import upright_linearization
+    from mbs_envs.controllers.swingup import upright_linearization
 
     A, B = upright_linearization(acrobot.model)
     A_d, B_d = region.discretize(A, B, 0.01)
@@ -502,7 +502,7 @@ def test_swing_up_and_hold_on_the_nominal_acrobot():
 def test_the_compiled_pumping_law_is_the_swing_up_controllers(env_id):
     """The planner's guesses come from the same energy-pumping law as :class:`SwingUpLQR` (written twice: numba and
     numpy): equal inputs on random states and gains, including states where the law saturates."""
-    from controllers import SwingUpLQR
+    from mbs_envs.controllers import SwingUpLQR
 
     env = gym.make(env_id, params={"b1": 0.05, "b2": 0.02})
     model = env.unwrapped.model
@@ -553,7 +553,7 @@ def test_the_gains_of_a_plan_are_the_tvlqr_along_it_whichever_jacobians_they_cam
 def test_members_plan_on_threads_with_the_same_result(monkeypatch):
     """A batch in which several members plan at once: the same plans and rows on one thread and on three; a
     malformed thread count is refused by name."""
-    from controllers import planned_swingup
+    from mbs_envs.controllers import planned_swingup
 
     env = gym.make("mbs_envs/Acrobot-v1")
     ctrl = PlannedSwingUp(env)

@@ -296,7 +296,7 @@ def test_settings_that_would_start_outside_the_space_are_refused(env_id, kwargs,
 
 
 def test_controllers_refuse_envs_they_do_not_fit():
-    from controllers import LQR, ComputedTorque
+    from mbs_envs.controllers import LQR, ComputedTorque
 
     with pytest.raises(ValueError, match="LQR acts on RollingDiskEnv"):
         LQR(gym.make("mbs_envs/Planar2R-v0"))

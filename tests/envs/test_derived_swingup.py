@@ -163,7 +163,7 @@ def test_the_cart_pole_renders_and_pickles():
 
 
 def test_the_collocated_input_gives_the_commanded_acceleration():
-    from controllers.swingup import collocated_pfl
+    from mbs_envs.controllers.swingup import collocated_pfl
 
     model = CartPole()
     rng = np.random.default_rng(4)
@@ -177,7 +177,7 @@ def test_the_pumping_law_drives_the_poles_energy_to_upright():
     """Without friction and with only the pumping term (k_q = k_v = 0), ``dE_p/dt = -k_E E~ (M_ap v_p)^2 <= 0`` for
     ``E~ > 0`` (module docstring of controllers/energy_swingup.py): checked on the model by the energy's rate
     along the commanded motion."""
-    from controllers.energy_swingup import EnergySwingUpLQR
+    from mbs_envs.controllers.energy_swingup import EnergySwingUpLQR
 
     env = gym.make(ID, params={"b_x": 0.0, "b_th": 0.0})
     c = EnergySwingUpLQR(env, k_q=0.0, k_v=0.0, k_E=50.0, a_max=1e9)
@@ -204,7 +204,7 @@ def test_the_pumping_law_drives_the_poles_energy_to_upright():
 
 
 def test_the_energy_controller_swings_the_cart_pole_up_and_holds_it():
-    from controllers import EnergySwingUpLQR
+    from mbs_envs.controllers import EnergySwingUpLQR
     from mbs_envs.studies.evaluation import rollout_batch, swing_up_metrics
 
     venv = gym.make_vec(ID, num_envs=4, vectorization_mode="vector_entry_point", autoreset_mode="Disabled")

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import mbs_envs  # noqa: F401
-from controllers import PD, ComputedTorque, PDGravity
+from mbs_envs.controllers import PD, ComputedTorque, PDGravity
 
 ENV_ID = "mbs_envs/FourBar-v0"
 
@@ -111,7 +111,7 @@ def test_pd_default_gains_match_the_mean_crank_inertia():
     assert env.unwrapped.joint_inertia == J
     np.testing.assert_allclose(env.unwrapped.pd_gains, (100 * J, 20 * J))  # the pre-tuning gains
     # the defaults: the tuned bandwidth, scaled by the same inertia for PD (computed torque needs none)
-    from controllers.tuned import tuned_gains
+    from mbs_envs.controllers.tuned import tuned_gains
 
     g = tuned_gains(env, "PD")
     pd = PD(env)

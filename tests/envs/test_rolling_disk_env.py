@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import mbs_envs  # noqa: F401
-from controllers import LQR, NoControl, SteeringPD
-from controllers.disk import linearize
+from mbs_envs.controllers import LQR, NoControl, SteeringPD
+from mbs_envs.controllers.disk import linearize
 
 ENV_ID = "mbs_envs/RollingDisk-v0"
 

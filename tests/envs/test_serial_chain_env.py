@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import mbs_envs  # noqa: F401
-from controllers import PD, ComputedTorque
+from mbs_envs.controllers import PD, ComputedTorque
 from mbs_envs.envs import SerialChainEnv
 from mbs_envs.models import SerialChain
 

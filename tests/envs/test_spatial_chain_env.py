@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import mbs_envs  # noqa: F401
-from controllers import PD, ComputedTorque
+from mbs_envs.controllers import PD, ComputedTorque
 from mbs_envs.envs.serial_chain import SerialChainEnv
 from mbs_envs.envs.spatial_chain import SpatialChainEnv, hanging_posture, reach_gravity_torque
 from mbs_envs.models import SerialChain

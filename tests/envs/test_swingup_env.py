@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import mbs_envs  # noqa: F401
-from controllers import PD, ComputedTorque, PDGravity, SwingUpLQR
-from controllers.swingup import collocated_pfl
+from mbs_envs.controllers import PD, ComputedTorque, PDGravity, SwingUpLQR
+from mbs_envs.controllers.swingup import collocated_pfl
 from mbs_envs.envs.swingup import Q_UP, decode_swingup, encode_swingup
 from mbs_envs.models import Planar2R
 from mbs_envs.studies.evaluation import Episode, SCORING, rollout_batch, swing_up_metrics

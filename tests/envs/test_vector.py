@@ -215,7 +215,7 @@ def test_sb3_adapter_reports_terminal_observations():
 @pytest.mark.parametrize("env_id", ["mbs_envs/FourBar-v0", "mbs_envs/RollingDisk-v0"])
 def test_batched_rollout_scores_like_single_rollouts(env_id):
     """rollout_batch on the vector env gives the episodes rollout gives on single envs."""
-    from controllers import LQR, ComputedTorque
+    from mbs_envs.controllers import LQR, ComputedTorque
     from mbs_envs.studies.evaluation import episode_metrics, rollout, rollout_batch
 
     env = gym.make(env_id, max_episode_steps=60)

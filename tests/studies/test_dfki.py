@@ -92,8 +92,9 @@ def test_upright_run_succeeds_and_scores_by_its_criteria():
     assert c["success"] == 0.0 and dfki.score(c) == 0.0
 
 
-#: the published simulation leaderboard v2 for the acrobot (criteria and score as printed), as the module stores it
-LEADERBOARD_V2 = dict(dfki.PUBLISHED_SIMULATION_V2["Acrobot"]["rows"])
+#: the published simulation leaderboard v2 (criteria and score as printed), as the module stores it, every robot
+LEADERBOARD_V2 = {f"{robot}: {name}": row for robot, board in dfki.PUBLISHED_SIMULATION_V2.items()
+                  for name, row in board["rows"].items()}
 
 
 @pytest.mark.parametrize("name", sorted(LEADERBOARD_V2))

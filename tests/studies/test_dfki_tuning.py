@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import mbs_envs  # noqa: F401
-from controllers import tuned
-from controllers.swingup import KICK, REST_TOL, SwingUpLQR, at_rest, collocated_pfl
+from mbs_envs.controllers import tuned
+from mbs_envs.controllers.swingup import KICK, REST_TOL, SwingUpLQR, at_rest, collocated_pfl
 from mbs_envs.envs.swingup import Q_DOWN
 from mbs_envs.studies import dfki, dfki_tuning
 from mbs_envs.studies.evaluation import make_controller
@@ -24,8 +24,8 @@ def run(venv_members, policy, steps):
     return dfki.record(venv, policy, list(range(venv_members)))
 
 
-@pytest.mark.parametrize("spec, entries", [("controllers:SwingUpLQR", ENTRIES),
-                                           ("controllers:AdaptiveSwingUpLQR", [dict(e, lqr_r=10.0) for e in ENTRIES])])  # fmt: skip
+@pytest.mark.parametrize("spec, entries", [("mbs_envs.controllers:SwingUpLQR", ENTRIES),
+                                           ("mbs_envs.controllers:AdaptiveSwingUpLQR", [dict(e, lqr_r=10.0) for e in ENTRIES])])  # fmt: skip
 def test_member_gains_reproduce_one_rollout_per_candidate(spec, entries):
     """Every candidate as a member of one batch moves exactly as the candidate alone (the laws broadcast)."""
     env = gym.make(ACRO)
@@ -39,7 +39,7 @@ def test_member_gains_reproduce_one_rollout_per_candidate(spec, entries):
 
 def test_member_gains_refuse_per_member_weights_on_the_adaptive_controller():
     env = gym.make(ACRO)
-    c = make_controller("controllers:AdaptiveSwingUpLQR", env, ENTRIES[0])
+    c = make_controller("mbs_envs.controllers:AdaptiveSwingUpLQR", env, ENTRIES[0])
     with pytest.raises(ValueError, match="lqr_r"):
         dfki_tuning.with_member_gains(c, ENTRIES)
 
@@ -159,7 +159,7 @@ def test_a_job_runs_with_the_catch_it_is_given(tmp_path):
     from mbs_envs.studies.handover import HandOverPolicy, hand_over
 
     gains = tuned.stored_entry(ACRO, "swing-up + LQR")
-    task = {"env_id": ACRO, "spec": "controllers:SwingUpLQR", "gains": gains}
+    task = {"env_id": ACRO, "spec": "mbs_envs.controllers:SwingUpLQR", "gains": gains}
     plain = dfki.controller_job(task)["run"]
     same = dfki.controller_job({**task, "catch_gains": {"lqr_r": gains["lqr_r"], "catch": gains["catch"]}})["run"]
     other = dfki.controller_job({**task, "catch_gains": {"lqr_r": 100.0 * gains["lqr_r"]}})["run"]
@@ -168,7 +168,7 @@ def test_a_job_runs_with_the_catch_it_is_given(tmp_path):
     with pytest.raises(ValueError, match="unknown keys \\['k_q'\\]"):
         dfki.controller_job({**task, "catch_gains": {"k_q": 1.0}})
     with pytest.raises(ValueError, match="neither a controller with gains nor an RL \\+ LQR pair"):
-        dfki.controller_job({"env_id": ACRO, "spec": "controllers:SwingUpLQR", "gains": None, "catch_gains": {"catch": 1.0}})
+        dfki.controller_job({"env_id": ACRO, "spec": "mbs_envs.controllers:SwingUpLQR", "gains": None, "catch_gains": {"catch": 1.0}})
 
     class Agent:
         def predict(self, obs, state=None, episode_start=None, deterministic=True):

@@ -162,7 +162,7 @@ def test_a_part_of_a_batch_sees_what_it_sees_in_the_whole_batch():
     end in the whole batch, under every axis at once (a controller with memory: the adaptive swing-up's filter and
     identification, noisy velocities, torque noise, a lag, delays, pulses and its own plant per member); a part that
     does not fit in the batch is refused."""
-    from controllers import AdaptiveSwingUpLQR
+    from mbs_envs.controllers import AdaptiveSwingUpLQR
 
     env_id, n, steps = "mbs_envs/AcrobotDFKI-v1", 5, 120
     rng = np.random.default_rng(3)
@@ -192,7 +192,7 @@ def test_a_sweep_in_parts_is_the_whole_sweep(monkeypatch):
     monkeypatch.setattr(gym.envs.registration.registry["mbs_envs/AcrobotDFKI-v1"], "max_episode_steps", 60)
     monkeypatch.setattr(dfki, "random_pulses", lambda rng, episodes, t: rng.normal(0.0, 1.0, (episodes, len(t), 2)))
     monkeypatch.setattr(dfki, "run_success", lambda res: res["q"][:, 0].copy())
-    from controllers import SwingUpLQR
+    from mbs_envs.controllers import SwingUpLQR
 
     make = lambda env: SwingUpLQR(env)  # noqa: E731
     whole = dfki.sweep("mbs_envs/AcrobotDFKI-v1", make, n=3)
