@@ -14,8 +14,8 @@ folder. Writes ``<scene>_<policy>[_vs_<policy>]_seed<S>.mp4`` and ``.gif`` (``--
     python scripts/record.py --gallery --env mbs_envs/Acrobot-v1 --out docs/gallery   # that scene's GIF again
 
 ``--gallery`` records every scene's best model-based controller beside PPO (training seed 0) on
-test seed 0, small GIFs (200 px panels, 10 frames/s, the first 8 s; 10 s on swing-up scenes; the
-frame rate halved while a GIF is over 400 kB), one full-size PNG frame per scene and ``gallery.json``.
+test seed 0, GIFs (320 px panels, 10 frames/s, the first 8 s; 10 s on swing-up scenes; the
+frame rate halved while a GIF is over 1.2 MB), one full-size PNG frame per scene and ``gallery.json``.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--env", choices=list(mbs_envs.ENV_IDS))
     p.add_argument("--policy", help="controller short name, agent group, module:Class or agent folder")
-    p.add_argument("--gallery", action="store_true", help="every scene: its best controller beside PPO, small GIFs")
+    p.add_argument("--gallery", action="store_true", help="every scene: its best controller beside PPO, GIFs for the docs")
     p.add_argument("--vs", help="a second policy, recorded on the same seed beside the first")
     p.add_argument("--seed", type=int, default=0, help="reset seed (default 0)")
     p.add_argument("--seconds", type=float, help="at most this much of the episode (default the whole episode)")

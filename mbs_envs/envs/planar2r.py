@@ -77,7 +77,7 @@ class Planar2REnv(JointTrackingEnv):
     - ``params``: overrides of :class:`mbs_envs.models.planar2r.Planar2RParams`
       (``m1, m2, l1, l2, r1, r2, I1, I2, g, b1, b2, f1, f2, v_s``).
     - ``dt``: control step [s]; ``substeps`` physics steps per control step
-      (two RK4 steps of 5 ms: 16x more accurate than one; its cost in docs/performance.md).
+      (default two RK4 steps of 5 ms; accuracy and cost in docs/numerics.md and docs/performance.md).
     - ``compiled``: the step runs as one numba kernel (:mod:`mbs_envs.dynamics.compiled`)
       whenever the integrator is explicit; False forces the numpy path.
     - ``integrator``: any name of :func:`mbs_envs.dynamics.integrators.available`.
