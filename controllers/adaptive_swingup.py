@@ -266,12 +266,12 @@ class AdaptiveSwingUpLQR(SwingUpLQR):
             state = self.initial_state(q, v)
         else:
             y = np.concatenate([q, v], axis=1)  # the observation, where an episode starts
-            state = np.array(state, float).reshape(n, STATE_SIZE)
+            state = check.shaped(state, "state", (n, STATE_SIZE))
             if self.obs_noise > 0:
                 state = self.estimate_state(state, y)
                 q, v = state[:, XH][:, :2], state[:, XH][:, 2:]
             state = self.identify(state, q, v)
-            start = np.zeros(n, bool) if episode_start is None else np.asarray(episode_start, bool).reshape(n)
+            start = np.zeros(n, bool) if episode_start is None else check.shaped(episode_start, "episode_start", (n,), bools=True, broadcast=True) != 0
             if start.any():  # fresh memory (built only for these members) from the observation
                 state[start] = self.initial_state(y[start, :2], y[start, 2:])
                 q, v = np.where(start[:, None], y[:, :2], q), np.where(start[:, None], y[:, 2:], v)

@@ -185,6 +185,10 @@ class Controller(abc.ABC):
         the observation clipped into the space (the env never observes beyond it): every finite observation
         gives a finite action, and every other one the same action as before."""
         obs = check.reals(observation, "observation")
+        width = self._obs_low.shape[-1]
+        if obs.ndim == 0 or obs.shape[-1] != width:
+            raise ValueError(f"observation must have {width} entries per member (shape ({width},) or (n, {width})), "
+                             f"got shape {obs.shape}")
         finite = np.isfinite(obs)
         if not finite.all():
             where = "" if obs.ndim < 2 else f" (members {np.flatnonzero(~finite.reshape(-1, obs.shape[-1]).all(axis=-1)).tolist()})"

@@ -196,9 +196,9 @@ class LQR(Controller):
         z = reference_error(self.model, obs)
         z[..., 0] = np.clip(z[..., 0], -self.heading_error_limit, self.heading_error_limit)
         lead = z.shape[:-1]
-        z_i = np.zeros(lead) if state is None else np.array(state, float).reshape(lead)
+        z_i = np.zeros(lead) if state is None else check.shaped(state, "state", lead)
         if episode_start is not None:
-            z_i = np.where(np.asarray(episode_start, bool).reshape(lead), 0.0, z_i)
+            z_i = np.where(check.shaped(episode_start, "episode_start", lead, bools=True, broadcast=True) != 0, 0.0, z_i)
         z_i = np.clip(z_i + self.dt * z[..., 0], -self.integral_limit, self.integral_limit)
         za = np.concatenate([z, z_i[..., None]], axis=-1)
         u = self.feedforward(obs, z) - np.einsum("...ij,...j->...i", self.gain(obs.spin_ref), za)

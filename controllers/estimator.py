@@ -22,6 +22,8 @@ from typing import Any
 
 import numpy as np
 
+from mbs_envs import validation as check
+
 from mbs_envs.envs.tracking import wrap_angle
 
 from .control_map import rk4_map, state_error
@@ -142,17 +144,21 @@ class RatesFromAngles:
         from mbs_envs.envs.swingup import decode_swingup
 
         obs = np.asarray(observation)
+        if obs.ndim not in (1, 2):
+            raise ValueError(f"observation must have shape (k,) or (n, k), got shape {obs.shape}")
         single = obs.ndim == 1
         batch = np.array(obs.reshape(-1, obs.shape[-1]), dtype=obs.dtype if obs.dtype.kind == "f" else np.float32)
         seen = decode_swingup(batch)  # ValueError for a wrong shape; the angles by atan2
         q, B = seen.q, len(batch)
-        start = np.ones(B, bool) if episode_start is None else np.broadcast_to(np.asarray(episode_start, bool).reshape(-1), (B,))
+        start = np.ones(B, bool) if episode_start is None else check.shaped(episode_start, "episode_start", (B,), bools=True, broadcast=True) != 0
         if state is None:
             q_1, q_2, history, inner = q, q, np.zeros(B), None
         else:
+            if not (isinstance(state, tuple) and len(state) == 4):
+                raise ValueError(f"state must be the 4-tuple this wrapper returned, got {type(state).__name__}")
             q_1, q_2, history, inner = state
-            q_1, q_2 = np.asarray(q_1, float).reshape(B, -1), np.asarray(q_2, float).reshape(B, -1)
-            history = np.where(start, 0.0, np.asarray(history, float).reshape(B))
+            q_1, q_2 = check.shaped(q_1, "state's q_1", q.shape), check.shaped(q_2, "state's q_2", q.shape)
+            history = np.where(start, 0.0, check.shaped(history, "state's history", (B,)))
         batch[:, -q.shape[1] :] = rates_from_angles(q, q_1, q_2, history, seen.v, self.dt)
         action, inner = self.policy.predict(batch[0] if single else batch, state=inner, episode_start=episode_start, deterministic=deterministic)
         return action, (q, q_1, history + 1.0, inner)

@@ -511,9 +511,11 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
         if state is None:
             row, plan, inner = np.zeros((n, ROW_SIZE)), np.zeros((n, self.plan_size)), None
         else:
+            if not (isinstance(state, tuple) and len(state) == 2):
+                raise ValueError(f"state must be the (row, plan) pair this controller returned, got {type(state).__name__}")
             row, plan = state
-            row = np.array(row, float).reshape(n, ROW_SIZE)
-            plan = np.asarray(plan, float).reshape(n, self.plan_size)
+            row = check.shaped(row, "state's row", (n, ROW_SIZE))
+            plan = check.shaped(plan, "state's plan", (n, self.plan_size))
             inner = row[:, :STATE_SIZE]
         theta_before = None if inner is None else inner[:, THETA].copy()
         y = np.concatenate([np.atleast_2d(obs.q), np.atleast_2d(obs.v)], axis=1)

@@ -4,15 +4,13 @@
 with Gymnasium.
 """
 
-import functools
-
 from gymnasium.envs.registration import register, registry
 
 from . import models
 from .dynamics import integrators
 from .envs.presets import PROTOCOL_IDS
 from .envs.registry import SCENES
-from .envs.vector import make_vector as _make_vector
+from .envs.vector import vector_entry_point as _vector_entry_point
 from .simulate import Trajectory, simulate  # the module first, then the name is the function
 
 __version__ = "0.2.0"
@@ -26,7 +24,7 @@ for _scene in SCENES:
         register(
             id=_scene.id,
             entry_point=_scene.entry_point,
-            vector_entry_point=functools.partial(_make_vector, _scene.entry_point),
+            vector_entry_point=_vector_entry_point(_scene.entry_point),
             max_episode_steps=_scene.max_episode_steps,
         )
 
@@ -36,7 +34,7 @@ for _id, _entry, _preset, _steps in PROTOCOL_IDS:
         register(
             id=_id,
             entry_point=_entry,
-            vector_entry_point=functools.partial(_make_vector, _entry),
+            vector_entry_point=_vector_entry_point(_entry),
             max_episode_steps=_steps,
             kwargs={"preset": _preset},
         )

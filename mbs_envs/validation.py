@@ -124,6 +124,24 @@ def reals(value: Any, name: str, *, bools: bool = False) -> np.ndarray:
         raise ValueError(f"{name} must be real numbers, got {_shown(value)}") from None
 
 
+def shaped(value: Any, name: str, shape: tuple, *, bools: bool = False, broadcast: bool = False) -> np.ndarray:
+    """``value`` as a float64 array of ``shape`` (:func:`reals`), or ``ValueError`` naming ``name`` and both shapes.
+
+    With ``broadcast`` a value that broadcasts to ``shape`` (a scalar ``episode_start``) is taken; otherwise its
+    size must equal ``shape``'s and it is reshaped (a state saved flat). The array is a new one: writing into it
+    never changes ``value``.
+    """
+    arr = reals(value, name, bools=bools)
+    if broadcast:
+        try:
+            return np.array(np.broadcast_to(arr, shape))
+        except ValueError:
+            raise ValueError(f"{name} must broadcast to shape {tuple(shape)}, got shape {arr.shape}") from None
+    if arr.size != int(np.prod(shape)):
+        raise ValueError(f"{name} must hold {int(np.prod(shape))} numbers (shape {tuple(shape)}), got shape {arr.shape}")
+    return arr.reshape(shape).copy()
+
+
 def _shown(value: Any) -> str:
     """``repr`` of a refused value, cut to 200 characters (and never raising)."""
     try:

@@ -27,6 +27,7 @@ import sys
 import time
 
 import mbs_envs  # noqa: F401
+from mbs_envs.studies import cli
 from mbs_envs.studies.recording import record_episode, side_by_side, write_video
 
 
@@ -37,11 +38,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--gallery", action="store_true", help="every scene: its best controller beside PPO, GIFs for the docs")
     p.add_argument("--vs", help="a second policy, recorded on the same seed beside the first")
     p.add_argument("--seed", type=int, default=0, help="reset seed (default 0)")
-    p.add_argument("--seconds", type=float, help="at most this much of the episode (default the whole episode)")
-    p.add_argument("--fps", type=float, default=25.0, help="frames per second of the video (default 25)")
-    p.add_argument("--size", type=int, help="pixels per panel (default 500, the env's frame)")
+    p.add_argument("--seconds", type=cli.positive_float, help="at most this much of the episode (default the whole episode)")
+    p.add_argument("--fps", type=cli.positive_float, default=25.0, help="frames per second of the video (default 25)")
+    p.add_argument("--size", type=cli.positive_int, help="pixels per panel (default 500, the env's frame)")
     p.add_argument("--format", nargs="+", choices=["mp4", "gif"], default=["mp4", "gif"])
-    p.add_argument("--out", required=True, type=pathlib.Path)
+    p.add_argument("--out", required=True, type=cli.out_folder)
     return p.parse_args(argv)
 
 

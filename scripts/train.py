@@ -21,7 +21,6 @@ controller (default: computed torque; LQR on the disk), bounded by
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import pathlib
 import sys
@@ -30,6 +29,7 @@ import sys
 os.environ.setdefault("MBS_ENVS_JIT", "sync")
 
 import mbs_envs  # noqa: F401
+from mbs_envs.studies import cli
 from mbs_envs.envs import registry
 from mbs_envs.studies.evaluation import ERROR_METRIC
 from mbs_envs.studies.parallel import run_tasks
@@ -40,17 +40,17 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--env", required=True, choices=list(mbs_envs.ENV_IDS))
     p.add_argument("--algo", required=True, choices=sorted(ALGOS))
-    p.add_argument("--steps", required=True, type=int)
+    p.add_argument("--steps", required=True, type=cli.positive_int)
     p.add_argument("--seed", type=int, nargs="+", default=[0])
-    p.add_argument("--out", required=True, type=pathlib.Path)
-    p.add_argument("--n-envs", type=int, help="parallel members (default 64 for PPO, 4 otherwise)")
-    p.add_argument("--env-kwargs", type=json.loads, default={}, help="JSON dict of env arguments")
+    p.add_argument("--out", required=True, type=cli.out_folder)
+    p.add_argument("--n-envs", type=cli.positive_int, help="parallel members (default 64 for PPO, 4 otherwise)")
+    p.add_argument("--env-kwargs", type=cli.json_object, default={}, help="JSON dict of env arguments")
     p.add_argument("--keep-best", action="store_true",
                    help="ship the agent of the evaluation with the highest validation return, not the last")
-    p.add_argument("--train-env-kwargs", type=json.loads, default={},
+    p.add_argument("--train-env-kwargs", type=cli.json_object, default={},
                    help="JSON dict of env arguments for the training members only (a curriculum; validation runs the task as "
                         "--env-kwargs gives it), e.g. '{\"start_upright\": 0.5}'")
-    p.add_argument("--eval-env-kwargs", type=json.loads, default={},
+    p.add_argument("--eval-env-kwargs", type=cli.json_object, default={},
                    help="JSON dict of env arguments for the validation episodes only, e.g. '{\"randomize\": {\"m2\": 0.25}}' "
                         "(each validation seed's plant drawn from it; --keep-best then keeps the best over those plants)")
     p.add_argument("--net-arch", type=int, nargs="+", help="hidden layers (default SB3's: 64 64 for PPO, 256 256 otherwise)")
@@ -58,17 +58,17 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--residual-bound", type=float, default=0.25, help="largest correction, fraction of the actuator limit (default 0.25)")
     p.add_argument("--hyper", action="append", default=[], metavar="KEY=VALUE", type=hyper_setting,
                    help="override a numeric hyperparameter, e.g. --hyper gamma=0.998 (repeatable)")
-    p.add_argument("--action-repeat", type=int, default=1, metavar="K",
+    p.add_argument("--action-repeat", type=cli.positive_int, default=1, metavar="K",
                    help="hold each action for K control steps (the agent decides every K dt; default 1)")
     p.add_argument("--normalize", action="store_true",
                    help="train behind VecNormalize (observations and rewards); the statistics are saved with the agent")
-    p.add_argument("--perturb", type=lambda t: t if t == "dfki" else json.loads(t),
+    p.add_argument("--perturb", type=lambda t: t if t == "dfki" else cli.json_object(t),
                    help="train under the robustness axes, one perturbation per member and episode: 'dfki' (the DFKI "
                         "benchmark's ranges) or a JSON dict of mbs_envs.envs.perturbed.TrainingPerturbations' fields")
     p.add_argument("--init", type=pathlib.Path, help="continue the agent saved in this folder (e.g. one of an earlier task version); {seed} stands for the run seed")
-    p.add_argument("--eval-seeds", type=int, default=10, help="validation episodes per evaluation (default 10)")
-    p.add_argument("--eval-every", type=int, help="env-steps between evaluations (default steps/10)")
-    p.add_argument("--checkpoint-every", type=int, help="env-steps between checkpoints")
+    p.add_argument("--eval-seeds", type=cli.positive_int, default=10, help="validation episodes per evaluation (default 10)")
+    p.add_argument("--eval-every", type=cli.positive_int, help="env-steps between evaluations (default steps/10)")
+    p.add_argument("--checkpoint-every", type=cli.positive_int, help="env-steps between checkpoints")
     p.add_argument("--tensorboard", action="store_true")
     p.add_argument("--overwrite", action="store_true", help="replace an agent already in --out (a folder another run is writing is refused)")
     p.add_argument("--ray", nargs="?", const="local", help="run the seeds on Ray (cluster ADDRESS, or a local instance)")

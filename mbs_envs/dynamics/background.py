@@ -254,8 +254,11 @@ def allowed():
 
 
 def _arrays(x, out: list) -> None:
+    """The call's writeable arrays beside copies of them (a read-only array, a derived model's parameters, cannot
+    have been written by the Python, and cannot be restored)."""
     if isinstance(x, np.ndarray):
-        out.append((x, x.copy()))
+        if x.flags.writeable:
+            out.append((x, x.copy()))
     elif isinstance(x, tuple):
         for y in x:
             _arrays(y, out)

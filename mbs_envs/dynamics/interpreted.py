@@ -24,6 +24,7 @@ import ast
 import inspect
 import math
 import textwrap
+import threading
 import types
 from collections.abc import Callable
 from fractions import Fraction
@@ -59,6 +60,9 @@ def fma_exact(a: float, b: float, c: float) -> float:
 #: modules whose objects interpreted code keeps as they are
 _KEEP = ("numpy", "math", "cmath", "numba", "builtins", "operator")
 
+#: one builder at a time: a module's globals are registered before they are filled (its kernels call each other), so
+#: another thread must not see them, nor a clone over them, until the builder is done (reentrant: the builder recurses)
+_LOCK = threading.RLock()
 _clones: dict[int, tuple[Dispatcher, types.FunctionType]] = {}
 _globals: dict[int, dict] = {}
 _proxies: dict[int, types.ModuleType] = {}
@@ -242,6 +246,11 @@ def interpreted(kernel: Dispatcher) -> types.FunctionType:
         Takes the kernel's arguments and computes its results bit for bit (module docstring),
         however slowly. One per kernel and process.
     """
+    with _LOCK:
+        return _interpreted(kernel)
+
+
+def _interpreted(kernel: Dispatcher) -> types.FunctionType:
     c = _clones.get(id(kernel))
     if c is None:
         f = kernel.py_func

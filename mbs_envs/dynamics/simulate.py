@@ -52,8 +52,19 @@ class Trajectory:
     integrator: str
 
 
+def _read_only(x: Any) -> Any:
+    """A read-only view of the array ``x`` (anything else as it is)."""
+    if not isinstance(x, np.ndarray):
+        return x
+    view = x.view()
+    view.flags.writeable = False
+    return view
+
+
 def input_function(model: Model, u: Input) -> Callable[[float, np.ndarray, np.ndarray], Any]:
     """Normalize an input specification to a function ``u(t, q, v)``.
+
+    A user's callable gets read-only views of the integrator's state arrays (numpy refuses a write into them).
 
     Raises
     ------
@@ -63,8 +74,10 @@ def input_function(model: Model, u: Input) -> Callable[[float, np.ndarray, np.nd
     if isinstance(u, JointPD):
         B = model.actuation
         return lambda t, q, v: u(t, q, v, B)
-    if u is None or callable(u):
-        return (lambda t, q, v: None) if u is None else u
+    if u is None:
+        return lambda t, q, v: None
+    if callable(u):  # the user's function sees read-only views: writing into them cannot change the motion
+        return lambda t, q, v: u(t, _read_only(q), _read_only(v))
     u_arr = as_vector(u, model.nu, "u")
     if not np.all(np.isfinite(u_arr)):
         raise ValueError("u must be finite")

@@ -155,6 +155,14 @@ class PerturbedVectorEnv(VectorWrapper):
         Each member's axis this episode, an index into :attr:`TrainingPerturbations.axes`.
     """
 
+    def set_attr(self, name: str, values: Any) -> None:
+        """The wrapped env's :meth:`~mbs_envs.envs.vector.MBSVectorEnv.set_attr` (Gymnasium's rule)."""
+        self.env.set_attr(name, values)
+
+    def get_attr(self, name: str) -> tuple:
+        """The wrapped env's ``get_attr``."""
+        return self.env.get_attr(name)
+
     def __init__(self, env: Any, perturbations: Any, seed: int | None = None):
         from .vector import MBSVectorEnv
 

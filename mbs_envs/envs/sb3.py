@@ -103,11 +103,12 @@ class SB3VecEnv(VecEnv):
         return [value for _ in self._get_indices(indices)]
 
     def set_attr(self, attr_name: str, value: Any, indices: Any = None) -> None:
-        """A setting of the shared task env (:meth:`MBSVectorEnv.set_attr`: validated; unknown, fixed or
-        misspelt names raise ``ValueError``); ``indices`` must cover every member, since they share it."""
+        """A setting of the shared task env, by SB3's rule: ``value`` is one value for the members ``indices``
+        (a list is a value too, e.g. per-joint torque limits); validated by :meth:`MBSVectorEnv.set_attr` (unknown,
+        fixed or misspelt names raise ``ValueError``); ``indices`` must cover every member, since they share it."""
         if indices is not None and sorted(set(self._get_indices(indices))) != list(range(self.num_envs)):
             raise ValueError(f"set_attr({attr_name!r}, indices={indices!r}): the members share one task env; set it for all")
-        self.venv.set_attr(attr_name, value)
+        self.venv.set_attr(attr_name, [value] * self.num_envs)
 
     def seed(self, seed: int | None = None) -> Any:
         """SB3's ``seed``: member ``i`` gets ``seed + i`` at the next reset; ``seed`` None or an int >= 0

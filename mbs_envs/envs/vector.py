@@ -43,6 +43,7 @@ batch of a few thousand members can fault its work arrays in afresh at every ste
 
 from __future__ import annotations
 
+import functools
 from typing import Any
 
 import gymnasium as gym
@@ -183,10 +184,17 @@ class MBSVectorEnv(VectorEnv):
         return tuple(value for _ in range(self.num_envs))
 
     def set_attr(self, name: str, values: Any) -> None:
-        """Set a setting of the task env (:meth:`MBSEnv.settings`, validated); the members share it, so
-        ``values`` is one value, or a list/tuple of ``num_envs`` equal ones. Anything else --
-        unknown or fixed names, differing per-member values -- raises ``ValueError`` before any change."""
-        if isinstance(values, (list, tuple)) and len(values) == self.num_envs and self.num_envs > 1:
+        """Set a setting of the task env (:meth:`MBSEnv.settings`, validated), by Gymnasium's rule: a list or
+        tuple holds one value per member (``num_envs`` of them), anything else is one value for every member (a
+        per-joint setting as one value: a numpy array, ``set_attr("u_max", np.array([5.0, 2.0]))``, or one entry
+        per member, ``[[5.0, 2.0]] * num_envs``). The members share the task env, so per-member values must be
+        equal. Unknown or fixed names, a list of another length and differing values raise ``ValueError`` before
+        any change."""
+        if isinstance(values, (list, tuple)):
+            if len(values) != self.num_envs:
+                raise ValueError(f"set_attr({name!r}): a list or tuple holds one value per member (Gymnasium's rule), "
+                                 f"got {len(values)} for {self.num_envs} members; pass one value for all as a numpy "
+                                 "array or a scalar")  # fmt: skip
             first = values[0]
             if any(not _same(first, x) for x in values[1:]):
                 raise ValueError(f"set_attr({name!r}): the members share one task env, so every value must be equal "
@@ -559,3 +567,19 @@ def make_vector(entry_point: str, num_envs: int = 1, **kwargs: Any) -> MBSVector
     from gymnasium.envs.registration import load_env_creator
 
     return MBSVectorEnv(load_env_creator(entry_point), num_envs, **kwargs)
+
+
+def vector_entry_point(entry_point: str) -> str:
+    """The registered ``vector_entry_point`` of the env class at ``entry_point`` (``"module:Class"``), as a string
+    Gymnasium's ``EnvSpec.to_json`` serializes: ``"mbs_envs.envs.vector:module.Class"``, which Gymnasium loads as
+    this module's attribute ``module.Class`` (:func:`__getattr__`), :func:`make_vector` bound to the class."""
+    module, _, cls = entry_point.partition(":")
+    return f"{__name__}:{module}.{cls}"
+
+
+def __getattr__(name: str) -> Any:
+    """``module.Class``: :func:`make_vector` bound to the env class ``module:Class`` (:func:`vector_entry_point`)."""
+    module, _, cls = name.rpartition(".")
+    if not module or not cls.isidentifier():
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return functools.partial(make_vector, f"{module}:{cls}")

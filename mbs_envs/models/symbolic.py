@@ -50,6 +50,8 @@ import importlib.util
 import os
 import pathlib
 import sys
+import threading
+import warnings
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -826,25 +828,32 @@ def _columns_body(d: Derivation, mass: list, force: list, psyms: list, upper: li
     ]
 
 
+#: one generated module loads at a time in a process (reentrant: loading may derive)
+_LOAD_LOCK = threading.RLock()
+
+
 def load_generated(source: str, cache: pathlib.Path | None = None):
     """The generated module of ``source``, written once to ``cache`` as ``derived_<sha256>.py`` and imported
     (numba then caches its machine code beside it)."""
     folder = pathlib.Path(cache or CACHE)
     digest = hashlib.sha256(source.encode()).hexdigest()[:32]
     modname = f"mbs_envs_derived_{digest}"
-    if modname in sys.modules:
-        return sys.modules[modname]
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / f"{modname}.py"
-    if not path.exists() or path.read_text() != source:
-        tmp = path.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(source)
-        os.replace(tmp, path)  # atomic: a concurrent process reads the whole file or none
-    spec = importlib.util.spec_from_file_location(modname, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[modname] = module
-    spec.loader.exec_module(module)
-    return module
+    with _LOAD_LOCK:  # the module is in sys.modules while it runs (it reads itself there): no other thread meanwhile
+        if modname in sys.modules:
+            return sys.modules[modname]
+        folder.mkdir(parents=True, exist_ok=True)
+        path = folder / f"{modname}.py"
+        if not path.exists() or path.read_text() != source:
+            _write(path, source.encode())
+        spec = importlib.util.spec_from_file_location(modname, path)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[modname] = module
+        try:
+            spec.loader.exec_module(module)
+        except BaseException:
+            del sys.modules[modname]
+            raise
+        return module
 
 
 # ---------------------------------------------------------------------------------------------
@@ -1117,7 +1126,7 @@ def cached_derivation(name: str, q: Sequence[Any], T: Any, V: Any, params: Mappi
 
 def _write(path: pathlib.Path, data: bytes) -> None:
     """``data`` to ``path`` atomically (a concurrent process reads the whole file or none)."""
-    tmp = path.with_suffix(f".{os.getpid()}.tmp")
+    tmp = path.with_suffix(f".{os.getpid()}.{threading.get_ident()}.tmp")  # one per writer, threads included
     tmp.write_bytes(data)
     os.replace(tmp, path)
 
@@ -1134,9 +1143,18 @@ def source_of(d: Derivation) -> str:
     path = kept[1] if kept is not None and kept[0] is d else None
     if path is not None:
         with contextlib.suppress(OSError):
-            return path.read_text()
+            head, _, text = path.read_text().partition("\n")
+            if head == _source_stamp(text):
+                return text
+            warnings.warn(f"damaged derivation cache file {path} (its checksum does not match): generated again",
+                          stacklevel=2)  # fmt: skip
     source = generate_source(d)
     if path is not None:
         with contextlib.suppress(OSError):
-            _write(path, source.encode())
+            _write(path, f"{_source_stamp(source)}\n{source}".encode())
     return source
+
+
+def _source_stamp(text: str) -> str:
+    """The first line of a kept source file: the checksum of the rest (a truncated or altered file fails it)."""
+    return "# sha256 " + hashlib.sha256(text.encode()).hexdigest()
