@@ -134,9 +134,10 @@ def switch(x: np.ndarray, S: np.ndarray, balancing: Any, episode_start: Any, cat
     """
     cost = np.einsum("...i,...ij,...j->...", x, S, x)
     lead = cost.shape
-    balancing = np.zeros(lead, bool) if balancing is None else np.array(balancing, bool).reshape(lead)
+    balancing = np.zeros(lead, bool) if balancing is None else check.shaped(balancing, "state", lead, bools=True) != 0
     if episode_start is not None:
-        balancing = np.where(np.asarray(episode_start, bool).reshape(lead), False, balancing)
+        balancing = np.where(check.shaped(episode_start, "episode_start", lead, bools=True, broadcast=True) != 0, False,
+                             balancing)  # fmt: skip
     return np.where(balancing, cost <= release * catch, cost < catch)
 
 
