@@ -132,7 +132,7 @@ def shaped(value: Any, name: str, shape: tuple, *, bools: bool = False, broadcas
     never changes ``value``.
     """
     arr = reals(value, name, bools=bools)
-    if broadcast:
+    if broadcast and arr.size != int(np.prod(shape)):
         try:
             return np.array(np.broadcast_to(arr, shape))
         except ValueError:
