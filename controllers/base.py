@@ -124,6 +124,39 @@ def care(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, newton: int
     return np.where(bad[..., None, None], np.nan, K), np.where(bad[..., None, None], np.nan, S)
 
 
+#: the env settings a controller (or a policy wrapper) is built for: what it derives its gains, scales and step
+#: counts from at construction
+BUILT_FOR = ("u_max", "dt", "substeps")
+
+
+class BuiltFor:
+    """The settings :data:`BUILT_FOR` of an env as a dependant saw them at construction, checked when it acts.
+
+    The rule for every controller and setting: a controller acts for the settings it was built with. A documented
+    change of one (``env.u_max = ...``, ``env.dt = ...``, ``set_attr``) after the controller was built makes its next
+    ``predict`` raise ``ValueError`` naming the setting and both values (build the controller again), never act on
+    the old one. The check costs one integer comparison while the env's settings are unchanged
+    (:func:`mbs_envs.validation.settings_version`).
+    """
+
+    def __init__(self, base: Any):
+        self.base = base
+        self.values = {name: np.array(getattr(base, name), float) for name in BUILT_FOR if hasattr(base, name)}
+        self.version = check.settings_version(base)
+
+    def check(self, who: str) -> None:
+        """Raise ``ValueError`` if a setting of :data:`BUILT_FOR` changed since construction."""
+        version = check.settings_version(self.base)
+        if version == self.version:
+            return
+        for name, value in self.values.items():
+            now = np.array(getattr(self.base, name), float)
+            if now.shape != value.shape or not np.array_equal(now, value):
+                raise ValueError(f"{who} was built for the env's {name} = {value.tolist()}, which is now {now.tolist()}: "
+                                 f"build the controller again after changing {name}")  # fmt: skip
+        self.version = version  # changed and changed back: nothing this controller depends on moved
+
+
 class Controller(abc.ABC):
     """A model-based policy: observation -> normalized action.
 
@@ -152,6 +185,7 @@ class Controller(abc.ABC):
             raise ValueError(f"{type(self).__name__} acts on {kinds} environments, got {type(getattr(env, 'unwrapped', env)).__name__}")
         self.model = base.model
         self.u_max = np.asarray(base.u_max, float)
+        self.built_for = BuiltFor(base)
         self.decode_observation = base.decode_observation
         space = base.observation_space
         self._obs_low, self._obs_high = np.asarray(space.low, float), np.asarray(space.high, float)
@@ -184,6 +218,7 @@ class Controller(abc.ABC):
         space overflows the computation (the disk LQR's feedforward at 1e30), the input is computed again from
         the observation clipped into the space (the env never observes beyond it): every finite observation
         gives a finite action, and every other one the same action as before."""
+        self.built_for.check(type(self).__name__)
         obs = check.reals(observation, "observation")
         width = self._obs_low.shape[-1]
         if obs.ndim == 0 or obs.shape[-1] != width:

@@ -26,6 +26,7 @@ from mbs_envs import validation as check
 
 from mbs_envs.envs.tracking import wrap_angle
 
+from .base import BuiltFor
 from .control_map import rk4_map, state_error
 
 #: the central differences' step for ``F_x`` [rad, rad/s]
@@ -138,11 +139,13 @@ class RatesFromAngles:
         if not isinstance(base, SwingUpEnv):
             raise ValueError(f"env: RatesFromAngles reads a swing-up env's observations, got {type(base).__name__}")
         self.policy, self.dt = policy, float(base.dt)
+        self.built_for = BuiltFor(base)
         self.observation_space, self.action_space = env.observation_space, env.action_space
 
     def predict(self, observation: Any, state: Any = None, episode_start: Any = None, deterministic: bool = True) -> tuple[np.ndarray, Any]:
         from mbs_envs.envs.swingup import decode_swingup
 
+        self.built_for.check(type(self).__name__)
         obs = np.asarray(observation)
         if obs.ndim not in (1, 2):
             raise ValueError(f"observation must have shape (k,) or (n, k), got shape {obs.shape}")

@@ -142,6 +142,17 @@ def shaped(value: Any, name: str, shape: tuple, *, bools: bool = False, broadcas
     return arr.reshape(shape).copy()
 
 
+def as_vector(x: Any, n: int, name: str) -> np.ndarray:
+    """Convert ``x`` to a float array of shape ``(..., n)``; ``ValueError`` otherwise (naming ``name``).
+
+    Real numbers only, through :func:`reals` (strings, booleans, complex numbers,
+    masked entries, mappings are refused); a float64 array passes as it is (no copy)."""
+    arr = x if type(x) is np.ndarray and x.dtype == np.float64 else reals(x, name)
+    if arr.ndim == 0 or arr.shape[-1] != n:
+        raise ValueError(f"{name} must have shape (..., {n}), got shape {arr.shape}")
+    return arr
+
+
 def _shown(value: Any) -> str:
     """``repr`` of a refused value, cut to 200 characters (and never raising)."""
     try:

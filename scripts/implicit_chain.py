@@ -29,7 +29,7 @@ import time
 import numpy as np
 from tqdm import tqdm
 
-from mbs_envs.envs.serial_chain import drive_chain
+from mbs_envs.studies.scene_cases import drive_chain
 from mbs_envs.studies import stiff_cases as sc
 from mbs_envs.studies.plotting import pyplot, save
 

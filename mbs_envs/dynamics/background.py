@@ -348,8 +348,7 @@ def install(kernel: Dispatcher) -> Dispatcher:
 
 def entry(kernel: Dispatcher, args: tuple) -> tuple[Callable, bool]:
     """``(function, compiled)``: the compiled overload's entry point for the types of ``args``
-    (:func:`mbs_envs.dynamics.jit.direct`), or, while it is being compiled, the kernel's Python and False."""
-    from .jit import direct
+    (:func:`direct`), or, while it is being compiled, the kernel's Python and False."""
 
     sig = _signature(kernel, args)
     if sig in kernel.overloads:
@@ -371,6 +370,24 @@ def _after_fork_child() -> None:
 
 if hasattr(os, "register_at_fork"):
     os.register_at_fork(after_in_child=_after_fork_child)
+
+def direct(kernel, args: tuple):
+    """The compiled overload of the numba dispatcher ``kernel`` for the types of ``args`` (compiled, or loaded from the
+    cache, if it is new), as a function that takes the arguments without the dispatcher's resolution of their types.
+
+    The dispatcher types every argument at every call (for a scene's step kernel, two dozen arrays in nested tuples:
+    1.3 us of SpatialChain-v0's 27 us step at 10 links on a quiet machine, docs/performance.md); the overload's entry
+    point unboxes them by its signature alone. numba's
+    unboxing does not check an array's dtype, dimensions or layout, so the caller must pass arguments of the types of
+    ``args`` only: arrays it builds the same way every call, and the same objects otherwise (a single env's step,
+    :meth:`mbs_envs.envs.base.MBSEnv.run_step_kernel`, keys it on those objects). ``args`` are only typed here, not
+    passed to the kernel.
+    """
+    sig = tuple(kernel.typeof_pyval(a) for a in args)
+    if sig not in kernel.overloads:
+        kernel.compile(sig)
+    return kernel.overloads[sig].entry_point
+
 
 if __name__ == "__main__":
     _serve()

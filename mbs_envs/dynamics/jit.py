@@ -27,6 +27,7 @@ import pathlib
 import numba
 
 from . import background
+from .background import direct  # noqa: F401  (served here too: the kernels' options live in this module)
 
 #: the package's root directory
 PACKAGE = pathlib.Path(__file__).resolve().parent.parent
@@ -118,20 +119,3 @@ def njit(f=None, *, cache: bool = True, **options):
         return lambda g: background.install(decorate(g))
     return background.install(decorate(f))
 
-
-def direct(kernel, args: tuple):
-    """The compiled overload of the numba dispatcher ``kernel`` for the types of ``args`` (compiled, or loaded from the
-    cache, if it is new), as a function that takes the arguments without the dispatcher's resolution of their types.
-
-    The dispatcher types every argument at every call (for a scene's step kernel, two dozen arrays in nested tuples:
-    1.3 us of SpatialChain-v0's 27 us step at 10 links on a quiet machine, docs/performance.md); the overload's entry
-    point unboxes them by its signature alone. numba's
-    unboxing does not check an array's dtype, dimensions or layout, so the caller must pass arguments of the types of
-    ``args`` only: arrays it builds the same way every call, and the same objects otherwise (a single env's step,
-    :meth:`mbs_envs.envs.base.MBSEnv.run_step_kernel`, keys it on those objects). ``args`` are only typed here, not
-    passed to the kernel.
-    """
-    sig = tuple(kernel.typeof_pyval(a) for a in args)
-    if sig not in kernel.overloads:
-        kernel.compile(sig)
-    return kernel.overloads[sig].entry_point

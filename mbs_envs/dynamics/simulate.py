@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -17,7 +17,10 @@ from .. import validation as check
 from .compiled import advance_compiled, compiled_stepping
 from .inputs import JointPD
 from .integrators import Acceleration, JointImplicitEuler, ScipyIVP, Stepper
-from ..models.base import Model, as_vector
+from ..validation import as_vector
+
+if TYPE_CHECKING:
+    from ..models.base import Model
 
 #: Input: None (zero), an array ``(..., nu)`` held constant, ``u(t, q, v)``, or a
 #: :class:`~mbs_envs.dynamics.inputs.JointPD` (a callable whose gains the implicit joint step uses).

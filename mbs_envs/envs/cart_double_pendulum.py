@@ -87,12 +87,3 @@ class CartDoublePendulumEnv(DerivedTrackingEnv):
         super().__init__(CartDoublePendulum(), torque_limit, posture=[0.0, 0.0, 0.0], spread=[0.5, 0.3, 0.3],
                          amplitude=[0.3, 0.3, 0.3], coordinates=[x, th1, th2], params=params, **kwargs,
                          points=[(x - 0.15, 0), (x + 0.15, 0), tuple(pivot), tuple(elbow), tuple(elbow + l2 * up(th1 + th2))])  # fmt: skip
-
-
-# -- the project's registry hooks (not user code): the numerics studies' free motion ------------------------------
-
-
-def free_motions() -> list[tuple]:
-    """The work-precision study's free motion: released near upright, the chain falls and swings about the cart."""
-    model = CartDoublePendulum()
-    return [("cart-double-pendulum", model, [0.0, 0.3, -0.2], [0.5, 0.0, 0.0], None)]

@@ -82,11 +82,3 @@ class CartPoleSwingUpEnv(DerivedSwingUpEnv):
         super().__init__(CartPole(), torque_limit, upright=[0.0, 0.0], hanging=[0.0, math.pi], angles=[th],
                          bounds={x: (-2.4, 2.4)}, coordinates=[x, th], params=params, substeps=substeps, **kwargs,
                          points=[(x - 0.2, 0), (x + 0.2, 0), tuple(pivot), tuple(pivot + l * up)])  # fmt: skip
-
-
-# -- the project's registry hooks (not user code): the numerics studies' free motion ------------------------------
-
-
-def free_motions() -> list[tuple]:
-    """The work-precision study's free motion: released near upright, the pole falls and swings the cart."""
-    return [("cart-pole", CartPole(), [0.0, 0.2], [0.0, 0.0], None)]

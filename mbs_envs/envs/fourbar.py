@@ -154,30 +154,3 @@ class FourBarEnv(JointTrackingEnv):
         q_ref = self.model.assemble(self.task_now(np.asarray(t), task)[0][0], self.branch)
         arm = arm_shapes(self.model.joint_positions(q), self.model.joint_positions(q_ref), self._torque_arcs(u))
         return ground + arm + [Dot(np.array([l0, 0.0]), 5)]
-
-
-# -- numerics studies (declared in the registry) ----------------------------------------------
-
-
-def free_motions() -> list[tuple]:
-    """The work-precision study's free motion: the default linkage turning its crank at 4 rad/s."""
-    fb = FourBar()
-    return [("fourbar", fb, *fb.consistent_state(0.2, 4.0), "projection")]
-
-
-def stiff_cases(quick: bool = False) -> list:
-    """A non-Grashof triple rocker through its toggles, Baumgarte's feedback at stiff gains, and a
-    parallelogram through its change point (``docs/numerics.md``)."""
-    from ..studies.numerics import Case
-
-    tr = FourBar(l0=1.0, l1=0.9, l2=0.5, l3=0.7)  # non-Grashof triple rocker: the crank meets toggles
-    qt, vt = tr.consistent_state(1.2, 3.0)
-    cases = [Case("four-bar toggles (triple rocker)", tr, qt, vt, 2.0, stabilization="projection")]
-    q4, v4 = FourBar().consistent_state(0.2, 4.0)
-    for gain in (1e2, 1e3):  # Baumgarte's feedback on the residual: fast modes -alpha (twice), stiff at large gains
-        cases.append(Case(f"four-bar Baumgarte alpha=beta={gain:g}", FourBar(), q4, v4, 1.0,
-                          stabilization=FourBar().stabilization("baumgarte", alpha=gain, beta=gain)))  # fmt: skip
-    cp = FourBar(l0=1.0, l1=0.4, l2=1.0, l3=0.4)  # parallelogram: change point at th1 = 0
-    qc, vc = cp.consistent_state(0.5, -3.0)
-    cases.append(Case("four-bar change point (parallelogram)", cp, qc, vc, 1.0, stabilization="projection"))
-    return cases

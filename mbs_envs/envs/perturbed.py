@@ -3,8 +3,8 @@
 A robustness sweep (:mod:`mbs_envs.studies.robustness`) perturbs the closed loop along one axis at a time:
 measurement noise, torque noise, a lagging actuator, an observation delay, torque pulses (and the plant's
 parameters, which the vector env's ``randomize=`` draws already). :class:`PerturbedVectorEnv` trains under the same
-perturbations, with the same arithmetic (:func:`~mbs_envs.studies.robustness.actuated`,
-:func:`~mbs_envs.studies.robustness.delayed`, :func:`~mbs_envs.studies.robustness.with_noise`): at each reset a
+perturbations, with the same arithmetic (:func:`~mbs_envs.envs.perturbations.actuated`,
+:func:`~mbs_envs.envs.perturbations.delayed`, :func:`~mbs_envs.envs.perturbations.with_noise`): at each reset a
 member draws one axis of :class:`TrainingPerturbations` (or none) uniformly, and a value uniform over the axis'
 range, and keeps them for the episode. The reward is the env's, of the true state; the agent sees the perturbed
 observation.
@@ -70,7 +70,7 @@ class TrainingPerturbations:
     time_delay : (float, float), optional
         Observation delay [s], rounded to whole control steps.
     pulses : mapping, optional
-        Random torque pulses on every joint (:func:`mbs_envs.studies.robustness.random_pulses`): ``per_joint``,
+        Random torque pulses on every joint (:func:`mbs_envs.envs.perturbations.random_pulses`): ``per_joint``,
         ``min_spacing`` [s], ``sigma`` (width range [s]), ``amplitude`` (height range [N m]).
     """
 
@@ -110,12 +110,12 @@ class TrainingPerturbations:
 
     @classmethod
     def dfki(cls) -> TrainingPerturbations:
-        """The DFKI benchmark's robustness-v2 ranges (:mod:`mbs_envs.studies.dfki`), rates observed at 4 and 5."""
-        from ..studies import dfki
+        """The DFKI benchmark's robustness-v2 ranges (:mod:`mbs_envs.envs.perturbations`), rates observed at 4 and 5."""
+        from .perturbations import PULSES, RANGES, RATE_INDEX
 
-        r = dfki.RANGES
-        pulses = {k: dfki.PULSES[k] for k in ("per_joint", "min_spacing", "sigma", "amplitude")}
-        return cls(velocity_noise=r["velocity noise"], noise_index=dfki.RATE_INDEX, torque_noise=r["torque noise"],
+        r = RANGES
+        pulses = {k: PULSES[k] for k in ("per_joint", "min_spacing", "sigma", "amplitude")}
+        return cls(velocity_noise=r["velocity noise"], noise_index=RATE_INDEX, torque_noise=r["torque noise"],
                    torque_response=r["torque response"], time_delay=r["time delay"], pulses=pulses)  # fmt: skip
 
     @classmethod
@@ -219,7 +219,7 @@ class PerturbedVectorEnv(VectorWrapper):
             hit = idx[[axes[a] == "perturbations" for a in axis]]
             self.pulses[idx] = 0.0
             if len(hit):
-                from ..studies.robustness import random_pulses
+                from .perturbations import random_pulses
 
                 q = p.pulses
                 self.pulses[hit] = random_pulses(self.rng, len(hit), np.arange(self.steps) * self.dt, self.pulses.shape[2],
@@ -227,7 +227,7 @@ class PerturbedVectorEnv(VectorWrapper):
 
     def _seen(self, obs: np.ndarray) -> np.ndarray:
         """The observations the members see at their step :attr:`k` (``obs``: the true ones, already in the ring)."""
-        from ..studies.robustness import delayed, with_noise
+        from .perturbations import delayed, with_noise
 
         seen = delayed(self.history, self.k, self.delay) if self.delay.any() else obs
         sigma = np.where(self._on("velocity noise"), self.value, 0.0)
@@ -249,7 +249,7 @@ class PerturbedVectorEnv(VectorWrapper):
         return self._seen(obs), info
 
     def step(self, actions: Any):
-        from ..studies.robustness import actuated
+        from .perturbations import actuated
 
         base = self.env.unwrapped
         u = validate_action(actions, len(self.u_max), self.num_envs) * self.u_max  # saturated to [-1, 1]; refused as the env does

@@ -489,34 +489,3 @@ class RollingDiskEnv(MBSEnv):
             shapes.append(Text("FALLEN (|lean| > lean limit)", 3, (200, 0, 0)))
         shapes.append(Text(f"lean {np.degrees(th2):+5.1f} deg, spin {np.degrees(th3) % 360:5.1f} deg", 2))
         return shapes
-
-
-# -- numerics studies (declared in the registry) ----------------------------------------------
-
-
-def free_motions() -> list[tuple]:
-    """The work-precision study's free motion: rolling at twice the critical spin, small lean."""
-    disk = RollingDisk()
-    qd, vd = disk.rolling_state(lean=0.1, dspin=2.0 * disk.critical_spin, dlean=0.2)
-    return [("rollingdisk", disk, qd, vd, "projection")]
-
-
-def stiff_cases(quick: bool = False) -> list:
-    """Spin rates far above the critical one: the fast gyroscopic mode sets the step."""
-    from ..studies.numerics import Case
-
-    disk = RollingDisk()
-    cases = []
-    for factor in (10, 100):
-        qd, vd = disk.rolling_state(lean=0.1, dspin=factor * disk.critical_spin, dlean=0.2)
-        cases.append(Case(f"disk {factor}x critical spin", disk, qd, vd, 1.0, stabilization="projection"))
-    return cases
-
-
-def singular_cases() -> list:
-    """The disk falling flat (lean 1.2 rad, 0.3x the critical spin): its coordinates end singular."""
-    from ..studies.numerics import Case
-
-    disk = RollingDisk()
-    q, v = disk.rolling_state(lean=1.2, dspin=0.3 * disk.critical_spin)
-    return [Case("disk falls flat", disk, q, v, 3.0, stabilization="projection")]

@@ -122,30 +122,3 @@ class SerialChainEnv(ChainTrackingEnv):
     def _drawing(self, q: np.ndarray, t: float, task: Any, u: np.ndarray, trail: Any = None) -> list[Shape]:
         ghost = self.model.joint_positions(self.task_now(np.asarray(t), task)[0])
         return arm_shapes(self.model.joint_positions(q), ghost, self._torque_arcs(u))
-
-
-# -- numerics studies (declared in the registry) ----------------------------------------------
-
-
-def drive_chain(n: int, armature: bool = True) -> SerialChain:
-    """The default rope of ``n`` links: SerialChain-v0's model (its drives' armature), or bare."""
-    return SerialChainEnv(n_links=n).model if armature else SerialChain(n_links=n)
-
-
-def _bent(n: int) -> np.ndarray:
-    """The chains' start posture: first link 0.3 rad below horizontal, then bent by 1.5 rad in all."""
-    return np.r_[-0.3, np.full(n - 1, 1.5 / n)]
-
-
-def free_motions() -> list[tuple]:
-    """The work-precision study's free motions: chains of 10 and 50 links with drives, from rest."""
-    return [(f"chain{n}", drive_chain(n), _bent(n), np.zeros(n), None) for n in (10, 50)]
-
-
-def stiff_cases(quick: bool = False) -> list:
-    """Long chains: 200 (and, unless ``quick``, 500) links with drives over 5 s; 200 bare links over 0.3 s."""
-    from ..studies.numerics import Case
-
-    cases = [Case(f"chain N={n}, drives", drive_chain(n), _bent(n), np.zeros(n), 5.0) for n in ((200,) if quick else (200, 500))]
-    cases.append(Case("chain N=200, bare", drive_chain(200, False), _bent(200), np.zeros(200), 0.3))
-    return cases

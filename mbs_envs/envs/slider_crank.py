@@ -87,13 +87,3 @@ class SliderCrankEnv(DerivedTrackingEnv):
     def __init__(self, params=None, torque_limit=2.5, **kwargs):
         super().__init__(SliderCrank(), torque_limit, posture=[0.0], spread=math.pi, amplitude=0.5, rate=(1.0, 4.0),
                          guess=[0.0, 0.0, 0.65], coordinates=[th, ps, s], points=[(0, 0), tuple(A), (s, 0)], params=params, **kwargs)  # fmt: skip
-
-
-# -- the project's registry hooks (not user code): the numerics studies' free motion ------------------------------
-
-
-def free_motions() -> list[tuple]:
-    """The work-precision study's free motion: the crank turning at 6 rad/s, assembled on the default branch."""
-    model = SliderCrank()
-    q = model.assemble([0.2], [0.0, 0.0, 0.65])
-    return [("slider-crank", model, q, model.complete_velocity(q, [6.0]), "projection")]

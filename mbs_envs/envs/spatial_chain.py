@@ -181,34 +181,3 @@ class SpatialChainEnv(ChainTrackingEnv):
         return shapes + arm_shapes(oblique(points), oblique(ghost), self._torque_arcs(u))
 
     draws_ground = False
-
-
-# -- numerics studies (declared in the registry) ----------------------------------------------
-
-
-def drive_chain(n: int, armature: bool = True) -> SpatialChain:
-    """The default spatial chain of ``n`` links: SpatialChain-v0's model (its drives' armature), or bare."""
-    model = SpatialChain(n_links=n)
-    return model.with_params(model.params.replace(armature=reach_gravity_torque(model) / SpatialChainEnv.rotor_acceleration)) if armature else model
-
-
-def _bent(n: int) -> np.ndarray:
-    """The start posture: out of the rest posture by 0.3 rad at the first bend, then bent by 1.5 rad in all."""
-    q = np.full(n, 1.5 / n)
-    if n > 1:
-        q[1] = np.pi / 2 - 0.3
-    return q
-
-
-def free_motions() -> list[tuple]:
-    """The work-precision study's free motions: spatial chains of 10 and 50 links with drives, from rest."""
-    return [(f"spatialchain{n}", drive_chain(n), _bent(n), np.zeros(n), None) for n in (10, 50)]
-
-
-def stiff_cases(quick: bool = False) -> list:
-    """Long spatial chains: 200 (and, unless ``quick``, 500) links with drives over 5 s; 200 bare links over 0.3 s."""
-    from ..studies.numerics import Case
-
-    cases = [Case(f"spatial chain N={n}, drives", drive_chain(n), _bent(n), np.zeros(n), 5.0) for n in ((200,) if quick else (200, 500))]
-    cases.append(Case("spatial chain N=200, bare", drive_chain(200, False), _bent(200), np.zeros(200), 0.3))
-    return cases

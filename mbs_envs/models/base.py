@@ -23,6 +23,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from .. import validation as check
+from ..validation import as_vector  # noqa: F401  (the models' argument check, served here as before)
 from ..dynamics.linalg import batched_matvec, cholesky_solve
 
 # ---------------------------------------------------------------------------
@@ -139,17 +140,6 @@ class Params:
 # ---------------------------------------------------------------------------
 # Array helpers
 # ---------------------------------------------------------------------------
-
-
-def as_vector(x: Any, n: int, name: str) -> np.ndarray:
-    """Convert ``x`` to a float array of shape ``(..., n)``; ``ValueError`` otherwise (naming ``name``).
-
-    Real numbers only, through :func:`mbs_envs.validation.reals` (strings, booleans, complex numbers,
-    masked entries, mappings are refused); a float64 array passes as it is (no copy)."""
-    arr = x if type(x) is np.ndarray and x.dtype == np.float64 else check.reals(x, name)
-    if arr.ndim == 0 or arr.shape[-1] != n:
-        raise ValueError(f"{name} must have shape (..., {n}), got shape {arr.shape}")
-    return arr
 
 
 def friction_law(v, b, f, v_s):

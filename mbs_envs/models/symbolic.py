@@ -47,6 +47,7 @@ import contextlib
 import dataclasses
 import hashlib
 import importlib.util
+import keyword
 import os
 import pathlib
 import sys
@@ -217,6 +218,9 @@ def derive_equations(name: str, q: Sequence[Any], T: Any, V: Any, params: Mappin
     def plain(e):  # rates first (a coordinate replaced inside its derivative would leave d(q0)/dt); no simplify: CSE does the work
         return sp.sympify(e).xreplace(rates).xreplace(coords)
 
+    for label, e in (("T", T), ("V", V)):
+        supported_terms(plain(e), label, t)
+
     lm = LagrangesMethod(T - V, list(q))
     lm.form_lagranges_equations()
     M = lm.mass_matrix.applyfunc(plain)
@@ -272,8 +276,33 @@ def _friction_rows(q, qs, vs, plain, params, friction) -> Any:
         unknown = sorted(str(x) for x in e.free_symbols - set(vs) - {dynamicsymbols._t} if str(x) not in params)
         if unknown:
             raise ValueError(f"friction: the law of {coord} uses symbols without a value in params: {unknown}")
+        supported_terms(e, f"friction: the law of {coord}", dynamicsymbols._t)
         F[q.index(coord)] = e
     return sp.Matrix(F)
+
+
+def supported_terms(e: Any, label: str, t: Any) -> None:
+    """Refuse, naming the term, what the generated code cannot compute smoothly: a function other than the smooth
+    elementary ones (``Abs``, ``sign``, ``floor``, ``Heaviside``, ``Piecewise``, ``Max``, an undefined function),
+    a complex number, and an explicit dependence on time ``t`` (``e`` is in the plain symbols: coordinates replaced).
+
+    Raises
+    ------
+    ValueError
+        Naming ``label`` and the first such term.
+    """
+    import sympy as sp
+    from sympy.core.function import Application
+
+    smooth = (sp.sin, sp.cos, sp.tan, sp.exp, sp.log, sp.tanh, sp.sinh, sp.cosh, sp.atan, sp.asin, sp.acos, sp.atan2)
+    for node in sp.preorder_traversal(e):
+        if node == t:
+            raise ValueError(f"{label} depends on time explicitly (the term {e}): only through the coordinates")
+        if node.is_number and node.is_real is False:
+            raise ValueError(f"{label} holds a complex number ({node}): T, V and the laws must be real")
+        if isinstance(node, Application) and not isinstance(node, smooth):
+            raise ValueError(f"{label} holds {node}: {type(node).__name__} is not supported (smooth elementary functions "
+                             "only: sin, cos, tan, exp, log, sqrt and powers, tanh, sinh, cosh, atan, asin, acos, atan2)")  # fmt: skip
 
 
 def _split_params(params: Mapping[str, Any], names: set) -> tuple[dict, tuple]:
@@ -282,8 +311,9 @@ def _split_params(params: Mapping[str, Any], names: set) -> tuple[dict, tuple]:
 
     defaults, checks = {}, []
     for key, value in dict(params).items():
-        if not (isinstance(key, str) and key.isidentifier()) or key in names:
-            raise ValueError(f"params: {key!r} is not a usable parameter name (identifiers other than {sorted(names)})")
+        if not (isinstance(key, str) and key.isidentifier()) or key in names or keyword.iskeyword(key):
+            raise ValueError(f"params: {key!r} is not a usable parameter name (identifiers other than Python's keywords "
+                             f"and {sorted(names)})")  # fmt: skip
         default, kind = value if isinstance(value, tuple) and len(value) == 2 else (value, "finite")
         if kind not in _CHECKS:
             raise ValueError(f"params: {key!r} has the check {kind!r}; one of {sorted(_CHECKS)}")

@@ -35,6 +35,8 @@ from typing import Any
 
 import numpy as np
 
+from ..envs.perturbations import PULSES, RANGES, RATE_INDEX  # noqa: F401  (the benchmark's robustness-v2 ranges)
+
 #: end-effector threshold as a fraction of the reach ``l1 + l2``
 HEIGHT = 0.9
 #: simulation leaderboard v2: every criterion weighted 1, divided by these
@@ -175,13 +177,6 @@ N_VALUES = 21
 FINAL_EPS = (0.35, 0.35, 1.0, 1.0)
 #: the axes, in their order; the score is the mean of their success fractions
 AXES = ("model", "velocity noise", "torque noise", "torque response", "time delay", "perturbations")
-#: ranges: velocity-noise std [rad/s], torque-noise std [N m], responsiveness, delay [s]
-RANGES = MappingProxyType({"velocity noise": (0.0, 0.5), "torque noise": (0.0, 1.1), "torque response": (0.1, 2.0),
-                           "time delay": (0.0, 0.04)})  # fmt: skip
-#: the observation entries the velocity noise reaches: the joint rates of the swing-up envs' (cos, sin, cos, sin, v1, v2)
-RATE_INDEX = (4, 5)
-#: perturbations: episodes, pulses per joint, least spacing [s], width and height ranges [s], [N m]
-PULSES = MappingProxyType({"episodes": 50, "per_joint": 3, "min_spacing": 1.0, "sigma": (0.05, 0.1), "amplitude": (0.5, 5.0)})
 #: model axes varied by x [0.75, 1.25] in their convention (m r with m fixed, so r moves; I about the joint)
 MODEL_FACTORS = ("m1r1", "I1", "m2r2", "m2", "I2")
 #: viscous friction swept over [0, 0.1] N m s/rad (their range is [-0.1, 0.1]; ours is >= 0: the upper half)

@@ -79,9 +79,8 @@ def tune_catch(scene: str, agents: list[Any], grid: list[dict[str, float]], seed
     """
     import gymnasium as gym
 
-    from .comparison import SCENES, plant_kwargs
+    from .conditions import SCENES, TUNING_CONDITIONS, plant_kwargs
     from .evaluation import rollout_batch, swing_up_metrics
-    from .tuning import TUNING_CONDITIONS
 
     env_id = SCENES[scene][0]
     nominal = gym.make(env_id)

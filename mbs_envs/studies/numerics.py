@@ -195,3 +195,18 @@ def score(case: Case, ref: Reference, integrator: str, setting: float) -> dict[s
 def fixed_steps(coarsest: float, n: int) -> list[float]:
     """``coarsest * 2^-k`` for ``k = 0 .. n-1`` [s]."""
     return [coarsest * 2.0**-k for k in range(n)]
+
+
+def pd_law(kp: float, kd: float, q_star: np.ndarray):
+    """``u = kp (q* - q) - kd v``: a high-gain regulator (continuous in time)."""
+    return lambda t, q, v: kp * (q_star - q) - kd * v
+
+
+def computed_torque_law(model: Model, reference: SumOfSines, kp: float, kd: float):
+    """``u = inverse_dynamics(q, v, a_ref + kd (v_ref - v) + kp (q_ref - q))`` (continuous)."""
+
+    def u(t, q, v):
+        q_ref, v_ref, a_ref = reference(t)
+        return model.inverse_dynamics(q, v, a_ref + kd * (v_ref - v) + kp * (q_ref - q))
+
+    return u

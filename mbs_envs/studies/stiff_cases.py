@@ -19,10 +19,11 @@ import numpy as np
 
 from ..dynamics import integrators
 from . import numerics
+from .numerics import computed_torque_law, pd_law  # noqa: F401  (the laws of the stiff cases)
 from ..models.base import Model
 from ..envs.references import SumOfSines
 from ..dynamics.simulate import acceleration, simulate
-from ..envs.serial_chain import drive_chain
+from .scene_cases import drive_chain
 from ..models import FourBar, Planar2R
 
 Case = numerics.Case
@@ -42,21 +43,6 @@ def spectral_radius(case: Case) -> float:
     n = A_q.shape[-1]
     J = np.block([[np.zeros((n, n)), np.eye(n)], [A_q, A_v]])
     return float(np.max(np.abs(np.linalg.eigvals(J))))
-
-
-def pd_law(kp: float, kd: float, q_star: np.ndarray):
-    """``u = kp (q* - q) - kd v``: a high-gain regulator (continuous in time)."""
-    return lambda t, q, v: kp * (q_star - q) - kd * v
-
-
-def computed_torque_law(model: Model, reference: SumOfSines, kp: float, kd: float):
-    """``u = inverse_dynamics(q, v, a_ref + kd (v_ref - v) + kp (q_ref - q))`` (continuous)."""
-
-    def u(t, q, v):
-        q_ref, v_ref, a_ref = reference(t)
-        return model.inverse_dynamics(q, v, a_ref + kd * (v_ref - v) + kp * (q_ref - q))
-
-    return u
 
 
 def stiff_cases(quick: bool = False) -> list[Case]:

@@ -76,13 +76,10 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from .comparison import SCENES, Condition, plant_kwargs
+from .conditions import SCENES, TUNING_CONDITIONS, Condition, plant_kwargs  # noqa: F401
 from ..envs import registry
 from .evaluation import ERROR_METRIC, SCORING, make_controller, rollout_batch
 from .seeds import tuning_seeds
-
-#: the plant conditions every candidate is scored on
-TUNING_CONDITIONS = (Condition("nominal"), Condition("mismatch -20%", 0.8), Condition("mismatch +20%", 1.2))
 
 BANDWIDTHS = tuple(3.0 * 1.5**k for k in range(11))
 DAMPING = (0.7, 1.0)

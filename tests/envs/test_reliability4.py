@@ -240,3 +240,50 @@ def test_a_user_input_cannot_write_into_the_integrators_state(integrator):
 
 def test_mbs_envs_is_imported():
     assert mbs_envs.__version__ == "0.2.0"
+
+
+# -- 3. a controller acts for the settings it was built with ---------------------------------------------------
+
+
+@pytest.mark.parametrize("env_id, kwargs, name, spec", CONTROLLERS, ids=[f"{c[0]}-{c[2]}" for c in CONTROLLERS])
+@pytest.mark.parametrize("setting", ["u_max", "dt"])
+def test_a_controller_refuses_to_act_on_a_setting_changed_after_it_was_built(env_id, kwargs, name, spec, setting):
+    env = gym.make(env_id, **kwargs)
+    ctrl = registry.load(spec)(env)
+    obs, _ = env.reset(seed=0)
+    base = env.unwrapped
+    old = np.array(getattr(base, setting), float)
+    setattr(base, setting, old / 4)
+    with pytest.raises(ValueError, match=f"built for the env's {setting}"):
+        ctrl.predict(obs, deterministic=True)
+    setattr(base, setting, old)  # changed back: it acts again, as it did
+    action, _ = ctrl.predict(obs, deterministic=True)
+    fresh = registry.load(spec)(env)
+    assert np.array_equal(action, fresh.predict(obs, deterministic=True)[0])
+    env.close()
+
+
+def test_the_stale_pd_reproduction_is_refused_and_a_controller_built_after_applies_the_new_scale():
+    from mbs_envs.controllers import PD
+
+    env = gym.make("mbs_envs/Planar2R-v0")
+    obs, _ = env.reset(seed=0)
+    before = PD(env)
+    env.unwrapped.u_max = env.unwrapped.u_max / 4
+    with pytest.raises(ValueError, match="u_max"):
+        before.predict(obs)
+    after = PD(env)
+    action, _ = after.predict(obs)
+    _, _, _, _, info = env.step(action)
+    assert np.allclose(info["u"], np.clip(action, -1, 1) * env.unwrapped.u_max)
+
+
+def test_rates_from_angles_refuses_a_changed_step():
+    from mbs_envs.controllers import RatesFromAngles, SwingUpLQR
+
+    env = gym.make("mbs_envs/Acrobot-v1")
+    obs, _ = env.reset(seed=0)
+    wrapped = RatesFromAngles(SwingUpLQR(env), env)
+    env.unwrapped.dt = 0.02
+    with pytest.raises(ValueError, match="dt"):
+        wrapped.predict(obs)
