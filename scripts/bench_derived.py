@@ -30,7 +30,6 @@ import pathlib
 import subprocess
 import sys
 import tempfile
-import time
 
 import numpy as np
 from tqdm import tqdm

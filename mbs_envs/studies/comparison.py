@@ -21,7 +21,6 @@ seeds and test episodes (:func:`hierarchical_bootstrap`).
 
 from __future__ import annotations
 
-import dataclasses
 import pathlib
 import time
 from typing import Any, Mapping

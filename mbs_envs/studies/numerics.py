@@ -23,13 +23,16 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..dynamics import integrators
 from ..models.base import Model
 from ..dynamics.simulate import Input, simulate
+
+if TYPE_CHECKING:
+    from ..envs.references import SumOfSines
 
 FIXED = ("euler", "semi_implicit_euler", "midpoint", "rk4", "implicit_euler", "sdirk2", "sdirk3")
 ADAPTIVE = ("rk45", "dop853", "radau", "bdf", "lsoda")

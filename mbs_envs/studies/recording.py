@@ -18,7 +18,6 @@ from __future__ import annotations
 import dataclasses
 import pathlib
 import re
-from typing import Any
 
 import gymnasium as gym
 import numpy as np

@@ -121,16 +121,26 @@ def _serial_chain_bent(n: int) -> np.ndarray:
     return np.r_[-0.3, np.full(n - 1, 1.5 / n)]
 
 
+def _chain_free_motions(label: str, drive, bent) -> list[tuple]:
+    """Chains of 10 and 50 links with drives, from rest at the posture ``bent(n)``."""
+    return [(f"{label}{n}", drive(n), bent(n), np.zeros(n), None) for n in (10, 50)]
+
+
+def _chain_stiff_cases(label: str, drive, bent, quick: bool) -> list:
+    """200 (and, unless ``quick``, 500) links with drives over 5 s; 200 bare links over 0.3 s."""
+    cases = [Case(f"{label} N={n}, drives", drive(n), bent(n), np.zeros(n), 5.0) for n in ((200,) if quick else (200, 500))]
+    cases.append(Case(f"{label} N=200, bare", drive(200, False), bent(200), np.zeros(200), 0.3))
+    return cases
+
+
 def serial_chain_free_motions() -> list[tuple]:
     """The work-precision study's free motions: chains of 10 and 50 links with drives, from rest."""
-    return [(f"chain{n}", drive_chain(n), _serial_chain_bent(n), np.zeros(n), None) for n in (10, 50)]
+    return _chain_free_motions("chain", drive_chain, _serial_chain_bent)
 
 
 def serial_chain_stiff_cases(quick: bool = False) -> list:
     """Long chains: 200 (and, unless ``quick``, 500) links with drives over 5 s; 200 bare links over 0.3 s."""
-    cases = [Case(f"chain N={n}, drives", drive_chain(n), _serial_chain_bent(n), np.zeros(n), 5.0) for n in ((200,) if quick else (200, 500))]
-    cases.append(Case("chain N=200, bare", drive_chain(200, False), _serial_chain_bent(200), np.zeros(200), 0.3))
-    return cases
+    return _chain_stiff_cases("chain", drive_chain, _serial_chain_bent, quick)
 
 
 # -- spatial chain ---------------------------------------------------------------------------------
@@ -152,14 +162,12 @@ def _spatial_chain_bent(n: int) -> np.ndarray:
 
 def spatial_chain_free_motions() -> list[tuple]:
     """The work-precision study's free motions: spatial chains of 10 and 50 links with drives, from rest."""
-    return [(f"spatialchain{n}", spatial_chain_drive_chain(n), _spatial_chain_bent(n), np.zeros(n), None) for n in (10, 50)]
+    return _chain_free_motions("spatialchain", spatial_chain_drive_chain, _spatial_chain_bent)
 
 
 def spatial_chain_stiff_cases(quick: bool = False) -> list:
     """Long spatial chains: 200 (and, unless ``quick``, 500) links with drives over 5 s; 200 bare links over 0.3 s."""
-    cases = [Case(f"spatial chain N={n}, drives", spatial_chain_drive_chain(n), _spatial_chain_bent(n), np.zeros(n), 5.0) for n in ((200,) if quick else (200, 500))]
-    cases.append(Case("spatial chain N=200, bare", spatial_chain_drive_chain(200, False), _spatial_chain_bent(200), np.zeros(200), 0.3))
-    return cases
+    return _chain_stiff_cases("spatial chain", spatial_chain_drive_chain, _spatial_chain_bent, quick)
 
 
 # -- slider crank ----------------------------------------------------------------------------------

@@ -21,7 +21,6 @@ from ..dynamics import integrators
 from . import numerics
 from .numerics import computed_torque_law, pd_law  # noqa: F401  (the laws of the stiff cases)
 from ..models.base import Model
-from ..envs.references import SumOfSines
 from ..dynamics.simulate import acceleration, simulate
 from .scene_cases import drive_chain
 from ..models import FourBar, Planar2R

@@ -287,3 +287,57 @@ def test_rates_from_angles_refuses_a_changed_step():
     env.unwrapped.dt = 0.02
     with pytest.raises(ValueError, match="dt"):
         wrapped.predict(obs)
+
+
+# -- 6. memory has a budget -------------------------------------------------------------------------------------
+
+
+def test_a_batch_that_cannot_fit_is_refused_at_make_stating_need_and_budget(monkeypatch):
+    from mbs_envs.envs.base import memory_budget
+
+    monkeypatch.delenv("MBS_ENVS_MEMORY_BUDGET", raising=False)
+    assert memory_budget() == 0.5 * os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")  # the default
+    monkeypatch.setenv("MBS_ENVS_MEMORY_BUDGET", str(8 * 2**30))
+    kwargs = {"n_links": 500, "substeps": 1, "vectorization_mode": "vector_entry_point"}
+    with pytest.raises(ValueError, match=r"would need about 36 GiB, above the memory budget of 8 GiB"):
+        gym.make_vec("mbs_envs/SerialChain-v0", num_envs=100_000, **kwargs)
+    monkeypatch.setenv("MBS_ENVS_MEMORY_BUDGET", "1e8")
+    with pytest.raises(ValueError, match="0.0931 GiB"):
+        gym.make_vec("mbs_envs/Planar2R-v0", num_envs=100_000, vectorization_mode="vector_entry_point")
+    gym.make_vec("mbs_envs/Planar2R-v0", num_envs=1_000, vectorization_mode="vector_entry_point").close()
+    for bad in ("-1", "lots", "inf"):
+        monkeypatch.setenv("MBS_ENVS_MEMORY_BUDGET", bad)
+        with pytest.raises(ValueError, match="MBS_ENVS_MEMORY_BUDGET"):
+            gym.make_vec("mbs_envs/Planar2R-v0", num_envs=2, vectorization_mode="vector_entry_point")
+
+
+def test_the_memory_estimate_bounds_what_a_batch_takes():
+    """RSS growth of a batch of 4,000 members through reset and three steps stays under the estimate."""
+    code = """
+        import gc, os, numpy as np, gymnasium as gym, mbs_envs
+        from mbs_envs.envs.base import memory_per_member
+
+        def rss():
+            with open("/proc/self/statm") as f:
+                return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+
+        for env_id, kw in (("mbs_envs/Planar2R-v0", {}), ("mbs_envs/SerialChain-v0", {"n_links": 50})):
+            small = gym.make_vec(env_id, num_envs=8, vectorization_mode="vector_entry_point", **kw)
+            small.reset(seed=0)
+            small.step(np.zeros(small.action_space.shape, np.float32))
+            small.close()
+            gc.collect()
+            before, n = rss(), 4000
+            v = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **kw)
+            v.reset(seed=0)
+            for _ in range(3):
+                v.step(np.zeros(v.action_space.shape, np.float32))
+            m = v.unwrapped.model
+            took = (rss() - before) / n
+            bound = memory_per_member(m.nq, m.nv, v.single_observation_space.shape[0])
+            assert 0 < took < bound, (env_id, took, bound)
+        print("ok")
+    """
+    res = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True, timeout=600,
+                         env={**os.environ, "MBS_ENVS_JIT": "sync"})  # fmt: skip
+    assert res.returncode == 0 and res.stdout.strip() == "ok", res.stderr[-2000:]
