@@ -19,6 +19,8 @@
    the members being reset, copies and pickles mid-episode, ``set_attr`` of every setting with bad
    values and of names that are not settings, refused resets, seeds, masks and actions: refusals
    accepted, state changed by a refusal, disagreements with the twin, exceptions other than ``ValueError``.
+7. Threads on a cold cache (:func:`mbs_envs.studies.reliability.threads_cold`): fresh interpreters with empty
+   kernel and derivation caches, four threads per id at once, each making, resetting and stepping its own env.
 
 Writes ``soak.json``, ``soak.md`` and ``soak.png`` to ``--out``.
 
@@ -59,8 +61,9 @@ def run(out: pathlib.Path, episodes: int, quick: bool = False, ids: list[str] | 
     n_int = integrator_episodes or (8 if quick else 32)
     per_integrator = [rl.integrator_soak(i, name, episodes=n_int, num_envs=integrator_envs) for i, name in tqdm(pairs, desc="integrators")]
     adversarial = [rl.adversarial_soak(i, rounds=adversarial_rounds or (100 if quick else 2000)) for i in tqdm(ids, desc="adversarial sequences")]
+    threads = rl.threads_cold(ids, per_id=4, runs=1 if quick else 3) if processes else None
     result = {"episodes_per_id": episodes, "soak": soak, "determinism": det, "long_runs": long, "edges": edges,
-              "integrators": per_integrator, "adversarial": adversarial}  # fmt: skip
+              "integrators": per_integrator, "adversarial": adversarial, "threads_cold": threads}  # fmt: skip
     (out / "soak.json").write_text(json.dumps(result, indent=2, default=float))
     text = report(result)
     (out / "soak.md").write_text(text)
@@ -108,6 +111,12 @@ def report(r: dict) -> str:
                      f"{x['changed_by_refusal']} | {x['disagreements']} | {x['other_exceptions']} |")  # fmt: skip
             for e in x["errors"]:
                 L.append(f"|  | error: {e} | | | | | | |")
+    if r.get("threads_cold"):
+        t = r["threads_cold"]
+        L += ["", "## Threads on a cold cache", "",
+              f"{t['runs']} fresh interpreter(s) with empty kernel and derivation caches, {t['per_id']} threads per id at "
+              f"once ({len(t['ids'])} ids): {t['jobs']} jobs, **{t['failed']}** failed."]  # fmt: skip
+        L += [f"- error: {e}" for e in t["errors"]]
     L += ["", "## Parameters at the edges", "", "| model | parameter | value | outcome | detail |", "|---|---|---|---|---|"]
     for e in r["edges"]:
         detail = e.get("message") or f"finite: {e['all_finite']}, relative energy drift {e['relative_energy_drift']:.1e}"

@@ -352,3 +352,58 @@ def adversarial_soak(env_id: str, rounds: int = 500, num_envs: int = 4, seed: in
             twin.reset(seed=seed)
     out.update(env_id=env_id, rounds=rounds, counts=dict(counts), refused=sum(v for k, v in counts.items() if k.startswith("refused:")))
     return out
+
+
+#: the program :func:`threads_cold` runs in a fresh interpreter: one env per thread, made, reset and stepped
+_THREADS_PROGRAM = """
+import concurrent.futures as cf, json, sys
+import numpy as np, gymnasium as gym, mbs_envs
+
+def job(env_id):
+    env = gym.make(env_id)
+    env.reset(seed=0)
+    for _ in range(steps):
+        obs, *_ = env.step(np.zeros(env.action_space.shape, np.float32))
+    env.close()
+    if not np.all(np.isfinite(obs)):
+        raise ValueError("non-finite observation")
+
+ids, per_id, steps = json.loads(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3])
+errors = []
+with cf.ThreadPoolExecutor(len(ids) * per_id) as ex:
+    futures = [(i, ex.submit(job, i)) for i in ids for _ in range(per_id)]
+    for i, f in futures:
+        try:
+            f.result()
+        except Exception as e:
+            errors.append(f"{i}: {type(e).__name__}: {e}")
+print(json.dumps({"jobs": len(futures), "errors": errors}))
+"""
+
+
+def threads_cold(ids: list[str], per_id: int = 4, runs: int = 1, steps: int = 3) -> dict:
+    """Envs built in threads on a cold cache: ``runs`` fresh interpreters, each with empty numba and derivation caches
+    (the first use after an install), run ``per_id`` threads per id at once, each making, resetting and stepping its
+    own env. Returns the jobs, the failed ones and their first errors."""
+    import json
+    import os
+    import subprocess
+    import sys
+    import tempfile
+
+    jobs, errors = 0, []
+    for _ in range(runs):
+        with tempfile.TemporaryDirectory() as tmp:
+            env = {**os.environ, "NUMBA_CACHE_DIR": os.path.join(tmp, "numba"),
+                   "MBS_ENVS_DERIVED_CACHE": os.path.join(tmp, "derived")}  # fmt: skip
+            env.pop("MBS_ENVS_JIT", None)  # the default: compiled in the background, the kernels' Python meanwhile
+            res = subprocess.run([sys.executable, "-c", _THREADS_PROGRAM, json.dumps(ids), str(per_id), str(steps)],
+                                 cwd=tmp, env=env, capture_output=True, text=True, timeout=1800)  # fmt: skip
+            if res.returncode:
+                jobs += len(ids) * per_id
+                errors.append(res.stderr.strip().splitlines()[-1] if res.stderr.strip() else f"exit {res.returncode}")
+                continue
+            out = json.loads(res.stdout.strip().splitlines()[-1])
+            jobs += out["jobs"]
+            errors += out["errors"]
+    return {"ids": list(ids), "per_id": per_id, "runs": runs, "jobs": jobs, "failed": len(errors), "errors": errors[:5]}

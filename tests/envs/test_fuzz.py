@@ -16,6 +16,7 @@ act: after every rule the two agree bit for bit, and a refused call left state a
 from __future__ import annotations
 
 import copy
+import json
 import pickle
 
 import gymnasium as gym
@@ -122,7 +123,7 @@ for _id in mbs_envs.ENV_IDS:
 
 #: calls that must be refused with ValueError and change nothing (vector env)
 REFUSED = ["options q", "seed float", "seed list", "reset_mask", "action nan", "set_attr bad value", "set_attr not a setting",
-           "model"]  # fmt: skip
+           "model", "set_attr short list", "set_attr unequal list"]  # fmt: skip
 
 
 def vector_machine_for(env_id: str):
@@ -163,9 +164,10 @@ def vector_machine_for(env_id: str):
         def copy_mid_episode(self, how):
             self.env = copy.deepcopy(self.env) if how == "deepcopy" else pickle.loads(pickle.dumps(self.env))
 
-        @rule(dt=valid_dt)
-        def set_a_valid_setting(self, dt):
-            self.env.set_attr("dt", dt)
+        @rule(dt=valid_dt, per_member=st.booleans())
+        def set_a_valid_setting(self, dt, per_member):
+            """One value, or one per member (Gymnasium's rule): the same setting either way."""
+            self.env.set_attr("dt", [dt] * n if per_member else dt)
             self.twin.set_attr("dt", dt)
 
         @rule(kind=st.sampled_from(REFUSED), name=st.sampled_from(settings_names),
@@ -184,6 +186,10 @@ def vector_machine_for(env_id: str):
                 "set_attr bad value": lambda: env.set_attr(name, value),
                 "set_attr not a setting": lambda: env.set_attr("max_episode_steps", 3),
                 "model": lambda: setattr(env, "model", None),
+                # a per-joint value as a list: one value per member by Gymnasium's rule, so refused where nu != n
+                "set_attr short list": lambda: (env.set_attr("u_max", [float(x) for x in env.env.u_max]) if nu != n
+                                                else env.set_attr("dt", [0.01] * (n - 1))),  # fmt: skip
+                "set_attr unequal list": lambda: env.set_attr("dt", [0.01] * (n - 1) + [0.02]),
             }
             try:
                 calls[kind]()
@@ -198,6 +204,7 @@ def vector_machine_for(env_id: str):
 
         @invariant()
         def agrees_with_its_twin(self):
+            assert self.env.spec is None or json.loads(self.env.spec.to_json())["id"] == env_id  # serializable
             np.testing.assert_array_equal(self.obs, self.obs_twin)
             np.testing.assert_array_equal(self.env._qc, self.twin._qc)
             assert np.all(np.isfinite(self.obs))
