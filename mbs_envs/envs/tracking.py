@@ -135,6 +135,17 @@ def reward_columns(v, e, v_ref, action, tracked, weights, terms):  # pragma: no 
         terms[3, b] = r_u
 
 
+def reward_formula(weights: Any, e: np.ndarray, de: np.ndarray, action: np.ndarray) -> tuple[np.ndarray, tuple]:
+    """:func:`reward_columns` as its formula in plain numpy (the kernel is its SIMD loop; the tests hold them equal).
+
+    ``r = -(w_e |e|^2 + w_de |v_ref - v|^2 + w_u |a|^2)``; ``e, de`` of shape ``(..., m)`` (error and rate error of
+    the tracked coordinates), ``action`` ``(..., nu)``. Returns ``r`` and its terms ``(r_e, r_de, r_u)``.
+    """
+    w_e, w_de, w_u = weights
+    r_e, r_de, r_u = -w_e * np.sum(e * e, -1), -w_de * np.sum(de * de, -1), -w_u * np.sum(action * action, -1)
+    return r_e + r_de + r_u, (r_e, r_de, r_u)
+
+
 def _as_columns(*arrays: np.ndarray) -> tuple[tuple, list[np.ndarray]]:
     """Broadcast the leading dimensions of ``(..., k_i)`` arrays, flatten them to ``L``
     members and lay each out in contiguous columns ``(k_i, L)``."""
