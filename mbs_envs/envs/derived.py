@@ -185,6 +185,13 @@ class DerivedTrackingEnv(NamedPoints, JointTrackingEnv):
         q = self._assembled(q_t)
         T = np.stack([model.complete_velocity(q, np.eye(m)[k]) for k in range(m)], axis=-1) if model.nc else np.eye(m)
         J = np.swapaxes(T, -1, -2) @ model.mass_matrix(q) @ T
+        w = np.linalg.eigvalsh(J)
+        singular = ~(w[..., 0] > 1e-12 * np.maximum(np.abs(w[..., -1]), 1e-300))
+        if np.any(singular):
+            at = q[np.flatnonzero(singular)[0]]
+            raise ValueError(f"posture: {type(model).__name__}'s mass matrix is singular at q = {np.round(at, 6).tolist()} "
+                             f"(eigenvalues {np.round(w[np.flatnonzero(singular)[0]], 12).tolist()}): no acceleration is "
+                             "determined there; choose a posture away from the singular configuration")  # fmt: skip
         return np.mean(1.0 / np.diagonal(np.linalg.inv(J), axis1=-2, axis2=-1), axis=0)
 
     def _assembled(self, q_t: np.ndarray) -> np.ndarray:

@@ -43,3 +43,20 @@ def test_smooth_elementary_terms_are_taken(tmp_path):
     V = m * g * (sp.cos(q1) + sp.sqrt(1 + q2**2) + sp.atan(q2) + sp.exp(-q1**2) + sp.log(2 + sp.cos(q2)))
     model = symbolic.derive("Smooth", [q1, q2], T, V, PARAMS, friction={q1: sp.tanh(q1.diff(t) / 0.01)}, cache=tmp_path)
     assert model.nq == 2
+
+
+def test_a_posture_at_a_singular_configuration_is_refused_naming_it(tmp_path):
+    """``sin(q2) dq1`` in T: the mass matrix is singular at q2 = 0 (the three random samples of derive miss it)."""
+    import gymnasium as gym
+
+    from mbs_envs.envs import derived
+
+    T = m * ((sp.sin(q2) * q1.diff(t)) ** 2 + q2.diff(t) ** 2) / 2
+    model = symbolic.derive("Singular", [q1, q2], T, m * g * sp.cos(q1), PARAMS, cache=tmp_path)
+    derived.register("test/SingularPosture-v0", model, torque_limit=(5.0, 5.0), posture=(0.3, 0.0))
+    with pytest.raises(ValueError, match=r"posture: .* singular at q = \[0\.3, 0\.0\]"):
+        gym.make("test/SingularPosture-v0")
+    derived.register("test/RegularPosture-v0", model, torque_limit=(5.0, 5.0), posture=(0.3, 1.0))
+    env = gym.make("test/RegularPosture-v0")
+    env.reset(seed=0)
+    env.close()
