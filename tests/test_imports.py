@@ -123,3 +123,16 @@ def test_the_numerics_studies_take_their_cases_from_the_registry(monkeypatch):
     monkeypatch.setattr(registry, "SCENES", registry.SCENES + (extra,))
     assert len(stiff_cases.stiff_cases(quick=True)) == len(stiff) + len(registry.load(fourbar.stiff_cases)())
     assert len(work_precision.free_problems(0.2)) == len(free) + 1
+
+
+def test_the_controllers_kernels_are_stamped_with_the_package_sources():
+    """A kernel of mbs_envs.controllers is cached under the package's stamp, as every kernel of the package: a cache
+    written under another module path or by other sources is never loaded (numba's own rule keys a file's cache by
+    its modification time alone, and a cache written when the folder was the top-level ``controllers`` named a
+    module that no longer exists)."""
+    from mbs_envs.controllers import trajectory
+    from mbs_envs.dynamics import jit
+
+    assert any(str(root).endswith("controllers") for root in jit.source_roots())
+    locator = trajectory.step4._cache._impl.locator
+    assert type(locator).__name__.startswith("MbsEnvs") and locator.get_source_stamp() == jit.package_stamp()

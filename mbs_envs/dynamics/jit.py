@@ -8,8 +8,8 @@ Caching (``cache=True``) keeps compiled kernels in ``__pycache__`` between
 processes. numba invalidates a cached function only when *its own* file changes,
 not when a kernel it calls from another module does (numba issue #1833): a scene's
 ``step_kernel`` embeds its model's kernels, so an edit of the model file alone would
-leave the stale step running. Here every kernel of the package is stamped with a hash
-of *all* the package's sources instead (:func:`package_stamp`, installed as numba
+leave the stale step running. Here every kernel of the package (the controllers' included) is stamped with a
+hash of *all* the package's sources instead (:func:`package_stamp`, installed as numba
 cache locators for this package's files only): any edit anywhere recompiles
 everything once. Other packages' caches are untouched. Should numba's (private)
 locator interface change, caching falls back to numba's own rule, and deleting
@@ -34,12 +34,32 @@ PACKAGE = pathlib.Path(__file__).resolve().parent.parent
 
 
 @functools.cache
+def source_roots() -> tuple[pathlib.Path, ...]:
+    """The folders of the package's sources: :data:`PACKAGE`, and the controllers' folder where it lies outside it
+    (a source checkout maps its top-level ``controllers/`` to ``mbs_envs.controllers``; a wheel has it inside)."""
+    import importlib.util
+
+    roots = [PACKAGE]
+    try:
+        spec = importlib.util.find_spec("mbs_envs.controllers")
+    except (ImportError, ValueError):  # pragma: no cover - a broken install: the package alone
+        spec = None
+    for location in (spec.submodule_search_locations or []) if spec is not None else []:
+        root = pathlib.Path(location).resolve()
+        if not any(root == r or root.is_relative_to(r) for r in roots):
+            roots.append(root)
+    return tuple(roots)
+
+
+@functools.cache
 def package_stamp() -> str:
-    """SHA-1 of the package's Python sources (paths and contents), computed once per process."""
+    """SHA-1 of the package's Python sources (paths and contents, the controllers' included), computed once per
+    process."""
     h = hashlib.sha1()
-    for f in sorted(PACKAGE.rglob("*.py")):
-        h.update(f.relative_to(PACKAGE).as_posix().encode())
-        h.update(f.read_bytes())
+    for k, root in enumerate(source_roots()):
+        for f in sorted(root.rglob("*.py")):
+            h.update(f"{k}/{f.relative_to(root).as_posix()}".encode())
+            h.update(f.read_bytes())
     return h.hexdigest()
 
 
@@ -61,7 +81,8 @@ def _install_package_locators() -> bool:
         class Locator(base):
             @classmethod
             def from_function(cls, py_func, py_file):
-                inside = os.path.abspath(py_file).startswith(str(PACKAGE) + os.sep)
+                path = os.path.abspath(py_file)
+                inside = any(path.startswith(str(root) + os.sep) for root in source_roots())
                 return super().from_function(py_func, py_file) if inside else None
 
             def get_source_stamp(self):
