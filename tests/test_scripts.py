@@ -44,14 +44,15 @@ def test_the_comparison_figures_stay_readable(tmp_path):
     linear axes from zero, labels inside the axes, the figure its set size."""
     from PIL import Image
 
-    script = load_script("compare.py")
+    from mbs_envs.studies import main_job
+
     cell = lambda s, t: {"success": s, "success_lo": max(s - 0.1, 0), "success_hi": min(s + 0.1, 1), "time_to_swing_up": t,  # noqa: E731
                          "time_to_swing_up_lo": t - 0.5, "time_to_swing_up_hi": t + 0.5, "rms_error_settled": t / 100,
                          "rms_error_settled_lo": t / 200, "rms_error_settled_hi": t / 50}  # fmt: skip
     by_cond = {c: {"A": cell(0.9, 7.5), "B": cell(0.0, float("nan")), "C": cell(1.0, 8.5)} for c in ("nominal", "obs noise 0.01")}
     for scene, size in (("Acrobot", (1320, 770)), ("Planar2R", (1320, 495))):
         path = tmp_path / f"{scene}.png"
-        script["plot_scene"](scene, by_cond, path)
+        main_job.plot_scene(scene, by_cond, path)
         assert Image.open(path).size == size
 
 
@@ -512,9 +513,9 @@ def test_a_shipped_agent_acts_as_trained_without_its_optimizer_state(tmp_path):
 
 def test_compare_records_repository_paths_relative_to_its_root():
     """issue 37: summary.json held the absolute paths of the machine that made it."""
-    script = load_script("compare.py")
-    root = str(script["ROOT"])
-    got = script["portable"]({"Acrobot": {"PPO": [f"{root}/agents/Acrobot-v1/ppo/seed0", f"lqr-catch:{root}/agents/x"]}, "n": 3})
+    from mbs_envs.studies import main_job as script_lib
+    root = str(script_lib.ROOT)
+    got = script_lib.portable({"Acrobot": {"PPO": [f"{root}/agents/Acrobot-v1/ppo/seed0", f"lqr-catch:{root}/agents/x"]}, "n": 3})
     assert got == {"Acrobot": {"PPO": ["agents/Acrobot-v1/ppo/seed0", "lqr-catch:agents/x"]}, "n": 3}
 
 
@@ -832,7 +833,7 @@ def test_a_recording_without_a_display_or_sound_card_prints_nothing_that_alarms(
 def test_the_printed_headline_names_every_compared_scene():
     """issue 37: the printed headline left out the swing-up scenes. A summary of every compared scene (one
     model-based and one RL row each): the headline and the swing-up headline printed by the main job name them all."""
-    script = load_script("compare.py")
+    from mbs_envs.studies import main_job
     from mbs_envs.studies.comparison import SCENES
 
     def row(kind, success):
@@ -846,7 +847,7 @@ def test_the_printed_headline_names_every_compared_scene():
 
     conds = ("nominal", "mismatch +20%", "mismatch -20%", "obs noise 0.01", "input delay 1 step")
     summary = {s: {c: {"PD": row("model-based", 1.0), "PPO": row("RL", 1.0)} for c in conds} for s in SCENES}
-    printed = script["headline"](summary) + "\n" + script["swing_up_headline"](summary)
+    printed = main_job.headline(summary) + "\n" + main_job.swing_up_headline(summary)
     assert all(s in printed for s in SCENES), [s for s in SCENES if s not in printed]
 
 
