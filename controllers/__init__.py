@@ -15,4 +15,17 @@ from .swingup import SwingUpLQR
 from .energy_swingup import EnergySwingUpLQR
 from .estimator import RatesFromAngles
 
-__all__ = ["Controller", "PD", "PDGravity", "ComputedTorque", "LQR", "SteeringPD", "NoControl", "SwingUpLQR", "AdaptiveSwingUpLQR", "PlannedSwingUp", "EnergySwingUpLQR", "RatesFromAngles"]
+__all__ = [
+    "Controller",
+    "PD",
+    "PDGravity",
+    "ComputedTorque",
+    "LQR",
+    "SteeringPD",
+    "NoControl",
+    "SwingUpLQR",
+    "AdaptiveSwingUpLQR",
+    "PlannedSwingUp",
+    "EnergySwingUpLQR",
+    "RatesFromAngles",
+]

@@ -54,7 +54,20 @@ from .swingup import SwingUpLQR, upright_linearization
 N = ident.N_BASE
 #: columns of a member's state row
 MODE, A_, B_, PHI0, WORK, QA, U, COUNT, THETA, K_, S_, XH, P_ = (
-    0, slice(1, 26), slice(26, 31), slice(31, 36), 36, 37, 38, 39, slice(40, 45), slice(45, 49), slice(49, 65), slice(65, 69), slice(69, 85))
+    0,
+    slice(1, 26),
+    slice(26, 31),
+    slice(31, 36),
+    36,
+    37,
+    38,
+    39,
+    slice(40, 45),
+    slice(45, 49),
+    slice(49, 65),
+    slice(65, 69),
+    slice(69, 85),
+)
 #: the second input hypothesis (the plant applies the input chosen one step earlier): its normal equations, its
 #: window's work, the input before the last, and both hypotheses' sums of squared energy-balance residuals
 #: (each with its sum of squared work, ``SW``)
@@ -115,7 +128,9 @@ class AdaptiveSwingUpLQR(SwingUpLQR):
         self.obs_noise = check.nonnegative(obs_noise, "obs_noise")
         sigma = check.reals(process_noise, "process_noise")
         if sigma.shape != (2, 2) or not (np.isfinite(sigma).all() and (sigma > 0).all()):
-            raise ValueError(f"process_noise must be ((angle, rate) balancing, (angle, rate) swinging), positive, got {process_noise!r}")
+            raise ValueError(
+                f"process_noise must be ((angle, rate) balancing, (angle, rate) swinging), positive, got {process_noise!r}"
+            )
         self.Q_w = np.array([np.diag(np.repeat(row, 2) ** 2) for row in sigma])  # (2, 4, 4): balancing, swinging
         self.R_n = self.obs_noise**2 * np.eye(4)
         unwrapped = unwrapped_env(env)
@@ -249,13 +264,17 @@ class AdaptiveSwingUpLQR(SwingUpLQR):
             cache[key] = np.asarray(model.kernel_params(), float).reshape(len(th), -1)
         return cache[key].copy()
 
-    def gains(self, model: Any, n: int, Q: np.ndarray | None = None, R: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def gains(
+        self, model: Any, n: int, Q: np.ndarray | None = None, R: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """The LQR's ``(K, S)`` for each member of ``model`` (per-member parameters of shape ``(n,)``), with the
         weights ``Q``, ``R`` (default: the upright LQR's)."""
         A, B = upright_linearization(model, (n,))
         return care(A, B, self.Q if Q is None else Q, self.R if R is None else R)
 
-    def observe(self, obs: Any, state: Any, episode_start: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def observe(
+        self, obs: Any, state: Any, episode_start: Any
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The memory after an observation: the filter's step (with ``obs_noise > 0``) and the identification's,
         fresh rows where an episode starts. Returns ``(state (n, STATE_SIZE), q (n, 2), v (n, 2), start (n,))``,
         ``(q, v)`` the state the laws act on (the filter's estimate, or the observation)."""
@@ -271,7 +290,11 @@ class AdaptiveSwingUpLQR(SwingUpLQR):
                 state = self.estimate_state(state, y)
                 q, v = state[:, XH][:, :2], state[:, XH][:, 2:]
             state = self.identify(state, q, v)
-            start = np.zeros(n, bool) if episode_start is None else check.shaped(episode_start, "episode_start", (n,), bools=True, broadcast=True) != 0
+            start = (
+                np.zeros(n, bool)
+                if episode_start is None
+                else check.shaped(episode_start, "episode_start", (n,), bools=True, broadcast=True) != 0
+            )
             if start.any():  # fresh memory (built only for these members) from the observation
                 state[start] = self.initial_state(y[start, :2], y[start, 2:])
                 q, v = np.where(start[:, None], y[:, :2], q), np.where(start[:, None], y[:, 2:], v)

@@ -114,13 +114,17 @@ def care(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, newton: int
         K = Rinv @ BT @ S
         Acl = A - B @ K
         AclT = np.swapaxes(Acl, -1, -2)
-        L = np.einsum("...ij,kl->...ikjl", AclT, eye) + np.einsum("ij,...kl->...ikjl", eye, AclT)  # vec(Acl^T S + S Acl)
+        L = np.einsum("...ij,kl->...ikjl", AclT, eye) + np.einsum(
+            "ij,...kl->...ikjl", eye, AclT
+        )  # vec(Acl^T S + S Acl)
         rhs = -(Q + np.swapaxes(K, -1, -2) @ R @ K)
         S = solve_rows(L.reshape(lead + (n * n, n * n)), rhs.reshape(lead + (n * n,))[..., None]).reshape(lead + (n, n))
         S = 0.5 * (S + np.swapaxes(S, -1, -2))
     K = Rinv @ BT @ S
     with np.errstate(invalid="ignore"):
-        bad = ~np.isfinite(S).all(axis=(-1, -2)) | (np.linalg.eigvals(A - B @ np.nan_to_num(K)).real.max(axis=-1) >= 0)  # or not stabilizing
+        bad = ~np.isfinite(S).all(axis=(-1, -2)) | (
+            np.linalg.eigvals(A - B @ np.nan_to_num(K)).real.max(axis=-1) >= 0
+        )  # or not stabilizing
     return np.where(bad[..., None, None], np.nan, K), np.where(bad[..., None, None], np.nan, S)
 
 
@@ -182,7 +186,9 @@ class Controller(abc.ABC):
         base = getattr(base, "env", base) if isinstance(base, gym.vector.VectorEnv) else base
         if base is None or not isinstance(base, self.fits):
             kinds = ", ".join(c.__name__ for c in self.fits)
-            raise ValueError(f"{type(self).__name__} acts on {kinds} environments, got {type(getattr(env, 'unwrapped', env)).__name__}")
+            raise ValueError(
+                f"{type(self).__name__} acts on {kinds} environments, got {type(getattr(env, 'unwrapped', env)).__name__}"
+            )
         self.model = base.model
         self.u_max = np.asarray(base.u_max, float)
         self.built_for = BuiltFor(base)
@@ -222,16 +228,24 @@ class Controller(abc.ABC):
         obs = check.reals(observation, "observation")
         width = self._obs_low.shape[-1]
         if obs.ndim == 0 or obs.shape[-1] != width:
-            raise ValueError(f"observation must have {width} entries per member (shape ({width},) or (n, {width})), "
-                             f"got shape {obs.shape}")
+            raise ValueError(
+                f"observation must have {width} entries per member (shape ({width},) or (n, {width})), "
+                f"got shape {obs.shape}"
+            )
         finite = np.isfinite(obs)
         if not finite.all():
-            where = "" if obs.ndim < 2 else f" (members {np.flatnonzero(~finite.reshape(-1, obs.shape[-1]).all(axis=-1)).tolist()})"
+            where = (
+                ""
+                if obs.ndim < 2
+                else f" (members {np.flatnonzero(~finite.reshape(-1, obs.shape[-1]).all(axis=-1)).tolist()})"
+            )
             raise ValueError(f"observation must be finite{where}")
         with np.errstate(over="ignore", invalid="ignore"):  # an overflow is caught below, from the result
             u, new_state = self.control(self.decode_observation(obs), state, episode_start)
         if not np.all(np.isfinite(u)) and obs.shape[-1:] == self._obs_low.shape:  # overflow from a finite observation
-            u, new_state = self.control(self.decode_observation(np.clip(obs, self._obs_low, self._obs_high)), state, episode_start)
+            u, new_state = self.control(
+                self.decode_observation(np.clip(obs, self._obs_low, self._obs_high)), state, episode_start
+            )
         state = new_state
         action = np.clip(u / self.u_max, -1.0, 1.0).astype(np.float32)
         return action, state

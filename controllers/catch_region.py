@@ -127,7 +127,9 @@ def estimate_region(cases: list[PlantCase], x_goal: np.ndarray, K: np.ndarray, S
             if len(dx) == samples:
                 break
         total += len(dx)
-        err = closed_loop_final(cases, x_goal + dx, x_goal, K, u_max, dt, substeps, int(round(horizon / dt)), half_widths)
+        err = closed_loop_final(
+            cases, x_goal + dx, x_goal, K, u_max, dt, substeps, int(round(horizon / dt)), half_widths
+        )
         ok = np.all(np.all(np.abs(err) <= tol, axis=-1), axis=0)  # NaN compares False: a diverged run is not caught
         cost = np.einsum("bi,ij,bj->b", dx, S, dx)
         if r == 0 and ok.all():

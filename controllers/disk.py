@@ -31,7 +31,9 @@ from .base import Controller, linearize
 from .tuned import tuned_gains
 
 
-def steady_lean(model: Any, W: Any, Omega: Any, dOmega: Any = 0.0, iterations: int = 4) -> tuple[np.ndarray, np.ndarray]:
+def steady_lean(
+    model: Any, W: Any, Omega: Any, dOmega: Any = 0.0, iterations: int = 4
+) -> tuple[np.ndarray, np.ndarray]:
     """Lean of steady turning at spin ``W`` and heading rate ``Omega``, and its rate.
 
     Newton's method on ``F`` (:func:`mbs_envs.models.rolling_disk.steady_turn_residual`) from the small-angle root
@@ -198,7 +200,9 @@ class LQR(Controller):
         lead = z.shape[:-1]
         z_i = np.zeros(lead) if state is None else check.shaped(state, "state", lead)
         if episode_start is not None:
-            z_i = np.where(check.shaped(episode_start, "episode_start", lead, bools=True, broadcast=True) != 0, 0.0, z_i)
+            z_i = np.where(
+                check.shaped(episode_start, "episode_start", lead, bools=True, broadcast=True) != 0, 0.0, z_i
+            )
         z_i = np.clip(z_i + self.dt * z[..., 0], -self.integral_limit, self.integral_limit)
         za = np.concatenate([z, z_i[..., None]], axis=-1)
         u = self.feedforward(obs, z) - np.einsum("...ij,...j->...i", self.gain(obs.spin_ref), za)

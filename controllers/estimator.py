@@ -33,7 +33,9 @@ from .control_map import rk4_map, state_error
 EPS = 1e-6
 
 
-def map_jacobian(model: Any, x: np.ndarray, u: np.ndarray, dt: float, substeps: int, eps: float = EPS) -> tuple[np.ndarray, np.ndarray]:
+def map_jacobian(
+    model: Any, x: np.ndarray, u: np.ndarray, dt: float, substeps: int, eps: float = EPS
+) -> tuple[np.ndarray, np.ndarray]:
     """``F(x, u)`` and ``F_x = dF/dx`` by central differences, in one batched call of the map.
 
     Parameters
@@ -142,7 +144,9 @@ class RatesFromAngles:
         self.built_for = BuiltFor(base)
         self.observation_space, self.action_space = env.observation_space, env.action_space
 
-    def predict(self, observation: Any, state: Any = None, episode_start: Any = None, deterministic: bool = True) -> tuple[np.ndarray, Any]:
+    def predict(
+        self, observation: Any, state: Any = None, episode_start: Any = None, deterministic: bool = True
+    ) -> tuple[np.ndarray, Any]:
         from mbs_envs.envs.swingup import decode_swingup
 
         self.built_for.check(type(self).__name__)
@@ -153,7 +157,11 @@ class RatesFromAngles:
         batch = np.array(obs.reshape(-1, obs.shape[-1]), dtype=obs.dtype if obs.dtype.kind == "f" else np.float32)
         seen = decode_swingup(batch)  # ValueError for a wrong shape; the angles by atan2
         q, B = seen.q, len(batch)
-        start = np.ones(B, bool) if episode_start is None else check.shaped(episode_start, "episode_start", (B,), bools=True, broadcast=True) != 0
+        start = (
+            np.ones(B, bool)
+            if episode_start is None
+            else check.shaped(episode_start, "episode_start", (B,), bools=True, broadcast=True) != 0
+        )
         if state is None:
             q_1, q_2, history, inner = q, q, np.zeros(B), None
         else:
@@ -163,5 +171,7 @@ class RatesFromAngles:
             q_1, q_2 = check.shaped(q_1, "state's q_1", q.shape), check.shaped(q_2, "state's q_2", q.shape)
             history = np.where(start, 0.0, check.shaped(history, "state's history", (B,)))
         batch[:, -q.shape[1] :] = rates_from_angles(q, q_1, q_2, history, seen.v, self.dt)
-        action, inner = self.policy.predict(batch[0] if single else batch, state=inner, episode_start=episode_start, deterministic=deterministic)
+        action, inner = self.policy.predict(
+            batch[0] if single else batch, state=inner, episode_start=episode_start, deterministic=deterministic
+        )
         return action, (q, q_1, history + 1.0, inner)

@@ -90,13 +90,22 @@ def hold_shares(A_d: np.ndarray, B_d: np.ndarray, L: np.ndarray, K: np.ndarray, 
     held, recover, over = np.ones((G, windows), bool), np.zeros((G, windows), bool), np.zeros((G, windows), bool)
     flat = lambda a: a.reshape(G * windows, n)  # noqa: E731  (2-D products: one BLAS call each)
     for k in range(settle_steps + hold_steps):
-        xh = xh + (flat(x + rng.normal(0.0, sigma, (windows, n)) - xh) @ L.T).reshape(G, windows, n)  # the filter's update
+        xh = xh + (flat(x + rng.normal(0.0, sigma, (windows, n)) - xh) @ L.T).reshape(
+            G, windows, n
+        )  # the filter's update
         banded = recovering(xh, recover, band, back)
-        recover = banded if coef is None else np.where(np.isfinite(coef).all(axis=-1), rescuing(xh, coef, recover, zd, back), banded)
+        recover = (
+            banded
+            if coef is None
+            else np.where(np.isfinite(coef).all(axis=-1), rescuing(xh, coef, recover, zd, back), banded)
+        )
         u = np.clip(hold_input(xh, recover, K, K_e, K_r, edge, lead, joint, coef, zd), -u_max, u_max)[..., None]
         # the plant's step and the filter's prediction
         if arm is None:
-            x, xh = (flat(x) @ A_d.T).reshape(G, windows, n) + u * B_d.T, (flat(xh) @ A_d.T).reshape(G, windows, n) + u * B_d.T
+            x, xh = (
+                (flat(x) @ A_d.T).reshape(G, windows, n) + u * B_d.T,
+                (flat(xh) @ A_d.T).reshape(G, windows, n) + u * B_d.T,
+            )
         else:
             with np.errstate(all="ignore"):
                 x, xh = arm.step(x, u), arm.step(xh, u)

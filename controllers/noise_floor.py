@@ -24,14 +24,18 @@ def discretize(A: np.ndarray, B: np.ndarray, dt: float) -> tuple[np.ndarray, np.
     return M[:n, :n], M[:n, n:]
 
 
-def lqg_stationary(A_d: np.ndarray, B_d: np.ndarray, K: np.ndarray, L: np.ndarray, P_post: np.ndarray, S_innov: np.ndarray) -> np.ndarray:
+def lqg_stationary(
+    A_d: np.ndarray, B_d: np.ndarray, K: np.ndarray, L: np.ndarray, P_post: np.ndarray, S_innov: np.ndarray
+) -> np.ndarray:
     """Stationary covariance of the true state under ``u_k = -K x^_k|k`` with the filter gain ``L``:
     ``Cov(x^) + P+``, ``Cov(x^)`` solving ``X = (A_d - B_d K) X (A_d - B_d K)^T + L S L^T`` (``S`` the innovations')."""
     F = A_d - B_d @ K
     return scipy.linalg.solve_discrete_lyapunov(F, L @ S_innov @ L.T) + P_post
 
 
-def noise_floor(A: np.ndarray, B: np.ndarray, dt: float, sigma: float, rho: float = 1e-12, eps: float = 1e-12) -> np.ndarray:
+def noise_floor(
+    A: np.ndarray, B: np.ndarray, dt: float, sigma: float, rho: float = 1e-12, eps: float = 1e-12
+) -> np.ndarray:
     """**What observation noise allows**: the smallest stationary standard deviation of each state coordinate about
     upright that any causal controller achieves on the linearization, every state entry observed at each control
     step with white Gaussian noise of std ``sigma``, no process noise, the input unbounded.

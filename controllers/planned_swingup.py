@@ -93,7 +93,11 @@ ROW_SIZE = STATE_SIZE + 18
 #: the plan's terminal weight per unit ``w_T`` (angles [rad^-2], rates [s^2 rad^-2])
 TERMINAL = np.diag([1.0, 1.0, 0.1, 0.1])
 #: the pumping gains searched for the initial guess (k_q [1/s^2], k_v [1/s], k_E [1/(J s)])
-PUMPING_GRID = np.array(np.meshgrid([2.0, 5.0, 10.0, 20.0, 50.0], [0.5, 1.0, 2.0, 5.0, 10.0], [1.0, 2.0, 4.0, 8.0, 16.0]), float).reshape(3, -1).T
+PUMPING_GRID = (
+    np.array(np.meshgrid([2.0, 5.0, 10.0, 20.0, 50.0], [0.5, 1.0, 2.0, 5.0, 10.0], [1.0, 2.0, 4.0, 8.0, 16.0]), float)
+    .reshape(3, -1)
+    .T
+)
 
 
 def plan_threads() -> int:
@@ -288,7 +292,10 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
         catch = 1.0 if catch is None else catch
         super().__init__(env, k_q=k_q, k_v=k_v, k_E=k_E, catch=catch, release=release, lqr_r=lqr_r, window=window, prior=prior, obs_noise=obs_noise,
                          process_noise=process_noise, gate=gate)  # fmt: skip
-        def steps(t: Any, name: str, positive: bool = False, step: float = self.dt) -> int:  # a duration [s] in steps of ``step``
+
+        def steps(
+            t: Any, name: str, positive: bool = False, step: float = self.dt
+        ) -> int:  # a duration [s] in steps of ``step``
             return int(round(check.real(t, name, 0.0, 1e4, low_open=positive) / step))
 
         # the plan's grid: ``stride`` control steps per knot, its model stepped by RK4 in steps of at most ``plan_h``
@@ -335,16 +342,26 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
         if sigma.shape != (2,) or not (np.isfinite(sigma).all() and (sigma > 0).all()):
             raise ValueError(f"hold_noise must be (angle, rate) standard deviations, positive, got {hold_noise!r}")
         self.Q_w_hold = np.diag(np.repeat(sigma, 2) ** 2)
-        self.hold = hold_pays(self, getattr(unwrapped_env(env), "upright_tolerance", 0.1)) if hold is None else check.boolean(hold, "hold")
+        self.hold = (
+            hold_pays(self, getattr(unwrapped_env(env), "upright_tolerance", 0.1))
+            if hold is None
+            else check.boolean(hold, "hold")
+        )
         if self.hold and self.obs_noise <= 0:
-            raise ValueError("hold=True needs the filter (obs_noise > 0): its consistency test measures innovations in units of obs_noise")
+            raise ValueError(
+                "hold=True needs the filter (obs_noise > 0): its consistency test measures innovations in units of obs_noise"
+            )
         H = self.max_steps
         self.plan_size = H + 4 * (H + 1) + 4 * H
 
     def _views(self, plan: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(U (n, H), X (n, H + 1, 4), K (n, H, 4))`` views of the plan rows."""
         n, H = len(plan), self.max_steps
-        return plan[:, :H], plan[:, H : H + 4 * (H + 1)].reshape(n, H + 1, 4), plan[:, H + 4 * (H + 1) :].reshape(n, H, 4)
+        return (
+            plan[:, :H],
+            plan[:, H : H + 4 * (H + 1)].reshape(n, H + 1, 4),
+            plan[:, H + 4 * (H + 1) :].reshape(n, H, 4),
+        )
 
     def reference(self, X: np.ndarray, j: np.ndarray) -> np.ndarray:
         """The planned state at control step ``j`` (n,) of each member's plan ``X`` (n, H + 1, 4): the knot
@@ -367,7 +384,9 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
         """The identified model of each of ``members`` as the kernels take it: a contiguous column ``(P, 1)`` each."""
         return [np.ascontiguousarray(t[:, None]) for t in self.kernel_theta(row[members, THETA])]
 
-    def make_plans(self, row: np.ndarray, plan: np.ndarray, members: np.ndarray, x: np.ndarray, refine: np.ndarray) -> np.ndarray:
+    def make_plans(
+        self, row: np.ndarray, plan: np.ndarray, members: np.ndarray, x: np.ndarray, refine: np.ndarray
+    ) -> np.ndarray:
         """Plan for ``members`` from ``x`` (n, 4) on their identified models: afresh, or where ``refine`` (per
         member listed) from the rest of the plan being tracked. Writes ``row`` (phase, step, length, since) in
         place and returns a new plan array (the one passed in untouched). Members plan on :func:`plan_threads`
@@ -378,7 +397,11 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
         u_max, driven, R = float(self.u_max[0]), self.driven, self.track_r
 
         def one(j: int, i: int, th: np.ndarray) -> tuple:
-            U_new, X_new, K_new = np.empty(self.max_steps), np.empty((self.max_steps + 1, 4)), np.empty((self.max_steps, 4))
+            U_new, X_new, K_new = (
+                np.empty(self.max_steps),
+                np.empty((self.max_steps + 1, 4)),
+                np.empty((self.max_steps, 4)),
+            )
             S = row[i, S_].reshape(4, 4)
             if refine[j]:
                 k, H = int(row[i, STEP]) // self.stride, int(row[i, LENGTH])
@@ -403,7 +426,9 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
                 row[i, PHASE] = 0.0  # no plan reaches upright from here: pump, and try again later
         return plan
 
-    def lqr_catches(self, row: np.ndarray, members: np.ndarray, x: np.ndarray, K: np.ndarray | None = None, bound: float = np.inf) -> np.ndarray:
+    def lqr_catches(
+        self, row: np.ndarray, members: np.ndarray, x: np.ndarray, K: np.ndarray | None = None, bound: float = np.inf
+    ) -> np.ndarray:
         """The ``members`` (indices) whose state ``x`` lies in the region of attraction of their identified model's
         saturated upright LQR (or of the gains ``K``, one row per member listed), by simulating it for ``catch_time``
         with the angles within ``bound`` of upright on the way (:func:`controllers.trajectory.lqr_catches`)."""
@@ -416,7 +441,9 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
         """``Q = diag`` of the weights ``(passive angle, driven angle, rates)`` (positive), validated."""
         w = check.reals(w, name)
         if w.shape != (3,) or not (np.isfinite(w).all() and (w > 0).all()):
-            raise ValueError(f"{name} must be three positive weights (passive angle, driven angle, rates), got {w.tolist()!r}")
+            raise ValueError(
+                f"{name} must be three positive weights (passive angle, driven angle, rates), got {w.tolist()!r}"
+            )
         passive = 1 - self.driven
         return np.diag([w[0] if j == passive else w[1] for j in range(2)] + [w[2], w[2]])
 
@@ -434,12 +461,19 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
             for i, (A_i, B_i) in enumerate(zip(A, B)):
                 A_d, B_d = region.discretize(A_i, B_i, self.dt)
                 try:
-                    K = [region.dlqr(A_d, B_d, Q, float(self.R_hold[0, 0]))[0] for Q in (self.Q_hold, self.Q_edge, self.Q_recover)]
+                    K = [
+                        region.dlqr(A_d, B_d, Q, float(self.R_hold[0, 0]))[0]
+                        for Q in (self.Q_hold, self.Q_edge, self.Q_recover)
+                    ]
                 except (np.linalg.LinAlgError, ValueError):
                     continue
                 stable = all(np.abs(np.linalg.eigvals(A_d - B_d @ k[None])).max() < 1.0 for k in K)
                 if stable and np.isfinite(K).all():
-                    inside = np.concatenate([region.zero_dynamics(A_i, B_i, self.driven), [0.0]]) if self.hold_law == "zero_dynamics" else np.concatenate(K[:2])
+                    inside = (
+                        np.concatenate([region.zero_dynamics(A_i, B_i, self.driven), [0.0]])
+                        if self.hold_law == "zero_dynamics"
+                        else np.concatenate(K[:2])
+                    )
                     out[i] = np.concatenate([inside, K[2], K[0]])
         return out
 
@@ -453,7 +487,9 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
         """As :meth:`AdaptiveSwingUpLQR.filter_noise`, with the hold setting where the member holds (``MODE`` 2)."""
         return np.where((state[:, MODE] > 1.5)[:, None, None], self.Q_w_hold, super().filter_noise(state))
 
-    def consistency(self, row: np.ndarray, y: np.ndarray, inner: np.ndarray, members: np.ndarray, phase: np.ndarray) -> None:
+    def consistency(
+        self, row: np.ndarray, y: np.ndarray, inner: np.ndarray, members: np.ndarray, phase: np.ndarray
+    ) -> None:
         """The running mean (time constant :data:`NIS_TAU`) of ``|y - x^-|^2 / (4 obs_noise^2)`` of ``members``, in place
         in ``row[:, NIS]``: ``x^-`` the identified model's one-step prediction from the last estimate under the input
         applied (``inner``: the memory before this step), ``y`` the observation; 1 on average where the observations
@@ -494,11 +530,15 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
         if len(candidates):
             K = self.hold_gains(row, candidates)
             ok = np.isfinite(K).all(axis=1)
-            held = self.lqr_catches(row, candidates[ok], x, K[ok, 12:], self.edge)  # within the edge on the way: not parked at it
+            held = self.lqr_catches(
+                row, candidates[ok], x, K[ok, 12:], self.edge
+            )  # within the edge on the way: not parked at it
             row[held, KH_.start : KR_.stop] = K[ok][np.isin(candidates[ok], held), :12]
             row[held, PHASE] = 3.0
         if theta_before is not None:
-            changed = np.flatnonzero((row[:, PHASE] >= 3.0) & (phase >= 3.0) & ~fresh & (row[:, THETA] != theta_before).any(axis=1))
+            changed = np.flatnonzero(
+                (row[:, PHASE] >= 3.0) & (phase >= 3.0) & ~fresh & (row[:, THETA] != theta_before).any(axis=1)
+            )
             if len(changed):
                 K = self.hold_gains(row, changed)
                 ok = np.isfinite(K).all(axis=1)
@@ -512,7 +552,9 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
             row, plan, inner = np.zeros((n, ROW_SIZE)), np.zeros((n, self.plan_size)), None
         else:
             if not (isinstance(state, tuple) and len(state) == 2):
-                raise ValueError(f"state must be the (row, plan) pair this controller returned, got {type(state).__name__}")
+                raise ValueError(
+                    f"state must be the (row, plan) pair this controller returned, got {type(state).__name__}"
+                )
             row, plan = state
             row = check.shaped(row, "state's row", (n, ROW_SIZE))
             plan = check.shaped(plan, "state's plan", (n, self.plan_size))
@@ -537,7 +579,13 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
         fresh = ((phase == 0.0) & (row[:, CLOCK] > self.plan_steps) & (row[:, SINCE] >= self.retry_steps)) | off
         fresh |= (phase >= 2.0) & (np.abs(dx[:, :2]).max(axis=1) > self.drop)
         # a plan is refined at its knots (every control step where stride is 1)
-        refine = tracking & ~off & (row[:, SINCE] >= self.refine_steps) & (row[:, LENGTH] - k > self.tail) & (j % self.stride == 0)
+        refine = (
+            tracking
+            & ~off
+            & (row[:, SINCE] >= self.refine_steps)
+            & (row[:, LENGTH] - k > self.tail)
+            & (j % self.stride == 0)
+        )
         # inside the upright LQR's region of attraction (simulated on the identified model): balance, no plan needed
         near = (phase < 2.0) & (np.abs(dx[:, :2]).max(axis=1) < self.drop)
         if near.any():
@@ -559,11 +607,17 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
         u_track = Us[idx, kk] + np.einsum("bi,bi->b", Ks[idx, kk], state_error(x, self.reference(Xs, j)))
         holding = (phase == 3.0)[:, None]
         if self.hold_law == "zero_dynamics":  # (balancing: the upright LQR)
-            K_in, K_e, coef = row[:, K_], row[:, K_], np.where((phase >= 3.0)[:, None], row[:, ZD_], np.nan)  # (phase 4: rescuing)
+            K_in, K_e, coef = (
+                row[:, K_],
+                row[:, K_],
+                np.where((phase >= 3.0)[:, None], row[:, ZD_], np.nan),
+            )  # (phase 4: rescuing)
         else:  # (balancing: the upright LQR, no edge)
             K_in = np.where(holding, row[:, KH_], row[:, K_])
             K_e, coef = np.where(holding, row[:, KE_], K_in), None
-        u_lqr = region.hold_input(dx, phase == 4.0, K_in, K_e, row[:, KR_], self.edge, self.edge_lead, self.driven, coef, self.zd)
+        u_lqr = region.hold_input(
+            dx, phase == 4.0, K_in, K_e, row[:, KR_], self.edge, self.edge_lead, self.driven, coef, self.zd
+        )
         u = np.where(phase == 1.0, u_track, u_lqr)
         pumping = np.flatnonzero(phase == 0.0)
         if len(pumping):

@@ -59,7 +59,9 @@ REST_TOL = 1e-3
 KICK = 0.1
 
 
-def collocated_pfl(model: Any, q: np.ndarray, v: np.ndarray, y: np.ndarray, a: int, M: Any = None, h: Any = None) -> np.ndarray:
+def collocated_pfl(
+    model: Any, q: np.ndarray, v: np.ndarray, y: np.ndarray, a: int, M: Any = None, h: Any = None
+) -> np.ndarray:
     """The driven coordinate's input that gives it the acceleration ``y`` (module docstring): the passive rows give
     ``q_p'' = -M_pp^-1 (M_pa y + h_p)``, the driven row ``u = M_aa y + M_ap q_p'' + h_a``.
 
@@ -114,7 +116,9 @@ def upright_lqr(model: Any, Q: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, n
     return np.asarray(K), np.asarray(S)
 
 
-def switch(x: np.ndarray, S: np.ndarray, balancing: Any, episode_start: Any, catch: float, release: float) -> np.ndarray:
+def switch(
+    x: np.ndarray, S: np.ndarray, balancing: Any, episode_start: Any, catch: float, release: float
+) -> np.ndarray:
     """The switching rule with hysteresis (module docstring): whether the LQR holds each member now.
 
     Parameters

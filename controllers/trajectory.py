@@ -64,8 +64,12 @@ def step4(x0, x1, x2, x3, u, driven, theta, dt, substeps):  # pragma: no cover -
     h = dt / substeps
     for _ in range(substeps):
         a0, a1, a2, a3 = rate(x0, x1, x2, x3, u, driven, theta)
-        b0, b1, b2, b3 = rate(x0 + 0.5 * h * a0, x1 + 0.5 * h * a1, x2 + 0.5 * h * a2, x3 + 0.5 * h * a3, u, driven, theta)
-        c0, c1, c2, c3 = rate(x0 + 0.5 * h * b0, x1 + 0.5 * h * b1, x2 + 0.5 * h * b2, x3 + 0.5 * h * b3, u, driven, theta)
+        b0, b1, b2, b3 = rate(
+            x0 + 0.5 * h * a0, x1 + 0.5 * h * a1, x2 + 0.5 * h * a2, x3 + 0.5 * h * a3, u, driven, theta
+        )
+        c0, c1, c2, c3 = rate(
+            x0 + 0.5 * h * b0, x1 + 0.5 * h * b1, x2 + 0.5 * h * b2, x3 + 0.5 * h * b3, u, driven, theta
+        )
         d0, d1, d2, d3 = rate(x0 + h * c0, x1 + h * c1, x2 + h * c2, x3 + h * c3, u, driven, theta)
         x0 = x0 + (h / 6.0) * (a0 + 2.0 * b0 + 2.0 * c0 + d0)
         x1 = x1 + (h / 6.0) * (a1 + 2.0 * b1 + 2.0 * c1 + d1)
@@ -92,7 +96,9 @@ def map_rows(X, u, driven, theta, dt, substeps, out):  # pragma: no cover - comp
         j = b if theta.shape[1] > 1 else 0
         for p in range(n_p):
             col[p, 0] = theta[p, j]
-        out[b, 0], out[b, 1], out[b, 2], out[b, 3] = step4(X[b, 0], X[b, 1], X[b, 2], X[b, 3], u[b], driven, col, dt, substeps)
+        out[b, 0], out[b, 1], out[b, 2], out[b, 3] = step4(
+            X[b, 0], X[b, 1], X[b, 2], X[b, 3], u[b], driven, col, dt, substeps
+        )
 
 
 @njit
@@ -242,7 +248,9 @@ def pumping_lanes(X, k_q, k_v, k_E, E_up, driven, theta, u_max, T, R0, R1, w, u,
 
 
 @njit
-def rollout_lanes(x0, U, Xref, kff, K, alphas, u_max, driven, theta, dt, substeps, X, Un, ok):  # pragma: no cover - compiled
+def rollout_lanes(
+    x0, U, Xref, kff, K, alphas, u_max, driven, theta, dt, substeps, X, Un, ok
+):  # pragma: no cover - compiled
     """:func:`_rollout` for every step length of ``alphas`` (A,) at once, a lane each: writes ``X`` (A, H+1, 4),
     ``Un`` (A, H) and ``ok`` (A,): whether the lane's states stayed finite (a lane that stops being finite is
     computed on, and its trajectory is not to be used)."""
@@ -270,7 +278,13 @@ def rollout_lanes(x0, U, Xref, kff, K, alphas, u_max, driven, theta, dt, substep
         for a in range(A):
             for i in range(4):
                 X[a, k + 1, i] = Z[i, a]
-            ok[a] = ok[a] and np.isfinite(Z[0, a]) and np.isfinite(Z[1, a]) and np.isfinite(Z[2, a]) and np.isfinite(Z[3, a])
+            ok[a] = (
+                ok[a]
+                and np.isfinite(Z[0, a])
+                and np.isfinite(Z[1, a])
+                and np.isfinite(Z[2, a])
+                and np.isfinite(Z[3, a])
+            )
             alive |= ok[a]
         if not alive:
             return
@@ -290,7 +304,9 @@ def pumping_input(x, k_q, k_v, k_E, E_up, driven, theta, u_max):  # pragma: no c
 
 
 @njit
-def _pump(X, k_q, k_v, k_E, E_up, u_max, driven, theta, dt, substeps, steps, U, search, goal, S, patience, best, when):  # pragma: no cover - compiled
+def _pump(
+    X, k_q, k_v, k_E, E_up, u_max, driven, theta, dt, substeps, steps, U, search, goal, S, patience, best, when
+):  # pragma: no cover - compiled
     """The pumping law with gains ``k_q, k_v, k_E`` (L,) from the states ``X`` (4, L), ``steps`` steps of ``dt``, a lane
     per gain set: writes the inputs of lane 0 into ``U`` (when its length is ``steps``) and, where ``search``, per
     lane the smallest weighted cost-to-go (:func:`pumping_search`) into ``best`` and its step into ``when``."""
@@ -315,7 +331,13 @@ def _pump(X, k_q, k_v, k_E, E_up, u_max, driven, theta, dt, substeps, steps, U, 
         wrap_lanes(E[1], L)
         weight = np.exp(k / patience)
         for l in range(L):
-            alive[l] = alive[l] and np.isfinite(X[0, l]) and np.isfinite(X[1, l]) and np.isfinite(X[2, l]) and np.isfinite(X[3, l])
+            alive[l] = (
+                alive[l]
+                and np.isfinite(X[0, l])
+                and np.isfinite(X[1, l])
+                and np.isfinite(X[2, l])
+                and np.isfinite(X[3, l])
+            )
             c = 0.0
             for i in range(4):
                 for j in range(4):
@@ -326,7 +348,9 @@ def _pump(X, k_q, k_v, k_E, E_up, u_max, driven, theta, dt, substeps, steps, U, 
 
 
 @njit
-def pumping_search(x0, gains, E_up, goal, S, u_max, driven, theta, dt, substeps, steps, patience):  # pragma: no cover - compiled
+def pumping_search(
+    x0, gains, E_up, goal, S, u_max, driven, theta, dt, substeps, steps, patience
+):  # pragma: no cover - compiled
     """Step 1 (module docstring): the row of ``gains`` (G, 3: ``k_q, k_v, k_E``) whose rollout from ``x0``
     comes closest to upright within ``steps`` steps of ``dt``, by the cost-to-go ``dx^T S dx`` weighted by
     ``exp(k / patience)`` at step ``k`` (an approach ``e`` times as far is as good ``patience`` steps sooner); a
@@ -339,7 +363,26 @@ def pumping_search(x0, gains, E_up, goal, S, u_max, driven, theta, dt, substeps,
         X[i, :] = x0[i]
     best, when = np.empty(G), np.empty(G, np.int64)
     k_q, k_v, k_E = gains[:, 0].copy(), gains[:, 1].copy(), gains[:, 2].copy()
-    _pump(X, k_q, k_v, k_E, E_up, u_max, driven, theta, dt, substeps, steps, np.empty(0), True, goal, S, patience, best, when)
+    _pump(
+        X,
+        k_q,
+        k_v,
+        k_E,
+        E_up,
+        u_max,
+        driven,
+        theta,
+        dt,
+        substeps,
+        steps,
+        np.empty(0),
+        True,
+        goal,
+        S,
+        patience,
+        best,
+        when,
+    )
     row = 0
     for g in range(1, G):
         if best[g] < best[row]:
@@ -463,7 +506,9 @@ def _backward(X, U, goal, w_u, W, S_T, u_max, mu, A, b, dt, kff, K):  # pragma: 
 
 
 @njit
-def ilqr(x0, U, X_ref, K_ref, goal, w_u, W, S_T, u_max, driven, theta, dt, substeps, iterations, alphas):  # pragma: no cover - compiled
+def ilqr(
+    x0, U, X_ref, K_ref, goal, w_u, W, S_T, u_max, driven, theta, dt, substeps, iterations, alphas
+):  # pragma: no cover - compiled
     """Step 2 (module docstring): improve the inputs ``U`` (H,) from ``x0`` in place, starting from the rollout
     of ``u_k = U_k + K_ref_k (x_k - X_ref_k)`` (``K_ref = 0``: open loop; a plan's own gains and states: the
     closed-loop rollout, a far better start from a state off the plan). Returns ``(X, J, A, b, current)``: the
@@ -558,7 +603,9 @@ def refine(x0, U, X_ref, K_ref, goal, S, w_u, W, P_T, Q, R, u_plan, driven, thet
     """Steps 2-3 (module docstring) from the guess ``U`` (H,) with feedback ``K_ref`` about ``X_ref`` (:func:`ilqr`):
     as :func:`plan`, whose return it gives."""
     H = U.shape[0]
-    X, J, A, b, current = ilqr(x0, U, X_ref, K_ref, goal, w_u, W, P_T, u_plan, driven, theta, dt, substeps, iterations, alphas)
+    X, J, A, b, current = ilqr(
+        x0, U, X_ref, K_ref, goal, w_u, W, P_T, u_plan, driven, theta, dt, substeps, iterations, alphas
+    )
     if not np.isfinite(J):
         return 0, np.inf
     U_out[:H] = U
@@ -631,7 +678,9 @@ def ekf_steps(X, P, u, Y, theta, driven, dt, substeps, Q_w, R_n, eps, X_out, P_o
             F[0, j], F[1, j] = (p0 - m0) / (2 * eps), (p1 - m1) / (2 * eps)
             F[2, j], F[3, j] = (p2 - m2) / (2 * eps), (p3 - m3) / (2 * eps)
         P_pred = F @ P[b] @ F.T + Q_w[b]
-        if not (np.isfinite(P_pred).all() and np.isfinite(x0) and np.isfinite(x1) and np.isfinite(x2) and np.isfinite(x3)):
+        if not (
+            np.isfinite(P_pred).all() and np.isfinite(x0) and np.isfinite(x1) and np.isfinite(x2) and np.isfinite(x3)
+        ):
             X_out[b], P_out[b] = np.nan, np.nan  # a lost member: the caller restarts it
             continue
         L = np.linalg.solve(P_pred + R_n, P_pred).T

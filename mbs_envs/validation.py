@@ -112,8 +112,10 @@ def reals(value: Any, name: str, *, bools: bool = False) -> np.ndarray:
             value = value.data
         raw = np.asarray(value, dtype=object) if isinstance(value, (str, bytes)) else np.asarray(value)
         kinds = "biuf" if bools else "iuf"
-        element = (lambda x: _is_number(x) or (bools and isinstance(x, (bool, np.bool_))))
-        if raw.dtype.kind not in kinds and not (raw.dtype.kind == "O" and raw.size and all(element(x) for x in raw.reshape(-1))):
+        element = lambda x: _is_number(x) or (bools and isinstance(x, (bool, np.bool_)))
+        if raw.dtype.kind not in kinds and not (
+            raw.dtype.kind == "O" and raw.size and all(element(x) for x in raw.reshape(-1))
+        ):
             raise TypeError
         return raw.astype(float)
     except ValueError as e:
@@ -138,7 +140,9 @@ def shaped(value: Any, name: str, shape: tuple, *, bools: bool = False, broadcas
         except ValueError:
             raise ValueError(f"{name} must broadcast to shape {tuple(shape)}, got shape {arr.shape}") from None
     if arr.size != int(np.prod(shape)):
-        raise ValueError(f"{name} must hold {int(np.prod(shape))} numbers (shape {tuple(shape)}), got shape {arr.shape}")
+        raise ValueError(
+            f"{name} must hold {int(np.prod(shape))} numbers (shape {tuple(shape)}), got shape {arr.shape}"
+        )
     return arr.reshape(shape).copy()
 
 
@@ -196,8 +200,14 @@ def seed(value: Any, name: str = "seed") -> int | None:
     The one seed rule of the single env, the vector env (per member) and the SB3 adapter."""
     if value is None:
         return None
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (numbers.Integral, np.integer)) or not 0 <= int(value) <= SEED_MAX:
-        raise ValueError(f"{name} must be None or an integer >= 0 (below 2^128), got {_shown(value)} ({type(value).__name__})")
+    if (
+        isinstance(value, (bool, np.bool_))
+        or not isinstance(value, (numbers.Integral, np.integer))
+        or not 0 <= int(value) <= SEED_MAX
+    ):
+        raise ValueError(
+            f"{name} must be None or an integer >= 0 (below 2^128), got {_shown(value)} ({type(value).__name__})"
+        )
     return int(value)
 
 
@@ -238,7 +248,9 @@ def vector(
     x = reals(value, name)
     if x.shape != (n,):
         if not (broadcast and x.ndim == 0):
-            raise ValueError(f"{name} must have shape ({n},){' or be a scalar' if broadcast else ''}, got shape {x.shape}")
+            raise ValueError(
+                f"{name} must have shape ({n},){' or be a scalar' if broadcast else ''}, got shape {x.shape}"
+            )
         x = np.full(n, float(x))
     ok = np.isfinite(x) & ((x > low) if low_open else (x >= low)) & (x <= high)
     if not np.all(ok):
@@ -266,7 +278,12 @@ def one_of(value: Any, name: str, options: tuple) -> Any:
             return o
         if isinstance(o, str) and isinstance(value, str) and value == o:
             return o
-        if isinstance(o, int) and isinstance(value, (numbers.Integral, np.integer)) and not isinstance(value, (bool, np.bool_)) and value == o:
+        if (
+            isinstance(o, int)
+            and isinstance(value, (numbers.Integral, np.integer))
+            and not isinstance(value, (bool, np.bool_))
+            and value == o
+        ):
             return o
     raise ValueError(f"{name} must be one of {list(options)}, got {value!r}")
 
@@ -303,7 +320,9 @@ class Checked:
 
     def __set__(self, obj: Any, value: Any) -> None:
         if self.fixed and self.slot in obj.__dict__:
-            raise ValueError(f"{self.name} is fixed at construction (other settings derive from it); make a new env instead")
+            raise ValueError(
+                f"{self.name} is fixed at construction (other settings derive from it); make a new env instead"
+            )
         obj.__dict__[self.slot] = frozen(self.check(value, self.name))
         touch(obj)
 

@@ -51,13 +51,26 @@ def angle_error(qa: np.ndarray, qb: np.ndarray) -> np.ndarray:
 def accelerations(n: int = 10_000, seed: int = 0) -> dict:
     env, model = AcrobotEnv(), Planar2R(**ACROBOT_PARAMS, driven=(1,))
     rng = np.random.default_rng(seed)
-    s = np.column_stack([rng.uniform(-np.pi, np.pi, (n, 2)), rng.uniform(-4 * np.pi, 4 * np.pi, n), rng.uniform(-9 * np.pi, 9 * np.pi, n)])
+    s = np.column_stack(
+        [
+            rng.uniform(-np.pi, np.pi, (n, 2)),
+            rng.uniform(-4 * np.pi, 4 * np.pi, n),
+            rng.uniform(-9 * np.pi, 9 * np.pi, n),
+        ]
+    )
     a = rng.uniform(-1, 1, n)
     q, v = to_ours(s)
     ours = model.forward_dynamics(q, v, a[:, None])
-    theirs = np.array([env._dsdt(np.r_[s[k], a[k]])[2:4] for k in tqdm(range(n), desc="Acrobot-v1 accelerations", mininterval=1)])
+    theirs = np.array(
+        [env._dsdt(np.r_[s[k], a[k]])[2:4] for k in tqdm(range(n), desc="Acrobot-v1 accelerations", mininterval=1)]
+    )
     rel = np.max(np.abs(ours - theirs), axis=-1) / np.max(np.abs(theirs), axis=-1)
-    return {"states": n, "max_relative_difference": float(rel.max()), "median_relative_difference": float(np.median(rel)), "relative": rel}
+    return {
+        "states": n,
+        "max_relative_difference": float(rel.max()),
+        "median_relative_difference": float(np.median(rel)),
+        "relative": rel,
+    }
 
 
 def motions(t_final: float = 20.0, seed: int = 1) -> dict:

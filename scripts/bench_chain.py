@@ -53,7 +53,9 @@ def run(out: pathlib.Path, sizes: list[int]) -> dict:
             "aba_batch_per_env": median_time(lambda: chain.aba(Q, V, U)) / BATCH,
         }
         if n <= 200:  # O(N^3) per environment: skipped beyond
-            row["crba_cholesky_batch_per_env"] = median_time(lambda: chain.forward_dynamics_crba(Q, V, U), repeats=3) / BATCH
+            row["crba_cholesky_batch_per_env"] = (
+                median_time(lambda: chain.forward_dynamics_crba(Q, V, U), repeats=3) / BATCH
+            )
         peer = pinocchio_chain(chain)
         if peer is not None:
             pin, model, data = peer
@@ -76,7 +78,9 @@ def run(out: pathlib.Path, sizes: list[int]) -> dict:
     result = {"batch": BATCH, "rows": rows, "loglog_slopes_n_ge_20": slopes, "pinocchio": "pin_aba_single" in rows[0]}
     (out / "bench_chain.json").write_text(json.dumps(result, indent=2))
     plot(rows, out / "bench_chain.png")
-    print(f"{'N':>5} {'RNEA':>9} {'ABA':>9} {'CRBA+chol':>10} {'ABA/env@256':>12} {'pin aba':>9} {'ABA/pin':>8} {'ABA@256/pin':>12}   [us]")
+    print(
+        f"{'N':>5} {'RNEA':>9} {'ABA':>9} {'CRBA+chol':>10} {'ABA/env@256':>12} {'pin aba':>9} {'ABA/pin':>8} {'ABA@256/pin':>12}   [us]"
+    )
     for r in rows:
         pa = r.get("pin_aba_single")
         ratio = f"{r['aba_single'] / pa:8.2f}" if pa else "       -"
@@ -87,8 +91,11 @@ def run(out: pathlib.Path, sizes: list[int]) -> dict:
             f"{r['crba_cholesky_single'] * 1e6:10.1f} {r['aba_batch_per_env'] * 1e6:12.2f} {pin_t} {ratio} {ratio_b}"
         )
     print("\nthe spatial chain (alternating axes; per call, and per member of a batch of 256) [us]")
-    print(f"{'N':>5} {'ABA':>9} {'pin':>9} {'ratio':>6} {'RNEA':>9} {'pin':>9} {'ratio':>6} {'CRBA':>9} {'pin':>9} {'ABA@256':>9} {'pin@256':>9} {'ratio':>6}")
+    print(
+        f"{'N':>5} {'ABA':>9} {'pin':>9} {'ratio':>6} {'RNEA':>9} {'pin':>9} {'ratio':>6} {'CRBA':>9} {'pin':>9} {'ABA@256':>9} {'pin@256':>9} {'ratio':>6}"
+    )
     for r in rows:
+
         def cell(key, width=9):
             x = r.get(key)
             return f"{x * 1e6:{width}.1f}" if x is not None else " " * (width - 1) + "-"
@@ -128,7 +135,9 @@ def spatial_row(n: int, q, v, u, Q, V, U) -> dict:
         row["pin_spatial_aba_batch_per_env"] = median_time(pin_batch(pin.aba), repeats=3) / BATCH
         row["pin_spatial_rnea_batch_per_env"] = median_time(pin_batch(pin.rnea), repeats=3) / BATCH
         a_pin = np.array(pin.aba(model, data, q, v, u))
-        row["spatial_aba_agreement_rel"] = float(np.max(np.abs(chain.aba(q, v, u) - a_pin)) / max(1.0, np.max(np.abs(a_pin))))
+        row["spatial_aba_agreement_rel"] = float(
+            np.max(np.abs(chain.aba(q, v, u) - a_pin)) / max(1.0, np.max(np.abs(a_pin)))
+        )
     return row
 
 
@@ -144,7 +153,12 @@ def plot(rows: list[dict], path: pathlib.Path) -> None:
     ]:  # fmt: skip
         ys = [r.get(key, np.nan) * 1e6 for r in rows]
         if np.any(np.isfinite(ys)):
-            ax.loglog(ns, ys, style, label=key.replace("aba", "ABA").replace("rnea", "RNEA") + ("" if "spatial" in key else " (planar)"))
+            ax.loglog(
+                ns,
+                ys,
+                style,
+                label=key.replace("aba", "ABA").replace("rnea", "RNEA") + ("" if "spatial" in key else " (planar)"),
+            )
     ax.set_xlabel("links N")
     ax.set_ylabel("time per call (or per env in a batch of 256) [us]")
     ax.legend()

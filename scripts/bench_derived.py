@@ -85,11 +85,14 @@ derived.register("bench/FourBarD-v0", model, torque_limit=8.0, posture=[0.0], sp
 """
 
 #: the 2R arm with only the elbow driven, registered with the swing-up task and Acrobot-v1's settings
-ACROBOT_CODE = USER_CODE.split("model = symbolic.derive")[0] + """
+ACROBOT_CODE = (
+    USER_CODE.split("model = symbolic.derive")[0]
+    + """
 model = symbolic.derive("Acrobot2R", [q1, q2], T, V, params, actuation=[[0.0], [1.0]])
 derived.register("bench/Acrobot2R-v0", model, task="swing-up", max_episode_steps=1500, torque_limit=10.0, substeps=2,
                  upright=(np.pi / 2, 0.0), hanging=(-np.pi / 2, 0.0))
 """
+)
 
 #: mechanism -> (user code, derived id, hand-written id)
 PAIRS = {"2R arm": (USER_CODE, "bench/Arm2R-v0", "mbs_envs/Planar2R-v0"),
@@ -124,7 +127,9 @@ def first_make(user: str, env_id: str) -> dict:
         env = {**os.environ, "MBS_ENVS_DERIVED_CACHE": derived_cache, "NUMBA_CACHE_DIR": numba_cache}
         code = FIRST.format(user=user, env_id=env_id)
         for label in ("cold", "warm", "warm again"):
-            res = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True, cwd=ROOT)
+            res = subprocess.run(
+                [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True, cwd=ROOT
+            )
             out[label] = float(res.stdout.strip().splitlines()[-1])
     return {"cold_s": out["cold"], "warm_s": min(out["warm"], out["warm again"])}
 
@@ -140,7 +145,10 @@ def steps(pair: str, repeats: int, n_steps: int, num_envs: int) -> dict:
     rng = np.random.default_rng(0)
     ids = {"derived": derived_id, "hand-written": hand_id}
     singles = {k: gym.make(v) for k, v in ids.items()}
-    vectors = {k: gym.make_vec(v, num_envs=num_envs, vectorization_mode="vector_entry_point", full_info=False) for k, v in ids.items()}
+    vectors = {
+        k: gym.make_vec(v, num_envs=num_envs, vectorization_mode="vector_entry_point", full_info=False)
+        for k, v in ids.items()
+    }
     nu = singles["derived"].action_space.shape[0]
     a1 = list(rng.uniform(-1, 1, (n_steps, nu)).astype(np.float32))
     aB = list(rng.uniform(-1, 1, (max(n_steps // 10, 20), num_envs, nu)))
@@ -167,9 +175,14 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     res = {"steps": {pair: steps(pair, args.repeats, args.steps, args.num_envs) for pair in PAIRS}}
     if not args.no_cold:
-        res["first_make"] = {label: first_make(user, env_id) for label, (user, env_id) in tqdm(FIRST_MAKES.items(), desc="first makes")}
+        res["first_make"] = {
+            label: first_make(user, env_id) for label, (user, env_id) in tqdm(FIRST_MAKES.items(), desc="first makes")
+        }
     (args.out / "bench_derived.json").write_text(json.dumps(res, indent=2))
-    lines = [f"| mechanism | scene | single step [us] | batched per env-step at {args.num_envs} [us] |", "|---|---|---|---|"]
+    lines = [
+        f"| mechanism | scene | single step [us] | batched per env-step at {args.num_envs} [us] |",
+        "|---|---|---|---|",
+    ]
     for pair, r in res["steps"].items():
         for k in ("derived", "hand-written"):
             lines.append(f"| {pair} | {k} | {r['single_us'][k]:.1f} | {r['batched_us'][k]:.3f} |")

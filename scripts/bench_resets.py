@@ -78,9 +78,19 @@ def measure(num_envs: int, steps: int, repeats: int, only: list[str] | None, see
         configs[("CartPole-v1", mode, "gymnasium")] = (cp, actions(cp.action_space, mode, steps, seed))
         for label, (env_id, kw) in scenes(only).items():
             for ahead in (True, False):
-                v = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", full_info=False, draw_ahead=ahead, **kw)
+                v = gym.make_vec(
+                    env_id,
+                    num_envs=num_envs,
+                    vectorization_mode="vector_entry_point",
+                    full_info=False,
+                    draw_ahead=ahead,
+                    **kw,
+                )
                 v.reset(seed=seed)
-                configs[(label, mode, "drawn ahead" if ahead else "drawn at the reset")] = (v, actions(v.action_space, mode, steps, seed))
+                configs[(label, mode, "drawn ahead" if ahead else "drawn at the reset")] = (
+                    v,
+                    actions(v.action_space, mode, steps, seed),
+                )
     times = {k: [] for k in configs}
     ends = {k: 0 for k in configs}
     for env, acts in tqdm(configs.values(), desc="warm-up", file=sys.stderr):
@@ -116,12 +126,16 @@ def report(result: dict) -> str:
     by = {(r["scene"], r["actions"], r["starts"]): r for r in result["rows"]}
     for (scene, mode, variant), r in by.items():
         if variant == "gymnasium":
-            lines.append(f"| CartPole-v1 (gymnasium) | {mode} | {r['per_env_step_us']:.3f} us ({r['episodes_ended_per_step']:.1f}) | |")
+            lines.append(
+                f"| CartPole-v1 (gymnasium) | {mode} | {r['per_env_step_us']:.3f} us ({r['episodes_ended_per_step']:.1f}) | |"
+            )
     for (scene, mode, variant), r in by.items():
         if variant != "drawn ahead":
             continue
         b = by[(scene, mode, "drawn at the reset")]
-        cell = lambda x: f"{x['per_env_step_us']:.3f} us, **{x['ratio_to_cartpole']:.1f}x** ({x['episodes_ended_per_step']:.1f})"  # noqa: E731
+        cell = lambda x: (
+            f"{x['per_env_step_us']:.3f} us, **{x['ratio_to_cartpole']:.1f}x** ({x['episodes_ended_per_step']:.1f})"
+        )  # noqa: E731
         lines.append(f"| {scene} | {mode} | {cell(r)} | {cell(b)} |")
     return "\n".join(lines) + "\n"
 

@@ -133,7 +133,9 @@ def scene_vector(env_id: str, kwargs: dict, num_envs: int, n_calls: int, rng: np
 
 
 def measure(repeats: int, steps: int, num_envs: int, cold: bool) -> dict:
-    os.environ.setdefault("MBS_ENVS_JIT", "sync")  # steps timed here are compiled ones (not the kernels' Python meanwhile)
+    os.environ.setdefault(
+        "MBS_ENVS_JIT", "sync"
+    )  # steps timed here are compiled ones (not the kernels' Python meanwhile)
     import gymnasium as gym
 
     import mbs_envs
@@ -219,7 +221,13 @@ def sweep(sizes: list[int], repeats: int, steps: int) -> dict:
     out: dict = {"sizes": sizes, "per_env_step_us": {}, "ratio_to_cartpole": {}}
     for n in tqdm(sizes, desc="sizes", file=sys.stderr):
         vectors = {"CartPole-v1": cartpole_vector(n, n_calls, rng)}
-        vectors.update({name: scene_vector(env_id, kwargs, n, n_calls, rng) for name, (env_id, kwargs) in scenes().items() if batch_timed(name)})
+        vectors.update(
+            {
+                name: scene_vector(env_id, kwargs, n, n_calls, rng)
+                for name, (env_id, kwargs) in scenes().items()
+                if batch_timed(name)
+            }
+        )
         times: dict = {k: [] for k in vectors}
         for _ in range(repeats):
             for name, (env, acts) in vectors.items():
@@ -261,9 +269,18 @@ def table(r: dict, title: str) -> str:
         fs = r.get("first_step_s", {}).get(name)
         lines.append(
             f"| {name} | {r['single_step_us'][name]:,.1f} | {r['single_ratio_to_acrobot'][name]:.2f}x | "
-            + ("- | - |" if b is None else f"{b:.3f} | {r['batched_ratio_to_cartpole'][name]:.1f}x"
-               + (f" [{lo_hi[name][0]:.1f}, {lo_hi[name][1]:.1f}]" if "processes" in r else "") + " |")
-            + ("" if fs is None else f" {fs['cold_s']:.1f} ({fs.get('cold_compiled_s', fs['cold_s']):.1f}) / {fs['warm_s']:.2f} |")
+            + (
+                "- | - |"
+                if b is None
+                else f"{b:.3f} | {r['batched_ratio_to_cartpole'][name]:.1f}x"
+                + (f" [{lo_hi[name][0]:.1f}, {lo_hi[name][1]:.1f}]" if "processes" in r else "")
+                + " |"
+            )
+            + (
+                ""
+                if fs is None
+                else f" {fs['cold_s']:.1f} ({fs.get('cold_compiled_s', fs['cold_s']):.1f}) / {fs['warm_s']:.2f} |"
+            )
         )
     if "first_step_s" in r:
         a = r["first_step_s"][PEER]

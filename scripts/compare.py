@@ -62,12 +62,27 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--no-agents", action="store_true", help="model-based controllers only")
     p.add_argument("--workers", type=int, default=2, help="local processes")
     p.add_argument("--ray", nargs="?", const="local", help="run the cells on Ray (ADDRESS, or a local instance)")
-    p.add_argument("--robustness-values", type=int, default=5, help="values per axis of the robustness sweep (default 5; --quick 2)")
-    p.add_argument("--robustness-seeds", type=int, default=1, help="test seeds per value of the robustness sweep (default 1)")
-    p.add_argument("--robustness-pulses", type=int, default=10, help="perturbation episodes of the robustness sweep (default 10; --quick 2)")
+    p.add_argument(
+        "--robustness-values",
+        type=int,
+        default=5,
+        help="values per axis of the robustness sweep (default 5; --quick 2)",
+    )
+    p.add_argument(
+        "--robustness-seeds", type=int, default=1, help="test seeds per value of the robustness sweep (default 1)"
+    )
+    p.add_argument(
+        "--robustness-pulses",
+        type=int,
+        default=10,
+        help="perturbation episodes of the robustness sweep (default 10; --quick 2)",
+    )
     p.add_argument("--no-robustness", action="store_true", help="skip the robustness sweep")
-    p.add_argument("--plots-only", action="store_true",
-                   help="redraw comparison_<scene>.png from the summary.json already in --out (no evaluation)")
+    p.add_argument(
+        "--plots-only",
+        action="store_true",
+        help="redraw comparison_<scene>.png from the summary.json already in --out (no evaluation)",
+    )
     return p.parse_args(argv)
 
 

@@ -73,7 +73,9 @@ def run(out: pathlib.Path, steps: int, dt: float, chunk: int = 1000) -> dict:
             for row in zip(s["t"], s["residual"], s["energy_drift"]):
                 w.writerow([kind, *row])
     plot(series, out / "constraint_drift.png", steps, dt)
-    print(f"{'stabilization':14s} {'final |phi| [m]':>16s} {'max |phi| [m]':>14s} {'rel. energy drift':>18s} {'time [s]':>9s}")
+    print(
+        f"{'stabilization':14s} {'final |phi| [m]':>16s} {'max |phi| [m]':>14s} {'rel. energy drift':>18s} {'time [s]':>9s}"
+    )
     for kind, r in result.items():
         print(
             f"{kind:14s} {r['final_residual']:16.2e} {r['max_residual']:14.2e} "

@@ -53,37 +53,86 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", required=True, type=pathlib.Path)
     p.add_argument("--scene", action="append", choices=sorted(SCENES), help="scene(s) (default both)")
-    p.add_argument("--controller", action="append", help="controller(s) or agent(s) by name, e.g. 'swing-up + LQR', 'PPO seed0' (default every one)")
-    p.add_argument("--agents", type=pathlib.Path, default=pathlib.Path("agents"),
-                   help="root of the agents trained on the protocol (<root>/<scene>DFKI-v1/<algo>/seed<k>/; default agents/)")
+    p.add_argument(
+        "--controller",
+        action="append",
+        help="controller(s) or agent(s) by name, e.g. 'swing-up + LQR', 'PPO seed0' (default every one)",
+    )
+    p.add_argument(
+        "--agents",
+        type=pathlib.Path,
+        default=pathlib.Path("agents"),
+        help="root of the agents trained on the protocol (<root>/<scene>DFKI-v1/<algo>/seed<k>/; default agents/)",
+    )
     p.add_argument("--no-agents", action="store_true", help="the model-based controllers only")
     p.add_argument("--no-controllers", action="store_true", help="the agents only")
     p.add_argument("--robustness", action="store_true", help="run the robustness-v2 sweep too")
-    p.add_argument("--values", type=int, default=dfki.N_VALUES, help=f"values per robustness axis (default {dfki.N_VALUES}, as theirs)")
+    p.add_argument(
+        "--values",
+        type=int,
+        default=dfki.N_VALUES,
+        help=f"values per robustness axis (default {dfki.N_VALUES}, as theirs)",
+    )
     p.add_argument("--seed", type=int, default=0, help="seeds the sweep's noise and pulses")
-    p.add_argument("--part-size", type=int, default=None,
-                   help="members per part of a model-based controller's sweep (default: about 4 parts per worker over "
-                        "their sweeps, at most 32 members; an agent's sweep runs one batch per axis)")
-    p.add_argument("--workers", type=int, default=None, help="local processes (default: one per core, at most one per controller)")
-    p.add_argument("--ray", nargs="?", const="local", default=None, help="run the controllers on Ray (cluster ADDRESS, or a local instance)")
-    p.add_argument("--rates-from-angles", action="store_true",
-                   help="every policy sees the joint rates differenced from the observed angles instead of the observed "
-                        "rates (controllers.estimator.RatesFromAngles); their names get ' (rates from angles)'")
-    p.add_argument("--robust-catch", action="store_true",
-                   help="run only the policies with a catching LQR tuned for robustness (--tune-robust-catch --write), with it; "
-                        "their names get ' (robust catch)'")
-    p.add_argument("--tune", action="store_true", help="tune the energy controllers' gains on the protocol instead (mbs_envs.studies.dfki_tuning)")
-    p.add_argument("--tune-robust-catch", action="store_true",
-                   help="tune the catching LQR of every policy that has one for robustness instead, on a tuning set of the "
-                        "robustness axes (mbs_envs.studies.dfki_tuning.robust_catch; with --rates-from-angles as the policies "
-                        "will run)")
-    p.add_argument("--release-stage", action="store_true",
-                   help="with --tune-robust-catch: its second stage, each stored robust catch's lqr_r and catch kept and the factor "
-                        "'release' (the LQR hands back beyond release x catch) tried (mbs_envs.studies.dfki_tuning.release_grid)")
-    p.add_argument("--release-values", type=float, nargs="+",
-                   help="with --release-stage: the factors tried, in this order (a tie keeps the first; default "
-                        "dfki_tuning.ROBUST_RELEASE), e.g. a grid widened beyond a pick at its edge")
-    p.add_argument("--write", action="store_true", help="with --tune or --tune-robust-catch: store the picks in controllers/tuned.json under the protocol ids")
+    p.add_argument(
+        "--part-size",
+        type=int,
+        default=None,
+        help="members per part of a model-based controller's sweep (default: about 4 parts per worker over "
+        "their sweeps, at most 32 members; an agent's sweep runs one batch per axis)",
+    )
+    p.add_argument(
+        "--workers", type=int, default=None, help="local processes (default: one per core, at most one per controller)"
+    )
+    p.add_argument(
+        "--ray",
+        nargs="?",
+        const="local",
+        default=None,
+        help="run the controllers on Ray (cluster ADDRESS, or a local instance)",
+    )
+    p.add_argument(
+        "--rates-from-angles",
+        action="store_true",
+        help="every policy sees the joint rates differenced from the observed angles instead of the observed "
+        "rates (controllers.estimator.RatesFromAngles); their names get ' (rates from angles)'",
+    )
+    p.add_argument(
+        "--robust-catch",
+        action="store_true",
+        help="run only the policies with a catching LQR tuned for robustness (--tune-robust-catch --write), with it; "
+        "their names get ' (robust catch)'",
+    )
+    p.add_argument(
+        "--tune",
+        action="store_true",
+        help="tune the energy controllers' gains on the protocol instead (mbs_envs.studies.dfki_tuning)",
+    )
+    p.add_argument(
+        "--tune-robust-catch",
+        action="store_true",
+        help="tune the catching LQR of every policy that has one for robustness instead, on a tuning set of the "
+        "robustness axes (mbs_envs.studies.dfki_tuning.robust_catch; with --rates-from-angles as the policies "
+        "will run)",
+    )
+    p.add_argument(
+        "--release-stage",
+        action="store_true",
+        help="with --tune-robust-catch: its second stage, each stored robust catch's lqr_r and catch kept and the factor "
+        "'release' (the LQR hands back beyond release x catch) tried (mbs_envs.studies.dfki_tuning.release_grid)",
+    )
+    p.add_argument(
+        "--release-values",
+        type=float,
+        nargs="+",
+        help="with --release-stage: the factors tried, in this order (a tie keeps the first; default "
+        "dfki_tuning.ROBUST_RELEASE), e.g. a grid widened beyond a pick at its edge",
+    )
+    p.add_argument(
+        "--write",
+        action="store_true",
+        help="with --tune or --tune-robust-catch: store the picks in controllers/tuned.json under the protocol ids",
+    )
     return p.parse_args(argv)
 
 

@@ -51,7 +51,9 @@ def run(out: pathlib.Path, ns: list[int] | None = None, quick: bool = False, rep
                 bar.set_postfix_str(f"N={n} {method}{' compiled' if compiled else ''}", refresh=True)
                 steps = 3 if method == "sdirk2" and n > 100 else 20
                 t = sc.step_time(model, method, compiled, steps=steps, repeats=repeats)
-                times.append({"n_links": n, "integrator": method, "path": "compiled" if compiled else "numpy", "step_s": t})
+                times.append(
+                    {"n_links": n, "integrator": method, "path": "compiled" if compiled else "numpy", "step_s": t}
+                )
                 bar.update()
             for method in ("joint_implicit_euler", "rk4"):
                 bar.set_postfix_str(f"N={n} {method} stability", refresh=True)
@@ -62,10 +64,17 @@ def run(out: pathlib.Path, ns: list[int] | None = None, quick: bool = False, rep
     text = report(times, stability)
     (out / "implicit_chain.md").write_text(text)
     plot(times, out / "implicit_chain.png")
-    result = {"step_times": times, "stability": stability, "repeats": repeats, "run_time_s": time.perf_counter() - t_start}
+    result = {
+        "step_times": times,
+        "stability": stability,
+        "repeats": repeats,
+        "run_time_s": time.perf_counter() - t_start,
+    }
     (out / "implicit_chain.json").write_text(json.dumps(result, indent=2))
     print(text)
-    print(f"run time {result['run_time_s']:.0f} s; written to {out}/implicit_chain.csv, _stability.csv, .json, .md, .png")
+    print(
+        f"run time {result['run_time_s']:.0f} s; written to {out}/implicit_chain.csv, _stability.csv, .json, .md, .png"
+    )
     return result
 
 
@@ -84,8 +93,15 @@ def report(times: list[dict], stability: list[dict]) -> str:
              "| N | joint_implicit_euler | rk4 (numpy) | rk4 (compiled) | sdirk2 | implicit / rk4 numpy | implicit / rk4 compiled |",
              "|---|---|---|---|---|---|---|"]  # fmt: skip
     for n in ns:
-        ji, rn, rc, sd = (t[n, "joint_implicit_euler", "numpy"], t[n, "rk4", "numpy"], t[n, "rk4", "compiled"], t[n, "sdirk2", "numpy"])
-        lines.append(f"| {n} | {1e3 * ji:.3f} | {1e3 * rn:.3f} | {1e3 * rc:.3f} | {1e3 * sd:.2f} | {ji / rn:.2f} | {ji / rc:.2f} |")
+        ji, rn, rc, sd = (
+            t[n, "joint_implicit_euler", "numpy"],
+            t[n, "rk4", "numpy"],
+            t[n, "rk4", "compiled"],
+            t[n, "sdirk2", "numpy"],
+        )
+        lines.append(
+            f"| {n} | {1e3 * ji:.3f} | {1e3 * rn:.3f} | {1e3 * rc:.3f} | {1e3 * sd:.2f} | {ji / rn:.2f} | {ji / rc:.2f} |"
+        )
     lines += ["", "Stiff case (joint PD, 1000 rad/s per joint): largest step that neither diverges nor misses the target by 1e-3 rad.", "",
               "| N | integrator | largest stable dt [s] | final error [rad] | runs flagged as diverged above it |", "|---|---|---|---|---|"]  # fmt: skip
     for r in stability:
@@ -100,7 +116,11 @@ def plot(times: list[dict], path: pathlib.Path) -> None:
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     for method, compiled in TIMED:
         label = f"{method} ({'compiled' if compiled else 'numpy'})"
-        pts = sorted((r["n_links"], r["step_s"]) for r in times if r["integrator"] == method and r["path"] == ("compiled" if compiled else "numpy"))
+        pts = sorted(
+            (r["n_links"], r["step_s"])
+            for r in times
+            if r["integrator"] == method and r["path"] == ("compiled" if compiled else "numpy")
+        )
         x, y = zip(*pts)
         ax.loglog(x, np.array(y) * 1e3, marker="o", label=label)
     ax.set_xlabel("links N")

@@ -34,10 +34,14 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--env", choices=list(mbs_envs.ENV_IDS))
     p.add_argument("--policy", help="controller short name, agent group, module:Class or agent folder")
-    p.add_argument("--gallery", action="store_true", help="every scene: its best controller beside PPO, GIFs for the docs")
+    p.add_argument(
+        "--gallery", action="store_true", help="every scene: its best controller beside PPO, GIFs for the docs"
+    )
     p.add_argument("--vs", help="a second policy, recorded on the same seed beside the first")
     p.add_argument("--seed", type=int, default=0, help="reset seed (default 0)")
-    p.add_argument("--seconds", type=cli.positive_float, help="at most this much of the episode (default the whole episode)")
+    p.add_argument(
+        "--seconds", type=cli.positive_float, help="at most this much of the episode (default the whole episode)"
+    )
     p.add_argument("--fps", type=cli.positive_float, default=25.0, help="frames per second of the video (default 25)")
     p.add_argument("--size", type=cli.positive_int, help="pixels per panel (default 500, the env's frame)")
     p.add_argument("--format", nargs="+", choices=["mp4", "gif"], default=["mp4", "gif"])
@@ -52,7 +56,10 @@ def run(args: argparse.Namespace) -> dict:
         raise SystemExit("record.py: --env and --policy are required (or --gallery)")
     tic = time.perf_counter()
     try:
-        recordings = [record_episode(args.env, name, args.seed, args.seconds, args.fps) for name in [args.policy] + ([args.vs] if args.vs else [])]
+        recordings = [
+            record_episode(args.env, name, args.seed, args.seconds, args.fps)
+            for name in [args.policy] + ([args.vs] if args.vs else [])
+        ]
     except ValueError as exc:
         raise SystemExit(f"record.py: {exc}") from None
     frames = side_by_side(recordings, args.size)
@@ -83,7 +90,9 @@ def gallery(args: argparse.Namespace, budget: int = 1_200_000, panel: int = 320)
     from mbs_envs.studies.recording import gallery_pairs
 
     index = args.out / "gallery.json"
-    records = json.loads(index.read_text()) if args.env and index.exists() else {}  # --env: that scene again, the rest kept
+    records = (
+        json.loads(index.read_text()) if args.env and index.exists() else {}
+    )  # --env: that scene again, the rest kept
     for env_id, controller, agent in gallery_pairs():
         if args.env and env_id != args.env:
             continue
@@ -100,8 +109,12 @@ def gallery(args: argparse.Namespace, budget: int = 1_200_000, panel: int = 320)
                            "panels": [{"policy": n, "label": r.label, "steps": r.steps, "return": r.episode_return, "ended": r.ended}
                                       for n, r in zip((controller, agent), recordings)],
                            "run_time_s": time.perf_counter() - tic}  # fmt: skip
-        print(f"{path}: {path.stat().st_size / 1e3:.0f} kB, {len(frames)} frames at {fps:g}/s, {records[env_id]['run_time_s']:.1f} s")
-    index.write_text(json.dumps({k: v for k, v in records.items() if k in {e for e, _, _ in gallery_pairs()}}, indent=2))
+        print(
+            f"{path}: {path.stat().st_size / 1e3:.0f} kB, {len(frames)} frames at {fps:g}/s, {records[env_id]['run_time_s']:.1f} s"
+        )
+    index.write_text(
+        json.dumps({k: v for k, v in records.items() if k in {e for e, _, _ in gallery_pairs()}}, indent=2)
+    )
     return records
 
 

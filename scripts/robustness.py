@@ -36,15 +36,34 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", required=True, type=pathlib.Path)
     p.add_argument("--scene", action="append", choices=sorted(sr.SWEEPS), help="scene(s) (default every one)")
-    p.add_argument("--policy", action="append", help="policy display name(s), e.g. 'PD' or 'PPO + LQR' (default every one)")
-    p.add_argument("--agents", type=pathlib.Path, default=pathlib.Path("agents"), help="root of the shipped agents (default agents/)")
+    p.add_argument(
+        "--policy", action="append", help="policy display name(s), e.g. 'PD' or 'PPO + LQR' (default every one)"
+    )
+    p.add_argument(
+        "--agents",
+        type=pathlib.Path,
+        default=pathlib.Path("agents"),
+        help="root of the shipped agents (default agents/)",
+    )
     p.add_argument("--no-agents", action="store_true", help="model-based controllers only")
-    p.add_argument("--values", type=int, default=sr.N_VALUES, help=f"values per axis (default {sr.N_VALUES}; the DFKI benchmark's 21)")
+    p.add_argument(
+        "--values",
+        type=int,
+        default=sr.N_VALUES,
+        help=f"values per axis (default {sr.N_VALUES}; the DFKI benchmark's 21)",
+    )
     p.add_argument("--seeds", type=int, default=sr.N_SEEDS, help=f"test seeds per value (default {sr.N_SEEDS})")
-    p.add_argument("--pulse-episodes", type=int, default=sr.PULSE_EPISODES, help=f"perturbation episodes (default {sr.PULSE_EPISODES})")
+    p.add_argument(
+        "--pulse-episodes",
+        type=int,
+        default=sr.PULSE_EPISODES,
+        help=f"perturbation episodes (default {sr.PULSE_EPISODES})",
+    )
     p.add_argument("--seed", type=int, default=0, help="seeds the noise and the pulses")
     p.add_argument("--workers", type=int, default=None, help="local processes (default one per core)")
-    p.add_argument("--ray", nargs="?", const="local", default=None, help="run on Ray (cluster ADDRESS, or a local instance)")
+    p.add_argument(
+        "--ray", nargs="?", const="local", default=None, help="run on Ray (cluster ADDRESS, or a local instance)"
+    )
     return p.parse_args(argv)
 
 
@@ -57,7 +76,9 @@ def run(args: argparse.Namespace) -> dict:
     if not jobs:
         raise SystemExit("robustness.py: no policy matches --scene / --policy")
     tic = time.perf_counter()
-    results = run_tasks(sr.sweep_job, jobs, ray_address=args.ray, max_workers=args.workers, progress="robustness sweeps")
+    results = run_tasks(
+        sr.sweep_job, jobs, ray_address=args.ray, max_workers=args.workers, progress="robustness sweeps"
+    )
     wall = time.perf_counter() - tic
     rows, summary, sweeps = sr.collect(jobs, results)
     with open(args.out / "robustness.csv", "w", newline="") as f:
@@ -65,7 +86,11 @@ def run(args: argparse.Namespace) -> dict:
         w.writeheader()
         w.writerows(rows)
     sr.plot(sweeps, args.out)
-    command = "python scripts/robustness.py " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("robustness.py") else None
+    command = (
+        "python scripts/robustness.py " + " ".join(sys.argv[1:])
+        if sys.argv and sys.argv[0].endswith("robustness.py")
+        else None
+    )
     record = {"command": command, "values_per_axis": args.values, "seeds_per_value": args.seeds, "pulse_episodes": args.pulse_episodes,
               "seed": args.seed, "tolerance_rad": sr.TOLERANCE, "wall_s": wall, "scenes": summary,
               "ranges": {s: {k: (dict(v) if hasattr(v, "items") else v) for k, v in vars(sr.SWEEPS[s]).items()} for s in summary}}  # fmt: skip
@@ -79,7 +104,12 @@ def run(args: argparse.Namespace) -> dict:
 
 
 def report(record: dict) -> str:
-    out = ["# Robustness sweep on every scene", "", sr.describe(record["values_per_axis"], record["seeds_per_value"], record["pulse_episodes"]), ""]
+    out = [
+        "# Robustness sweep on every scene",
+        "",
+        sr.describe(record["values_per_axis"], record["seeds_per_value"], record["pulse_episodes"]),
+        "",
+    ]
     for scene, by_policy in record["scenes"].items():
         out += [f"## {scene}", "", *sr.markdown_table(by_policy), "", f"![{scene}](robustness_{scene}.png)", ""]
     out += [f"Command: `{record['command']}`; total wall time {record['wall_s']:.0f} s."]

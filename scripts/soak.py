@@ -59,8 +59,14 @@ def run(out: pathlib.Path, episodes: int, quick: bool = False, ids: list[str] | 
     models = {i: registry.load(registry.scene(i).model)() for i in ids}
     pairs = [(i, name) for name in integrators.available() for i in ids if integrators.applies(name, models[i])]
     n_int = integrator_episodes or (8 if quick else 32)
-    per_integrator = [rl.integrator_soak(i, name, episodes=n_int, num_envs=integrator_envs) for i, name in tqdm(pairs, desc="integrators")]
-    adversarial = [rl.adversarial_soak(i, rounds=adversarial_rounds or (100 if quick else 2000)) for i in tqdm(ids, desc="adversarial sequences")]
+    per_integrator = [
+        rl.integrator_soak(i, name, episodes=n_int, num_envs=integrator_envs)
+        for i, name in tqdm(pairs, desc="integrators")
+    ]
+    adversarial = [
+        rl.adversarial_soak(i, rounds=adversarial_rounds or (100 if quick else 2000))
+        for i in tqdm(ids, desc="adversarial sequences")
+    ]
     threads = rl.threads_cold(ids, per_id=4, runs=1 if quick else 3) if processes else None
     result = {"episodes_per_id": episodes, "soak": soak, "determinism": det, "long_runs": long, "edges": edges,
               "integrators": per_integrator, "adversarial": adversarial, "threads_cold": threads}  # fmt: skip
@@ -85,12 +91,18 @@ def report(r: dict) -> str:
         L += ["", "## Determinism (largest observation difference to SyncVectorEnv; same seeds and actions)", "",
               "| id | steps | " + " | ".join(kinds) + " |", "|---|---|" + "---|" * len(kinds)]  # fmt: skip
         for d in r["determinism"]:
-            L.append(f"| {d['env_id']} | {d['steps_compared']} | " + " | ".join(f"{d['max_difference'][k]:.1e}" for k in kinds) + " |")
+            L.append(
+                f"| {d['env_id']} | {d['steps_compared']} | "
+                + " | ".join(f"{d['max_difference'][k]:.1e}" for k in kinds)
+                + " |"
+            )
     L += ["", "## Long runs (free motion, RK4)", "", "| case | steps | dt [s] | max energy drift [J] | relative | constraint error | diverged |",
           "|---|---|---|---|---|---|---|"]  # fmt: skip
     for x in r["long_runs"]:
         c = "-" if not np.isfinite(x["constraint_error"]) else f"{x['constraint_error']:.1e}"
-        L.append(f"| {x['scene']} | {x['steps']} | {x['dt']:g} | {x['energy_drift']:.2e} | {x['energy_drift_relative']:.2e} | {c} | {x['diverged']} |")
+        L.append(
+            f"| {x['scene']} | {x['steps']} | {x['dt']:g} | {x['energy_drift']:.2e} | {x['energy_drift_relative']:.2e} | {c} | {x['diverged']} |"
+        )
     first = r["integrators"][0] if r["integrators"] else {}
     L += ["", f"## Every integrator (random-action episodes of {first.get('episode_steps', 100)} steps on {first.get('num_envs', 16)} batched "
           "members; then 4 runaway episodes at a 1e200 N m torque limit)", "",
@@ -117,9 +129,17 @@ def report(r: dict) -> str:
               f"{t['runs']} fresh interpreter(s) with empty kernel and derivation caches, {t['per_id']} threads per id at "
               f"once ({len(t['ids'])} ids): {t['jobs']} jobs, **{t['failed']}** failed."]  # fmt: skip
         L += [f"- error: {e}" for e in t["errors"]]
-    L += ["", "## Parameters at the edges", "", "| model | parameter | value | outcome | detail |", "|---|---|---|---|---|"]
+    L += [
+        "",
+        "## Parameters at the edges",
+        "",
+        "| model | parameter | value | outcome | detail |",
+        "|---|---|---|---|---|",
+    ]
     for e in r["edges"]:
-        detail = e.get("message") or f"finite: {e['all_finite']}, relative energy drift {e['relative_energy_drift']:.1e}"
+        detail = (
+            e.get("message") or f"finite: {e['all_finite']}, relative energy drift {e['relative_energy_drift']:.1e}"
+        )
         L.append(f"| {e['model']} | {e['parameter']} | {e['value']:g} | {e['outcome']} | {detail[:110]} |")
     return "\n".join(L) + "\n"
 

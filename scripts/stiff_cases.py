@@ -41,7 +41,9 @@ RK4_BETA = 2.785  # RK4's real stability interval [-2.785, 0]
 QUICK_CASES = ("viscous b=400", "PD kp=1e5, kd=2e3", "mass ratio 1e-3", "four-bar change point (parallelogram)")
 
 
-def run(out: pathlib.Path, quick: bool = False, cases: list[str] | None = None, methods: list[str] | None = None) -> dict:
+def run(
+    out: pathlib.Path, quick: bool = False, cases: list[str] | None = None, methods: list[str] | None = None
+) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     if quick and cases is None:
         cases = list(QUICK_CASES)
@@ -68,22 +70,41 @@ def run(out: pathlib.Path, quick: bool = False, cases: list[str] | None = None, 
             summary.append({**sc.summarize_scan(rows), "rk4_limit_predicted": RK4_BETA / rho})
             bar.update()
         for method in adaptive:
-            if method in ("radau", "bdf") and case.model.nv >= 200:  # O(N^3) per Jacobian: 631 s for Radau on the bare 200-link chain once
+            if (
+                method in ("radau", "bdf") and case.model.nv >= 200
+            ):  # O(N^3) per Jacobian: 631 s for Radau on the bare 200-link chain once
                 bar.update()
                 continue
             bar.set_postfix_str(f"{case.scene} {method}")
             adaptive_rows.append(numerics.score(case, ref, method, 1e-6))
             bar.update()
     bar.close()
+
     def among_picked(names: tuple[str, ...]) -> list[str]:
         return [m for m in names if picked is None or m in picked]
 
-    singular = [sc.singular_case_row(c, m, 0.01) for c in sc.singular_cases() for m in among_picked(("rk4", "sdirk2", "dop853"))]
-    long_methods = {"2R free swing": ("rk4", "semi_implicit_euler", "sdirk2"), "four-bar free, projection": ("rk4", "sdirk2")}
-    long_rows = [sc.long_run_row(r, m) for r in tqdm(sc.long_runs(quick), desc="long runs") for m in among_picked(long_methods[r.scene])]
+    singular = [
+        sc.singular_case_row(c, m, 0.01) for c in sc.singular_cases() for m in among_picked(("rk4", "sdirk2", "dop853"))
+    ]
+    long_methods = {
+        "2R free swing": ("rk4", "semi_implicit_euler", "sdirk2"),
+        "four-bar free, projection": ("rk4", "sdirk2"),
+    }
+    long_rows = [
+        sc.long_run_row(r, m)
+        for r in tqdm(sc.long_runs(quick), desc="long runs")
+        for m in among_picked(long_methods[r.scene])
+    ]
     write_csv(runs, out / "stiff_cases.csv")
     write_csv(summary, out / "stiff_summary.csv")
-    result = {"cases": meta, "summary": summary, "adaptive": adaptive_rows, "singular": singular, "long_runs": long_rows, "dts": dts}
+    result = {
+        "cases": meta,
+        "summary": summary,
+        "adaptive": adaptive_rows,
+        "singular": singular,
+        "long_runs": long_rows,
+        "dts": dts,
+    }
     (out / "stiff_cases.json").write_text(json.dumps(result, indent=2, default=float))
     text = report(result)
     (out / "stiff_cases.md").write_text(text)
@@ -113,7 +134,9 @@ def report(result: dict) -> str:
              "its errors and CPU time; failures above it, flagged (reported in `diverged`) or silent (bounded but wrong). "
              "A scan stops once its runs used 60 s of CPU (column: finest step tried).")  # fmt: skip
     L.append("")
-    L.append("| case | stiffness rho [1/s] | RK4 limit 2.785/rho [s] | integrator | largest usable dt [s] | trajectory error | final error | energy error [J] | constraint error | CPU [s] | failures above: flagged / silent | step halvings (all runs) | finest dt tried |")
+    L.append(
+        "| case | stiffness rho [1/s] | RK4 limit 2.785/rho [s] | integrator | largest usable dt [s] | trajectory error | final error | energy error [J] | constraint error | CPU [s] | failures above: flagged / silent | step halvings (all runs) | finest dt tried |"
+    )
     L.append("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in result["summary"]:
         m = result["cases"][r["scene"]]
@@ -129,8 +152,15 @@ def report(result: dict) -> str:
         for r in result["adaptive"]:
             L.append(f"| {r['scene']} | {r['integrator']} | {fmt(r['trajectory_error'])} | {fmt(r['state_error'])} | "
                      f"{r['steps']} | {r['evaluations']} | {r['cpu_s']:.3f} | {r['diverged']} |")  # fmt: skip
-    L += ["", "Reference of each case (its error estimate: largest difference over the 0.05 s grid to the same method at a 100x looser tolerance):", ""]
-    L += [f"- {k}: {m['reference']} rtol 1e-12, estimate {m['reference_error_estimate']:.1e}" for k, m in result["cases"].items()]
+    L += [
+        "",
+        "Reference of each case (its error estimate: largest difference over the 0.05 s grid to the same method at a 100x looser tolerance):",
+        "",
+    ]
+    L += [
+        f"- {k}: {m['reference']} rtol 1e-12, estimate {m['reference_error_estimate']:.1e}"
+        for k, m in result["cases"].items()
+    ]
     L += ["", "A motion that ends in a singularity (the disk falling flat, where the Euler angles fail):", "",
           "| case | integrator | dt | flagged | all outputs finite | flagged at t [s] | largest lean returned [rad] |",
           "|---|---|---|---|---|---|---|"]  # fmt: skip
@@ -177,7 +207,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", required=True, type=pathlib.Path)
     p.add_argument("--quick", action="store_true")
     p.add_argument("--cases", nargs="+", help="subset of case names")
-    p.add_argument("--methods", nargs="+", help="subset of integrators (fixed-step scans; also the singular and long-run tables)")
+    p.add_argument(
+        "--methods", nargs="+", help="subset of integrators (fixed-step scans; also the singular and long-run tables)"
+    )
     a = p.parse_args(argv)
     run(a.out, a.quick, a.cases, a.methods)
     return 0

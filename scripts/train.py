@@ -45,33 +45,85 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--out", required=True, type=cli.out_folder)
     p.add_argument("--n-envs", type=cli.positive_int, help="parallel members (default 64 for PPO, 4 otherwise)")
     p.add_argument("--env-kwargs", type=cli.json_object, default={}, help="JSON dict of env arguments")
-    p.add_argument("--keep-best", action="store_true",
-                   help="ship the agent of the evaluation with the highest validation return, not the last")
-    p.add_argument("--train-env-kwargs", type=cli.json_object, default={},
-                   help="JSON dict of env arguments for the training members only (a curriculum; validation runs the task as "
-                        "--env-kwargs gives it), e.g. '{\"start_upright\": 0.5}'")
-    p.add_argument("--eval-env-kwargs", type=cli.json_object, default={},
-                   help="JSON dict of env arguments for the validation episodes only, e.g. '{\"randomize\": {\"m2\": 0.25}}' "
-                        "(each validation seed's plant drawn from it; --keep-best then keeps the best over those plants)")
-    p.add_argument("--net-arch", type=int, nargs="+", help="hidden layers (default SB3's: 64 64 for PPO, 256 256 otherwise)")
-    p.add_argument("--residual", nargs="?", const="default", help="train a residual agent on this controller ('module:Class'; default the scene's best)")
-    p.add_argument("--residual-bound", type=float, default=0.25, help="largest correction, fraction of the actuator limit (default 0.25)")
-    p.add_argument("--hyper", action="append", default=[], metavar="KEY=VALUE", type=hyper_setting,
-                   help="override a numeric hyperparameter, e.g. --hyper gamma=0.998 (repeatable)")
-    p.add_argument("--action-repeat", type=cli.positive_int, default=1, metavar="K",
-                   help="hold each action for K control steps (the agent decides every K dt; default 1)")
-    p.add_argument("--normalize", action="store_true",
-                   help="train behind VecNormalize (observations and rewards); the statistics are saved with the agent")
-    p.add_argument("--perturb", type=lambda t: t if t == "dfki" else cli.json_object(t),
-                   help="train under the robustness axes, one perturbation per member and episode: 'dfki' (the DFKI "
-                        "benchmark's ranges) or a JSON dict of mbs_envs.envs.perturbed.TrainingPerturbations' fields")
-    p.add_argument("--init", type=pathlib.Path, help="continue the agent saved in this folder (e.g. one of an earlier task version); {seed} stands for the run seed")
-    p.add_argument("--eval-seeds", type=cli.positive_int, default=10, help="validation episodes per evaluation (default 10)")
+    p.add_argument(
+        "--keep-best",
+        action="store_true",
+        help="ship the agent of the evaluation with the highest validation return, not the last",
+    )
+    p.add_argument(
+        "--train-env-kwargs",
+        type=cli.json_object,
+        default={},
+        help="JSON dict of env arguments for the training members only (a curriculum; validation runs the task as "
+        "--env-kwargs gives it), e.g. '{\"start_upright\": 0.5}'",
+    )
+    p.add_argument(
+        "--eval-env-kwargs",
+        type=cli.json_object,
+        default={},
+        help='JSON dict of env arguments for the validation episodes only, e.g. \'{"randomize": {"m2": 0.25}}\' '
+        "(each validation seed's plant drawn from it; --keep-best then keeps the best over those plants)",
+    )
+    p.add_argument(
+        "--net-arch", type=int, nargs="+", help="hidden layers (default SB3's: 64 64 for PPO, 256 256 otherwise)"
+    )
+    p.add_argument(
+        "--residual",
+        nargs="?",
+        const="default",
+        help="train a residual agent on this controller ('module:Class'; default the scene's best)",
+    )
+    p.add_argument(
+        "--residual-bound",
+        type=float,
+        default=0.25,
+        help="largest correction, fraction of the actuator limit (default 0.25)",
+    )
+    p.add_argument(
+        "--hyper",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        type=hyper_setting,
+        help="override a numeric hyperparameter, e.g. --hyper gamma=0.998 (repeatable)",
+    )
+    p.add_argument(
+        "--action-repeat",
+        type=cli.positive_int,
+        default=1,
+        metavar="K",
+        help="hold each action for K control steps (the agent decides every K dt; default 1)",
+    )
+    p.add_argument(
+        "--normalize",
+        action="store_true",
+        help="train behind VecNormalize (observations and rewards); the statistics are saved with the agent",
+    )
+    p.add_argument(
+        "--perturb",
+        type=lambda t: t if t == "dfki" else cli.json_object(t),
+        help="train under the robustness axes, one perturbation per member and episode: 'dfki' (the DFKI "
+        "benchmark's ranges) or a JSON dict of mbs_envs.envs.perturbed.TrainingPerturbations' fields",
+    )
+    p.add_argument(
+        "--init",
+        type=pathlib.Path,
+        help="continue the agent saved in this folder (e.g. one of an earlier task version); {seed} stands for the run seed",
+    )
+    p.add_argument(
+        "--eval-seeds", type=cli.positive_int, default=10, help="validation episodes per evaluation (default 10)"
+    )
     p.add_argument("--eval-every", type=cli.positive_int, help="env-steps between evaluations (default steps/10)")
     p.add_argument("--checkpoint-every", type=cli.positive_int, help="env-steps between checkpoints")
     p.add_argument("--tensorboard", action="store_true")
-    p.add_argument("--overwrite", action="store_true", help="replace an agent already in --out (a folder another run is writing is refused)")
-    p.add_argument("--ray", nargs="?", const="local", help="run the seeds on Ray (cluster ADDRESS, or a local instance)")
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace an agent already in --out (a folder another run is writing is refused)",
+    )
+    p.add_argument(
+        "--ray", nargs="?", const="local", help="run the seeds on Ray (cluster ADDRESS, or a local instance)"
+    )
     return p.parse_args(argv)
 
 

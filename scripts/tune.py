@@ -45,11 +45,18 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--out", required=True, type=pathlib.Path, help="folder for the results")
     p.add_argument("--seeds", type=int, default=10, help="tuning seeds per condition (default 10)")
     p.add_argument("--scene", action="append", choices=list(SCENES), help="scene(s) (default all)")
-    p.add_argument("--controller", action="append", help="controller(s) by display name, e.g. 'adaptive swing-up + LQR' (default all)")
+    p.add_argument(
+        "--controller",
+        action="append",
+        help="controller(s) by display name, e.g. 'adaptive swing-up + LQR' (default all)",
+    )
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--write", action="store_true", help="store the chosen gains in controllers/tuned.json")
-    p.add_argument("--refine-only", action="store_true",
-                   help="skip the first stage: refine the stored pick (controllers/tuned.json) in the second stage, where one exists")
+    p.add_argument(
+        "--refine-only",
+        action="store_true",
+        help="skip the first stage: refine the stored pick (controllers/tuned.json) in the second stage, where one exists",
+    )
     return p.parse_args(argv)
 
 
@@ -71,7 +78,9 @@ def tune_one(task: dict) -> dict:
     torch.set_num_threads(1)
     tic = time.perf_counter()
     best, rows = tuning.tune(task["scene"], task["controller"], n_seeds=task["seeds"], start=task.get("start"))
-    old = tuning.score(task["scene"], task["controller"], tuned.FALLBACK[task["controller"]], tuning.tuning_seeds(task["seeds"]))
+    old = tuning.score(
+        task["scene"], task["controller"], tuned.FALLBACK[task["controller"]], tuning.tuning_seeds(task["seeds"])
+    )
     return {**task, "best": best, "rows": rows, "wall_s": time.perf_counter() - tic,
             "pre_tuning": {"entry": tuned.FALLBACK[task["controller"]], "failure_rate": old.failure_rate, "error": old.error}}  # fmt: skip
 
@@ -108,12 +117,16 @@ def run(args: argparse.Namespace) -> dict:
         "gains": {},
         "scores": {},
     }
-    command = "python scripts/tune.py " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("tune.py") else None
+    command = (
+        "python scripts/tune.py " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("tune.py") else None
+    )
     for r in results:
         env_id = SCENES[r["scene"]][0]
         record["gains"].setdefault(env_id, {})[r["controller"]] = r["best"]
         chosen = next(x for x in r["rows"] if x["entry"] == r["best"])
-        grid = tuning.GRIDS[r["controller"]]() + (tuning.REFINE[r["controller"]](r["best"]) if r["controller"] in tuning.REFINE else [])
+        grid = tuning.GRIDS[r["controller"]]() + (
+            tuning.REFINE[r["controller"]](r["best"]) if r["controller"] in tuning.REFINE else []
+        )
         edge = tuning.at_grid_edge(r["best"], grid)
         score = {"tuned": {"failure_rate": chosen["failure_rate"], "error": chosen["error"]},
                  "pre_tuning": r["pre_tuning"], "at_grid_edge": edge, "wall_s": r["wall_s"], "command": command,
@@ -134,9 +147,13 @@ def run(args: argparse.Namespace) -> dict:
             for key in ("gains", "scores"):
                 old = stored.get(key, {})
                 record[key] = {env: {**old.get(env, {}), **record[key].get(env, {})} for env in {**old, **record[key]}}
-            if stored.get("tuning_seeds"):  # the range covering every stored entry's seeds (each new entry states its own)
-                record["tuning_seeds"] = [min(stored["tuning_seeds"][0], record["tuning_seeds"][0]),
-                                          max(stored["tuning_seeds"][1], record["tuning_seeds"][1])]
+            if stored.get(
+                "tuning_seeds"
+            ):  # the range covering every stored entry's seeds (each new entry states its own)
+                record["tuning_seeds"] = [
+                    min(stored["tuning_seeds"][0], record["tuning_seeds"][0]),
+                    max(stored["tuning_seeds"][1], record["tuning_seeds"][1]),
+                ]
         tuned.PATH.write_text(json.dumps(record, indent=2) + "\n")
         tuned.clear_cache()
         print(f"written {tuned.PATH}")
@@ -154,7 +171,11 @@ def plot(results: list[dict], path: pathlib.Path) -> None:
     for ax, scene in zip(axes[0], scenes):
         for r in (x for x in joint if x["scene"] == scene):
             for zeta, style in ((0.7, "--"), (1.0, "-")):
-                pts = [(x["entry"]["omega"], x["error"], x["failure_rate"]) for x in r["rows"] if x["entry"]["zeta"] == zeta]
+                pts = [
+                    (x["entry"]["omega"], x["error"], x["failure_rate"])
+                    for x in r["rows"]
+                    if x["entry"]["zeta"] == zeta
+                ]
                 w, e, fr = (np.array(v, float) for v in zip(*pts))
                 line = ax.plot(w, e, style + "o", ms=3, label=f"{r['controller']}, zeta {zeta}")[0]
                 bad = fr > 0

@@ -72,7 +72,9 @@ def run(args: argparse.Namespace) -> dict:
     plot(rows, args.out / "learning_curves.png", args.env, args.algo)
     for r in rows:
         mark = "*" if r["hyper"] == best else " "
-        print(f"{mark} {r['hyper']}: failures {r['failure_rate']:.0%}, return {r['return']:.1f}, {r['train_wall_s']:.0f} s")
+        print(
+            f"{mark} {r['hyper']}: failures {r['failure_rate']:.0%}, return {r['return']:.1f}, {r['train_wall_s']:.0f} s"
+        )
     flags = [f"--action-repeat {v}" if k == "action_repeat" else f"--hyper {k}={v}" for k, v in best.items()]
     print(f"best {best}; train the shipped seeds with: " + " ".join(flags))
     return record

@@ -34,13 +34,22 @@ from mbs_envs.studies.training import load_agent
 
 #: catch levels from 300 to 1e7 (the first grid ended at 3e4, where the pendubot's pick sat at its edge: widened),
 #: each with the hysteresis factors 2, 4 (the model-based controller's) and 16 (added in the third round)
-GRID = [{"catch": c, "release": r} for c in (300.0, 1000.0, 3000.0, 10000.0, 30000.0, 1e5, 3e5, 1e6, 3e6, 1e7) for r in (2.0, 4.0, 16.0)]
+GRID = [
+    {"catch": c, "release": r}
+    for c in (300.0, 1000.0, 3000.0, 10000.0, 30000.0, 1e5, 3e5, 1e6, 3e6, 1e7)
+    for r in (2.0, 4.0, 16.0)
+]
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", required=True, type=pathlib.Path)
-    p.add_argument("--agents", type=pathlib.Path, default=pathlib.Path("agents"), help="root of the shipped agents (default agents/)")
+    p.add_argument(
+        "--agents",
+        type=pathlib.Path,
+        default=pathlib.Path("agents"),
+        help="root of the shipped agents (default agents/)",
+    )
     p.add_argument("--seeds", type=int, default=40, help="tuning seeds per condition (default 40)")
     p.add_argument("--scene", action="append", help="scene(s) (default every swing-up scene)")
     p.add_argument("--write", action="store_true", help="store the picks in controllers/tuned.json")
@@ -71,7 +80,11 @@ def run(args: argparse.Namespace) -> dict:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
-    command = "python scripts/tune_handover.py " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("tune_handover.py") else None
+    command = (
+        "python scripts/tune_handover.py " + " ".join(sys.argv[1:])
+        if sys.argv and sys.argv[0].endswith("tune_handover.py")
+        else None
+    )
     record["command"] = command
     (args.out / "handover_tuning.json").write_text(json.dumps(record, indent=2))
     plot(rows, args.out / "handover_tuning.png")
@@ -98,8 +111,18 @@ def plot(rows: list[dict], path: pathlib.Path) -> None:
         for cond in dict.fromkeys(r["condition"] for r in rows):
             mine = [r for r in rows if r["scene"] == scene and r["condition"] == cond]
             levels = sorted({r["catch"] for r in mine})
-            ax.plot(levels, [np.mean([r["success"] for r in mine if r["catch"] == c]) for c in levels], marker="o", label=f"{scene}, {cond}")
-    ax.set(xscale="log", xlabel="catch level of x^T S x", ylabel="success (mean over agents)", title="RL + LQR: where the LQR takes over")
+            ax.plot(
+                levels,
+                [np.mean([r["success"] for r in mine if r["catch"] == c]) for c in levels],
+                marker="o",
+                label=f"{scene}, {cond}",
+            )
+    ax.set(
+        xscale="log",
+        xlabel="catch level of x^T S x",
+        ylabel="success (mean over agents)",
+        title="RL + LQR: where the LQR takes over",
+    )
     ax.legend(fontsize=7)
     save(fig, path)
 

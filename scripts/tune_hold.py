@@ -40,7 +40,11 @@ from mbs_envs.studies.plotting import pyplot, save
 
 #: the search's ranges: log10 of the weights (passive angle, driven angle, rates) of each gain, and the edge [rad],
 #: lead [s] and way back [rad]
-LOG_HOLD, LOG_EDGE, LOG_RECOVER = ((4.5, -1.5, -1.0), (7.5, 1.0, 1.5)), ((-2.5, -2.0, 1.0), (1.5, 1.0, 4.0)), ((-2.0, -1.0, -3.0), (3.0, 4.5, 2.0))
+LOG_HOLD, LOG_EDGE, LOG_RECOVER = (
+    ((4.5, -1.5, -1.0), (7.5, 1.0, 1.5)),
+    ((-2.5, -2.0, 1.0), (1.5, 1.0, 4.0)),
+    ((-2.0, -1.0, -3.0), (3.0, 4.5, 2.0)),
+)
 EDGE, LEAD, BACK = (0.065, 0.09), (0.0, 0.06), (0.04, 0.1)
 
 
@@ -84,7 +88,9 @@ def main(argv: list[str] | None = None) -> int:
     tol = float(getattr(env, "upright_tolerance", 0.1))
 
     def make(hold_q: np.ndarray, edge_q: np.ndarray, recover_q: np.ndarray) -> np.ndarray:
-        K = PlannedSwingUp(env, hold=False, hold_law="edge", hold_q=hold_q, edge_q=edge_q, recover_q=recover_q).hold_gains_of(A[None], B[None])[0]
+        K = PlannedSwingUp(
+            env, hold=False, hold_law="edge", hold_q=hold_q, edge_q=edge_q, recover_q=recover_q
+        ).hold_gains_of(A[None], B[None])[0]
         if not np.isfinite(K).all():
             raise ValueError("no stabilizing gain")
         return K[:12].reshape(3, 4)  # (the edge law: inside, edge, recovery)
@@ -103,8 +109,15 @@ def main(argv: list[str] | None = None) -> int:
     cands = draw(np.random.default_rng(args.seed), make, args.candidates)
     shares = score(cands, args.windows, 100 + args.seed, "search")
     order = np.argsort(shares)[::-1][: args.top]
-    default_cand = {"hold_q": HOLD_Q, "edge_q": EDGE_Q, "recover_q": RECOVER_Q, "K": make(HOLD_Q, EDGE_Q, RECOVER_Q), "edge": base.edge,
-                    "edge_lead": base.edge_lead, "hold_back": base.hold_back}  # fmt: skip  (base has the default settings)
+    default_cand = {
+        "hold_q": HOLD_Q,
+        "edge_q": EDGE_Q,
+        "recover_q": RECOVER_Q,
+        "K": make(HOLD_Q, EDGE_Q, RECOVER_Q),
+        "edge": base.edge,
+        "edge_lead": base.edge_lead,
+        "hold_back": base.hold_back,
+    }  # fmt: skip  (base has the default settings)
     checked = [cands[i] for i in order] + [default_cand]
     check = score(checked, args.check_windows, 999, "check")
     fields = ["hold_q", "edge_q", "recover_q", "edge", "edge_lead", "hold_back"]
@@ -122,12 +135,19 @@ def main(argv: list[str] | None = None) -> int:
     ax.plot(np.sort(shares)[::-1], ".", ms=3, label=f"search ({args.windows} windows each)")
     ax.plot(range(len(order)), check[:-1], "x", label=f"best {len(order)}, checked ({args.check_windows} others)")
     ax.axhline(check[-1], color="k", lw=0.8, ls="--", label=f"defaults, checked: {check[-1]:.1%}")
-    ax.set(xlabel="candidate (by search share)", ylabel="share of windows held", title=f"hold search, {args.env}, noise {args.noise}")
+    ax.set(
+        xlabel="candidate (by search share)",
+        ylabel="share of windows held",
+        title=f"hold search, {args.env}, noise {args.noise}",
+    )
     ax.legend(fontsize=8)
     save(fig, args.out / "hold_search.png")
     for r in rows:
-        print(f"{r['check']:.4f}  search {r['search'] if r['search'] is None else round(r['search'], 4)}  "
-              + "  ".join(f"{k} {np.round(r[k], 4).tolist()}" for k in fields) + ("  (defaults)" if r["default"] else ""))
+        print(
+            f"{r['check']:.4f}  search {r['search'] if r['search'] is None else round(r['search'], 4)}  "
+            + "  ".join(f"{k} {np.round(r[k], 4).tolist()}" for k in fields)
+            + ("  (defaults)" if r["default"] else "")
+        )
     return 0
 
 

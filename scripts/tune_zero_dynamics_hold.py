@@ -55,7 +55,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--rescue-reaches", type=float, nargs="+", default=[0.15, 0.2, 0.3], help="[rad]")
     p.add_argument("--triggers", type=float, nargs="+", default=[1.1, 1.2, 1.35])
     p.add_argument("--releases", type=float, nargs="+", default=[0.5, 0.7])
-    p.add_argument("--mismatch", type=float, nargs="*", default=[-0.02, -0.01, 0.01, 0.02], help="plants' mass errors p")
+    p.add_argument(
+        "--mismatch", type=float, nargs="*", default=[-0.02, -0.01, 0.01, 0.02], help="plants' mass errors p"
+    )
     p.add_argument("--windows", type=int, default=1000, help="windows per setting and plant")
     p.add_argument("--noise", type=float, default=0.01, help="observation noise std per state entry [rad, rad/s]")
     p.add_argument("--seed", type=int, default=13, help="the windows' noise")
@@ -66,7 +68,9 @@ def mismatched(model, p: float):
     """``model`` (a :class:`mbs_envs.models.planar2r.Planar2R`) with ``m2``, ``I2`` times ``1 + p`` and ``m1`` times
     ``1 - p``."""
     q = model.params
-    return type(model)(dataclasses.replace(q, m2=q.m2 * (1 + p), I2=q.I2 * (1 + p), m1=q.m1 * (1 - p)), driven=model.driven)
+    return type(model)(
+        dataclasses.replace(q, m2=q.m2 * (1 + p), I2=q.I2 * (1 + p), m1=q.m1 * (1 - p)), driven=model.driven
+    )
 
 
 def shares(ctrl: PlannedSwingUp, settings: list[region.ZeroDynamicsHold], plant, noise: float, tol: float, windows: int, settle: float,
@@ -95,16 +99,34 @@ def main(argv: list[str] | None = None) -> int:
     env = gym.make(args.env).unwrapped
     ctrl = PlannedSwingUp(env, hold=False, hold_law="zero_dynamics")
     tol = float(getattr(env, "upright_tolerance", 0.1))
-    laws = [region.ZeroDynamicsHold(rate, reach, omega, trigger=np.inf) for rate, reach, omega in itertools.product(args.rates, args.reaches, args.omegas)]
+    laws = [
+        region.ZeroDynamicsHold(rate, reach, omega, trigger=np.inf)
+        for rate, reach, omega in itertools.product(args.rates, args.reaches, args.omegas)
+    ]
     chunks = [laws[j : j + 16] for j in range(0, len(laws), 16)]  # (16 settings a batch: memory)
     law_shares = np.concatenate([shares(ctrl, part, ctrl.model, args.noise, tol, args.windows, 3.0, args.seed)
                                  for part in tqdm(chunks, desc="law", file=sys.stdout)])  # fmt: skip
     best = laws[int(np.argmax(law_shares))]
-    rescues = [dataclasses.replace(best, rescue_reach=r, trigger=t, release=s) for r, t, s in
-               itertools.product(args.rescue_reaches, args.triggers, args.releases)] + [best]  # fmt: skip  (the last: no rescue)
+    rescues = [
+        dataclasses.replace(best, rescue_reach=r, trigger=t, release=s)
+        for r, t, s in itertools.product(args.rescue_reaches, args.triggers, args.releases)
+    ] + [best]  # fmt: skip  (the last: no rescue)
     plants = [0.0] + list(args.mismatch)
-    rescue_shares = np.array([shares(ctrl, rescues, mismatched(ctrl.model, p) if p else ctrl.model, args.noise, tol, args.windows, 7.0, args.seed)
-                              for p in tqdm(plants, desc="rescue", file=sys.stdout)]).T  # fmt: skip  (settings, plants)
+    rescue_shares = np.array(
+        [
+            shares(
+                ctrl,
+                rescues,
+                mismatched(ctrl.model, p) if p else ctrl.model,
+                args.noise,
+                tol,
+                args.windows,
+                7.0,
+                args.seed,
+            )
+            for p in tqdm(plants, desc="rescue", file=sys.stdout)
+        ]
+    ).T  # fmt: skip  (settings, plants)
     pick = int(np.argmax(rescue_shares.mean(axis=1)))
     law_fields, rescue_fields = ["rate", "reach", "omega"], ["rescue_reach", "trigger", "release"]
     with open(args.out / "zd_law.csv", "w", newline="") as f:
@@ -129,8 +151,10 @@ def main(argv: list[str] | None = None) -> int:
     a2.set(xlabel="rescue setting (the last: none)", title="the rescue, 7 s of settling")
     a2.legend(fontsize=7)
     save(fig, args.out / "zd_search.png")
-    print(f"best law {as_dict(best)}: {law_shares.max():.4f}; pick {as_dict(rescues[pick])}: "
-          f"{np.round(rescue_shares[pick], 4).tolist()} (no rescue {np.round(rescue_shares[-1], 4).tolist()})")
+    print(
+        f"best law {as_dict(best)}: {law_shares.max():.4f}; pick {as_dict(rescues[pick])}: "
+        f"{np.round(rescue_shares[pick], 4).tolist()} (no rescue {np.round(rescue_shares[-1], 4).tolist()})"
+    )
     return 0
 
 

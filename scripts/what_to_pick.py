@@ -30,11 +30,26 @@ from mbs_envs import integrators
 from mbs_envs.studies import numerics
 from mbs_envs.studies import stiff_cases as sc
 
-METHODS = ("euler", "semi_implicit_euler", "midpoint", "rk4", "implicit_euler", "sdirk2", "sdirk3", "joint_implicit_euler")
+METHODS = (
+    "euler",
+    "semi_implicit_euler",
+    "midpoint",
+    "rk4",
+    "implicit_euler",
+    "sdirk2",
+    "sdirk3",
+    "joint_implicit_euler",
+)
 
 
-def run(out: pathlib.Path, cases: list[str] | None = None, methods: list[str] | None = None, accurate: float = 1e-6,
-        repeats: int = 3, add: bool = False) -> dict:
+def run(
+    out: pathlib.Path,
+    cases: list[str] | None = None,
+    methods: list[str] | None = None,
+    accurate: float = 1e-6,
+    repeats: int = 3,
+    add: bool = False,
+) -> dict:
     t_start = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
     known = sc.regimes()
@@ -56,14 +71,23 @@ def run(out: pathlib.Path, cases: list[str] | None = None, methods: list[str] | 
                     case_rows += sc.pick_rows(case, ref, method, accurate=accurate, repeats=repeats)
                 bar.update()
             rows += case_rows
-            picks.append({"regime": regime, "case": case.scene, "reference_error_estimate": ref.error_estimate, **pick(case_rows)})
+            picks.append(
+                {
+                    "regime": regime,
+                    "case": case.scene,
+                    "reference_error_estimate": ref.error_estimate,
+                    **pick(case_rows),
+                }
+            )
     run_time = time.perf_counter() - t_start
     if add:  # the other cases' runs and picks as they were; these cases' replaced
         meta = json.loads((out / "what_to_pick.json").read_text())
         names = {c.scene for _, c in chosen}
         rows = [r for r in read_rows(out) if r["case"] not in names] + rows
         order = {c.scene: k for k, (_, c) in enumerate(known)}
-        picks = sorted([p for p in meta["picks"] if p["case"] not in names] + picks, key=lambda p: order.get(p["case"], len(order)))
+        picks = sorted(
+            [p for p in meta["picks"] if p["case"] not in names] + picks, key=lambda p: order.get(p["case"], len(order))
+        )
         run_time += meta["run_time_s"]
     with open(out / "what_to_pick.csv", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
@@ -118,7 +142,9 @@ def report(picks: list[dict], accurate: float = 1e-6) -> str:
              "stable one (not flagged as diverged, whatever its error); in brackets its trajectory error and time.", "",
              f"| regime | case | cheapest to {accurate:g} | cheapest usable | cheapest stable |", "|---|---|---|---|---|"]  # fmt: skip
     for p in picks:
-        lines.append(f"| {p['regime']} | {p['case']} | {cell(p['accurate'])} | {cell(p['usable'])} | {cell(p['stable'])} |")
+        lines.append(
+            f"| {p['regime']} | {p['case']} | {cell(p['accurate'])} | {cell(p['usable'])} | {cell(p['stable'])} |"
+        )
     return "\n".join(lines) + "\n"
 
 
@@ -129,8 +155,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--methods", nargs="+", help="subset of integrators")
     p.add_argument("--accurate", type=float, default=1e-6, help="trajectory error target (default 1e-6)")
     p.add_argument("--repeats", type=int, default=3, help="timed runs after the warm-up (default 3)")
-    p.add_argument("--from-csv", action="store_true", help="rewrite the picks and the table from the CSV in --out, no runs")
-    p.add_argument("--add", action="store_true", help="run only --cases and merge them into the results already in --out")
+    p.add_argument(
+        "--from-csv", action="store_true", help="rewrite the picks and the table from the CSV in --out, no runs"
+    )
+    p.add_argument(
+        "--add", action="store_true", help="run only --cases and merge them into the results already in --out"
+    )
     a = p.parse_args(argv)
     if a.from_csv:
         from_csv(a.out)

@@ -42,7 +42,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--repeats", type=int, help="timed runs per setting after the warm-up (default 5, quick 3)")
     p.add_argument("--n-fixed", type=int, help="number of dt values (halving from the interval)")
     p.add_argument("--n-adaptive", type=int, help="number of rtol values")
-    p.add_argument("--add", action="store_true", help="merge into the results already in --out (same problems replaced)")
+    p.add_argument(
+        "--add", action="store_true", help="merge into the results already in --out (same problems replaced)"
+    )
     p.add_argument("--replot", action="store_true", help="redraw the plots from the CSV and JSON in --out, no runs")
     a = p.parse_args(argv)
     if a.replot:

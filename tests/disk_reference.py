@@ -29,7 +29,10 @@ def disk_functions():
     W = sp.simplify(Rdot * R.T)
     w = sp.Matrix([W[2, 1], W[0, 2], W[1, 0]])
     I_body = sp.diag(m * r**2 / 4, m * r**2 / 2, m * r**2 / 4)
-    T = sp.Rational(1, 2) * m * (dq[0] ** 2 + dq[1] ** 2 + dq[2] ** 2) + sp.Rational(1, 2) * (w.T * R * I_body * R.T * w)[0]
+    T = (
+        sp.Rational(1, 2) * m * (dq[0] ** 2 + dq[1] ** 2 + dq[2] ** 2)
+        + sp.Rational(1, 2) * (w.T * R * I_body * R.T * w)[0]
+    )
     V = m * g * z
     M, Cv, G = lagrange(sp.expand(T), V, q, dq, simplify=False)
     n = R * sp.Matrix([0, 1, 0])
@@ -40,7 +43,10 @@ def disk_functions():
     Psi = vC.jacobian(dq)
     dPsi_v = (Psi * sp.Matrix(dq)).jacobian(q) * sp.Matrix(dq)
     args = [m, r, g] + q + dq
-    f = {k: sp.lambdify(args, e, "numpy") for k, e in dict(M=M, Cv=Cv, G=G, Psi=Psi, dPsi_v=dPsi_v, T=T, R=R, rC=rC).items()}
+    f = {
+        k: sp.lambdify(args, e, "numpy")
+        for k, e in dict(M=M, Cv=Cv, G=G, Psi=Psi, dPsi_v=dPsi_v, T=T, R=R, rC=rC).items()
+    }
     return f
 
 

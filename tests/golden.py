@@ -80,7 +80,9 @@ def record() -> dict[str, np.ndarray]:
 
 
 if __name__ == "__main__":
-    commit = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, cwd=PATH.parent).stdout.strip()
+    commit = subprocess.run(
+        ["git", "rev-parse", "HEAD"], capture_output=True, text=True, cwd=PATH.parent
+    ).stdout.strip()
     PATH.parent.mkdir(exist_ok=True)
     np.savez_compressed(PATH, commit=np.array(commit), **record())
     print(f"wrote {PATH} ({PATH.stat().st_size / 1e3:.0f} kB) from commit {commit}")

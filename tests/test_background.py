@@ -48,7 +48,9 @@ def _python_hashes(steps: int, ids: list[str]) -> dict:
     """The episodes on the kernels' Python alone, in a fresh process (``MBS_ENVS_JIT=python``: nothing compiled)."""
     code = EPISODES + "\nimport json, sys\nprint(json.dumps(hashes(int(sys.argv[1]), sys.argv[2:])))\n"
     env = {**os.environ, background.ENV_VAR: "python"}
-    res = subprocess.run([sys.executable, "-c", code, str(steps), *ids], env=env, capture_output=True, text=True, timeout=900)
+    res = subprocess.run(
+        [sys.executable, "-c", code, str(steps), *ids], env=env, capture_output=True, text=True, timeout=900
+    )
     assert res.returncode == 0, res.stderr[-3000:]
     return json.loads(res.stdout.strip().splitlines()[-1])
 
@@ -64,8 +66,13 @@ def _compiled_hashes(steps: int, ids: list[str]) -> dict:
 @pytest.mark.parametrize(
     "ids",
     [
-        pytest.param(["mbs_envs/Planar2R-v0", "mbs_envs/FourBar-v0", "mbs_envs/SpatialChain-v0", "mbs_envs/Acrobot-v1"], id="fast"),
-        pytest.param(sorted(k for k in gym.registry if k.startswith("mbs_envs/")), id="every-id", marks=pytest.mark.slow),
+        pytest.param(
+            ["mbs_envs/Planar2R-v0", "mbs_envs/FourBar-v0", "mbs_envs/SpatialChain-v0", "mbs_envs/Acrobot-v1"],
+            id="fast",
+        ),
+        pytest.param(
+            sorted(k for k in gym.registry if k.startswith("mbs_envs/")), id="every-id", marks=pytest.mark.slow
+        ),
     ],
 )
 def test_episodes_run_as_python_are_bit_for_bit_the_compiled_ones(ids):
@@ -99,7 +106,9 @@ def test_a_new_call_runs_as_python_until_the_child_process_has_compiled_it(monke
     import importlib.util
 
     monkeypatch.setenv(background.ENV_VAR, "background")
-    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "cache"))  # the child's cache (this process's is set at import)
+    monkeypatch.setenv(
+        "NUMBA_CACHE_DIR", str(tmp_path / "cache")
+    )  # the child's cache (this process's is set at import)
     path = tmp_path / "bg_kernel_module.py"
     path.write_text(KERNEL)
     spec = importlib.util.spec_from_file_location("bg_kernel_module", path)
@@ -172,7 +181,9 @@ def test_numba_power_is_numbas_power():
 
     rng = np.random.default_rng(1)
     with np.errstate(all="ignore"):
-        for a in np.r_[rng.normal(0, 10, 2000), rng.lognormal(0, 20, 200), np.inf, -np.inf, np.nan]:  # (numba raises for 0 ** -2)
+        for a in np.r_[
+            rng.normal(0, 10, 2000), rng.lognormal(0, 20, 200), np.inf, -np.inf, np.nan
+        ]:  # (numba raises for 0 ** -2)
             for n in (0, 1, 5, -3):
                 want = powers(a, n)
                 k = 8 if 0.0 < a < np.inf else 6  # libm's pow of a float exponent: for positive finite bases (math.pow
@@ -188,7 +199,13 @@ def test_the_python_fma_is_the_instruction():
     rng = np.random.default_rng(2)
     a, b = rng.normal(size=5000) * 10.0 ** rng.integers(-200, 200, 5000), rng.normal(size=5000)
     c = -a * b  # near-cancellations, where a separate product and sum would differ most
-    cases = list(zip(a, b, c)) + [(0.0, -1.0, -0.0), (-0.0, 1.0, -0.0), (0.0, 1.0, -0.0), (1.0, 1.0, -1.0), (np.inf, 0.0, 1.0)]
+    cases = list(zip(a, b, c)) + [
+        (0.0, -1.0, -0.0),
+        (-0.0, 1.0, -0.0),
+        (0.0, 1.0, -0.0),
+        (1.0, 1.0, -1.0),
+        (np.inf, 0.0, 1.0),
+    ]
     for x, y, z in cases:
         assert np.float64(interpreted.fma_exact(x, y, z)).tobytes() == np.float64(fused(x, y, z)).tobytes(), (x, y, z)
 
@@ -205,7 +222,9 @@ def test_a_single_env_switches_to_compiled_code_without_changing_its_episode(mon
         rng = np.random.default_rng(5)
         h = hashlib.sha1(obs.tobytes())
         for i in range(60):
-            u._direct_call = None  # looked up again at every step (a real switch: when the child's answers move the generation)
+            u._direct_call = (
+                None  # looked up again at every step (a real switch: when the child's answers move the generation)
+            )
             if i < forced:  # the Python of its step, as while the child process compiles
                 monkeypatch.setattr(background, "entry", lambda k, a: (interpreted.interpreted(k), False))
             else:

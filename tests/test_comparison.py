@@ -170,7 +170,9 @@ def test_controllers_default_to_the_tuned_gains():
     for env_id, by_controller in record["gains"].items():
         env = gym.make(env_id)
         for name, entry in by_controller.items():
-            if name.endswith(" (robust catch)"):  # a catch tuned for robustness: read by scripts/dfki.py --robust-catch only
+            if name.endswith(
+                " (robust catch)"
+            ):  # a catch tuned for robustness: read by scripts/dfki.py --robust-catch only
                 assert tuned.stored_entry(env_id, name) == entry and set(entry) <= {"lqr_r", "catch", "release"}
                 continue
             assert tuned.tuned_gains(env, name) == entry
@@ -185,13 +187,21 @@ def test_the_headline_never_calls_a_policy_beaten_when_it_wins_on_return():
     from mbs_envs.studies.comparison import verdict_against
 
     pd = {"success": 1.0, "rms_error_settled": 0.01, "return": -5.0}
-    assert verdict_against({"success": 1.0, "rms_error_settled": 0.03, "return": -0.9}, pd) == "beats PD on return, not on settled error"
-    assert verdict_against({"success": 1.0, "rms_error_settled": 0.005, "return": -9.0}, pd) == "beats PD on settled error, not on return"
+    assert (
+        verdict_against({"success": 1.0, "rms_error_settled": 0.03, "return": -0.9}, pd)
+        == "beats PD on return, not on settled error"
+    )
+    assert (
+        verdict_against({"success": 1.0, "rms_error_settled": 0.005, "return": -9.0}, pd)
+        == "beats PD on settled error, not on return"
+    )
     assert verdict_against({"success": 1.0, "rms_error_settled": 0.005, "return": -1.0}, pd) == "beats PD"
     assert verdict_against({"success": 1.0, "rms_error_settled": 0.03, "return": -9.0}, pd) == "does not beat PD"
     # a failed episode never improves a score: lower success loses on both, whatever the numbers
     assert verdict_against({"success": 0.95, "rms_error_settled": 1e-9, "return": 1e9}, pd) == "does not beat PD"
-    assert verdict_against({"success": 1.0, "rms_error_settled": 0.01, "return": -5.0}, pd) == "does not beat PD"  # ties win nothing
+    assert (
+        verdict_against({"success": 1.0, "rms_error_settled": 0.01, "return": -5.0}, pd) == "does not beat PD"
+    )  # ties win nothing
 
 
 def test_obs_normalization_is_vecnormalize_s_and_survives_saving(tmp_path):
@@ -228,25 +238,39 @@ def test_swing_up_agents_also_run_as_rl_plus_lqr_on_the_model_based_plus_rl_side
     swing, track = find_agents(tmp_path, "Acrobot"), find_agents(tmp_path, "Planar2R")
     assert sorted(swing) == ["PPO", "PPO + LQR"] and sorted(track) == ["PPO"]
     assert swing["PPO + LQR"] == [HAND_OVER + p for p in swing["PPO"]] and len(swing["PPO"]) == 2
-    assert (kind_of("PPO"), kind_of("PPO + LQR"), kind_of("residual PPO")) == ("RL", "model-based + RL", "model-based + RL")
+    assert (kind_of("PPO"), kind_of("PPO + LQR"), kind_of("residual PPO")) == (
+        "RL",
+        "model-based + RL",
+        "model-based + RL",
+    )
 
 
 def test_a_reward_only_version_takes_its_plants_tuned_gains_even_with_entries_of_its_own():
     from mbs_envs.controllers import tuned
 
     v0, v1 = gym.make("mbs_envs/Acrobot-v0"), gym.make("mbs_envs/Acrobot-v1")
-    assert tuned.tuned_gains(v1, "swing-up + LQR") == tuned.tuned_gains(v0, "swing-up + LQR") != tuned.FALLBACK["swing-up + LQR"]
-    assert "mbs_envs/Acrobot-v1" in tuned._table()  # it has an entry (the RL + LQR catch), and still falls back per controller
+    assert (
+        tuned.tuned_gains(v1, "swing-up + LQR")
+        == tuned.tuned_gains(v0, "swing-up + LQR")
+        != tuned.FALLBACK["swing-up + LQR"]
+    )
+    assert (
+        "mbs_envs/Acrobot-v1" in tuned._table()
+    )  # it has an entry (the RL + LQR catch), and still falls back per controller
 
 
 def test_the_run_records_what_its_numbers_depend_on():
     from mbs_envs.studies import provenance
 
     rec = provenance.record()
-    assert set(rec) == {"python", "platform", "cpu", "libraries", "pinned"} and set(rec["libraries"]) == set(provenance.LIBRARIES)
+    assert set(rec) == {"python", "platform", "cpu", "libraries", "pinned"} and set(rec["libraries"]) == set(
+        provenance.LIBRARIES
+    )
     import numpy
 
-    assert rec["libraries"]["numpy"] == numpy.__version__ and f"numpy {numpy.__version__}" in provenance.summary_line(rec)
+    assert rec["libraries"]["numpy"] == numpy.__version__ and f"numpy {numpy.__version__}" in provenance.summary_line(
+        rec
+    )
     assert set(rec["cpu"]["flags"]) <= set(provenance.CPU_FLAGS)
     assert set(rec["pinned"]) == set(provenance.PINNED)
 
@@ -272,9 +296,13 @@ def test_the_evaluation_scripts_pin_mkl_before_torch_loads_and_keep_what_the_use
         "    print('refused:', e)\n"
     )
     env = {k: v for k, v in os.environ.items() if k not in provenance.PINNED}
-    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True).stdout.splitlines()
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
+    ).stdout.splitlines()
     assert out[0] == str(provenance.PINNED) and out[1] == "COMPATIBLE avx2"
     assert "MKL_CBWR=COMPATIBLE" in out[2] and out[3].startswith("refused: pin_numerics() must run before torch")
     env["MKL_CBWR"] = "AVX2"  # a user's own choice stays
-    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True).stdout.splitlines()
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
+    ).stdout.splitlines()
     assert out[1] == "AVX2 avx2"

@@ -213,7 +213,7 @@ def test_the_models_compiled_projection_and_multipliers_take_any_leading_shape(c
     q0[5, 0] = np.nan
     for shape in [(), (6,), (2, 3)]:
         n = int(np.prod(shape))
-        q, v, uu = (x[:max(n, 1)].reshape(shape + x.shape[1:]) for x in (q0, v0, u))
+        q, v, uu = (x[: max(n, 1)].reshape(shape + x.shape[1:]) for x in (q0, v0, u))
         for dtype in (np.float64, np.float32):
             qc, vc = model.project_compiled(q.astype(dtype), v.astype(dtype))
             with np.errstate(all="ignore"):
@@ -337,7 +337,9 @@ def test_fourbar_compiled_step_reports_an_opened_loop_like_the_numpy_path():
     slow = gym.make("mbs_envs/FourBar-v0", compiled=False, **kwargs)
     fast.reset(seed=1)
     slow.reset(seed=1)
-    fast.unwrapped.stabilization = slow.unwrapped.stabilization = fast.unwrapped.model.stabilization("projection", tol=1e-3)
+    fast.unwrapped.stabilization = slow.unwrapped.stabilization = fast.unwrapped.model.stabilization(
+        "projection", tol=1e-3
+    )
     q_before = slow.unwrapped.q
     (of, rf, tf, _, inf_f), (os_, rs, ts, _, inf_s) = step_both(fast, slow, np.ones(1))
     assert inf_f["diverged"] and inf_s["diverged"] and tf and ts
@@ -348,7 +350,10 @@ def test_fourbar_compiled_step_reports_an_opened_loop_like_the_numpy_path():
 def test_disk_compiled_step_reports_the_flat_singularity_like_the_numpy_path():
     """A disk pushed to fall flat: both paths end the episode as diverged at the same step, state kept."""
     kwargs = {"lean_limit": RollingDisk.flat_lean - 1e-3}
-    fast, slow = gym.make("mbs_envs/RollingDisk-v0", **kwargs), gym.make("mbs_envs/RollingDisk-v0", compiled=False, **kwargs)
+    fast, slow = (
+        gym.make("mbs_envs/RollingDisk-v0", **kwargs),
+        gym.make("mbs_envs/RollingDisk-v0", compiled=False, **kwargs),
+    )
     start = {"q": [0, 0, 0.3 * np.cos(1.4), 0, 1.4, 0], "v": [0, 0, 0, 0, 3.0, 0]}
     fast.reset(seed=0, options=start)
     slow.reset(seed=0, options=start)
@@ -490,7 +495,11 @@ def test_chain_kernels_take_whole_tiles_by_simd_with_the_member_paths_bits():
             th = np.ascontiguousarray(theta[:, k : k + 1])
             sc.acceleration_kernel(q[:, k : k + 1].copy(), v[:, k : k + 1].copy(), tau[:, k : k + 1].copy(), th, a1)
             sc.energy_kernel(q[:, k : k + 1].copy(), v[:, k : k + 1].copy(), th, E1)
-            assert np.array_equal(a[:, k].view(np.int64), a1[:, 0].view(np.int64)) or np.isnan(a[:, k]).all() and np.isnan(a1).all(), (friction, k)
+            assert (
+                np.array_equal(a[:, k].view(np.int64), a1[:, 0].view(np.int64))
+                or np.isnan(a[:, k]).all()
+                and np.isnan(a1).all()
+            ), (friction, k)
             assert E[k].tobytes() == E1[0].tobytes() or np.isnan(E[k]) and np.isnan(E1[0]), (friction, k)
 
 

@@ -57,7 +57,9 @@ def test_rank_deficient_constraints_take_the_pseudo_inverse_either_way():
     M, f, Psi, gamma = random_problem(rng, 5)
     Psi[:, 2] = Psi[:, 1]
     gamma[:, 2] = gamma[:, 1]  # consistent: the same constraint twice
-    (a, lam, cond), (a2, lam2, cond2) = (constrained_accelerations(M, f, Psi, gamma, conditioning=c) for c in (True, False))
+    (a, lam, cond), (a2, lam2, cond2) = (
+        constrained_accelerations(M, f, Psi, gamma, conditioning=c) for c in (True, False)
+    )
     np.testing.assert_array_equal(a2, a)
     np.testing.assert_array_equal(lam2, lam)
     assert np.all(cond > 1e12) and np.all(cond2 > 1e12)  # computed where the fast path was refused

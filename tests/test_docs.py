@@ -11,8 +11,10 @@ README = ROOT / "README.md"
 DOC_PAGES = sorted((ROOT / "docs").glob("*.md")) + sorted((ROOT / "docs" / "environments").glob("*.md"))
 
 #: development history a user must not read as current: numbered steps, issue numbers, run logs, the CPU of the day
-HISTORY = re.compile(r"\b[Ss]ession \d+|\b[Ii]ssues? \d+|\bthe run before\b|\b20\d\d-\d\d-\d\d\b|\bXeon\b|\bEPYC\b"
-                     r"|scenes_s\d+|\bcommit [0-9a-f]{7}\b")
+HISTORY = re.compile(
+    r"\b[Ss]ession \d+|\b[Ii]ssues? \d+|\bthe run before\b|\b20\d\d-\d\d-\d\d\b|\bXeon\b|\bEPYC\b"
+    r"|scenes_s\d+|\bcommit [0-9a-f]{7}\b"
+)
 
 
 def test_the_readme_is_an_overview_with_the_install_first():
@@ -63,7 +65,8 @@ def test_fill_refuses_missing_markers():
     with pytest.raises(ValueError, match="'dfki'"):
         glance.fill("no markers", {"dfki": "| x |"})
     assert glance.fill("a\n<!-- glance:x -->\nold\n<!-- /glance:x -->\nb", {"x": "new"}) == (
-        "a\n<!-- glance:x -->\nnew\n<!-- /glance:x -->\nb")
+        "a\n<!-- glance:x -->\nnew\n<!-- /glance:x -->\nb"
+    )
 
 
 @pytest.mark.parametrize("page", [README, *DOC_PAGES], ids=lambda p: str(p.relative_to(ROOT)))

@@ -108,7 +108,15 @@ def test_batched_equals_single_even_where_members_halve():
 
 def test_newton_failure_is_reported_as_divergence():
     """No step size rescues a NaN right-hand side: NaN state, flagged by simulate."""
-    tr = simulate(Planar2R(), [0.0, 0.0], [0.0, 0.0], 0.05, dt=0.01, integrator="sdirk2", u=lambda t, q, v: np.where(t > 0.02, np.nan, 0.0) * np.ones(2))
+    tr = simulate(
+        Planar2R(),
+        [0.0, 0.0],
+        [0.0, 0.0],
+        0.05,
+        dt=0.01,
+        integrator="sdirk2",
+        u=lambda t, q, v: np.where(t > 0.02, np.nan, 0.0) * np.ones(2),
+    )
     assert tr.diverged and np.all(np.isfinite(tr.q))
 
 
@@ -160,7 +168,9 @@ def test_names_are_listed_and_take_no_options():
 
 def test_adaptive_solves_count_their_steps_and_evaluations():
     stepper = integrators.get("radau", rtol=1e-8, atol=1e-8)
-    tr = simulate(Planar2R(b1=400.0, b2=400.0), [-1.0, 0.5], [1.0, -2.0], 0.2, dt=0.2, integrator=stepper, u=np.array([30.0, 5.0]))
+    tr = simulate(
+        Planar2R(b1=400.0, b2=400.0), [-1.0, 0.5], [1.0, -2.0], 0.2, dt=0.2, integrator=stepper, u=np.array([30.0, 5.0])
+    )
     assert not tr.diverged
     c = stepper.counters
     assert 0 < c["steps"] < c["evaluations"] and c["jacobians"] >= 1

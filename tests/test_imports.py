@@ -108,8 +108,16 @@ def test_the_numerics_studies_take_their_cases_from_the_registry(monkeypatch):
     free = work_precision.free_problems(0.2)
     stiff, singular = stiff_cases.stiff_cases(quick=True), stiff_cases.singular_cases()
     declared = [s for s in registry.SCENES if s.free_motions]
-    assert {s.name for s in declared} == {"Planar2R", "FourBar", "SerialChain", "SpatialChain", "RollingDisk", "SliderCrank", "CartDoublePendulum",
-                                            "CartPoleSwingUp"}
+    assert {s.name for s in declared} == {
+        "Planar2R",
+        "FourBar",
+        "SerialChain",
+        "SpatialChain",
+        "RollingDisk",
+        "SliderCrank",
+        "CartDoublePendulum",
+        "CartPoleSwingUp",
+    }
     assert [p.name for p in free] == [f"{m[0]}-free" for s in declared for m in registry.load(s.free_motions)()]
     assert all(p.steps == 5 and p.q0.dtype == np.float64 for p in free)
     for p in free:  # every free motion starts consistent with its model's constraints

@@ -49,7 +49,10 @@ def test_first_order_on_a_damped_driven_chain():
     q0, v0 = np.r_[-0.3, np.full(4, 0.3)], np.zeros(5)
     ref = simulate(chain, q0, v0, 1.0, dt=1.0, integrator="dop853", rtol=1e-12, atol=1e-12)
     assert not ref.diverged
-    errors = [np.max(np.abs(simulate(chain, q0, v0, 1.0, dt=dt, integrator=NAME).q[-1] - ref.q[-1])) for dt in (4e-3, 2e-3, 1e-3)]
+    errors = [
+        np.max(np.abs(simulate(chain, q0, v0, 1.0, dt=dt, integrator=NAME).q[-1] - ref.q[-1]))
+        for dt in (4e-3, 2e-3, 1e-3)
+    ]
     orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
     assert np.all(np.abs(orders - 1.0) < 0.15), (errors, orders)
 
@@ -119,7 +122,11 @@ def test_in_an_environment_and_its_refusals():
     with pytest.raises(ValueError, match="takes no options"):
         integrators.get(NAME, rtol=1e-3)
     assert not integrators.applies(NAME, FourBar()) and integrators.applies(NAME, Planar2R())
-    for bad in ({"kp": -1.0, "kd": 0.0, "q_ref": 0.0}, {"kp": 1.0, "kd": np.nan, "q_ref": 0.0}, {"kp": 1.0, "kd": 0.0, "q_ref": np.inf}):
+    for bad in (
+        {"kp": -1.0, "kd": 0.0, "q_ref": 0.0},
+        {"kp": 1.0, "kd": np.nan, "q_ref": 0.0},
+        {"kp": 1.0, "kd": 0.0, "q_ref": np.inf},
+    ):
         with pytest.raises(ValueError, match="JointPD"):
             JointPD(**bad)
 

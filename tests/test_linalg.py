@@ -10,7 +10,9 @@ from mbs_envs.dynamics.linalg import cross
 
 
 @settings(max_examples=50, deadline=None)
-@given(st.integers(0, 2**32 - 1), st.sampled_from([((3,), (3,)), ((5, 3), (5, 3)), ((4, 1, 3), (2, 3)), ((3,), (7, 3))]))
+@given(
+    st.integers(0, 2**32 - 1), st.sampled_from([((3,), (3,)), ((5, 3), (5, 3)), ((4, 1, 3), (2, 3)), ((3,), (7, 3))])
+)
 def test_cross_is_numpys_cross_bit_for_bit(seed, shapes):
     """The same products and differences as ``np.cross``: equal exactly, with broadcasting."""
     rng = np.random.default_rng(seed)

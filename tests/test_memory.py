@@ -22,11 +22,15 @@ def test_the_setting_applies_to_glibc_on_linux_unless_switched_off():
     assert not memory.wanted({}, "win32", "")
 
 
-@pytest.mark.skipif(not memory.wanted({}, sys.platform, __import__("platform").libc_ver()[0]), reason="glibc on Linux only")
+@pytest.mark.skipif(
+    not memory.wanted({}, sys.platform, __import__("platform").libc_ver()[0]), reason="glibc on Linux only"
+)
 def test_a_large_batched_step_faults_in_no_memory_once_a_vector_env_exists():
     """Without the setting a fresh process stepping 2048 ten-link chains faulted in 488 pages per step
     (glibc returned the step's work arrays to the OS each time; docs/performance.md); with it, none."""
-    venv = gym.make_vec("mbs_envs/SerialChain-v0", num_envs=2048, vectorization_mode="vector_entry_point", full_info=False)
+    venv = gym.make_vec(
+        "mbs_envs/SerialChain-v0", num_envs=2048, vectorization_mode="vector_entry_point", full_info=False
+    )
     assert memory.keep_freed_memory()  # applied by the vector env, once per process
     venv.reset(seed=0)
     actions = np.random.default_rng(0).uniform(-1, 1, (8, 2048, 10))

@@ -27,7 +27,8 @@ def test_run_tasks_keeps_the_order_of_the_tasks():
 def test_workers_end_when_the_study_that_started_them_is_killed(tmp_path, sig):
     """A study killed while its workers compute (the parent gets ``sig``) leaves none running."""
     script = tmp_path / "study.py"
-    script.write_text(textwrap.dedent(f"""
+    script.write_text(
+        textwrap.dedent(f"""
         import os, pathlib, time
         from mbs_envs.studies.parallel import run_tasks
 
@@ -37,7 +38,8 @@ def test_workers_end_when_the_study_that_started_them_is_killed(tmp_path, sig):
 
         if __name__ == "__main__":
             run_tasks(work, [0, 1], max_workers=2)
-    """))
+    """)
+    )
     study = subprocess.Popen([sys.executable, str(script)], cwd=tmp_path)
     deadline = time.monotonic() + 60
     while len(list(tmp_path.glob("worker*.pid"))) < 2:

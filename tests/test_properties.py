@@ -47,7 +47,11 @@ def disk(rng):
 
 def serial_state(model, rng, batch=()):
     n = model.nq
-    return rng.uniform(-np.pi, np.pi, batch + (n,)), rng.uniform(-5, 5, batch + (n,)), rng.uniform(-20, 20, batch + (model.nu,))
+    return (
+        rng.uniform(-np.pi, np.pi, batch + (n,)),
+        rng.uniform(-5, 5, batch + (n,)),
+        rng.uniform(-20, 20, batch + (model.nu,)),
+    )
 
 
 def constrained_state(model, rng):
@@ -100,7 +104,11 @@ def test_energy_rate_is_input_power_minus_friction_power(name, seed):
     eps = 1e-6
     dE = (model.energy(q + eps * v, v + eps * a) - model.energy(q - eps * v, v - eps * a)) / (2 * eps)
     expected = model.input_power(v, u) - model.friction_power(v)
-    power_scale = float(np.abs(v) @ np.abs(model.mass_matrix(q) @ a)) + abs(float(model.input_power(v, u))) + abs(float(model.friction_power(v)))
+    power_scale = (
+        float(np.abs(v) @ np.abs(model.mass_matrix(q) @ a))
+        + abs(float(model.input_power(v, u)))
+        + abs(float(model.friction_power(v)))
+    )
     scale = abs(float(model.energy(q, v))) + power_scale + 1.0
     # measured worst over 200 draws per model: 9.5e-10 of scale (the disk); 1e-7 leaves 100x
     assert abs(float(dE) - float(expected)) < 1e-7 * scale

@@ -33,7 +33,9 @@ def test_readme_usage_examples_run(tmp_path):
     script = tmp_path / "usage.py"
     script.write_text("\n".join(blocks))
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
-    res = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
+    res = subprocess.run(
+        [sys.executable, str(script)], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600
+    )
     assert res.returncode == 0, res.stderr[-3000:]
     assert "Warning" not in res.stderr, res.stderr[-3000:]
 
@@ -49,7 +51,10 @@ def test_the_comparison_figures_stay_readable(tmp_path):
     cell = lambda s, t: {"success": s, "success_lo": max(s - 0.1, 0), "success_hi": min(s + 0.1, 1), "time_to_swing_up": t,  # noqa: E731
                          "time_to_swing_up_lo": t - 0.5, "time_to_swing_up_hi": t + 0.5, "rms_error_settled": t / 100,
                          "rms_error_settled_lo": t / 200, "rms_error_settled_hi": t / 50}  # fmt: skip
-    by_cond = {c: {"A": cell(0.9, 7.5), "B": cell(0.0, float("nan")), "C": cell(1.0, 8.5)} for c in ("nominal", "obs noise 0.01")}
+    by_cond = {
+        c: {"A": cell(0.9, 7.5), "B": cell(0.0, float("nan")), "C": cell(1.0, 8.5)}
+        for c in ("nominal", "obs noise 0.01")
+    }
     for scene, size in (("Acrobot", (1320, 770)), ("Planar2R", (1320, 495))):
         path = tmp_path / f"{scene}.png"
         main_job.plot_scene(scene, by_cond, path)
@@ -66,7 +71,9 @@ def test_compare_quick_end_to_end(tmp_path, capfd):
     script = load_script("compare.py")
     with warnings.catch_warnings():
         warnings.filterwarnings("error", module=r"(mbs_envs|controllers)(\..*)?$")
-        out = script["run"](script["parse_args"](["--out", str(tmp_path), "--quick", "--scene", "Planar2R", "--workers", "2"]))
+        out = script["run"](
+            script["parse_args"](["--out", str(tmp_path), "--quick", "--scene", "Planar2R", "--workers", "2"])
+        )
     printed = capfd.readouterr()
     assert "cells:" in printed.err and "5/5" in printed.err  # one scene x five conditions, counted as they finish
     assert "robustness sweeps:" in printed.err
@@ -83,7 +90,13 @@ def test_compare_quick_end_to_end(tmp_path, capfd):
         assert np.isfinite(m["latency_us"]) and np.isfinite(m["latency_noisy_us"])
     assert all(np.isfinite(r["rms_error"]) for r in out["rows"])
     assert {r["seed"] for r in out["rows"]} == {0, 1, 2}  # test seeds
-    assert set(out["summary"]["Planar2R"]) == {"nominal", "mismatch +20%", "mismatch -20%", "obs noise 0.01", "input delay 1 step"}
+    assert set(out["summary"]["Planar2R"]) == {
+        "nominal",
+        "mismatch +20%",
+        "mismatch -20%",
+        "obs noise 0.01",
+        "input delay 1 step",
+    }
     report = (tmp_path / "report.md").read_text()
     assert "Headline" in report and "Actuator sizing" in report and "disjoint" in report
     assert (tmp_path / "learning_curves.png").stat().st_size > 0
@@ -98,8 +111,21 @@ def test_compare_quick_end_to_end(tmp_path, capfd):
 @pytest.mark.slow  # the swing-up metrics stay in the default run (tests/envs/test_swingup_env.py); this is the script end to end
 def test_compare_scores_a_swing_up_scene_by_success_time_and_energy(tmp_path):
     script = load_script("compare.py")
-    out = script["run"](script["parse_args"](["--out", str(tmp_path), "--quick", "--scene", "Acrobot", "--no-agents", "--workers", "1",
-                                                                 "--no-robustness"]))
+    out = script["run"](
+        script["parse_args"](
+            [
+                "--out",
+                str(tmp_path),
+                "--quick",
+                "--scene",
+                "Acrobot",
+                "--no-agents",
+                "--workers",
+                "1",
+                "--no-robustness",
+            ]
+        )
+    )
     by_cond = out["summary"]["Acrobot"]
     assert set(by_cond) == {"nominal", "mismatch +20%", "mismatch -20%", "obs noise 0.01", "input delay 1 step"}
     for r in out["rows"]:  # a failed episode is one that does not end upright; it has no time to swing up
@@ -123,7 +149,11 @@ def test_train_residual_writes_a_residual_agent(tmp_path):
 
     env = gym.make("mbs_envs/FourBar-v0")
     assert isinstance(policy, ResidualPolicy)
-    assert cfg["residual"] == {"base": "mbs_envs.controllers:ComputedTorque", "gains": tuned_gains(env, "computed torque"), "bound": 0.25}
+    assert cfg["residual"] == {
+        "base": "mbs_envs.controllers:ComputedTorque",
+        "gains": tuned_gains(env, "computed torque"),
+        "bound": 0.25,
+    }
     assert cfg["training_member_seeds"] == [100_000, 100_007]
     obs, _ = env.reset(seed=0)
     assert policy.predict(obs)[0].shape == (1,)
@@ -139,7 +169,9 @@ def test_train_writes_an_agent_that_loads_and_predicts(tmp_path, monkeypatch):
     script = load_script("train.py")
     records = script["run"](script["parse_args"](["--env", "mbs_envs/Planar2R-v0", "--algo", "ppo", "--steps", "2048",
                                                   "--n-envs", "8", "--out", str(tmp_path / "run")]))  # fmt: skip
-    assert [p.name for p in scratch.iterdir() if p.name.startswith("SB3-")] == []  # (torch may keep its own cache there)
+    assert [
+        p.name for p in scratch.iterdir() if p.name.startswith("SB3-")
+    ] == []  # (torch may keep its own cache there)
     tmp_path = tmp_path / "run"
     assert records[0]["steps"] == 2048 and records[0]["train_wall_s"] > 0
     from mbs_envs.studies.training import load_agent
@@ -157,7 +189,20 @@ def test_train_refuses_a_folder_holding_an_agent_or_being_written(tmp_path):
     from mbs_envs.studies.training import CLAIM, TrainConfig, claimed, train
 
     script = load_script("train.py")
-    args = ["--env", "mbs_envs/Planar2R-v0", "--algo", "ppo", "--steps", "1024", "--n-envs", "8", "--eval-seeds", "2", "--out", str(tmp_path)]
+    args = [
+        "--env",
+        "mbs_envs/Planar2R-v0",
+        "--algo",
+        "ppo",
+        "--steps",
+        "1024",
+        "--n-envs",
+        "8",
+        "--eval-seeds",
+        "2",
+        "--out",
+        str(tmp_path),
+    ]
     script["run"](script["parse_args"](args))
     before = {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()}
     with pytest.raises(SystemExit, match="already holds a trained agent"):
@@ -204,10 +249,18 @@ def test_hyperparameter_overrides_reach_sb3_and_bad_ones_are_refused():
 
     cfg = TrainConfig("mbs_envs/Acrobot-v0", "ppo", 1000, n_envs=8, hyper={"gamma": 0.998, "n_steps": 256})
     hyper = hyperparameters(cfg, 1)
-    assert hyper["gamma"] == 0.998 and hyper["n_steps"] == 256 and hyper["batch_size"] == 256 * 8 // 4  # minibatches follow
+    assert (
+        hyper["gamma"] == 0.998 and hyper["n_steps"] == 256 and hyper["batch_size"] == 256 * 8 // 4
+    )  # minibatches follow
     assert hyperparameters(TrainConfig("mbs_envs/Acrobot-v0", "sac", 1000), 1)["gamma"] == 0.99  # untouched default
-    for bad, culprit in (({"gama": 0.9}, "gama"), ({"gamma": 1.0}, "gamma"), ({"gamma": float("nan")}, "gamma"),
-                         ({"n_steps": 12.5}, "n_steps"), ({"policy_kwargs": 1}, "policy_kwargs"), ({"gamma": True}, "gamma")):
+    for bad, culprit in (
+        ({"gama": 0.9}, "gama"),
+        ({"gamma": 1.0}, "gamma"),
+        ({"gamma": float("nan")}, "gamma"),
+        ({"n_steps": 12.5}, "n_steps"),
+        ({"policy_kwargs": 1}, "policy_kwargs"),
+        ({"gamma": True}, "gamma"),
+    ):
         with pytest.raises(ValueError, match=culprit):
             TrainConfig("mbs_envs/Acrobot-v0", "ppo", 1000, hyper=bad)
     assert hyper_setting("gamma=0.995") == ("gamma", 0.995) and hyper_setting("n_steps=256") == ("n_steps", 256)
@@ -267,8 +320,14 @@ def test_shipped_agents_load_predict_and_document_their_training():
 def test_compare_cells_on_a_local_ray_instance(tmp_path):
     pytest.importorskip("ray")
     script = load_script("compare.py")
-    out = script["run"](script["parse_args"](["--out", str(tmp_path), "--quick", "--scene", "Planar2R", "--no-agents", "--ray"]))
-    local = script["run"](script["parse_args"](["--out", str(tmp_path / "local"), "--quick", "--scene", "Planar2R", "--no-agents", "--workers", "1"]))
+    out = script["run"](
+        script["parse_args"](["--out", str(tmp_path), "--quick", "--scene", "Planar2R", "--no-agents", "--ray"])
+    )
+    local = script["run"](
+        script["parse_args"](
+            ["--out", str(tmp_path / "local"), "--quick", "--scene", "Planar2R", "--no-agents", "--workers", "1"]
+        )
+    )
     assert out["summary"]["Planar2R"]["nominal"].keys() == local["summary"]["Planar2R"]["nominal"].keys()
     for policy, m in local["summary"]["Planar2R"]["nominal"].items():
         for key in ("rms_error_settled", "max_error", "rms_torque"):  # the same numbers from Ray workers
@@ -306,7 +365,11 @@ def test_bench_integration_errors():
     e = load_script("bench.py")["step_errors"](n_states=10)
     assert e["ratio_acrobot_to_planar2r"] >= 100
     at_02 = e["planar2r_at_acrobot_dt"]
-    assert e["planar2r_max_state_error_per_step"] < at_02["max_state_error_per_step"] < e["acrobot_max_state_error_per_step"]
+    assert (
+        e["planar2r_max_state_error_per_step"]
+        < at_02["max_state_error_per_step"]
+        < e["acrobot_max_state_error_per_step"]
+    )
 
 
 def test_bench_mujoco_error_reference_is_converged():
@@ -333,7 +396,9 @@ def test_work_precision_tiny_configuration(tmp_path):
                    "energy_drift", "constraint_residual", "time_median_s", "time_min_s", "reference_floor"):  # fmt: skip
         assert column in header
     rk4 = {(r["setting"], r["path"]): r for r in rows if r["problem"] == "planar2r-free" and r["integrator"] == "rk4"}
-    assert rk4[0.02, "numpy"]["trajectory_error"] < rk4[0.04, "numpy"]["trajectory_error"] / 8  # fourth order: ~16x per halving
+    assert (
+        rk4[0.02, "numpy"]["trajectory_error"] < rk4[0.04, "numpy"]["trajectory_error"] / 8
+    )  # fourth order: ~16x per halving
     assert rk4[0.02, "numpy"]["rhs_evaluations"] == 4 * 20  # four stages, 20 steps of 0.4 s
     assert rk4[0.02, "compiled"]["compiled_minus_numpy"] <= 1e-12
     fb = [r for r in rows if r["problem"] == "fourbar-forced"]
@@ -343,14 +408,27 @@ def test_work_precision_tiny_configuration(tmp_path):
     assert 0 < meta["problems"]["planar2r-free"]["reference_floor"] < 1e-10
     # --add: another scene's problem joins the results; those already there are kept
     before = (tmp_path / "work_precision.csv").read_text().splitlines()
-    script["run"](tmp_path, quick=True, problems=["acrobot-forced"], methods=["rk4"], repeats=1, n_fixed=2, n_adaptive=2, add=True)
+    script["run"](
+        tmp_path, quick=True, problems=["acrobot-forced"], methods=["rk4"], repeats=1, n_fixed=2, n_adaptive=2, add=True
+    )
     after = (tmp_path / "work_precision.csv").read_text().splitlines()
     assert after[: len(before)] == before and len(after) == len(before) + 2 * 2
     meta = json.loads((tmp_path / "work_precision.json").read_text())
-    assert list(meta["problems"]) == ["planar2r-free", "fourbar-forced", "acrobot-forced"] and len(meta["added_runs"]) == 1
+    assert (
+        list(meta["problems"]) == ["planar2r-free", "fourbar-forced", "acrobot-forced"] and len(meta["added_runs"]) == 1
+    )
     assert "| acrobot-forced |" in (tmp_path / "work_precision.md").read_text()
     with pytest.raises(ValueError, match="same configuration"):
-        script["run"](tmp_path, quick=False, problems=["pendubot-forced"], methods=["rk4"], repeats=1, n_fixed=2, n_adaptive=2, add=True)
+        script["run"](
+            tmp_path,
+            quick=False,
+            problems=["pendubot-forced"],
+            methods=["rk4"],
+            repeats=1,
+            n_fixed=2,
+            n_adaptive=2,
+            add=True,
+        )
 
 
 def test_implicit_chain_tiny_configuration(tmp_path):
@@ -360,13 +438,21 @@ def test_implicit_chain_tiny_configuration(tmp_path):
     stable = {r["integrator"]: r for r in result["stability"]}
     assert stable["joint_implicit_euler"]["largest_stable_dt"] == 0.02
     assert stable["rk4"]["largest_stable_dt"] <= 0.02 / 8 and stable["rk4"]["flagged_above"] >= 3
-    for name in ("implicit_chain.csv", "implicit_chain_stability.csv", "implicit_chain.json", "implicit_chain.md", "implicit_chain.png"):
+    for name in (
+        "implicit_chain.csv",
+        "implicit_chain_stability.csv",
+        "implicit_chain.json",
+        "implicit_chain.md",
+        "implicit_chain.png",
+    ):
         assert (tmp_path / name).stat().st_size > 0
 
 
 def test_what_to_pick_tiny_configuration(tmp_path):
     """Viscous b = 400 at the 10 ms control step: RK4 is flagged at 1-8 substeps; SDIRK2 is usable at one."""
-    result = load_script("what_to_pick.py")["run"](tmp_path, cases=["viscous b=400"], methods=["rk4", "sdirk2"], accurate=1e-3, repeats=1)
+    result = load_script("what_to_pick.py")["run"](
+        tmp_path, cases=["viscous b=400"], methods=["rk4", "sdirk2"], accurate=1e-3, repeats=1
+    )
     (pick,) = result["picks"]
     assert pick["usable"]["integrator"] == "sdirk2" and pick["usable"]["substeps"] == 1
     rows = (tmp_path / "what_to_pick.csv").read_text().splitlines()
@@ -375,8 +461,18 @@ def test_what_to_pick_tiny_configuration(tmp_path):
     assert (tmp_path / "what_to_pick.md").stat().st_size > 0
     # --add: another case merged in, the first one's runs and pick kept as they were
     script = load_script("what_to_pick.py")
-    merged = script["run"](tmp_path, cases=["Acrobot (environment model, 0.3 u_max held)"], methods=["rk4"], accurate=1e-3, repeats=1, add=True)
-    assert [p["case"] for p in merged["picks"]] == ["Acrobot (environment model, 0.3 u_max held)", "viscous b=400"]  # the regimes' order
+    merged = script["run"](
+        tmp_path,
+        cases=["Acrobot (environment model, 0.3 u_max held)"],
+        methods=["rk4"],
+        accurate=1e-3,
+        repeats=1,
+        add=True,
+    )
+    assert [p["case"] for p in merged["picks"]] == [
+        "Acrobot (environment model, 0.3 u_max held)",
+        "viscous b=400",
+    ]  # the regimes' order
     assert merged["picks"][1] == json.loads(json.dumps(pick, default=float))
     after = (tmp_path / "what_to_pick.csv").read_text().splitlines()
     assert [r for r in after if r.startswith("viscous")] == [r for r in rows if r.startswith("viscous")]
@@ -407,7 +503,10 @@ def test_soak_tiny_configuration(tmp_path):
     result = script["run"](tmp_path, episodes=20, quick=True, ids=["mbs_envs/Planar2R-v0", "mbs_envs/RollingDisk-v0"], processes=False,
                            integrator_episodes=4, integrator_envs=4, adversarial_rounds=30)  # fmt: skip
     for x in result["adversarial"]:
-        assert x["rounds"] == 30 and x["accepted_bad"] == x["changed_by_refusal"] == x["disagreements"] == x["other_exceptions"] == 0
+        assert (
+            x["rounds"] == 30
+            and x["accepted_bad"] == x["changed_by_refusal"] == x["disagreements"] == x["other_exceptions"] == 0
+        )
     for s in result["soak"]:
         assert s["episodes"] >= 20 and s["nonfinite_observations"] == 0 and s["nonfinite_rewards"] == 0
     refused = [e for e in result["edges"] if e["value"] != e["value"] or e["value"] <= 0]  # NaN, 0, -1
@@ -436,7 +535,9 @@ def test_bench_scenes_times_every_registered_scene():
     r = script["measure"](repeats=1, steps=5, num_envs=4, cold=False)
     names = [k for k in r["single_step_us"] if k != script["PEER"]]
     assert {script["scenes"]()[k][0] for k in names} == {s.id for s in registry.SCENES}
-    assert "SerialChain-v0 (n_links=100)" in names and "Acrobot-v0" in names and "Acrobot-v1" in names  # ours, not the peer
+    assert (
+        "SerialChain-v0 (n_links=100)" in names and "Acrobot-v0" in names and "Acrobot-v1" in names
+    )  # ours, not the peer
     assert all(np.isfinite(v) and v > 0 for v in r["single_ratio_to_acrobot"].values())
     assert "Pendubot-v0" in script["table"](r, "test")
 
@@ -464,7 +565,9 @@ def test_bench_scenes_sweeps_batch_sizes():
     r = script["sweep"]([2, 3], repeats=1, steps=5)
     for n in ("2", "3"):
         per, ratio = r["per_env_step_us"][n], r["ratio_to_cartpole"][n]
-        assert "CartPole-v1" in per and "SpatialChain-v0 (n_links=10)" in per and "SerialChain-v0 (n_links=100)" not in per
+        assert (
+            "CartPole-v1" in per and "SpatialChain-v0 (n_links=10)" in per and "SerialChain-v0 (n_links=100)" not in per
+        )
         assert ratio["CartPole-v1"] == 1.0 and all(np.isfinite(v) and v > 0 for v in per.values())
         assert all(ratio[k] == per[k] / per["CartPole-v1"] for k in per)
     text = script["sweep_table"](r)
@@ -507,24 +610,39 @@ def test_a_shipped_agent_acts_as_trained_without_its_optimizer_state(tmp_path):
     assert not ALGOS["ppo"].load(tmp_path / "shipped" / "agent.zip").policy.optimizer.state
     (a, cfg_a), (b, cfg_b) = load_agent(tmp_path / "run"), load_agent(tmp_path / "shipped")
     assert cfg_b == {**cfg_a, "shipped_without_optimizer_state": True}
-    obs = np.random.default_rng(0).normal(size=(20,) + gym.make("mbs_envs/Planar2R-v0").observation_space.shape).astype(np.float32)
-    np.testing.assert_array_equal(a.predict(obs, deterministic=True)[0], b.predict(obs, deterministic=True)[0])  # normalization kept
+    obs = (
+        np.random.default_rng(0)
+        .normal(size=(20,) + gym.make("mbs_envs/Planar2R-v0").observation_space.shape)
+        .astype(np.float32)
+    )
+    np.testing.assert_array_equal(
+        a.predict(obs, deterministic=True)[0], b.predict(obs, deterministic=True)[0]
+    )  # normalization kept
 
 
 def test_compare_records_repository_paths_relative_to_its_root():
     """issue 37: summary.json held the absolute paths of the machine that made it."""
     from mbs_envs.studies import main_job as script_lib
+
     root = str(script_lib.ROOT)
-    got = script_lib.portable({"Acrobot": {"PPO": [f"{root}/agents/Acrobot-v1/ppo/seed0", f"lqr-catch:{root}/agents/x"]}, "n": 3})
+    got = script_lib.portable(
+        {"Acrobot": {"PPO": [f"{root}/agents/Acrobot-v1/ppo/seed0", f"lqr-catch:{root}/agents/x"]}, "n": 3}
+    )
     assert got == {"Acrobot": {"PPO": ["agents/Acrobot-v1/ppo/seed0", "lqr-catch:agents/x"]}, "n": 3}
 
 
 def test_tune_refine_only_starts_a_controller_without_a_pick_from_the_one_whose_laws_it_shares():
     script = load_script("tune.py")
     stored = {"gains": {"mbs_envs/Acrobot-v0": {"swing-up + LQR": {"k_q": 2.0}}}}
-    assert script["first_stage_of"](stored, "mbs_envs/Acrobot-v1", "adaptive swing-up + LQR") == ("mbs_envs/Acrobot-v0", "swing-up + LQR")
+    assert script["first_stage_of"](stored, "mbs_envs/Acrobot-v1", "adaptive swing-up + LQR") == (
+        "mbs_envs/Acrobot-v0",
+        "swing-up + LQR",
+    )
     stored["gains"]["mbs_envs/Acrobot-v1"] = {"adaptive swing-up + LQR": {"k_q": 5.0}}
-    assert script["first_stage_of"](stored, "mbs_envs/Acrobot-v1", "adaptive swing-up + LQR") == ("mbs_envs/Acrobot-v1", "adaptive swing-up + LQR")
+    assert script["first_stage_of"](stored, "mbs_envs/Acrobot-v1", "adaptive swing-up + LQR") == (
+        "mbs_envs/Acrobot-v1",
+        "adaptive swing-up + LQR",
+    )
     with pytest.raises(SystemExit, match="no stored first stage"):
         script["first_stage_of"](stored, "mbs_envs/Pendubot-v1", "adaptive swing-up + LQR")
 
@@ -535,8 +653,14 @@ def test_train_env_kwargs_reach_the_training_members_only(tmp_path, monkeypatch)
 
     seen = {}
     real_vec, real_eval = training.make_sb3_vec_env, training.evaluate
-    monkeypatch.setattr(training, "make_sb3_vec_env", lambda *a, **kw: seen.setdefault("train", kw) and real_vec(*a, **kw))
-    monkeypatch.setattr(training, "evaluate", lambda p, i, s, kw, **r: seen.setdefault("eval", dict(kw)) is not None and real_eval(p, i, s, kw, **r))
+    monkeypatch.setattr(
+        training, "make_sb3_vec_env", lambda *a, **kw: seen.setdefault("train", kw) and real_vec(*a, **kw)
+    )
+    monkeypatch.setattr(
+        training,
+        "evaluate",
+        lambda p, i, s, kw, **r: seen.setdefault("eval", dict(kw)) is not None and real_eval(p, i, s, kw, **r),
+    )
     script = load_script("train.py")
     records = script["run"](script["parse_args"](["--env", "mbs_envs/Acrobot-v1", "--algo", "ppo", "--steps", "1024", "--n-envs", "8",
                                                   "--hyper", "n_steps=32", "--eval-seeds", "2", "--env-kwargs", '{"start_noise": 0.05}',
@@ -555,8 +679,14 @@ def test_eval_env_kwargs_reach_the_validation_episodes_only(tmp_path, monkeypatc
 
     seen = {"eval": []}
     real_vec, real_eval = training.make_sb3_vec_env, training.evaluate
-    monkeypatch.setattr(training, "make_sb3_vec_env", lambda *a, **kw: seen.setdefault("train", kw) and real_vec(*a, **kw))
-    monkeypatch.setattr(training, "evaluate", lambda p, i, s, kw, **r: seen["eval"].append((list(s), dict(kw))) or real_eval(p, i, s, kw, **r))
+    monkeypatch.setattr(
+        training, "make_sb3_vec_env", lambda *a, **kw: seen.setdefault("train", kw) and real_vec(*a, **kw)
+    )
+    monkeypatch.setattr(
+        training,
+        "evaluate",
+        lambda p, i, s, kw, **r: seen["eval"].append((list(s), dict(kw))) or real_eval(p, i, s, kw, **r),
+    )
     script = load_script("train.py")
     rand = {"randomize": {"m2": 0.25, "b2": [0.0, 0.1]}}
     records = script["run"](script["parse_args"](["--env", "mbs_envs/Acrobot-v1", "--algo", "ppo", "--steps", "1024", "--n-envs", "8",
@@ -633,30 +763,45 @@ def test_dfki_script_tunes_a_robust_catch_stores_it_and_runs_with_it(tmp_path, m
     from mbs_envs.controllers import tuned
 
     script = load_script("dfki.py")
-    assert script["catch_group"]("PPO + LQR seed12") == "PPO + LQR" and script["catch_group"]("swing-up + LQR") == "swing-up + LQR"
+    assert (
+        script["catch_group"]("PPO + LQR seed12") == "PPO + LQR"
+        and script["catch_group"]("swing-up + LQR") == "swing-up + LQR"
+    )
     seen = {}
 
     def fake(env_id, policies, groups, **kw):
         seen.update(policies=dict(policies), groups=dict(groups), kw=kw)
-        return {"rows": [{"policy": n, "lqr_r": 3.0, "catch": 10.0, "score": 0.5} for n in policies],
-                "picks": {g: {"lqr_r": 3.0, "catch": 10.0} for g in groups}, "wall_s": 1.0}
+        return {
+            "rows": [{"policy": n, "lqr_r": 3.0, "catch": 10.0, "score": 0.5} for n in policies],
+            "picks": {g: {"lqr_r": 3.0, "catch": 10.0} for g in groups},
+            "wall_s": 1.0,
+        }
 
     table = tuning_replaced(tmp_path, monkeypatch, fake)
     try:
         script["tune_robust_catch"](script["parse_args"](["--out", str(tmp_path / "tune"), "--scene", "Pendubot", "--tune-robust-catch",
                                                           "--rates-from-angles", "--write"]))  # fmt: skip
         assert seen["groups"]["PPO + LQR"] == ["PPO + LQR seed0", "PPO + LQR seed1", "PPO + LQR seed2"]
-        assert {"swing-up + LQR", "adaptive swing-up + LQR"} <= set(seen["groups"]) and "identified iLQR + TVLQR" not in seen["groups"]
-        assert seen["policies"]["swing-up + LQR"]["gains"] == tuned.stored_entry("mbs_envs/PendubotDFKI-v1", "swing-up + LQR")
+        assert {"swing-up + LQR", "adaptive swing-up + LQR"} <= set(
+            seen["groups"]
+        ) and "identified iLQR + TVLQR" not in seen["groups"]
+        assert seen["policies"]["swing-up + LQR"]["gains"] == tuned.stored_entry(
+            "mbs_envs/PendubotDFKI-v1", "swing-up + LQR"
+        )
         assert seen["kw"]["rates_from_angles"] is True
         stored = json.loads(table.read_text())
         assert stored["gains"]["mbs_envs/PendubotDFKI-v1"]["PPO + LQR (robust catch)"] == {"lqr_r": 3.0, "catch": 10.0}
         assert "swing-up + LQR" in stored["gains"]["mbs_envs/PendubotDFKI-v1"]  # the other entries kept
-        assert stored["scores"]["mbs_envs/PendubotDFKI-v1"]["swing-up + LQR (robust catch)"]["rates_from_angles"] is True
+        assert (
+            stored["scores"]["mbs_envs/PendubotDFKI-v1"]["swing-up + LQR (robust catch)"]["rates_from_angles"] is True
+        )
         record = script["run"](script["parse_args"](["--out", str(tmp_path / "run"), "--scene", "Pendubot", "--robust-catch", "--workers", "1",
                                                      "--controller", "swing-up + LQR", "--controller", "identified iLQR + TVLQR"]))  # fmt: skip
         (row,) = record["rows"]
-        assert row["controller"] == "swing-up + LQR (robust catch)" and json.loads(row["catch_gains"]) == {"lqr_r": 3.0, "catch": 10.0}
+        assert row["controller"] == "swing-up + LQR (robust catch)" and json.loads(row["catch_gains"]) == {
+            "lqr_r": 3.0,
+            "catch": 10.0,
+        }
         assert "Robust catch" in (tmp_path / "run" / "report.md").read_text()
         with pytest.raises(SystemExit, match="no policy has a catch tuned for robustness"):
             script["run"](script["parse_args"](["--out", str(tmp_path / "none"), "--scene", "Pendubot", "--robust-catch",
@@ -681,8 +826,11 @@ def test_dfki_script_release_stage_keeps_each_stored_catch_and_tries_the_release
         calls.append((dict(groups), [dict(c) for c in candidates]))
         (g,) = groups
         pick = dict(candidates[min(2, len(candidates) - 1)])  # not the first: the stored entry must change
-        return {"rows": [{"policy": n, **c, "score": 0.5 + 0.1 * (c == pick)} for n in policies for c in candidates],
-                "picks": {g: pick}, "wall_s": 1.0}
+        return {
+            "rows": [{"policy": n, **c, "score": 0.5 + 0.1 * (c == pick)} for n in policies for c in candidates],
+            "picks": {g: pick},
+            "wall_s": 1.0,
+        }
 
     table = tuning_replaced(tmp_path, monkeypatch, fake)
     try:
@@ -696,9 +844,15 @@ def test_dfki_script_release_stage_keeps_each_stored_catch_and_tries_the_release
                                                                    "--release-stage", "--rates-from-angles", "--write"]))  # fmt: skip
         by_group = {next(iter(groups)): cands for groups, cands in calls}
         assert set(by_group) == {"swing-up + LQR", "PPO + LQR"}
-        assert [c["release"] for c in by_group["PPO + LQR"]] == list(dfki_tuning.ROBUST_RELEASE) and dfki_tuning.ROBUST_RELEASE[0] == 4.0
+        assert [c["release"] for c in by_group["PPO + LQR"]] == list(
+            dfki_tuning.ROBUST_RELEASE
+        ) and dfki_tuning.ROBUST_RELEASE[0] == 4.0
         assert all(c[k] == before[k] for c in by_group["PPO + LQR"] for k in ("lqr_r", "catch"))
-        assert [g for groups, _ in calls for g in groups.values()][-1] == ["PPO + LQR seed0", "PPO + LQR seed1", "PPO + LQR seed2"]
+        assert [g for groups, _ in calls for g in groups.values()][-1] == [
+            "PPO + LQR seed0",
+            "PPO + LQR seed1",
+            "PPO + LQR seed2",
+        ]
         after = json.loads(table.read_text())["gains"]["mbs_envs/PendubotDFKI-v1"]["PPO + LQR (robust catch)"]
         assert after == {**before, "release": dfki_tuning.ROBUST_RELEASE[2]}
         score = record["scores"]["mbs_envs/PendubotDFKI-v1"]["PPO + LQR (robust catch)"]
@@ -717,7 +871,9 @@ def test_dfki_script_release_stage_keeps_each_stored_catch_and_tries_the_release
         ((groups, cands),) = calls
         assert list(groups) == ["PPO + LQR"] and [c["release"] for c in cands] == [16.0, 32.0]
         with pytest.raises(SystemExit, match="--release-values are the factors of --release-stage"):
-            script["check_args"](script["parse_args"](["--out", str(tmp_path / "x"), "--tune-robust-catch", "--release-values", "8"]))
+            script["check_args"](
+                script["parse_args"](["--out", str(tmp_path / "x"), "--tune-robust-catch", "--release-values", "8"])
+            )
     finally:
         monkeypatch.undo()
         tuned.clear_cache()
@@ -734,7 +890,9 @@ def test_dfki_script_cuts_the_controllers_sweeps_in_parts_and_keeps_an_agents_wh
     mine = {j: [p for i, p in parts if i == j] for j in range(3)}
     assert sorted(p.axis for p in mine[1]) == sorted(dfki.AXES) and all(p.members == slice(0, p.size) for p in mine[1])
     for j in (0, 2):
-        assert len(mine[j]) > len(dfki.AXES) and max(p.members.stop - p.members.start for p in mine[j]) < max(p.size for p in mine[j])
+        assert len(mine[j]) > len(dfki.AXES) and max(p.members.stop - p.members.start for p in mine[j]) < max(
+            p.size for p in mine[j]
+        )
         for axis in dfki.AXES:
             axis_parts = [p for p in mine[j] if p.axis == axis]
             rows = [p.members for p in axis_parts]
@@ -759,7 +917,14 @@ def test_robustness_script_sweeps_a_scene_and_writes_its_report(tmp_path):
     record = script["run"](script["parse_args"](["--out", str(tmp_path), "--scene", "Acrobot", "--policy", "swing-up + LQR",
                                                  "--values", "2", "--seeds", "1", "--pulse-episodes", "2"]))  # fmt: skip
     s = record["scenes"]["Acrobot"]["swing-up + LQR"]
-    assert set(s["fractions"]) == {"model", "velocity noise", "torque noise", "torque response", "time delay", "perturbations"}
+    assert set(s["fractions"]) == {
+        "model",
+        "velocity noise",
+        "torque noise",
+        "torque response",
+        "time delay",
+        "perturbations",
+    }
     assert s["score"] == pytest.approx(np.mean(list(s["fractions"].values())))
     for name in ("robustness.csv", "robustness.json", "report.md", "robustness_Acrobot.png"):
         assert (tmp_path / name).stat().st_size > 0, name
@@ -813,7 +978,9 @@ def _quiet_run(args: list[str], tmp_path: pathlib.Path, drop: tuple = ()) -> "su
                 "warnings.filterwarnings('error', module=r'(mbs_envs|controllers)(\\..*)?$')\n"
                 "sys.argv = sys.argv[1:]\n"
                 "runpy.run_path(sys.argv[0], run_name='__main__')\n")  # fmt: skip
-    return subprocess.run([sys.executable, "-c", prologue, *args], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900)
+    return subprocess.run(
+        [sys.executable, "-c", prologue, *args], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900
+    )
 
 
 def test_a_recording_without_a_display_or_sound_card_prints_nothing_that_alarms(tmp_path):
@@ -852,7 +1019,9 @@ def test_the_printed_headline_names_every_compared_scene():
 
 
 @pytest.mark.slow  # a derivation, and a child process compiling the scene's kernels (about 10 s)
-@pytest.mark.skipif(not pathlib.Path("/proc/self/environ").exists(), reason="reads other processes' environments in /proc (Linux)")
+@pytest.mark.skipif(
+    not pathlib.Path("/proc/self/environ").exists(), reason="reads other processes' environments in /proc (Linux)"
+)
 def test_bench_derived_first_make_leaves_no_child_writing_into_its_temporary_cache(tmp_path):
     """bench_derived's fresh process with empty caches returns only once the child compiling its kernels (issue 37's
     background compile) is done: the child had kept writing into the temporary numba cache as the bench removed it
@@ -880,7 +1049,9 @@ def test_bench_derived_first_make_leaves_no_child_writing_into_its_temporary_cac
     import time
 
     end = time.monotonic() + 2.0  # a child that has answered everything ends as soon as it sees its parent gone
-    while (alive := [pid for pid in os.listdir("/proc") if pid.isdigit() and uses_cache(pid)]) and time.monotonic() < end:
+    while (
+        alive := [pid for pid in os.listdir("/proc") if pid.isdigit() and uses_cache(pid)]
+    ) and time.monotonic() < end:
         time.sleep(0.05)
     assert alive == []  # without the wait: still compiling the scene's kernels some seconds on
 
@@ -914,13 +1085,22 @@ def test_tune_hold_scores_candidates_on_the_arms_map_and_checks_the_best_beside_
     from mbs_envs.controllers.planned_swingup import EDGE_Q, HOLD_Q, RECOVER_Q
 
     script = load_script("tune_hold.py")
-    assert script["main"](["--out", str(tmp_path), "--candidates", "4", "--windows", "40", "--check-windows", "40", "--top", "2"]) == 0
+    assert (
+        script["main"](
+            ["--out", str(tmp_path), "--candidates", "4", "--windows", "40", "--check-windows", "40", "--top", "2"]
+        )
+        == 0
+    )
     with open(tmp_path / "hold_search.csv") as f:
         rows = list(csv.DictReader(f))
     assert len(rows) == 4 and all(0.0 <= float(r["share"]) <= 1.0 for r in rows)
     checked = json.loads((tmp_path / "hold_search.json").read_text())["checked"]
     assert len(checked) == 3 and [c["default"] for c in checked] == [False, False, True]
     default = PlannedSwingUp(gym.make("mbs_envs/Acrobot-v1"), hold=False, hold_law="edge")
-    assert checked[-1]["hold_q"] == list(HOLD_Q) and checked[-1]["edge_q"] == list(EDGE_Q) and checked[-1]["recover_q"] == list(RECOVER_Q)
+    assert (
+        checked[-1]["hold_q"] == list(HOLD_Q)
+        and checked[-1]["edge_q"] == list(EDGE_Q)
+        and checked[-1]["recover_q"] == list(RECOVER_Q)
+    )
     assert checked[-1]["edge"] == default.edge and checked[-1]["hold_back"] == default.hold_back
     assert (tmp_path / "hold_search.png").stat().st_size > 0 and "(defaults)" in capsys.readouterr().out

@@ -91,7 +91,13 @@ def test_divergence_is_reported_and_states_stay_finite():
     # a batch where only one member blows up: the other is untouched
     u = np.array([[0.0, 0.0], [1e6, -1e6]])
     tr = simulate(
-        model, np.stack([Q0, Q0]), np.stack([V0, V0]), 2.0, dt=0.01, integrator="euler", u=u,
+        model,
+        np.stack([Q0, Q0]),
+        np.stack([V0, V0]),
+        2.0,
+        dt=0.01,
+        integrator="euler",
+        u=u,
         divergence_limit=1e6,
     )
     assert tr.diverged.tolist() == [False, True]

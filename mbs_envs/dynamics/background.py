@@ -78,7 +78,15 @@ def mode() -> str:
 #: the child's protocol lines start with this (anything else it prints is ignored)
 _TAG = "mbs_envs-compiled "
 _lock = threading.Lock()
-_state: dict[str, Any] = {"pid": None, "to_child": None, "generation": 0, "pending": {}, "done": set(), "failed": set(), "tokens": {}}
+_state: dict[str, Any] = {
+    "pid": None,
+    "to_child": None,
+    "generation": 0,
+    "pending": {},
+    "done": set(),
+    "failed": set(),
+    "tokens": {},
+}
 _local = threading.local()
 
 
@@ -201,7 +209,9 @@ def _request(kernel: Dispatcher, sig: tuple) -> bool:
         _state["tokens"][token] = key
         _state["pending"][key] = kernel
         try:
-            os.write(fd, (json.dumps({"token": token, "address": address, "sig": blob}) + "\n").encode())  # one writer at a time (the lock)
+            os.write(
+                fd, (json.dumps({"token": token, "address": address, "sig": blob}) + "\n").encode()
+            )  # one writer at a time (the lock)
         except OSError:
             del _state["pending"][key]
             return False
@@ -370,6 +380,7 @@ def _after_fork_child() -> None:
 
 if hasattr(os, "register_at_fork"):
     os.register_at_fork(after_in_child=_after_fork_child)
+
 
 def direct(kernel, args: tuple):
     """The compiled overload of the numba dispatcher ``kernel`` for the types of ``args`` (compiled, or loaded from the

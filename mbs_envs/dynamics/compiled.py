@@ -253,7 +253,6 @@ def cholesky_solve_columns(L, x):  # pragma: no cover - compiled
             x[i, b] = x[i, b] * L[i, i, b]
 
 
-
 def aligned(x: Any) -> np.ndarray:
     """A new C-contiguous float64 copy of ``x`` whose data starts on an :data:`ALIGN`-byte boundary
     (numpy's allocator aligns to 16 bytes): the arrays the kernels' SIMD loops read once per step
@@ -288,7 +287,13 @@ def batch_theta(model: Model, batch: int) -> np.ndarray:
 
 
 def advance_compiled(
-    model: Model, tab: TableauArrays, q: np.ndarray, v: np.ndarray, u: np.ndarray, duration: float, substeps: int = 1,
+    model: Model,
+    tab: TableauArrays,
+    q: np.ndarray,
+    v: np.ndarray,
+    u: np.ndarray,
+    duration: float,
+    substeps: int = 1,
     stabilization: Any = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The compiled :func:`mbs_envs.dynamics.simulate.advance` for a held input (numpy in, numpy out).

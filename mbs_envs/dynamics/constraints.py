@@ -698,4 +698,3 @@ def project_simd(terms_cols, nh, k, q, v, theta, tol, general):  # pragma: no co
         for b in range(B):
             if not general[b]:
                 v[c, b] += dv[c, b]
-

@@ -42,12 +42,16 @@ class JointPD:
         for name in ("kp", "kd"):
             value = np.asarray(getattr(self, name), dtype=float)
             if value.ndim > 1 or not np.all(np.isfinite(value)) or np.any(value < 0):
-                raise ValueError(f"JointPD: {name} must be finite and >= 0 (scalar or one per driven joint), got {getattr(self, name)!r}")
+                raise ValueError(
+                    f"JointPD: {name} must be finite and >= 0 (scalar or one per driven joint), got {getattr(self, name)!r}"
+                )
             object.__setattr__(self, name, value)
         for name in ("q_ref", "u_ff"):
             value = np.asarray(getattr(self, name), dtype=float)
             if value.ndim > 1 or not np.all(np.isfinite(value)):
-                raise ValueError(f"JointPD: {name} must be finite (scalar or one per driven joint), got {getattr(self, name)!r}")
+                raise ValueError(
+                    f"JointPD: {name} must be finite (scalar or one per driven joint), got {getattr(self, name)!r}"
+                )
             object.__setattr__(self, name, value)
 
     def __call__(self, t: float, q: np.ndarray, v: np.ndarray, B: np.ndarray | None = None) -> np.ndarray:
@@ -68,9 +72,10 @@ class JointPD:
         B = np.asarray(B, float)
         selection = np.all((B == 0) | (B == 1)) and np.all(B.sum(axis=0) == 1) and np.all(B.sum(axis=1) <= 1)
         if not selection:
-            raise ValueError("JointPD: the model's actuation must select joints (columns of the identity) for an implicit joint PD")
+            raise ValueError(
+                "JointPD: the model's actuation must select joints (columns of the identity) for an implicit joint PD"
+            )
         nu = B.shape[1]
         kp = np.broadcast_to(self.kp, (nu,))
         kd = np.broadcast_to(self.kd, (nu,))
         return B @ kp, B @ kd
-

@@ -113,9 +113,7 @@ TABLEAUX: dict[str, Tableau] = {
         order=1,
     ),
     # explicit midpoint, order 2
-    "midpoint": Tableau.plain(
-        c=(0.0, 0.5), A=((0.0, 0.0), (0.5, 0.0)), b=(0.0, 1.0), order=2
-    ),
+    "midpoint": Tableau.plain(c=(0.0, 0.5), A=((0.0, 0.0), (0.5, 0.0)), b=(0.0, 1.0), order=2),
     # classical Runge-Kutta, order 4
     "rk4": Tableau.plain(
         c=(0.0, 0.5, 0.5, 1.0),
@@ -138,7 +136,6 @@ SCIPY_METHODS: dict[str, str] = {
     "bdf": "BDF",
     "lsoda": "LSODA",
 }
-
 
 
 def _scipy_solver(method: str) -> type:
@@ -301,7 +298,11 @@ class ScipyIVP:
                         ys.append(y)
                 if solver.status == "finished":
                     break
-        for key, value in (("steps", steps), ("evaluations", guard["count"]), ("jacobians", getattr(solver, "njev", 0))):
+        for key, value in (
+            ("steps", steps),
+            ("evaluations", guard["count"]),
+            ("jacobians", getattr(solver, "njev", 0)),
+        ):
             self.counters[key] = self.counters.get(key, 0) + value
         K = len(ts)
         Y = np.array(ys).reshape(K, y0.size)
@@ -594,7 +595,9 @@ class JointImplicitEuler:
                 f"{type(model).__name__} has nc = {getattr(model, 'nc', 0)}, nq = {model.nq}, nv = {model.nv}"
             )
 
-    def step_model(self, model: Any, u: Callable, law: Any, t: float, q: np.ndarray, v: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+    def step_model(
+        self, model: Any, u: Callable, law: Any, t: float, q: np.ndarray, v: np.ndarray, h: float
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Advance ``(q, v)`` of ``model`` from ``t`` to ``t + h``.
 
         Parameters
@@ -667,15 +670,11 @@ def get(name: str, **options: Any) -> Stepper:
     key = name.lower()
     if key in TABLEAUX:
         if options:
-            raise ValueError(
-                f"integrator {name!r} is fixed-step and takes no options, got {sorted(options)}"
-            )
+            raise ValueError(f"integrator {name!r} is fixed-step and takes no options, got {sorted(options)}")
         return ExplicitRK(key, TABLEAUX[key])
     if key in DIRK_TABLEAUX:
         if options:
-            raise ValueError(
-                f"integrator {name!r} is fixed-step and takes no options, got {sorted(options)}"
-            )
+            raise ValueError(f"integrator {name!r} is fixed-step and takes no options, got {sorted(options)}")
         return ImplicitRK(key, DIRK_TABLEAUX[key])
     if key == JointImplicitEuler.name:
         if options:

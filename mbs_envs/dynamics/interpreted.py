@@ -144,7 +144,9 @@ def numba_power(a: Any, b: Any) -> Any:
     none of them); integers to integer powers as Python does. Arrays element by element.
     """
     if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
-        return np.frompyfunc(numba_power, 2, 1)(a, b).astype(np.result_type(a, b, np.float64 if isinstance(b, float) else b))
+        return np.frompyfunc(numba_power, 2, 1)(a, b).astype(
+            np.result_type(a, b, np.float64 if isinstance(b, float) else b)
+        )
     integral_b = isinstance(b, (int, np.integer)) and not isinstance(b, (bool, np.bool_))
     if integral_b and isinstance(a, (int, np.integer)):
         return a**b
@@ -175,7 +177,9 @@ class _Power(ast.NodeTransformer):
     def visit_BinOp(self, node: ast.BinOp) -> ast.AST:
         self.generic_visit(node)
         if isinstance(node.op, ast.Pow):
-            return ast.copy_location(ast.Call(ast.Name("__numba_power__", ast.Load()), [node.left, node.right], []), node)
+            return ast.copy_location(
+                ast.Call(ast.Name("__numba_power__", ast.Load()), [node.left, node.right], []), node
+            )
         return node
 
     def visit_AugAssign(self, node: ast.AugAssign) -> ast.AST:
@@ -221,7 +225,9 @@ def _module_globals(g: dict) -> dict:
     """A copy of a module's globals with every value as :func:`_python_value` (one per module)."""
     out = _globals.get(id(g))
     if out is None:
-        out = _globals[id(g)] = {"__numba_power__": numba_power}  # registered before it is filled: kernels of one module call each other
+        out = _globals[id(g)] = {
+            "__numba_power__": numba_power
+        }  # registered before it is filled: kernels of one module call each other
         out.update({k: _python_value(v) for k, v in list(g.items())})
     return out
 

@@ -139,4 +139,3 @@ def njit(f=None, *, cache: bool = True, **options):
     if f is None:
         return lambda g: background.install(decorate(g))
     return background.install(decorate(f))
-

@@ -98,9 +98,7 @@ def acceleration(model: Model, u: Input, stabilization: Any = None) -> Accelerat
     return lambda t, q, v: model.accelerations(q, v, u_fn(t, q, v), stabilization)
 
 
-def diverged(
-    q: np.ndarray, v: np.ndarray, limit: float = DIVERGENCE_LIMIT, model: Model | None = None
-) -> np.ndarray:
+def diverged(q: np.ndarray, v: np.ndarray, limit: float = DIVERGENCE_LIMIT, model: Model | None = None) -> np.ndarray:
     """Whether states stopped being finite, left ``|x| <= limit``, or reached a
     singularity of the model's coordinates (``model.singular``).
 

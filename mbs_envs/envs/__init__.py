@@ -10,7 +10,12 @@ from .planar2r import Planar2REnv
 from .serial_chain import SerialChainEnv
 from .tracking import JointTrackingEnv, TrackingObservation, decode_tracking, encode_tracking
 
-_LAZY = {"FourBarEnv": "fourbar", "RollingDiskEnv": "rolling_disk", "DiskObservation": "rolling_disk", "SpatialChainEnv": "spatial_chain"}
+_LAZY = {
+    "FourBarEnv": "fourbar",
+    "RollingDiskEnv": "rolling_disk",
+    "DiskObservation": "rolling_disk",
+    "SpatialChainEnv": "spatial_chain",
+}
 
 __all__ = [
     "MBSEnv",

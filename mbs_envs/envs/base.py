@@ -171,7 +171,9 @@ def check_work_budget(env: Any, num_envs: int = 1) -> None:
             f"(mbs_envs.envs.base.STEP_WORK_BUDGET); use fewer substeps or a cheaper integrator"
         )
     if num_envs > MAX_MEMBERS:
-        raise ValueError(f"num_envs = {num_envs} is above the budget of {MAX_MEMBERS} members (mbs_envs.envs.base.MAX_MEMBERS)")
+        raise ValueError(
+            f"num_envs = {num_envs} is above the budget of {MAX_MEMBERS} members (mbs_envs.envs.base.MAX_MEMBERS)"
+        )
     if num_envs * work > BATCH_WORK_BUDGET:
         raise ValueError(
             f"num_envs = {num_envs} members x {work:.3g} evaluations x dof per step is {num_envs * work:.3g}, above the "
@@ -228,7 +230,9 @@ class MBSEnv(gym.Env):
     # settings validated on every assignment (constructor, ``set_attr``, ``env.dt = ...``)
     dt = check.Checked(lambda x, name: check.positive(x, name, 1e3))
     divergence_limit = check.Checked(lambda x, name: check.real(x, name, 0.0, 1e30, low_open=True), fixed=True)
-    integrator = check.Checked(lambda x, name: x if isinstance(x, integrators.Stepper) else integrators.get(x), fixed=True)
+    integrator = check.Checked(
+        lambda x, name: x if isinstance(x, integrators.Stepper) else integrators.get(x), fixed=True
+    )
     # the equations: the compiled kernels, the spaces and the state's shapes derive from them
     model = check.Checked(lambda x, name: x, fixed=True)
 
@@ -248,10 +252,7 @@ class MBSEnv(gym.Env):
         render_mode: str | None = None,
     ):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(
-                f"render_mode must be one of {self.metadata['render_modes']} or None, "
-                f"got {render_mode!r}"
-            )
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         options = {k: v for k, v in (("rtol", rtol), ("atol", atol)) if v is not None}
         self._want_compiled = check.boolean(compiled, "compiled")
         self.model = model
@@ -302,14 +303,24 @@ class MBSEnv(gym.Env):
         ``compiled=False``. Both paths give the same episodes (to rounding, 1e-12).
         """
         cached = self.__dict__.get("_compiled_for")  # decided again only when one of these is replaced
-        if cached is None or cached[0] is not self.integrator or cached[1] is not self.stabilization or cached[2] is not self.model:
+        if (
+            cached is None
+            or cached[0] is not self.integrator
+            or cached[1] is not self.stabilization
+            or cached[2] is not self.model
+        ):
             cached = self._compiled_for = (self.integrator, self.stabilization, self.model, self._compiled_tableau())
         return cached[3]
 
     def _compiled_tableau(self) -> TableauArrays | None:
         B = self.model.actuation
         selects = bool(np.all((B == 0) | (B == 1)) and np.all(B.sum(axis=0) == 1) and np.all(B.sum(axis=1) <= 1))
-        if not self._want_compiled or "step_kernel" not in type(self).__dict__ or self.step_kernel is None or not selects:
+        if (
+            not self._want_compiled
+            or "step_kernel" not in type(self).__dict__
+            or self.step_kernel is None
+            or not selects
+        ):
             return None
         self._actuated = np.argmax(B, axis=0).astype(np.int64)
         return compiled_stepping(self.model, self.integrator, self.stabilization)
@@ -348,7 +359,15 @@ class MBSEnv(gym.Env):
         return cached
 
     def run_step_kernel(
-        self, model: Model, q, v, t, task_columns: tuple, action, tab: TableauArrays | None = None, full_info: bool = True
+        self,
+        model: Model,
+        q,
+        v,
+        t,
+        task_columns: tuple,
+        action,
+        tab: TableauArrays | None = None,
+        full_info: bool = True,
     ) -> tuple:
         """The compiled control step of a batch (a single env: one member), in place.
 
@@ -408,7 +427,16 @@ class MBSEnv(gym.Env):
         ):  # fmt: skip
             head = (theta, stepper, control, task + task_columns)
             f, compiled = background.entry(self.step_kernel, head + (state, out))
-            c = self._direct_call = (theta, stepper, control, task, task_columns, head, f, None if compiled else background.generation())
+            c = self._direct_call = (
+                theta,
+                stepper,
+                control,
+                task,
+                task_columns,
+                head,
+                f,
+                None if compiled else background.generation(),
+            )
         c[6](*c[5], state, out)
         return obs.T, info.T, u.T, bad, terminated
 
@@ -420,7 +448,15 @@ class MBSEnv(gym.Env):
         c = self.__dict__.get("_step_arguments_cache")
         if c is None or c[0] is not tab or c[1] is not stab or c[2] is not actuated or c[3] != key:
             stepper = tab.packed(self.dt / self.substeps, self.substeps, projection_tol(stab))
-            control = (float(self.dt), float(self.divergence_limit), float(self.residual_limit), np.array(self.u_max), actuated, nc, full_info)  # writable copies: compiled code takes one array type
+            control = (
+                float(self.dt),
+                float(self.divergence_limit),
+                float(self.residual_limit),
+                np.array(self.u_max),
+                actuated,
+                nc,
+                full_info,
+            )  # writable copies: compiled code takes one array type
             c = self._step_arguments_cache = (tab, stab, actuated, key, (stepper, control))
         return c[4]
 
@@ -507,7 +543,9 @@ class MBSEnv(gym.Env):
             for name, attr in vars(klass).items():
                 if name.startswith("_"):
                     continue
-                if (isinstance(attr, check.Checked) and not attr.fixed) or (isinstance(attr, property) and attr.fset is not None):
+                if (isinstance(attr, check.Checked) and not attr.fixed) or (
+                    isinstance(attr, property) and attr.fset is not None
+                ):
                     names.add(name)
         return tuple(sorted(names))
 
@@ -603,7 +641,9 @@ class MBSEnv(gym.Env):
         """Task quantities for ``info``, each shaped ``(...)`` or ``(..., k)``."""
         return {}
 
-    def _drawing(self, q: np.ndarray, t: float, task: Any, u: np.ndarray, trail: np.ndarray | None = None) -> list[Shape]:
+    def _drawing(
+        self, q: np.ndarray, t: float, task: Any, u: np.ndarray, trail: np.ndarray | None = None
+    ) -> list[Shape]:
         """What to draw of the state ``q`` at time ``t`` of an episode's ``task`` under the input
         ``u`` [SI] (:mod:`mbs_envs.envs.rendering` shapes, world coordinates); ``trail`` the
         scene's recent path where it keeps one (the disk's contact points, :meth:`trail`)."""
@@ -702,9 +742,7 @@ class MBSEnv(gym.Env):
         options = check.mapping(options, "options")
         unknown = sorted(set(options) - {"q", "v"} - set(self.task_options))
         if unknown:
-            raise ValueError(
-                f"unknown reset option(s) {unknown}; known: {['q', 'v', *self.task_options]}"
-            )
+            raise ValueError(f"unknown reset option(s) {unknown}; known: {['q', 'v', *self.task_options]}")
         for key, n in (("q", self.model.nq), ("v", self.model.nv)):
             options[key] = self._checked_state(options, key, n)
         return options
@@ -798,7 +836,9 @@ class MBSEnv(gym.Env):
         with np.errstate(all="ignore"):
             obs = self.observe(q0, v0, self.task_now(np.zeros(q0.shape[:-1]), task), task)
         space = self.observation_space
-        inside = np.all(np.isfinite(obs) & (obs >= space.low) & (obs <= space.high), axis=-1)  # Box.contains, per member
+        inside = np.all(
+            np.isfinite(obs) & (obs >= space.low) & (obs <= space.high), axis=-1
+        )  # Box.contains, per member
         if not np.all(inside):
             i = np.unravel_index(np.argmin(inside), inside.shape) if np.ndim(inside) else ()
             raise ValueError(
@@ -868,7 +908,9 @@ class MBSEnv(gym.Env):
             ``energy``, the reward terms and the task's quantities, one row per member.
         """
         u = action * self.u_max
-        q1, v1 = advance(model, self.integrator, 0.0, q, v, self.dt, self.substeps, u, self.stabilization, compiled=False)
+        q1, v1 = advance(
+            model, self.integrator, 0.0, q, v, self.dt, self.substeps, u, self.stabilization, compiled=False
+        )
         bad = np.asarray(self.state_diverged(q1, v1), bool)
         q, v = np.where(bad[:, None], q, q1), np.where(bad[:, None], v, v1)  # a diverged row keeps its state
         t = t + self.dt
@@ -913,7 +955,11 @@ class MBSEnv(gym.Env):
         (this env's renderer and mode); without ``v`` no error caption, without ``u`` no torque arcs."""
         if self._renderer is None:
             self._renderer = PlanarRenderer(
-                self._render_extent(), self.render_mode, self.metadata["render_fps"], center=(0.0, 0.0), ground=self.draws_ground
+                self._render_extent(),
+                self.render_mode,
+                self.metadata["render_fps"],
+                center=(0.0, 0.0),
+                ground=self.draws_ground,
             )
         self._renderer.center = np.asarray(self._render_center(q), float)  # the camera follows (the disk rolls away)
         u_draw = np.zeros(self.model.nu) if u is None else np.asarray(u, float)

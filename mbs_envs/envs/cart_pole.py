@@ -26,7 +26,9 @@ V = m * g * centre[1]
 params = {"m0": (1.0, "positive"), "m": (0.1, "positive"), "l": (1.0, "positive"), "g": 9.81,
           "b_x": (0.1, "nonnegative"), "b_th": (0.002, "nonnegative")}  # fmt: skip
 #: the derived model's class (only the cart driven: actuation selects x)
-CartPole = type(symbolic.derive("CartPole", [x, th], T, V, params, actuation=[[1.0], [0.0]], damping={x: "b_x", th: "b_th"}))
+CartPole = type(
+    symbolic.derive("CartPole", [x, th], T, V, params, actuation=[[1.0], [0.0]], damping={x: "b_x", th: "b_th"})
+)
 
 
 class CartPoleSwingUpEnv(DerivedSwingUpEnv):

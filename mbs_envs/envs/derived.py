@@ -50,7 +50,9 @@ def coordinate_index(c: Any, coordinates: Sequence[Any], n: int, name: str) -> i
     for i, x in enumerate(coordinates):
         if x == c:
             return i
-    raise ValueError(f"{name}: {c!r} is not one of the coordinates {list(coordinates)} (pass coordinates=..., or indices)")
+    raise ValueError(
+        f"{name}: {c!r} is not one of the coordinates {list(coordinates)} (pass coordinates=..., or indices)"
+    )
 
 
 class NamedPoints:
@@ -72,7 +74,9 @@ class NamedPoints:
         import sympy as sp
 
         plain = sp.symbols(f"p0:{len(self._coordinates)}")
-        exprs = sp.Matrix([[sp.sympify(x), sp.sympify(y)] for x, y in self._points]).xreplace(dict(zip(self._coordinates, plain)))
+        exprs = sp.Matrix([[sp.sympify(x), sp.sympify(y)] for x, y in self._points]).xreplace(
+            dict(zip(self._coordinates, plain))
+        )
         values = self.model.params.as_dict()  # the model's parameters by name (the env's values, overrides included)
         exprs = exprs.xreplace({x: values[str(x)] for x in exprs.free_symbols if str(x) in values})
         unknown = sorted(str(x) for x in exprs.free_symbols - set(plain))
@@ -213,7 +217,11 @@ class DerivedTrackingEnv(NamedPoints, JointTrackingEnv):
         """The first tracked coordinate across its reference range (a whole turn when the reference turns), assembled."""
         centre = (self.center_low + self.center_high) / 2
         q_t = np.array(np.broadcast_to(centre, (25, len(centre))))
-        low, high = (-np.pi, np.pi) if self.rate_range else (self.center_low[0] - self.max_amplitude[0], self.center_high[0] + self.max_amplitude[0])
+        low, high = (
+            (-np.pi, np.pi)
+            if self.rate_range
+            else (self.center_low[0] - self.max_amplitude[0], self.center_high[0] + self.max_amplitude[0])
+        )
         q_t[:, 0] = np.linspace(low, high, 25)
         return self._assembled(q_t)
 
@@ -226,7 +234,9 @@ class DerivedTrackingEnv(NamedPoints, JointTrackingEnv):
 TASKS = {"tracking": ENTRY_POINT, "swing-up": "mbs_envs.envs.derived_swingup:DerivedSwingUpEnv"}
 
 
-def register(env_id: str, model: DerivedModel, max_episode_steps: int = 500, task: str = "tracking", **kwargs: Any) -> None:
+def register(
+    env_id: str, model: DerivedModel, max_episode_steps: int = 500, task: str = "tracking", **kwargs: Any
+) -> None:
     """Register ``env_id`` for ``gym.make`` and ``gym.make_vec(..., vectorization_mode="vector_entry_point")``: the
     ``task`` (:data:`TASKS`: :class:`DerivedTrackingEnv`, or
     :class:`~mbs_envs.envs.derived_swingup.DerivedSwingUpEnv` with ``horizon = max_episode_steps``) on ``model``

@@ -175,7 +175,9 @@ class SwingUpTask:
     def step_loss(self) -> float:
         """The largest loss of one step inside the bounds, ``w_h + w_e sum_i max e_i^2 + w_u nu`` (the angles' ``max e^2``
         is ``pi^2``, a bounded coordinate's the square of its bound's farthest end from upright)."""
-        span = np.where(self.angle, np.pi, np.maximum(np.abs(self.low - self.upright), np.abs(self.high - self.upright)))
+        span = np.where(
+            self.angle, np.pi, np.maximum(np.abs(self.low - self.upright), np.abs(self.high - self.upright))
+        )
         w_h, w_e, w_u, _ = self.weights
         return float(w_h + w_e * np.sum(span**2) + w_u * len(self.u_max))
 
@@ -264,12 +266,16 @@ class DerivedSwingUpEnv(NamedPoints, MBSEnv):
         if not isinstance(model, DerivedModel):
             raise ValueError(f"model must be a model from mbs_envs.models.symbolic.derive, got {type(model).__name__}")
         if model.nc:
-            raise ValueError("the swing-up task takes an unconstrained model (this one has constraints): use the tracking task")
+            raise ValueError(
+                "the swing-up task takes an unconstrained model (this one has constraints): use the tracking task"
+            )
         if params is not None:
             model = type(model)(check.mapping(params, "params"))
         n = model.nq
         if model.nu >= n:
-            raise ValueError(f"the swing-up task is for underactuated models: this one drives {model.nu} of its {n} coordinates (pass actuation= to derive)")
+            raise ValueError(
+                f"the swing-up task is for underactuated models: this one drives {model.nu} of its {n} coordinates (pass actuation= to derive)"
+            )
         self.set_points(n, coordinates, points)
         self.upright = check.vector(upright, "upright", n, broadcast=False)
         self.hanging = check.vector(hanging, "hanging", n, broadcast=False)
@@ -296,19 +302,25 @@ class DerivedSwingUpEnv(NamedPoints, MBSEnv):
         self.horizon = horizon
         V_down, V_up = (float(model.potential_energy(q)) for q in (self.hanging, self.upright))
         if not V_up > V_down:
-            raise ValueError(f"upright must have more potential energy than hanging: V(upright) = {V_up:.6g} J, V(hanging) = {V_down:.6g} J")
+            raise ValueError(
+                f"upright must have more potential energy than hanging: V(upright) = {V_up:.6g} J, V(hanging) = {V_down:.6g} J"
+            )
         self.V_range = np.array([V_down, V_up])
         B = model.actuation
         self.actuated = np.argmax(B, axis=0).astype(np.int64)
         # a linear coordinate's observation may leave its bounds (the step that ends the episode there)
-        high = np.concatenate([np.ones(2 * int(angle.sum())), np.full(2 * n - int(angle.sum()), self.divergence_limit)]).astype(np.float32)
+        high = np.concatenate(
+            [np.ones(2 * int(angle.sum())), np.full(2 * n - int(angle.sum()), self.divergence_limit)]
+        ).astype(np.float32)
         self.observation_space = gym.spaces.Box(-high, high, dtype=np.float32)
         self._check_start_bound(float(np.max(np.abs(self.hanging))) + self.start_noise)
         reach = (self.hanging - self.start_noise < self.low) | (self.hanging + self.start_noise > self.high)
         if np.any(reach):
             i = int(np.argmax(reach))
-            raise ValueError(f"start_noise = {self.start_noise:g} reaches beyond bounds of coordinate {i} ({self.low[i]:g}, {self.high[i]:g}) "
-                             f"from hanging = {self.hanging[i]:g}: sampled starts would be refused")
+            raise ValueError(
+                f"start_noise = {self.start_noise:g} reaches beyond bounds of coordinate {i} ({self.low[i]:g}, {self.high[i]:g}) "
+                f"from hanging = {self.hanging[i]:g}: sampled starts would be refused"
+            )
 
     # -- the task ------------------------------------------------------------------------------
 
@@ -342,7 +354,9 @@ class DerivedSwingUpEnv(NamedPoints, MBSEnv):
         if np.any(out):
             i = np.unravel_index(np.argmax(out), out.shape) if out.ndim else ()
             source = "the start state given in options" if given else "a sampled start state"
-            raise ValueError(f"{source} (q = {np.asarray(q0)[i].tolist()}) is outside bounds (low {self.low.tolist()}, high {self.high.tolist()})")
+            raise ValueError(
+                f"{source} (q = {np.asarray(q0)[i].tolist()}) is outside bounds (low {self.low.tolist()}, high {self.high.tolist()})"
+            )
         return obs
 
     def task_now(self, t: np.ndarray, task: Any) -> np.ndarray:
@@ -369,9 +383,9 @@ class DerivedSwingUpEnv(NamedPoints, MBSEnv):
         if obs.shape[-1:] != self.observation_space.shape:
             raise ValueError(f"observation must have shape (..., {self.observation_space.shape[0]}), got {obs.shape}")
         q = np.empty(obs.shape[:-1] + (n,))
-        q[..., self.angle] = np.arctan2(obs[..., na:2 * na], obs[..., :na])
-        q[..., ~self.angle] = obs[..., 2 * na:n + na]
-        return SwingUpObservation(q=q, v=obs[..., n + na:])
+        q[..., self.angle] = np.arctan2(obs[..., na : 2 * na], obs[..., :na])
+        q[..., ~self.angle] = obs[..., 2 * na : n + na]
+        return SwingUpObservation(q=q, v=obs[..., n + na :])
 
     def task_info(self, q, v, now, task, u) -> dict[str, Any]:
         info = self._rows(q, v, now, np.asarray(u, float) / self.u_max)[0]
@@ -386,13 +400,20 @@ class DerivedSwingUpEnv(NamedPoints, MBSEnv):
 
     def task_layout(self) -> tuple[tuple[str, int | None, bool], ...]:
         return tuple((k, None, False) for k in TERMS) + (
-            ("tracking_error", int(self.angle.sum()), False), ("upright", None, True), ("power", None, False), ("out_of_bounds", None, True))
+            ("tracking_error", int(self.angle.sum()), False),
+            ("upright", None, True),
+            ("power", None, False),
+            ("out_of_bounds", None, True),
+        )
 
     # -- drawing -------------------------------------------------------------------------------
 
     def _frame_configurations(self) -> np.ndarray:
         """Upright and hanging, with every bounded coordinate at each of its ends."""
-        ends = [(self.low[i], self.high[i]) if np.isfinite(self.low[i]) else (self.upright[i],) for i in range(self.model.nq)]
+        ends = [
+            (self.low[i], self.high[i]) if np.isfinite(self.low[i]) else (self.upright[i],)
+            for i in range(self.model.nq)
+        ]
         out = []
         for q in (self.upright, self.hanging):
             for corner in itertools.product(*ends):

@@ -45,7 +45,9 @@ from ..dynamics.jit import njit
 
 
 @njit(cache=False, inline="always")  # takes kernels as arguments: cached inside the scenes' module-level bindings
-def engine_step(advance, energy, constraint_info, singular, task_step, theta, stepper, control, task, state, out):  # pragma: no cover
+def engine_step(
+    advance, energy, constraint_info, singular, task_step, theta, stepper, control, task, state, out
+):  # pragma: no cover
     """One control step of every member (module docstring).
 
     Parameters

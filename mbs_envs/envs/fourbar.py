@@ -24,8 +24,17 @@ def step_kernel(theta, stepper, control, task, state, out):  # pragma: no cover 
     """The compiled step of this scene: :func:`~mbs_envs.envs.engine.engine_step` with the model's
     kernels (the projection after every step, the loop residual and the multipliers)."""
     engine_step(
-        _model.advance_kernel, _model.energy_kernel, _model.constraint_info_kernel, _compiled.never_singular, _tracking.tracking_task,
-        theta, stepper, control, task, state, out,
+        _model.advance_kernel,
+        _model.energy_kernel,
+        _model.constraint_info_kernel,
+        _compiled.never_singular,
+        _tracking.tracking_task,
+        theta,
+        stepper,
+        control,
+        task,
+        state,
+        out,
     )
 
 

@@ -194,7 +194,9 @@ class StartsAhead:
             if venv._task_columns is not None and self.columns is None:
                 self.columns = venv.env.task_columns(self.task)
             n = self.n
-            rows = [(_view(w, (n, -1)), _view(a, (n, -1))) for w, a in zip(tree_leaves(venv._task), tree_leaves(self.task))]
+            rows = [
+                (_view(w, (n, -1)), _view(a, (n, -1))) for w, a in zip(tree_leaves(venv._task), tree_leaves(self.task))
+            ]
             rows += [(_view(venv._scales[k], (n, 1)), _view(self.scales[k], (n, 1))) for k in venv._scales]
             columns = [(venv._qc, self.q), (venv._vc, self.v)]
             if venv._task_columns is not None:

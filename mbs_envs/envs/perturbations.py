@@ -22,7 +22,9 @@ RANGES = MappingProxyType({"velocity noise": (0.0, 0.5), "torque noise": (0.0, 1
 #: the observation entries the velocity noise reaches: the joint rates of the swing-up envs' (cos, sin, cos, sin, v1, v2)
 RATE_INDEX = (4, 5)
 #: perturbations: episodes, pulses per joint, least spacing [s], width and height ranges [s], [N m]
-PULSES = MappingProxyType({"episodes": 50, "per_joint": 3, "min_spacing": 1.0, "sigma": (0.05, 0.1), "amplitude": (0.5, 5.0)})
+PULSES = MappingProxyType(
+    {"episodes": 50, "per_joint": 3, "min_spacing": 1.0, "sigma": (0.05, 0.1), "amplitude": (0.5, 5.0)}
+)
 
 
 # -- the arithmetic -------------------------------------------------------------------------------------------
@@ -86,8 +88,13 @@ def random_pulses(rng: np.random.Generator, episodes: int, t: np.ndarray, coordi
     return gaussian_pulses(t, mu, width, amp)
 
 
-def actuated(u: np.ndarray, applied: np.ndarray, u_max: np.ndarray, noise: np.ndarray | None = None,
-             response: np.ndarray | None = None) -> np.ndarray:
+def actuated(
+    u: np.ndarray,
+    applied: np.ndarray,
+    u_max: np.ndarray,
+    noise: np.ndarray | None = None,
+    response: np.ndarray | None = None,
+) -> np.ndarray:
     """The torque the plant gets for the command ``u``: the torque noise added, then the first-order actuator
     ``applied + r (u - applied)`` (responsiveness ``r = response``), then the actuator limit.
 

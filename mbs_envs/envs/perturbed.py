@@ -35,8 +35,15 @@ from .base import validate_action
 #: the axes a member can draw at a reset, in this order ("nominal": none)
 TRAINING_AXES = ("nominal", "velocity noise", "torque noise", "torque response", "time delay", "perturbations")
 #: each axis' field of :class:`TrainingPerturbations`
-AXIS_FIELDS = MappingProxyType({"velocity noise": "velocity_noise", "torque noise": "torque_noise",
-                                "torque response": "torque_response", "time delay": "time_delay", "perturbations": "pulses"})
+AXIS_FIELDS = MappingProxyType(
+    {
+        "velocity noise": "velocity_noise",
+        "torque noise": "torque_noise",
+        "torque response": "torque_response",
+        "time delay": "time_delay",
+        "perturbations": "pulses",
+    }
+)
 
 
 def _range(value: Any, name: str, low: float, high: float) -> tuple[float, float] | None:
@@ -169,7 +176,9 @@ class PerturbedVectorEnv(VectorWrapper):
         if not isinstance(getattr(env, "unwrapped", None), MBSVectorEnv):
             raise ValueError(f"env must be an mbs_envs vector env, got {type(env).__name__}")
         if env.autoreset_mode != AutoresetMode.DISABLED:
-            raise ValueError(f"env needs autoreset_mode=Disabled (one perturbation per episode), got {env.autoreset_mode.name}")
+            raise ValueError(
+                f"env needs autoreset_mode=Disabled (one perturbation per episode), got {env.autoreset_mode.name}"
+            )
         if env.unwrapped.max_episode_steps is None:
             raise ValueError("env needs a max_episode_steps (the pulses are drawn for a whole episode)")
         perturbations = TrainingPerturbations.of(perturbations)
@@ -177,7 +186,9 @@ class PerturbedVectorEnv(VectorWrapper):
         base = env.unwrapped
         width = env.single_observation_space.shape[0]
         if any(i >= width for i in perturbations.noise_index):
-            raise ValueError(f"perturbations.noise_index {perturbations.noise_index} beyond the observation's {width} entries")
+            raise ValueError(
+                f"perturbations.noise_index {perturbations.noise_index} beyond the observation's {width} entries"
+            )
         n, nv, dt, steps = base.num_envs, base.model.nv, float(base.env.dt), int(base.max_episode_steps)
         if perturbations.pulses is not None:
             q = perturbations.pulses
@@ -252,7 +263,9 @@ class PerturbedVectorEnv(VectorWrapper):
         from .perturbations import actuated
 
         base = self.env.unwrapped
-        u = validate_action(actions, len(self.u_max), self.num_envs) * self.u_max  # saturated to [-1, 1]; refused as the env does
+        u = (
+            validate_action(actions, len(self.u_max), self.num_envs) * self.u_max
+        )  # saturated to [-1, 1]; refused as the env does
         sigma = np.where(self._on("torque noise"), self.value, 0.0)
         noise = sigma[:, None] * self.rng.standard_normal(u.shape) if sigma.any() else None
         lag = self._on("torque response")

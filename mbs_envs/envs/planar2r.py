@@ -21,8 +21,17 @@ from .tracking import JointTrackingEnv
 def step_kernel(theta, stepper, control, task, state, out):  # pragma: no cover - compiled
     """The compiled step of this scene: :func:`~mbs_envs.envs.engine.engine_step` with the model's kernels."""
     engine_step(
-        _model.advance_kernel, _model.energy_kernel, _compiled.no_constraint_info, _compiled.never_singular, _tracking.tracking_task,
-        theta, stepper, control, task, state, out,
+        _model.advance_kernel,
+        _model.energy_kernel,
+        _compiled.no_constraint_info,
+        _compiled.never_singular,
+        _tracking.tracking_task,
+        theta,
+        stepper,
+        control,
+        task,
+        state,
+        out,
     )
 
 
@@ -97,7 +106,11 @@ class Planar2REnv(JointTrackingEnv):
     max_amplitude = np.array([0.6, 0.8])
 
     def __init__(
-        self, params: Mapping[str, Any] | None = None, torque_limit: Any = (40.0, 20.0), substeps: int = 2, **kwargs: Any
+        self,
+        params: Mapping[str, Any] | None = None,
+        torque_limit: Any = (40.0, 20.0),
+        substeps: int = 2,
+        **kwargs: Any,
     ):
         super().__init__(Planar2R(params), torque_limit, substeps=substeps, **kwargs)
 

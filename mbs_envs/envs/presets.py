@@ -112,7 +112,9 @@ def planar2r_params(p: DoublePendulumParams) -> dict[str, float]:
     for i in (1, 2):
         m, r, inertia = getattr(p, f"m{i}"), getattr(p, f"r{i}"), getattr(p, f"I{i}")
         if not inertia >= m * r**2:
-            raise ValueError(f"I{i} = {inertia:g} is below m{i} r{i}^2 = {m * r * r:g}: no rigid link has it about its joint")
+            raise ValueError(
+                f"I{i} = {inertia:g} is below m{i} r{i}^2 = {m * r * r:g}: no rigid link has it about its joint"
+            )
         out[f"I{i}"] = inertia - m * r**2
     return out
 
@@ -148,7 +150,9 @@ def with_preset(preset: str | None, given: Mapping[str, Any]) -> dict[str, Any]:
     for key, value in given.items():
         if key == "params" and value is not None:
             if not isinstance(value, Mapping):
-                raise ValueError(f"params must be a mapping of Planar2R parameters to combine with preset {preset!r}, got {type(value).__name__}")
+                raise ValueError(
+                    f"params must be a mapping of Planar2R parameters to combine with preset {preset!r}, got {type(value).__name__}"
+                )
             value = {**out["params"], **value}
         out[key] = value
     out["params"] = dict(out["params"])

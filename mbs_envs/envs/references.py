@@ -147,12 +147,12 @@ class SumOfSines:
         fields = (self.center, rate, self.amplitude, self.omega, self.phase)
         lead = np.broadcast_shapes(shape, own)
         if lead != own:  # times beyond the references' shape (a reference at many times): broadcast
-            fields = tuple(np.broadcast_to(x, lead + x.shape[len(own):]) for x in fields)
+            fields = tuple(np.broadcast_to(x, lead + x.shape[len(own) :]) for x in fields)
         L = int(np.prod(lead, dtype=np.int64))
         copy = aligned if L >= self.ALIGN_FROM else (lambda x: np.array(x, float, order="C"))
 
         def columns(x):
-            rows = x.reshape((L,) + x.shape[len(lead):])
+            rows = x.reshape((L,) + x.shape[len(lead) :])
             return copy(rows.transpose(tuple(range(1, rows.ndim)) + (0,)))  # members last
 
         return tuple(columns(x) for x in fields)

@@ -20,13 +20,21 @@ from types import MappingProxyType
 
 #: the tracking task's model-based controllers (fully actuated scenes)
 JOINT_CONTROLLERS = MappingProxyType(
-    {"PD": "mbs_envs.controllers:PD", "PD+gravity": "mbs_envs.controllers:PDGravity", "computed torque": "mbs_envs.controllers:ComputedTorque"}
+    {
+        "PD": "mbs_envs.controllers:PD",
+        "PD+gravity": "mbs_envs.controllers:PDGravity",
+        "computed torque": "mbs_envs.controllers:ComputedTorque",
+    }
 )
 
 #: the swing-up scenes' model-based controller (underactuated: no joint tracking controller applies)
-SWING_UP_CONTROLLERS = MappingProxyType({"swing-up + LQR": "mbs_envs.controllers:SwingUpLQR",
-                                         "adaptive swing-up + LQR": "mbs_envs.controllers:AdaptiveSwingUpLQR",
-                                         "identified iLQR + TVLQR": "mbs_envs.controllers:PlannedSwingUp"})
+SWING_UP_CONTROLLERS = MappingProxyType(
+    {
+        "swing-up + LQR": "mbs_envs.controllers:SwingUpLQR",
+        "adaptive swing-up + LQR": "mbs_envs.controllers:AdaptiveSwingUpLQR",
+        "identified iLQR + TVLQR": "mbs_envs.controllers:PlannedSwingUp",
+    }
+)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -118,7 +118,9 @@ def arm_shapes(points: np.ndarray, ghost: np.ndarray | None = None, torques: Seq
     if ghost is not None:
         shapes.append(Line(ghost, GHOST, w))
     shapes.append(Line(points, LINK, w))
-    shapes += [Dot(p, dot) for p in (points[:-1] if n <= 20 else points[:1])]  # past 20 links the dots would hide the links
+    shapes += [
+        Dot(p, dot) for p in (points[:-1] if n <= 20 else points[:1])
+    ]  # past 20 links the dots would hide the links
     shapes.append(Dot(points[-1], max(dot - 1, 2), LINK))
     shapes += [TorqueArc(points[j], float(np.clip(f, -1.0, 1.0)), arc) for j, f in torques if np.isfinite(f)]
     return shapes
@@ -156,7 +158,9 @@ class PlanarRenderer:
         Draw the line ``y = 0``.
     """
 
-    def __init__(self, extent: float, render_mode: str, fps: int, screen_size: int = 500, center=(0.0, 0.0), ground: bool = True):
+    def __init__(
+        self, extent: float, render_mode: str, fps: int, screen_size: int = 500, center=(0.0, 0.0), ground: bool = True
+    ):
         try:
             import pygame
         except ImportError as e:  # pragma: no cover - exercised without pygame only

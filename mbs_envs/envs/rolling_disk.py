@@ -50,7 +50,9 @@ class DiskTask:
 
 
 @njit
-def disk_columns(q, v, h, dh, ddh, spin_ref, action, weights, Wc, lean_limit, obs, info, terminated):  # pragma: no cover - compiled
+def disk_columns(
+    q, v, h, dh, ddh, spin_ref, action, weights, Wc, lean_limit, obs, info, terminated
+):  # pragma: no cover - compiled
     """The task's formulas (:class:`RollingDiskEnv`'s docstring) for a batch in columns.
 
     Parameters
@@ -78,7 +80,12 @@ def disk_columns(q, v, h, dh, ddh, spin_ref, action, weights, Wc, lean_limit, ob
         effort = 0.0
         for k in range(action.shape[0]):
             effort += action[k, b] * action[k, b]
-        r_h, r_l, r_s, r_u = -weights[0] * e_h**2, -weights[1] * q[4, b] ** 2, -weights[2] * e_s**2, -weights[3] * effort
+        r_h, r_l, r_s, r_u = (
+            -weights[0] * e_h**2,
+            -weights[1] * q[4, b] ** 2,
+            -weights[2] * e_s**2,
+            -weights[3] * effort,
+        )
         fell = abs(q[4, b]) > lean_limit
         info[0, b] = 1.0 + r_h + r_l + r_s + r_u
         info[1, b], info[2, b], info[3, b], info[4, b] = r_h, r_l, r_s, r_u
@@ -102,7 +109,9 @@ def disk_task(q, v, t, action, task, obs, info, terminated):  # pragma: no cover
     B = q.shape[1]
     refs = np.empty((3, 1, B))
     sum_of_sines_columns(t, center, rate, amplitude, omega, phase, refs[0], refs[1], refs[2])
-    disk_columns(q, v, refs[0, 0], refs[1, 0], refs[2, 0], spin_ref, action, weights, Wc, lean_limit, obs, info, terminated)
+    disk_columns(
+        q, v, refs[0, 0], refs[1, 0], refs[2, 0], spin_ref, action, weights, Wc, lean_limit, obs, info, terminated
+    )
 
 
 @njit
@@ -110,8 +119,17 @@ def step_kernel(theta, stepper, control, task, state, out):  # pragma: no cover 
     """The compiled step of this scene: :func:`~mbs_envs.envs.engine.engine_step` with the model's
     kernels (projection, contact force, the flat-disk singularity) and :func:`disk_task`."""
     engine_step(
-        _model.advance_kernel, _model.energy_kernel, _model.constraint_info_kernel, _model.singular_kernel,
-        _this.disk_task, theta, stepper, control, task, state, out,
+        _model.advance_kernel,
+        _model.energy_kernel,
+        _model.constraint_info_kernel,
+        _model.singular_kernel,
+        _this.disk_task,
+        theta,
+        stepper,
+        control,
+        task,
+        state,
+        out,
     )
 
 
@@ -163,7 +181,9 @@ def sample(p: DiskTaskParams, rngs: list[np.random.Generator], spin_ref: Any = N
     return DiskTask(heading=heading, spin_ref=spin)
 
 
-def start(p: DiskTaskParams, task: DiskTask, rngs: list[np.random.Generator], model: RollingDisk) -> tuple[np.ndarray, np.ndarray]:
+def start(
+    p: DiskTaskParams, task: DiskTask, rngs: list[np.random.Generator], model: RollingDisk
+) -> tuple[np.ndarray, np.ndarray]:
     """Upright rolling at the commanded spin, heading near the reference's, small lean and lean rate:
     ``(q0, v0)``, shape ``(L, 6)`` each, member ``i``'s noise from ``rngs[i]``."""
     d = np.array([rng.random(3) for rng in rngs])  # heading, lean, lean rate (:mod:`mbs_envs.envs.draws`)
@@ -178,7 +198,9 @@ def reference(task: DiskTask, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np
     return h[..., 0], dh[..., 0], ddh[..., 0]
 
 
-def task_rows(p: DiskTaskParams, q, v, now: tuple, task: DiskTask, action=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def task_rows(
+    p: DiskTaskParams, q, v, now: tuple, task: DiskTask, action=None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`disk_columns` batched over leading dimensions: ``obs (..., 8)`` float32,
     ``info (..., 9)`` and ``fell (...)`` (``action`` None: no effort)."""
     action = np.zeros(2) if action is None else action
@@ -210,7 +232,12 @@ def terminated(p: DiskTaskParams, q, v, now: tuple, task: DiskTask) -> np.ndarra
 def info(p: DiskTaskParams, q, v, now: tuple, task: DiskTask) -> dict[str, np.ndarray]:
     """``lean``, ``fell``, ``tracking_error`` (the heading error, ``(..., 1)``) and ``spin_error`` [rad/s]."""
     rows = task_rows(p, q, v, now, task)[1]
-    return {"lean": rows[..., 5], "fell": rows[..., 6].astype(bool), "tracking_error": rows[..., 7:8], "spin_error": rows[..., 8]}
+    return {
+        "lean": rows[..., 5],
+        "fell": rows[..., 6].astype(bool),
+        "tracking_error": rows[..., 7:8],
+        "spin_error": rows[..., 8],
+    }
 
 
 #: the smallest critical spin [rad/s] the task takes: its speed error is in units of W_c, so a disk
@@ -297,7 +324,9 @@ class RollingDiskEnv(MBSEnv):
     ):
         model = RollingDisk(params)
         Wc = model.critical_spin
-        if not (np.isfinite(Wc) and Wc >= MIN_CRITICAL_SPIN):  # g <= 0 (or ~0): the task's speeds, in units of W_c, are undefined
+        if not (
+            np.isfinite(Wc) and Wc >= MIN_CRITICAL_SPIN
+        ):  # g <= 0 (or ~0): the task's speeds, in units of W_c, are undefined
             raise ValueError(
                 f"params: g = {model.params.g:g} gives the critical spin W_c = {Wc:g} rad/s; this task's spin "
                 f"references and speed error are in units of W_c, so it needs gravity g > 0 and W_c >= {MIN_CRITICAL_SPIN:g} rad/s"
@@ -314,7 +343,9 @@ class RollingDiskEnv(MBSEnv):
         # starts: heading within pi + amplitude + 0.1, spin up to the top of spin_range, the
         # centre's speed r times it, lean and heading rates below 1 rad/s
         W_top = self.spin_range[1] * Wc
-        self._check_start_bound(max(np.pi + self.heading_amplitude + 0.1, model.params.r, W_top * max(1.0, model.params.r) + 1.0))
+        self._check_start_bound(
+            max(np.pi + self.heading_amplitude + 0.1, model.params.r, W_top * max(1.0, model.params.r) + 1.0)
+        )
 
     @property
     def lean_limit(self) -> float:
@@ -396,7 +427,11 @@ class RollingDiskEnv(MBSEnv):
 
     def task_layout(self) -> tuple[tuple[str, int | None, bool], ...]:
         names = ("reward", "reward_heading", "reward_lean", "reward_speed", "reward_effort", "lean")
-        return tuple((k, None, False) for k in names) + (("fell", None, True), ("tracking_error", 1, False), ("spin_error", None, False))
+        return tuple((k, None, False) for k in names) + (
+            ("fell", None, True),
+            ("tracking_error", 1, False),
+            ("spin_error", None, False),
+        )
 
     # -- drawing: an oblique camera beside the disk, and a map seen from above ------------------
 
@@ -439,7 +474,9 @@ class RollingDiskEnv(MBSEnv):
     def _contact_point(self, q: np.ndarray) -> np.ndarray:
         return np.asarray(q[:3], float) + self.model.contact_offset(q)
 
-    def _drawing(self, q: np.ndarray, t: float, task: DiskTask, u: np.ndarray, trail: np.ndarray | None = None) -> list[Shape]:
+    def _drawing(
+        self, q: np.ndarray, t: float, task: DiskTask, u: np.ndarray, trail: np.ndarray | None = None
+    ) -> list[Shape]:
         """The disk seen by a camera beside it (:meth:`_camera`, 30 deg above the ground): the rim
         (the projected circle of the tilted disk, an ellipse) with a spoke turning with the spin, the
         ground as a 0.5 m grid, the contact path of the last ``trail_seconds``, the direction of
@@ -463,8 +500,12 @@ class RollingDiskEnv(MBSEnv):
         x0, y0 = np.round(centre[0] / step) * step, np.round(centre[1] / step) * step
         span = np.arange(-4, 5) * step
         for k in span:  # the ground grid around the disk
-            shapes.append(Line(view(np.array([[x0 + k, y0 + span[0], 0.0], [x0 + k, y0 + span[-1], 0.0]])), (225, 225, 225), 1))
-            shapes.append(Line(view(np.array([[x0 + span[0], y0 + k, 0.0], [x0 + span[-1], y0 + k, 0.0]])), (225, 225, 225), 1))
+            shapes.append(
+                Line(view(np.array([[x0 + k, y0 + span[0], 0.0], [x0 + k, y0 + span[-1], 0.0]])), (225, 225, 225), 1)
+            )
+            shapes.append(
+                Line(view(np.array([[x0 + span[0], y0 + k, 0.0], [x0 + span[-1], y0 + k, 0.0]])), (225, 225, 225), 1)
+            )
         if trail is not None and len(trail) > 1:
             shapes.append(Line(view(trail), (200, 60, 60), 2))
         h_ref = float(self.task_now(np.asarray(t), task)[0])

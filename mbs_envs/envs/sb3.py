@@ -107,7 +107,9 @@ class SB3VecEnv(VecEnv):
         (a list is a value too, e.g. per-joint torque limits); validated by :meth:`MBSVectorEnv.set_attr` (unknown,
         fixed or misspelt names raise ``ValueError``); ``indices`` must cover every member, since they share it."""
         if indices is not None and sorted(set(self._get_indices(indices))) != list(range(self.num_envs)):
-            raise ValueError(f"set_attr({attr_name!r}, indices={indices!r}): the members share one task env; set it for all")
+            raise ValueError(
+                f"set_attr({attr_name!r}, indices={indices!r}): the members share one task env; set it for all"
+            )
         self.venv.set_attr(attr_name, [value] * self.num_envs)
 
     def seed(self, seed: int | None = None) -> Any:
@@ -138,8 +140,13 @@ def check_action_repeat(action_repeat: Any) -> int:
 
 
 def make_sb3_vec_env(
-    env_id: str, n_envs: int = 8, seed: int | None = None, monitor: bool = True, action_repeat: int = 1,
-    perturb: Any = None, **kwargs: Any
+    env_id: str,
+    n_envs: int = 8,
+    seed: int | None = None,
+    monitor: bool = True,
+    action_repeat: int = 1,
+    perturb: Any = None,
+    **kwargs: Any,
 ) -> VecEnv:
     """SB3 ``VecEnv`` of ``n_envs`` batched members of a registered id.
 

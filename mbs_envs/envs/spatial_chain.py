@@ -20,8 +20,17 @@ from .tracking import ChainTrackingEnv
 def step_kernel(theta, stepper, control, task, state, out):  # pragma: no cover - compiled
     """The compiled step of this scene: :func:`~mbs_envs.envs.engine.engine_step` with the model's kernels."""
     engine_step(
-        _model.advance_kernel, _model.energy_kernel, _compiled.no_constraint_info, _compiled.never_singular, _tracking.tracking_task,
-        theta, stepper, control, task, state, out,
+        _model.advance_kernel,
+        _model.energy_kernel,
+        _compiled.no_constraint_info,
+        _compiled.never_singular,
+        _tracking.tracking_task,
+        theta,
+        stepper,
+        control,
+        task,
+        state,
+        out,
     )
 
 
@@ -30,8 +39,17 @@ def batched_step_kernel(theta, stepper, control, task, state, out):  # pragma: n
     """:func:`step_kernel` of a batch: the ABA in SIMD tiles of members (:func:`~mbs_envs.models.spatial_chain.aba_tiles`;
     each member's bits those of :func:`step_kernel`)."""
     engine_step(
-        _model.tiled_advance_kernel, _model.energy_kernel, _compiled.no_constraint_info, _compiled.never_singular, _tracking.tracking_task,
-        theta, stepper, control, task, state, out,
+        _model.tiled_advance_kernel,
+        _model.energy_kernel,
+        _compiled.no_constraint_info,
+        _compiled.never_singular,
+        _tracking.tracking_task,
+        theta,
+        stepper,
+        control,
+        task,
+        state,
+        out,
     )
 
 

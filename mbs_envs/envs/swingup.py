@@ -114,8 +114,17 @@ def swingup_task(q, v, t, action, task, obs, info, terminated):  # pragma: no co
 def step_kernel(theta, stepper, control, task, state, out):  # pragma: no cover - compiled
     """The compiled step of both scenes: :func:`~mbs_envs.envs.engine.engine_step` with Planar2R's kernels."""
     engine_step(
-        _model.advance_kernel, _model.energy_kernel, _compiled.no_constraint_info, _compiled.never_singular, _this.swingup_task,
-        theta, stepper, control, task, state, out,
+        _model.advance_kernel,
+        _model.energy_kernel,
+        _compiled.no_constraint_info,
+        _compiled.never_singular,
+        _this.swingup_task,
+        theta,
+        stepper,
+        control,
+        task,
+        state,
+        out,
     )
 
 
@@ -177,7 +186,12 @@ class SwingUpTaskParams:
 
     def kernel_arguments(self) -> tuple:
         """``(weights, u_max, driven, tolerance)`` as :func:`swingup_columns` takes them."""
-        return (np.array(self.weights, float), np.array(self.u_max, float), np.array([self.driven], np.int64), float(self.tolerance))
+        return (
+            np.array(self.weights, float),
+            np.array(self.u_max, float),
+            np.array([self.driven], np.int64),
+            float(self.tolerance),
+        )
 
 
 def start(p: SwingUpTaskParams, rngs: list[np.random.Generator]) -> tuple[np.ndarray, np.ndarray]:
@@ -213,10 +227,17 @@ def task_rows(p: SwingUpTaskParams, q: np.ndarray, v: np.ndarray, action: np.nda
     return info.T.reshape(lead + (9,))
 
 
-def reward(p: SwingUpTaskParams, q: np.ndarray, v: np.ndarray, action: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+def reward(
+    p: SwingUpTaskParams, q: np.ndarray, v: np.ndarray, action: np.ndarray
+) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """The reward ``(...)`` (module docstring) and its terms."""
     rows = task_rows(p, q, v, action)
-    terms = {"reward_height": rows[..., 1], "reward_upright": rows[..., 2], "reward_effort": rows[..., 3], "reward_hold": rows[..., 8]}
+    terms = {
+        "reward_height": rows[..., 1],
+        "reward_upright": rows[..., 2],
+        "reward_effort": rows[..., 3],
+        "reward_hold": rows[..., 8],
+    }
     return rows[..., 0], terms
 
 
@@ -294,7 +315,13 @@ class SwingUpEnv(MBSEnv):
         preset: str | None = None,
         **kwargs: Any,
     ):
-        given = {"params": params, "torque_limit": torque_limit, "substeps": substeps, "start_noise": start_noise, **kwargs}
+        given = {
+            "params": params,
+            "torque_limit": torque_limit,
+            "substeps": substeps,
+            "start_noise": start_noise,
+            **kwargs,
+        }
         kwargs = with_preset(preset, {k: v for k, v in given.items() if v is not None})
         params, torque_limit = kwargs.pop("params", None), kwargs.pop("torque_limit", self.default_torque_limit)
         substeps, start_noise = kwargs.pop("substeps", 2), kwargs.pop("start_noise", 0.1)
@@ -314,11 +341,20 @@ class SwingUpEnv(MBSEnv):
 
     def _task_cache(self) -> tuple:
         """``(key, task_params, kernel arguments)``, built again only when a setting they hold changes."""
-        key = (self.reward_weights.tobytes(), self.hold_bonus, self.u_max.tobytes(), self.upright_tolerance, self.start_noise, self.start_upright)
+        key = (
+            self.reward_weights.tobytes(),
+            self.hold_bonus,
+            self.u_max.tobytes(),
+            self.upright_tolerance,
+            self.start_noise,
+            self.start_upright,
+        )
         cached = self.__dict__.get("_task_params")
         if cached is None or cached[0] != key:
             weights = np.append(self.reward_weights, self.hold_bonus)
-            params = SwingUpTaskParams(weights, self.u_max, self.driven, self.upright_tolerance, self.start_noise, self.start_upright)
+            params = SwingUpTaskParams(
+                weights, self.u_max, self.driven, self.upright_tolerance, self.start_noise, self.start_upright
+            )
             cached = self._task_params = (key, params, params.kernel_arguments())
         return cached
 
@@ -352,7 +388,11 @@ class SwingUpEnv(MBSEnv):
     def task_layout(self) -> tuple[tuple[str, int | None, bool], ...]:
         names = ("reward", "reward_height", "reward_upright", "reward_effort")
         return tuple((k, None, False) for k in names) + (
-            ("tracking_error", 2, False), ("upright", None, True), ("power", None, False), ("reward_hold", None, False))
+            ("tracking_error", 2, False),
+            ("upright", None, True),
+            ("power", None, False),
+            ("reward_hold", None, False),
+        )
 
     # -- drawing ------------------------------------------------------------------
 

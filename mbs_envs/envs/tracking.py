@@ -291,10 +291,14 @@ class TrackingTaskParams:
 def sample(p: TrackingTaskParams, rngs: list[np.random.Generator]) -> SumOfSines:
     """The episode's task state of ``L = len(rngs)`` members, stacked: their references
     (:func:`sample_sums_of_sines`)."""
-    return sample_sums_of_sines(rngs, p.center_low, p.center_high, p.max_amplitude, p.omega_range, p.n_components, p.rate_range)
+    return sample_sums_of_sines(
+        rngs, p.center_low, p.center_high, p.max_amplitude, p.omega_range, p.n_components, p.rate_range
+    )
 
 
-def start_tracked(p: TrackingTaskParams, reference: SumOfSines, rngs: list[np.random.Generator]) -> tuple[np.ndarray, np.ndarray]:
+def start_tracked(
+    p: TrackingTaskParams, reference: SumOfSines, rngs: list[np.random.Generator]
+) -> tuple[np.ndarray, np.ndarray]:
     """The tracked coordinates' start ``(q_t, v_t)``, shape ``(L, m)`` each: the stacked references at 0
     plus noise, member ``i``'s from ``rngs[i]`` (a scene completes the rest of the state)."""
     q_ref, v_ref, _ = reference(0.0)
@@ -315,7 +319,9 @@ def errors(p: TrackingTaskParams, q: np.ndarray, v: np.ndarray, now: tuple) -> t
     return wrap_angle(q_ref - q[..., idx]), v_ref - v[..., idx]
 
 
-def reward(p: TrackingTaskParams, q: np.ndarray, v: np.ndarray, now: tuple, action: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+def reward(
+    p: TrackingTaskParams, q: np.ndarray, v: np.ndarray, now: tuple, action: np.ndarray
+) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """The reward ``(...)`` (module docstring) and its terms (:data:`REWARD_TERMS`), by :func:`reward_columns`."""
     lead, (q2, v2, q_ref, v_ref, a2) = _as_columns(q, v, now[0], now[1], action)
     tracked = np.asarray(p.tracked, np.int64)
@@ -390,14 +396,21 @@ class JointTrackingEnv(MBSEnv):
         ).astype(np.float32)
         self.observation_space = gym.spaces.Box(-high, high, dtype=np.float32)
         span = np.maximum(np.abs(self.center_low), np.abs(self.center_high)) + self.max_amplitude
-        self._check_start_bound(float(np.max(np.concatenate([span, s_max + self.max_amplitude * w_max]))) + self.start_noise)
+        self._check_start_bound(
+            float(np.max(np.concatenate([span, s_max + self.max_amplitude * w_max]))) + self.start_noise
+        )
 
     # -- the compiled step (see mbs_envs.envs.engine) ----------------------------
 
     def task_arguments(self) -> tuple:
-        c = self.__dict__.get("_task_arguments_cache")  # a writable copy of the (read-only) weights, per settings version
+        c = self.__dict__.get(
+            "_task_arguments_cache"
+        )  # a writable copy of the (read-only) weights, per settings version
         if c is None or c[0] != check.settings_version(self):
-            c = self._task_arguments_cache = (check.settings_version(self), (self._tracked, np.array(self.reward_weights)))
+            c = self._task_arguments_cache = (
+                check.settings_version(self),
+                (self._tracked, np.array(self.reward_weights)),
+            )
         return c[1]
 
     def task_columns(self, task: SumOfSines) -> tuple:
@@ -497,7 +510,9 @@ class ChainTrackingEnv(JointTrackingEnv):
         n_links = link_count(n_links, self.max_links)
         if isinstance(params, self.Model.Params):  # a ready parameter set: the model exactly as given
             if params.n_links != n_links:
-                raise ValueError(f"params has n_links = {params.n_links}, but n_links = {n_links}; pass the same number")
+                raise ValueError(
+                    f"params has n_links = {params.n_links}, but n_links = {n_links}; pass the same number"
+                )
             model = self.Model(params)
             holding = self.holding_torque(model)
         else:

@@ -62,7 +62,11 @@ from .stacking import tree_assign, tree_pick
 def _same(a: Any, b: Any) -> bool:
     """Whether two attribute values are equal (arrays elementwise, same shape)."""
     try:
-        return bool(np.array_equal(np.asarray(a), np.asarray(b))) if isinstance(a, np.ndarray) or isinstance(b, np.ndarray) else bool(a == b)
+        return (
+            bool(np.array_equal(np.asarray(a), np.asarray(b)))
+            if isinstance(a, np.ndarray) or isinstance(b, np.ndarray)
+            else bool(a == b)
+        )
     except Exception:
         return a is b
 
@@ -212,8 +216,12 @@ class MBSVectorEnv(VectorEnv):
                 raise ValueError(f"randomize: unknown parameter {name!r} of {type(self.nominal_params).__name__}")
             if isinstance(s, (tuple, list, np.ndarray)):  # a range (low, high): the parameter itself drawn
                 if np.size(s) != 2:
-                    raise ValueError(f"randomize[{name!r}] must be a half-width in [0, 1) or a range (low, high), got {s!r}")
-                lo, hi = (check.real(x, f"randomize[{name!r}]", -1e300, 1e300) for x in np.ravel(np.asarray(s, dtype=object)))
+                    raise ValueError(
+                        f"randomize[{name!r}] must be a half-width in [0, 1) or a range (low, high), got {s!r}"
+                    )
+                lo, hi = (
+                    check.real(x, f"randomize[{name!r}]", -1e300, 1e300) for x in np.ravel(np.asarray(s, dtype=object))
+                )
                 if lo > hi:
                     raise ValueError(f"randomize[{name!r}] must be a range (low, high) with low <= high, got {s!r}")
                 try:
@@ -232,8 +240,14 @@ class MBSVectorEnv(VectorEnv):
         member's set validated as ``params`` (a ValueError names the member and the parameter)."""
         if member_params is None:
             return {}
-        if isinstance(member_params, (str, bytes)) or not hasattr(member_params, "__len__") or len(member_params) != self.num_envs:
-            raise ValueError(f"member_params must be a sequence of {self.num_envs} mappings (one per member), got {member_params!r:.80}")
+        if (
+            isinstance(member_params, (str, bytes))
+            or not hasattr(member_params, "__len__")
+            or len(member_params) != self.num_envs
+        ):
+            raise ValueError(
+                f"member_params must be a sequence of {self.num_envs} mappings (one per member), got {member_params!r:.80}"
+            )
         if not getattr(self.model, "batched_params", False):
             raise ValueError(f"{type(self.model).__name__} does not support per-member parameters (member_params)")
         names: set[str] = set()
@@ -244,7 +258,10 @@ class MBSVectorEnv(VectorEnv):
             except ValueError as e:
                 raise ValueError(f"member_params[{i}]: {e}") from None
             names |= set(m)
-        return {k: np.array([float(m.get(k, getattr(self.nominal_params, k))) for m in member_params]) for k in sorted(names)}
+        return {
+            k: np.array([float(m.get(k, getattr(self.nominal_params, k))) for m in member_params])
+            for k in sorted(names)
+        }
 
     def _base_value(self, name: str) -> Any:
         """Parameter ``name`` of every member before randomization: fixed per member, or nominal."""
@@ -255,13 +272,19 @@ class MBSVectorEnv(VectorEnv):
         scales = self._scales if scales is None else scales
         values = {k: v[idx] for k, v in self._fixed.items()}
         for k, s in self.randomize.items():
-            values[k] = scales[k][idx] if isinstance(s, tuple) else np.asarray(self._base_value(k) * np.ones(self.num_envs))[idx] * scales[k][idx]
+            values[k] = (
+                scales[k][idx]
+                if isinstance(s, tuple)
+                else np.asarray(self._base_value(k) * np.ones(self.num_envs))[idx] * scales[k][idx]
+            )
         return values
 
     def _apply_scales(self) -> None:
         if not (self.randomize or self._fixed):
             return
-        self._model = self.nominal_model.with_params(self.nominal_params.batched(**self._member_values(np.arange(self.num_envs))))
+        self._model = self.nominal_model.with_params(
+            self.nominal_params.batched(**self._member_values(np.arange(self.num_envs)))
+        )
 
     # -- resets ----------------------------------------------------------------
 
@@ -274,7 +297,9 @@ class MBSVectorEnv(VectorEnv):
             return None
         return [g if s is None else seeding.np_random(s)[0] for g, s in zip(self._rngs, seeds)]
 
-    def _draw_member_params(self, idx: np.ndarray, rngs: list[np.random.Generator] | None = None) -> tuple[dict[str, np.ndarray], Any]:
+    def _draw_member_params(
+        self, idx: np.ndarray, rngs: list[np.random.Generator] | None = None
+    ) -> tuple[dict[str, np.ndarray], Any]:
         """The randomization scales ``{name: (len(idx),)}`` of members ``idx``, drawn from their generators
         (``rngs``, default the current ones; the first draws of a reset: start states may depend on the
         parameters), and the model with those members' parameters."""
@@ -288,7 +313,9 @@ class MBSVectorEnv(VectorEnv):
             model = self.nominal_model.with_params(self.nominal_params.batched(**self._member_values(idx, scales)))
         return {k: s[idx] for k, s in scales.items()}, model
 
-    def _reset_members(self, idx: np.ndarray, options: dict, rngs: list[np.random.Generator] | None = None) -> np.ndarray:
+    def _reset_members(
+        self, idx: np.ndarray, options: dict, rngs: list[np.random.Generator] | None = None
+    ) -> np.ndarray:
         """Draw task and start state of members ``idx`` with the task's code, each from its own generator
         (``rngs``: every member's generator to draw from and keep; default the current ones), and return
         their first observations, ``(len(idx), obs_dim)``. The random numbers are drawn member by member,
@@ -372,7 +399,9 @@ class MBSVectorEnv(VectorEnv):
         pending = self.autoreset_mode == AutoresetMode.NEXT_STEP and self._autoreset.any()
         if pending:  # the members being reset ignore their action: any real number will do, NaN included
             if type(actions) is np.ndarray and actions.dtype.kind == "f":
-                a = actions.astype(float)  # a native float64 copy (what check.reals gives, without its checks of other types)
+                a = actions.astype(
+                    float
+                )  # a native float64 copy (what check.reals gives, without its checks of other types)
             else:
                 a = check.reals(actions, "actions", bools=True)
             if self.model.nu == 1 and a.shape == (self.num_envs,):

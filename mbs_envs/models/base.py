@@ -51,9 +51,7 @@ def param(default: Any, check: str = "finite", unit: str = "", doc: str = "") ->
     """
     if check not in _CHECKS:
         raise ValueError(f"unknown parameter check {check!r}")
-    return dataclasses.field(
-        default=default, metadata={"check": check, "unit": unit, "doc": doc}
-    )
+    return dataclasses.field(default=default, metadata={"check": check, "unit": unit, "doc": doc})
 
 
 @dataclasses.dataclass(frozen=True)
@@ -74,7 +72,9 @@ class Params:
                 raise ValueError(f"parameter {f.name!r} must be a real number, got {value!r}")
             test, message = _CHECKS[f.metadata.get("check", "finite")]
             if not np.all(np.isfinite(arr) & test(arr) & (np.abs(arr) <= check.PARAM_MAX)):
-                raise ValueError(f"parameter {f.name!r} {message}, finite and at most {check.PARAM_MAX:g} in magnitude, got {value!r}")
+                raise ValueError(
+                    f"parameter {f.name!r} {message}, finite and at most {check.PARAM_MAX:g} in magnitude, got {value!r}"
+                )
             if scalar:
                 object.__setattr__(self, f.name, float(arr))
             else:
@@ -84,7 +84,9 @@ class Params:
             try:
                 self._check()
             except (OverflowError, FloatingPointError) as err:
-                raise ValueError(f"parameters of {type(self).__name__} overflow in their consistency checks ({err}): {self!r}") from None
+                raise ValueError(
+                    f"parameters of {type(self).__name__} overflow in their consistency checks ({err}): {self!r}"
+                ) from None
 
     def _check(self) -> None:
         """Cross-parameter validity checks (override); raise ``ValueError``."""
@@ -104,10 +106,7 @@ class Params:
         """
         unknown = sorted(set(overrides) - set(self.names()))
         if unknown:
-            raise ValueError(
-                f"unknown parameter(s) {unknown} for {type(self).__name__}; "
-                f"known: {list(self.names())}"
-            )
+            raise ValueError(f"unknown parameter(s) {unknown} for {type(self).__name__}; known: {list(self.names())}")
         return dataclasses.replace(self, **overrides)
 
     def batched(self, **values: np.ndarray) -> "Params":
@@ -238,9 +237,7 @@ class Model(abc.ABC):
             overrides = {**params, **overrides}
             params = self.Params()
         elif not isinstance(params, self.Params):
-            raise ValueError(
-                f"params must be a {self.Params.__name__}, a mapping or None, got {params!r}"
-            )
+            raise ValueError(f"params must be a {self.Params.__name__}, a mapping or None, got {params!r}")
         self.params = params.replace(**overrides) if overrides else params
 
     def with_params(self, params: Params) -> "Model":
@@ -250,11 +247,7 @@ class Model(abc.ABC):
         return new
 
     def __repr__(self) -> str:
-        changed = {
-            k: v
-            for k, v in self.params.as_dict().items()
-            if np.any(v != self.Params().as_dict()[k])
-        }
+        changed = {k: v for k, v in self.params.as_dict().items() if np.any(v != self.Params().as_dict()[k])}
         args = ", ".join(f"{k}={v!r}" for k, v in changed.items())
         return f"{type(self).__name__}({args})"
 
@@ -336,8 +329,7 @@ class Model(abc.ABC):
         """
         if kind not in (None, "none") or options:
             raise ValueError(
-                f"{type(self).__name__} has no constraints; stabilization must be None or 'none', "
-                f"got {kind!r}"
+                f"{type(self).__name__} has no constraints; stabilization must be None or 'none', got {kind!r}"
             )
         return None
 
@@ -353,9 +345,7 @@ class Model(abc.ABC):
             return np.zeros(self.nv)
         return batched_matvec(self.actuation, as_vector(u, self.nu, "u"))
 
-    def forward_dynamics(
-        self, q: np.ndarray, v: np.ndarray, u: np.ndarray | None = None
-    ) -> np.ndarray:
+    def forward_dynamics(self, q: np.ndarray, v: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
         """Accelerations ``a = M(q)^-1 (B u - h(q, v))`` by Cholesky factorization.
 
         Parameters

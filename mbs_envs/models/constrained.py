@@ -64,7 +64,12 @@ class ConstrainedModel(Model):
         return tuple(range(self.nc)) if self.position_rows is None else self.position_rows
 
     def solve(
-        self, q: np.ndarray, v: np.ndarray, u: np.ndarray | None = None, alpha: float = 0.0, beta: float = 0.0,
+        self,
+        q: np.ndarray,
+        v: np.ndarray,
+        u: np.ndarray | None = None,
+        alpha: float = 0.0,
+        beta: float = 0.0,
         conditioning: bool = True,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Accelerations, multipliers and the conditioning of ``Psi M^-1 Psi^T``.
@@ -100,7 +105,9 @@ class ConstrainedModel(Model):
         """Accelerations with the constraints enforced (Schur complement), shape ``(..., nv)``."""
         return self.solve(q, v, u, alpha, beta, conditioning=False)[0]
 
-    def multipliers(self, q: np.ndarray, v: np.ndarray, u: np.ndarray | None = None, compiled: bool = False) -> np.ndarray:
+    def multipliers(
+        self, q: np.ndarray, v: np.ndarray, u: np.ndarray | None = None, compiled: bool = False
+    ) -> np.ndarray:
         """Lagrange multipliers ``lam`` with ``M a + C v + G + F = B u + Psi^T lam``, shape ``(..., nc)``.
 
         ``compiled=True`` takes the model's ``constraint_info_kernel`` where it has one (what its
@@ -139,7 +146,9 @@ class ConstrainedModel(Model):
         a = as_vector(a, self.nv, "a")
         tau = batched_matvec(self.mass_matrix(q), a) + self.bias(q, v)
         Psi = self.constraint_jacobian(q)
-        A = np.concatenate([np.broadcast_to(self.actuation, Psi.shape[:-2] + self.actuation.shape), np.swapaxes(Psi, -1, -2)], axis=-1)
+        A = np.concatenate(
+            [np.broadcast_to(self.actuation, Psi.shape[:-2] + self.actuation.shape), np.swapaxes(Psi, -1, -2)], axis=-1
+        )
         x = batched_matvec(np.linalg.pinv(A), tau)
         return x[..., : self.nu], x[..., self.nu :]
 

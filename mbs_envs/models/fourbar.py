@@ -174,7 +174,9 @@ def _friction_columns(v, theta):  # pragma: no cover - compiled
     F = np.empty(v.shape)
     for b in range(v.shape[1]):
         for i in range(3):
-            F[i, b] = _p2r._friction(v[i, b], theta[_B1 + i, b], theta[_F1 + i, b], theta[_VS, b], theta[_DF1 + i, b], theta[_VST, b])
+            F[i, b] = _p2r._friction(
+                v[i, b], theta[_B1 + i, b], theta[_F1 + i, b], theta[_VS, b], theta[_DF1 + i, b], theta[_VST, b]
+            )
     return F
 
 
@@ -190,7 +192,9 @@ def _mass_closed(T, theta, b):  # pragma: no cover - compiled
 @njit
 def _jacobian_closed(T, theta, b):  # pragma: no cover - compiled
     """The rows of ``Psi`` of member ``b``."""
-    return _closure_jacobian(T[0, b], T[1, b], T[2, b], T[3, b], T[4, b], T[5, b], theta[_L1, b], theta[_L2, b], theta[_L3, b])
+    return _closure_jacobian(
+        T[0, b], T[1, b], T[2, b], T[3, b], T[4, b], T[5, b], theta[_L1, b], theta[_L2, b], theta[_L3, b]
+    )
 
 
 @njit
@@ -209,8 +213,18 @@ def _bias_closed(T, v, theta, b):  # pragma: no cover - compiled
     """``gamma = -dPsi v`` of member ``b``."""
     w12 = v[0, b] + v[1, b]
     d0, d1 = _closure_bias(
-        T[0, b], T[1, b], T[2, b], T[3, b], T[4, b], T[5, b], v[0, b] ** 2, w12**2, v[2, b] ** 2,
-        theta[_L1, b], theta[_L2, b], theta[_L3, b],
+        T[0, b],
+        T[1, b],
+        T[2, b],
+        T[3, b],
+        T[4, b],
+        T[5, b],
+        v[0, b] ** 2,
+        w12**2,
+        v[2, b] ** 2,
+        theta[_L1, b],
+        theta[_L2, b],
+        theta[_L3, b],
     )
     return -d0, -d1
 
@@ -291,7 +305,9 @@ def energy_kernel(q, v, theta, E):  # pragma: no cover - compiled
         m11, m12, m22, m33 = _mass_closed(T, theta, b)
         d1, d2, d3 = v[0, b], v[1, b], v[2, b]
         K = d1 * (m11 * d1 + m12 * d2) + d2 * (m12 * d1 + m22 * d2) + d3 * (m33 * d3)
-        V = _p2r._potential_entry(T[1, b], T[3, b], theta[_M1, b], theta[_M2, b], theta[_L1, b], theta[_R1, b], theta[_R2, b], theta[_G, b])
+        V = _p2r._potential_entry(
+            T[1, b], T[3, b], theta[_M1, b], theta[_M2, b], theta[_L1, b], theta[_R1, b], theta[_R2, b], theta[_G, b]
+        )
         E[b] = 0.5 * K + (V + theta[_M3, b] * theta[_G, b] * theta[_R3, b] * T[5, b])
 
 
@@ -312,7 +328,9 @@ def general_acceleration(q, v, tau, theta, a):  # pragma: no cover - compiled
 @njit
 def general_projection(q, v, theta, tol):  # pragma: no cover - compiled
     """:func:`mbs_envs.dynamics.constraints.project_columns` of members (see :func:`general_acceleration`)."""
-    _constraints.project_columns(_this.residual_member, _this.jacobian_member, _this.mass_member, _ROWS, 2, q, v, theta, tol)
+    _constraints.project_columns(
+        _this.residual_member, _this.jacobian_member, _this.mass_member, _ROWS, 2, q, v, theta, tol
+    )
 
 
 @njit
@@ -336,7 +354,12 @@ def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
     for b in range(B):
         if not ok[b]:  # the general member path
             ab = np.empty((3, 1))
-            qb, vb, tb, pb = _constraints.column(q, b), _constraints.column(v, b), _constraints.column(tau, b), _constraints.column(theta, b)
+            qb, vb, tb, pb = (
+                _constraints.column(q, b),
+                _constraints.column(v, b),
+                _constraints.column(tau, b),
+                _constraints.column(theta, b),
+            )
             with objmode():  # compiled on first use (see general_acceleration)
                 _this.general_acceleration(qb, vb, tb, pb, ab)
             for i in range(3):
@@ -417,7 +440,12 @@ def constraint_info_kernel(q, v, tau, theta, res, lam):  # pragma: no cover - co
     for b in range(B):
         if not ok[b]:  # the general member path
             rb, lb = np.empty(1), np.empty((1, 2))
-            qb, vb, tb, pb = _constraints.column(q, b), _constraints.column(v, b), _constraints.column(tau, b), _constraints.column(theta, b)
+            qb, vb, tb, pb = (
+                _constraints.column(q, b),
+                _constraints.column(v, b),
+                _constraints.column(tau, b),
+                _constraints.column(theta, b),
+            )
             with objmode():
                 _this.general_constraint_info(qb, vb, tb, pb, rb, lb)
             res[b], lam[b, 0], lam[b, 1] = rb[0], lb[0, 0], lb[0, 1]
@@ -582,9 +610,7 @@ class FourBar(ConstrainedModel):
         d_vec = np.array([p.l0, 0.0]) - A
         d = np.linalg.norm(d_vec, axis=-1)
         if np.any(d > p.l2 + p.l3) or np.any(d < abs(p.l2 - p.l3)):
-            raise ValueError(
-                f"the linkage ({self.grashof}) cannot assemble at crank angle th1 = {th1.tolist()}"
-            )
+            raise ValueError(f"the linkage ({self.grashof}) cannot assemble at crank angle th1 = {th1.tolist()}")
         e = d_vec / d[..., None]
         e_perp = np.stack([-e[..., 1], e[..., 0]], axis=-1)
         x = (d**2 + p.l2**2 - p.l3**2) / (2 * d)

@@ -53,8 +53,7 @@ class Planar2RParams(Params):
             I, m, r = (getattr(self, f"{k}{i}") for k in ("I", "m", "r"))
             if not I + m * r**2 > 0:
                 raise ValueError(
-                    f"parameters I{i}, r{i}: link {i} has no inertia about its joint "
-                    f"(I{i} + m{i} r{i}^2 = 0)"
+                    f"parameters I{i}, r{i}: link {i} has no inertia about its joint (I{i} + m{i} r{i}^2 = 0)"
                 )
 
 
@@ -107,7 +106,9 @@ def _friction(v, b, f, v_s, df, v_st):  # pragma: no cover - compiled
 
 
 @njit(inline="always")
-def _acceleration_of(s1, c1, s2, c2, d1, d2, F1, F2, tau1, tau2, m1, m2, l1, r1, r2, I1, I2, g):  # pragma: no cover - compiled
+def _acceleration_of(
+    s1, c1, s2, c2, d1, d2, F1, F2, tau1, tau2, m1, m2, l1, r1, r2, I1, I2, g
+):  # pragma: no cover - compiled
     """:func:`_acceleration` from the parameters as scalars (loops over many states at one parameter set keep them
     in registers and vectorize: :mod:`controllers.trajectory`'s lanes)."""
     m11, m12, m22 = _mass_entries(c2, m1, m2, l1, r1, r2, I1, I2)
@@ -213,7 +214,12 @@ def driven_joints(driven, n: int) -> tuple[int, ...]:
         joints = tuple(int(j) for j in np.atleast_1d(np.asarray(driven)) if float(j) == int(j))
     except (TypeError, ValueError):
         joints = ()
-    if not joints or len(joints) != np.size(driven) or len(set(joints)) != len(joints) or not all(0 <= j < n for j in joints):
+    if (
+        not joints
+        or len(joints) != np.size(driven)
+        or len(set(joints)) != len(joints)
+        or not all(0 <= j < n for j in joints)
+    ):
         raise ValueError(f"driven must be distinct joint indices in [0, {n}), at least one, got {driven!r}")
     return tuple(sorted(joints))
 
@@ -251,7 +257,9 @@ class Planar2R(Model):
 
     def __repr__(self) -> str:
         text = super().__repr__()
-        return text if self.driven == (0, 1) else text[:-1] + (", " if text[-2] != "(" else "") + f"driven={self.driven})"
+        return (
+            text if self.driven == (0, 1) else text[:-1] + (", " if text[-2] != "(" else "") + f"driven={self.driven})"
+        )
 
     def mass_matrix(self, q: np.ndarray) -> np.ndarray:
         """``M(q)``, shape ``(..., 2, 2)`` [kg m^2]."""

@@ -362,7 +362,9 @@ def general_acceleration(q, v, tau, theta, a):  # pragma: no cover - compiled
 @njit
 def general_projection(q, v, theta, tol):  # pragma: no cover - compiled
     """:func:`mbs_envs.dynamics.constraints.project_columns` of members (see :func:`general_acceleration`)."""
-    _constraints.project_columns(_this.residual_member, _this.jacobian_member, _this.mass_member, _ROWS, 3, q, v, theta, tol)
+    _constraints.project_columns(
+        _this.residual_member, _this.jacobian_member, _this.mass_member, _ROWS, 3, q, v, theta, tol
+    )
 
 
 @njit
@@ -386,7 +388,12 @@ def acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compiled
     for b in range(B):
         if not ok[b]:  # the general member path
             ab = np.empty((6, 1))
-            qb, vb, tb, pb = _constraints.column(q, b), _constraints.column(v, b), _constraints.column(tau, b), _constraints.column(theta, b)
+            qb, vb, tb, pb = (
+                _constraints.column(q, b),
+                _constraints.column(v, b),
+                _constraints.column(tau, b),
+                _constraints.column(theta, b),
+            )
             with objmode():  # compiled on first use (see general_acceleration)
                 _this.general_acceleration(qb, vb, tb, pb, ab)
             for i in range(6):
@@ -461,7 +468,12 @@ def constraint_info_kernel(q, v, tau, theta, res, lam):  # pragma: no cover - co
     for b in range(B):
         if not ok[b]:  # the general member path
             rb, lb2 = np.empty(1), np.empty((1, 3))
-            qb, vb, tb, pb = _constraints.column(q, b), _constraints.column(v, b), _constraints.column(tau, b), _constraints.column(theta, b)
+            qb, vb, tb, pb = (
+                _constraints.column(q, b),
+                _constraints.column(v, b),
+                _constraints.column(tau, b),
+                _constraints.column(theta, b),
+            )
             with objmode():
                 _this.general_constraint_info(qb, vb, tb, pb, rb, lb2)
             res[b], lam[b, 0], lam[b, 1], lam[b, 2] = rb[0], lb2[0, 0], lb2[0, 1], lb2[0, 2]
@@ -561,7 +573,9 @@ class RollingDisk(ConstrainedModel):
         """``w`` in the ground frame [rad/s], shape ``(..., 3)``."""
         q = as_vector(q, 6, "q")
         v = as_vector(v, 6, "v")
-        return np.stack(np.broadcast_arrays(*angular_velocity_entries(*self._trig(q), v[..., 3], v[..., 4], v[..., 5])), axis=-1)
+        return np.stack(
+            np.broadcast_arrays(*angular_velocity_entries(*self._trig(q), v[..., 3], v[..., 4], v[..., 5])), axis=-1
+        )
 
     def contact_offset(self, q: np.ndarray) -> np.ndarray:
         """Contact point relative to the centre, ``rC = -r (s1 s2, -c1 s2, c2)`` [m]."""
@@ -655,9 +669,18 @@ class RollingDisk(ConstrainedModel):
         lean = np.asarray(lean, float)
         inside = np.abs(lean) < self.flat_lean
         if not np.all(inside):
-            raise ValueError(f"lean must be within +-{self.flat_lean:.3f} rad of upright, got {float(lean[~inside].flat[0])!r}")
-        q = np.stack(np.broadcast_arrays(*(np.asarray(c, float) for c in (x, y, self.params.r * np.cos(lean), heading, lean, spin))), axis=-1)
-        v = self.complete_velocity(q, np.stack(np.broadcast_arrays(*(np.asarray(c, float) for c in (dheading, dlean, dspin))), axis=-1))
+            raise ValueError(
+                f"lean must be within +-{self.flat_lean:.3f} rad of upright, got {float(lean[~inside].flat[0])!r}"
+            )
+        q = np.stack(
+            np.broadcast_arrays(
+                *(np.asarray(c, float) for c in (x, y, self.params.r * np.cos(lean), heading, lean, spin))
+            ),
+            axis=-1,
+        )
+        v = self.complete_velocity(
+            q, np.stack(np.broadcast_arrays(*(np.asarray(c, float) for c in (dheading, dlean, dspin))), axis=-1)
+        )
         return q, v
 
     def singular(self, q: np.ndarray) -> np.ndarray:

@@ -84,7 +84,9 @@ class SerialChainParams(Params):
             try:
                 arr = np.broadcast_to(np.asarray(value, dtype=float), (n,)).copy()
             except (TypeError, ValueError):
-                raise ValueError(f"parameter {name!r} must be a scalar or have length n_links = {n}, got {value!r}") from None
+                raise ValueError(
+                    f"parameter {name!r} must be a scalar or have length n_links = {n}, got {value!r}"
+                ) from None
             object.__setattr__(self, name, arr)
         super().__post_init__()
         object.__setattr__(self, "n_links", n)  # keep it an int
@@ -281,7 +283,12 @@ def _net_torque(v, tau, theta, net):  # pragma: no cover - compiled
         for k in range(theta.shape[1]):
             coulomb |= theta[6 * N + i, k] != 0.0
     if not coulomb:
-        vf, tf, pf, nf = np.ascontiguousarray(v).ravel(), np.ascontiguousarray(tau).ravel(), np.ascontiguousarray(theta).ravel(), net.ravel()
+        vf, tf, pf, nf = (
+            np.ascontiguousarray(v).ravel(),
+            np.ascontiguousarray(tau).ravel(),
+            np.ascontiguousarray(theta).ravel(),
+            net.ravel(),
+        )
         if theta.shape[1] == 1:
             for i in range(N):
                 bi = pf[5 * N + i]
@@ -384,11 +391,19 @@ def _aba_tile(q, v, tau, theta, N, B, b0, W, S, A, tB, tb0):  # pragma: no cover
             U2 = W[_at(o, 6, b)] * 1.0 + W[_at(o, 8, b)] * s1 + W[_at(o, 9, b)] * s2
             W[_at(o, 13, b)], W[_at(o, 14, b)], W[_at(o, 15, b)] = U0, U1, U2
             W[_at(o, 16, b)] = 1.0 / (1.0 * U0 + s1 * U1 + s2 * U2 + theta[uint64((4 * N + i) * tB + tb0 + b)])
-            W[_at(o, 17, b)] = tau[uint64(i * B + b0 + b)] - (1.0 * W[_at(o, 10, b)] + s1 * W[_at(o, 11, b)] + s2 * W[_at(o, 12, b)])
+            W[_at(o, 17, b)] = tau[uint64(i * B + b0 + b)] - (
+                1.0 * W[_at(o, 10, b)] + s1 * W[_at(o, 11, b)] + s2 * W[_at(o, 12, b)]
+            )
         if i > 0:
             p = o - _SLOTS * TILE
             for b in range(TILE):
-                U0, U1, U2, Dinv, u = W[_at(o, 13, b)], W[_at(o, 14, b)], W[_at(o, 15, b)], W[_at(o, 16, b)], W[_at(o, 17, b)]
+                U0, U1, U2, Dinv, u = (
+                    W[_at(o, 13, b)],
+                    W[_at(o, 14, b)],
+                    W[_at(o, 15, b)],
+                    W[_at(o, 16, b)],
+                    W[_at(o, 17, b)],
+                )
                 c1, c2 = W[_at(o, 2, b)], W[_at(o, 3, b)]
                 V0, V1, V2 = U0 * Dinv, U1 * Dinv, U2 * Dinv
                 A00 = W[_at(o, 4, b)] - U0 * V0
@@ -424,7 +439,9 @@ def _aba_tile(q, v, tau, theta, N, B, b0, W, S, A, tB, tb0):  # pragma: no cover
             a0 = S[6 * TILE + b] + 0.0
             a1 = S[7 * TILE + b] + W[_at(o, 2, b)]
             a2 = S[8 * TILE + b] + W[_at(o, 3, b)]
-            qdd = (W[_at(o, 17, b)] - (W[_at(o, 13, b)] * a0 + W[_at(o, 14, b)] * a1 + W[_at(o, 15, b)] * a2)) * W[_at(o, 16, b)]
+            qdd = (W[_at(o, 17, b)] - (W[_at(o, 13, b)] * a0 + W[_at(o, 14, b)] * a1 + W[_at(o, 15, b)] * a2)) * W[
+                _at(o, 16, b)
+            ]
             A[uint64(i * B + b0 + b)] = qdd
             S[6 * TILE + b] = a0 + 1.0 * qdd
             S[7 * TILE + b] = a1 + s1 * qdd
@@ -512,7 +529,11 @@ def _energy_tile(q, v, theta, N, B, b0, S, tB, tb0):  # pragma: no cover - compi
             S[b] = th
             sn, cs = sincos(th)
             li, ri = theta[uint64(i * tB + tb0 + b)], theta[uint64((N + i) * tB + tb0 + b)]
-            mi, Ici, arm = theta[uint64((2 * N + i) * tB + tb0 + b)], theta[uint64((3 * N + i) * tB + tb0 + b)], theta[uint64((4 * N + i) * tB + tb0 + b)]
+            mi, Ici, arm = (
+                theta[uint64((2 * N + i) * tB + tb0 + b)],
+                theta[uint64((3 * N + i) * tB + tb0 + b)],
+                theta[uint64((4 * N + i) * tB + tb0 + b)],
+            )
             w = v[uint64(i * B + m)]
             y = S[2 * TILE + b]
             cy = y + ri * sn
@@ -806,7 +827,9 @@ class SerialChain(RecursiveChain):
         d = as_vector(d, n, "d")
         shape = np.broadcast_shapes(q.shape, v.shape, tau.shape, d.shape)
         flat = lambda x: np.ascontiguousarray(np.broadcast_to(x, shape).reshape(-1, n), dtype=float)  # noqa: E731
-        out = _aba_kernel(flat(q), flat(v), p_.l, p_.r, flat(p_.m), flat(p_.I), flat(p_.armature + d), flat(tau), float(p_.g))
+        out = _aba_kernel(
+            flat(q), flat(v), p_.l, p_.r, flat(p_.m), flat(p_.I), flat(p_.armature + d), flat(tau), float(p_.g)
+        )
         return out.reshape(shape)
 
     def _energies(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -84,7 +84,14 @@ def _cross_motion_entries(w0, w1, w2, v0, v1, v2, a0, a1, a2, b0, b1, b2):  # pr
 @njit(inline="always")
 def _dot6(a, i, b, j):  # pragma: no cover - compiled
     """``a[i] . b[j]`` of two rows of length 6, summed left to right (no views: numba counts a view's references)."""
-    return a[i, 0] * b[j, 0] + a[i, 1] * b[j, 1] + a[i, 2] * b[j, 2] + a[i, 3] * b[j, 3] + a[i, 4] * b[j, 4] + a[i, 5] * b[j, 5]
+    return (
+        a[i, 0] * b[j, 0]
+        + a[i, 1] * b[j, 1]
+        + a[i, 2] * b[j, 2]
+        + a[i, 3] * b[j, 3]
+        + a[i, 4] * b[j, 4]
+        + a[i, 5] * b[j, 5]
+    )
 
 
 @njit
@@ -147,7 +154,8 @@ def frames_into(q, axis, offset, com, inertia, w):  # pragma: no cover - compile
     sincos_columns(q, sn, cs)  # one SIMD pass (libm for arguments out of its range)
     for i in range(N):
         J[0, 0], J[0, 1], J[0, 2], J[1, 0], J[1, 1], J[1, 2], J[2, 0], J[2, 1], J[2, 2] = _rot_entries(
-            axis[i, 0], axis[i, 1], axis[i, 2], sn[i], cs[i])
+            axis[i, 0], axis[i, 1], axis[i, 2], sn[i], cs[i]
+        )
         for r in range(3):
             if i == 0:
                 p[i, r] = offset[i, r]
@@ -173,7 +181,9 @@ def frames_into(q, axis, offset, com, inertia, w):  # pragma: no cover - compile
         else:
             for r in range(3):
                 for k in range(3):
-                    T[r, k] = inertia[i, r, 0] * R[i, k, 0] + inertia[i, r, 1] * R[i, k, 1] + inertia[i, r, 2] * R[i, k, 2]
+                    T[r, k] = (
+                        inertia[i, r, 0] * R[i, k, 0] + inertia[i, r, 1] * R[i, k, 1] + inertia[i, r, 2] * R[i, k, 2]
+                    )
         for r in range(3):  # Ic = R T, the upper triangle mirrored
             for k in range(r, 3):
                 x = R[i, r, 0] * T[0, k] + R[i, r, 1] * T[1, k] + R[i, r, 2] * T[2, k]
@@ -247,7 +257,8 @@ def rnea_into(q, v, a, axis, offset, com, inertia, m, armature, g_vec, gravity, 
             Sv[k] = S[i, k] * v[i]
             V[k] += Sv[k]
         tmp[0], tmp[1], tmp[2], tmp[3], tmp[4], tmp[5] = _cross_motion_entries(
-            V[0], V[1], V[2], V[3], V[4], V[5], Sv[0], Sv[1], Sv[2], Sv[3], Sv[4], Sv[5])
+            V[0], V[1], V[2], V[3], V[4], V[5], Sv[0], Sv[1], Sv[2], Sv[3], Sv[4], Sv[5]
+        )
         for k in range(6):
             A[k] += S[i, k] * a[i] + tmp[k]
         _body_force(m[i], c, Ic, i, V[0], V[1], V[2], V[3], V[4], V[5], A[0], A[1], A[2], A[3], A[4], A[5], F)
@@ -305,7 +316,9 @@ def aba_into(q, v, tau, axis, offset, com, inertia, m, armature, g_vec, w, acc):
         for k in range(6):
             Sv[k] = S[i, k] * v[i]
             V[k] += Sv[k]
-        c0, c1, c2, c3, c4, c5 = _cross_motion_entries(V[0], V[1], V[2], V[3], V[4], V[5], Sv[0], Sv[1], Sv[2], Sv[3], Sv[4], Sv[5])
+        c0, c1, c2, c3, c4, c5 = _cross_motion_entries(
+            V[0], V[1], V[2], V[3], V[4], V[5], Sv[0], Sv[1], Sv[2], Sv[3], Sv[4], Sv[5]
+        )
         A[0] += c0
         A[1] += c1
         A[2] += c2
@@ -605,7 +618,11 @@ def aba_tiles(q, v, tau, axis, offset, com, inertia, m, armature, b, g_vec, a): 
                 for l in range(W):
                     for r in range(3):
                         for k in range(3):
-                            T[r, k, l] = inertia[i, r, 0] * R[k, 0, l] + inertia[i, r, 1] * R[k, 1, l] + inertia[i, r, 2] * R[k, 2, l]
+                            T[r, k, l] = (
+                                inertia[i, r, 0] * R[k, 0, l]
+                                + inertia[i, r, 1] * R[k, 1, l]
+                                + inertia[i, r, 2] * R[k, 2, l]
+                            )
             mi = m[i]
             for l in range(W):
                 for r in range(3):
@@ -616,7 +633,9 @@ def aba_tiles(q, v, tau, axis, offset, com, inertia, m, armature, b, g_vec, a): 
                 S[i, 5, l] = p[0, l] * z[1, l] - p[1, l] * z[0, l]
                 for r in range(3):
                     for k in range(r, 3):
-                        Ic[i, _SYM[r][k], l] = R[r, 0, l] * T[0, k, l] + R[r, 1, l] * T[1, k, l] + R[r, 2, l] * T[2, k, l]
+                        Ic[i, _SYM[r][k], l] = (
+                            R[r, 0, l] * T[0, k, l] + R[r, 1, l] * T[1, k, l] + R[r, 2, l] * T[2, k, l]
+                        )
                 vi = v[i, b0 + l]
                 Sv0, Sv1, Sv2 = S[i, 0, l] * vi, S[i, 1, l] * vi, S[i, 2, l] * vi
                 Sv3, Sv4, Sv5 = S[i, 3, l] * vi, S[i, 4, l] * vi, S[i, 5, l] * vi
@@ -627,7 +646,14 @@ def aba_tiles(q, v, tau, axis, offset, com, inertia, m, armature, b, g_vec, a): 
                 al0, al1, al2 = A[0, l] + c0, A[1, l] + c1, A[2, l] + c2
                 ac0, ac1, ac2 = A[3, l] + c3, A[4, l] + c4, A[5, l] + c5
                 A[0, l], A[1, l], A[2, l], A[3, l], A[4, l], A[5, l] = al0, al1, al2, ac0, ac1, ac2
-                I00, I01, I02, I11, I12, I22 = Ic[i, 0, l], Ic[i, 1, l], Ic[i, 2, l], Ic[i, 3, l], Ic[i, 4, l], Ic[i, 5, l]
+                I00, I01, I02, I11, I12, I22 = (
+                    Ic[i, 0, l],
+                    Ic[i, 1, l],
+                    Ic[i, 2, l],
+                    Ic[i, 3, l],
+                    Ic[i, 4, l],
+                    Ic[i, 5, l],
+                )
                 pA[i, 0, l], pA[i, 1, l], pA[i, 2, l], pA[i, 3, l], pA[i, 4, l], pA[i, 5, l] = _body_force_entries(
                     mi, c[i, 0, l], c[i, 1, l], c[i, 2, l], I00, I01, I02, I01, I11, I12, I02, I12, I22,
                     w0, w1, w2, v0, v1, v2, al0, al1, al2, ac0, ac1, ac2,
@@ -658,13 +684,32 @@ def aba_tiles(q, v, tau, axis, offset, com, inertia, m, armature, b, g_vec, a): 
                 Ia[12, l] = -mi * cy + Ia[12, l]
                 Ia[13, l] = mi * cx + Ia[13, l]
                 S0, S1, S2, S3, S4, S5 = S[i, 0, l], S[i, 1, l], S[i, 2, l], S[i, 3, l], S[i, 4, l], S[i, 5, l]
-                U[i, 0, l] = (Ia[0, l] * S0 + Ia[1, l] * S1 + Ia[2, l] * S2 + Ia[3, l] * S3 + Ia[4, l] * S4 + Ia[5, l] * S5)
-                U[i, 1, l] = (Ia[1, l] * S0 + Ia[6, l] * S1 + Ia[7, l] * S2 + Ia[8, l] * S3 + Ia[9, l] * S4 + Ia[10, l] * S5)
-                U[i, 2, l] = (Ia[2, l] * S0 + Ia[7, l] * S1 + Ia[11, l] * S2 + Ia[12, l] * S3 + Ia[13, l] * S4 + Ia[14, l] * S5)
-                U[i, 3, l] = (Ia[3, l] * S0 + Ia[8, l] * S1 + Ia[12, l] * S2 + Ia[15, l] * S3 + Ia[16, l] * S4 + Ia[17, l] * S5)
-                U[i, 4, l] = (Ia[4, l] * S0 + Ia[9, l] * S1 + Ia[13, l] * S2 + Ia[16, l] * S3 + Ia[18, l] * S4 + Ia[19, l] * S5)
-                U[i, 5, l] = (Ia[5, l] * S0 + Ia[10, l] * S1 + Ia[14, l] * S2 + Ia[17, l] * S3 + Ia[19, l] * S4 + Ia[20, l] * S5)
-                D[i, l] = (S0 * U[i, 0, l] + S1 * U[i, 1, l] + S2 * U[i, 2, l] + S3 * U[i, 3, l] + S4 * U[i, 4, l] + S5 * U[i, 5, l]) + armature[i]
+                U[i, 0, l] = (
+                    Ia[0, l] * S0 + Ia[1, l] * S1 + Ia[2, l] * S2 + Ia[3, l] * S3 + Ia[4, l] * S4 + Ia[5, l] * S5
+                )
+                U[i, 1, l] = (
+                    Ia[1, l] * S0 + Ia[6, l] * S1 + Ia[7, l] * S2 + Ia[8, l] * S3 + Ia[9, l] * S4 + Ia[10, l] * S5
+                )
+                U[i, 2, l] = (
+                    Ia[2, l] * S0 + Ia[7, l] * S1 + Ia[11, l] * S2 + Ia[12, l] * S3 + Ia[13, l] * S4 + Ia[14, l] * S5
+                )
+                U[i, 3, l] = (
+                    Ia[3, l] * S0 + Ia[8, l] * S1 + Ia[12, l] * S2 + Ia[15, l] * S3 + Ia[16, l] * S4 + Ia[17, l] * S5
+                )
+                U[i, 4, l] = (
+                    Ia[4, l] * S0 + Ia[9, l] * S1 + Ia[13, l] * S2 + Ia[16, l] * S3 + Ia[18, l] * S4 + Ia[19, l] * S5
+                )
+                U[i, 5, l] = (
+                    Ia[5, l] * S0 + Ia[10, l] * S1 + Ia[14, l] * S2 + Ia[17, l] * S3 + Ia[19, l] * S4 + Ia[20, l] * S5
+                )
+                D[i, l] = (
+                    S0 * U[i, 0, l]
+                    + S1 * U[i, 1, l]
+                    + S2 * U[i, 2, l]
+                    + S3 * U[i, 3, l]
+                    + S4 * U[i, 4, l]
+                    + S5 * U[i, 5, l]
+                ) + armature[i]
                 for k in range(6):
                     pA[i, k, l] += pa[k, l]
                 u[i, l] = net[i, l] - (S0 * pA[i, 0, l] + S1 * pA[i, 1, l] + S2 * pA[i, 2, l] + S3 * pA[i, 3, l] + S4 * pA[i, 4, l]
@@ -754,7 +799,11 @@ def tiled_acceleration_kernel(q, v, tau, theta, a):  # pragma: no cover - compil
     if rest < B:  # the members beyond the last whole tile, one by one
         a_rest = np.empty((N, B - rest))
         acceleration_kernel(
-            np.ascontiguousarray(q[:, rest:]), np.ascontiguousarray(v[:, rest:]), np.ascontiguousarray(tau[:, rest:]), theta, a_rest
+            np.ascontiguousarray(q[:, rest:]),
+            np.ascontiguousarray(v[:, rest:]),
+            np.ascontiguousarray(tau[:, rest:]),
+            theta,
+            a_rest,
         )
         for i in range(N):
             for k in range(B - rest):
@@ -812,7 +861,9 @@ class SpatialChainParams(Params):
     m: Any = param(None, "positive", "kg", "link masses (n,)")
     l: Any = param(None, "positive", "m", "link lengths (n,): joint i+1 at (l_i, 0, 0) in link i's frame")  # noqa: E741
     axis: Any = param(None, "finite", "", "joint axes (n, 3), unit, in the parent's frame")
-    offset: Any = param(None, "finite", "m", "joint positions (n, 3) in the parent's frame (default (0, l_{i-1}) along x)")
+    offset: Any = param(
+        None, "finite", "m", "joint positions (n, 3) in the parent's frame (default (0, l_{i-1}) along x)"
+    )
     com: Any = param(None, "finite", "m", "centres of mass (n, 3) in the link frame (default (l_i / 2, 0, 0))")
     inertia: Any = param(None, "finite", "kg m^2", "inertia tensors about the centres of mass (n, 3, 3), link frame")
     g_vec: Any = param((0.0, 0.0, -9.81), "finite", "m/s^2", "gravity (3,)")
@@ -837,9 +888,15 @@ class SpatialChainParams(Params):
             offset[1:, 0] = l[:-1]
         else:
             offset = _per_link(self.offset, n, (3,), "offset")
-        com = np.stack([l / 2, np.zeros(n), np.zeros(n)], axis=1) if self.com is None else _per_link(self.com, n, (3,), "com")
+        com = (
+            np.stack([l / 2, np.zeros(n), np.zeros(n)], axis=1)
+            if self.com is None
+            else _per_link(self.com, n, (3,), "com")
+        )
         inertia = rod_inertia(m, l, 0.05 * l) if self.inertia is None else _per_link(self.inertia, n, (3, 3), "inertia")
-        if not np.allclose(inertia, np.swapaxes(inertia, 1, 2), rtol=0, atol=1e-12 * max(1.0, float(np.abs(inertia).max()))):
+        if not np.allclose(
+            inertia, np.swapaxes(inertia, 1, 2), rtol=0, atol=1e-12 * max(1.0, float(np.abs(inertia).max()))
+        ):
             raise ValueError("parameter 'inertia': every tensor must be symmetric")
         inertia = 0.5 * (inertia + np.swapaxes(inertia, 1, 2))
         if np.any(np.linalg.eigvalsh(inertia)[:, 0] < -1e-12 * max(1.0, float(np.abs(inertia).max()))):
@@ -853,7 +910,9 @@ class SpatialChainParams(Params):
             raise ValueError("parameters 'armature' and 'b' must be >= 0")
         # every link must have inertia about its own joint axis (else M is singular at some state)
         d = com
-        about_joint = inertia + m[:, None, None] * (np.einsum("i,jk->ijk", np.sum(d * d, axis=1), np.eye(3)) - np.einsum("ij,ik->ijk", d, d))
+        about_joint = inertia + m[:, None, None] * (
+            np.einsum("i,jk->ijk", np.sum(d * d, axis=1), np.eye(3)) - np.einsum("ij,ik->ijk", d, d)
+        )
         own = np.einsum("ij,ijk,ik->i", axis, about_joint, axis) + armature
         if np.any(own <= 0):
             raise ValueError(f"parameters: link {int(np.argmin(own))} has no inertia about its joint axis")
@@ -867,7 +926,12 @@ class SpatialChainParams(Params):
         """A validated copy; with a new ``n_links`` the per-link parameters not given go back to their defaults."""
         if "n_links" in overrides:
             per_link = ("m", "l", "axis", "offset", "com", "inertia", "armature", "b")
-            overrides = {**{k: None for k in per_link if k not in ("armature", "b")}, "armature": 0.0, "b": 0.0, **overrides}
+            overrides = {
+                **{k: None for k in per_link if k not in ("armature", "b")},
+                "armature": 0.0,
+                "b": 0.0,
+                **overrides,
+            }
         return super().replace(**overrides)
 
 
@@ -886,7 +950,9 @@ class SpatialChain(RecursiveChain):
         n = self.n_links
         arrays = [as_vector(x, n, name) for x, name in arrays]
         shape = arrays[0].shape
-        if all(x.shape == shape and x.flags.c_contiguous and x.dtype == np.float64 for x in arrays):  # the common case: views
+        if all(
+            x.shape == shape and x.flags.c_contiguous and x.dtype == np.float64 for x in arrays
+        ):  # the common case: views
             return shape, [x.reshape(-1, n) for x in arrays]
         shape = np.broadcast_shapes(*(x.shape for x in arrays))
         return shape, [np.ascontiguousarray(np.broadcast_to(x, shape).reshape(-1, n), dtype=float) for x in arrays]
@@ -906,7 +972,9 @@ class SpatialChain(RecursiveChain):
     def joint_positions(self, q: np.ndarray) -> np.ndarray:
         """Joints and the last link's tip (``(l_N, 0, 0)`` in its frame) [m], shape ``(..., N + 1, 3)``."""
         k = self.kinematics(q)
-        tip = k["p"][..., -1, :] + np.einsum("...ij,j->...i", k["R"][..., -1, :, :], np.array([self.params.l[-1], 0.0, 0.0]))
+        tip = k["p"][..., -1, :] + np.einsum(
+            "...ij,j->...i", k["R"][..., -1, :, :], np.array([self.params.l[-1], 0.0, 0.0])
+        )
         return np.concatenate([k["p"], tip[..., None, :]], axis=-2)
 
     def rnea(self, q: np.ndarray, v: np.ndarray, a: np.ndarray, gravity: bool = True) -> np.ndarray:
@@ -952,4 +1020,6 @@ class SpatialChain(RecursiveChain):
         """``(axis, offset, com, inertia)`` row by row, then ``(m, armature, b)`` per link, then ``g_vec``:
         shape ``(21 N + 3,)``."""
         p = self.params
-        return np.concatenate([p.axis.ravel(), p.offset.ravel(), p.com.ravel(), p.inertia.ravel(), p.m, p.armature, p.b, p.g_vec])
+        return np.concatenate(
+            [p.axis.ravel(), p.offset.ravel(), p.com.ravel(), p.inertia.ravel(), p.m, p.armature, p.b, p.g_vec]
+        )

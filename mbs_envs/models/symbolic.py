@@ -215,7 +215,9 @@ def derive_equations(name: str, q: Sequence[Any], T: Any, V: Any, params: Mappin
     rates = {qi.diff(t): vi for qi, vi in zip(q, vs)}
     coords = {qi: qs_i for qi, qs_i in zip(q, qs)}
 
-    def plain(e):  # rates first (a coordinate replaced inside its derivative would leave d(q0)/dt); no simplify: CSE does the work
+    def plain(
+        e,
+    ):  # rates first (a coordinate replaced inside its derivative would leave d(q0)/dt); no simplify: CSE does the work
         return sp.sympify(e).xreplace(rates).xreplace(coords)
 
     for label, e in (("T", T), ("V", V)):
@@ -379,7 +381,9 @@ def _constraint_rows(q, qs, vs, plain, params, constraints, velocity_constraints
         A = [sp.diff(e, w) for w in vs]
         linear = not any(a.free_symbols & set(vs) for a in A) and sp.expand(e - sum(a * w for a, w in zip(A, vs))) == 0
         if not linear or all(a == 0 for a in A):
-            raise ValueError(f"velocity_constraints[{k}] = {c} must be linear and homogeneous in the rates, A(q) dq/dt = 0")
+            raise ValueError(
+                f"velocity_constraints[{k}] = {c} must be linear and homogeneous in the rates, A(q) dq/dt = 0"
+            )
         rows.append(A)
     Psi = sp.Matrix(rows)
     n = len(qs)
@@ -395,7 +399,9 @@ def _independent(d: Derivation, q: tuple, independent: Any) -> tuple:
     if nc >= n:
         raise ValueError(f"constraints: {nc} constraint rows leave no motion to {n} coordinates")
     if independent is None:
-        raise ValueError(f"independent: a constrained mechanism names the {n - nc} coordinates that parametrize its motion")
+        raise ValueError(
+            f"independent: a constrained mechanism names the {n - nc} coordinates that parametrize its motion"
+        )
     idx = []
     for c in independent:
         i = c if isinstance(c, (int, np.integer)) and not isinstance(c, bool) else (q.index(c) if c in q else None)
@@ -425,7 +431,9 @@ def generate_source(d: Derivation) -> str:
     from sympy.printing.numpy import NumPyPrinter
 
     n = len(d.q)
-    psyms = [sp.Symbol(f"_p{k}", real=True) for k in range(len(d.params))]  # the code's names: no clash with its locals (b, A, S, C, ...)
+    psyms = [
+        sp.Symbol(f"_p{k}", real=True) for k in range(len(d.params))
+    ]  # the code's names: no clash with its locals (b, A, S, C, ...)
     by_name = {k: s for (k, _), s in zip(d.params, psyms)}
 
     def plain(e):  # the parameters as the real symbols the code reads, whatever assumptions the user's carried
@@ -443,12 +451,19 @@ def generate_source(d: Derivation) -> str:
     head = [f"    {s} = q[{i}]" for i, s in enumerate(d.q)] + [f"    {s} = v[{i}]" for i, s in enumerate(d.v)]
     head += [f"    {s} = p[{k}]" for k, s in enumerate(psyms)]
     body = [f"    {s} = {code(e)}" for s, e in reps]
-    out = [f"    M[{i}, {j}] = {code(reduced[k])}" + (f"\n    M[{j}, {i}] = M[{i}, {j}]" if i != j else "") for k, (i, j) in enumerate(upper)]
+    out = [
+        f"    M[{i}, {j}] = {code(reduced[k])}" + (f"\n    M[{j}, {i}] = M[{i}, {j}]" if i != j else "")
+        for k, (i, j) in enumerate(upper)
+    ]
     m = len(upper)
     out += [f"    Cv[{i}] = {code(reduced[m + i])}" for i in range(n)]
     out += [f"    G[{i}] = {code(reduced[m + n + i])}" for i in range(n)]
     out += [f"    E[0] = {code(reduced[m + 2 * n])}", f"    E[1] = {code(reduced[m + 2 * n + 1])}"]
-    damp = [(i, [k for k, (name, _) in enumerate(d.params) if name == pname][0]) for i, pname in enumerate(d.damping) if pname]
+    damp = [
+        (i, [k for k, (name, _) in enumerate(d.params) if name == pname][0])
+        for i, pname in enumerate(d.damping)
+        if pname
+    ]
     mass = exprs[:m]
     force = [sp.Symbol(f"tau[{i}, b]") - exprs[m + i] - exprs[m + n + i] for i in range(n)]  # tau - C v - G of member b
     if d.F is not None:  # the friction law's forces, after the viscous damping
@@ -480,7 +495,9 @@ def generate_source(d: Derivation) -> str:
         "@njit(cache=True, inline='always')",
         "def terms(q, v, p, M, Cv, G, E):",
         '    """M (n, n), C v, G (n,), (T, V) of one member into the arrays given."""',
-        *head, *body, *out,
+        *head,
+        *body,
+        *out,
         "",
         "",
         "@njit(cache=True)",
@@ -609,9 +626,13 @@ def _simd_lines(d: Derivation, exprs: list, targets: list[str], code, uses_v: bo
     trig = {}
     for a_, (s_, c_) in zip(args, sc):
         trig[sp.sin(a_)], trig[sp.cos(a_)] = s_, c_
-    reps, reduced = sp.cse([e.xreplace(trig) for e in exprs], symbols=sp.numbered_symbols(prefix), optimizations="basic")
+    reps, reduced = sp.cse(
+        [e.xreplace(trig) for e in exprs], symbols=sp.numbered_symbols(prefix), optimizations="basic"
+    )
     K = max(len(args), 1)
-    state = [f"        {x} = q[{i}, b]" for i, x in enumerate(d.q)] + ([f"        {x} = v[{i}, b]" for i, x in enumerate(d.v)] if uses_v else [])
+    state = [f"        {x} = q[{i}, b]" for i, x in enumerate(d.q)] + (
+        [f"        {x} = v[{i}, b]" for i, x in enumerate(d.v)] if uses_v else []
+    )
     return [
         f"    A = np.empty(({K}, B))",
         f"    S = np.empty(({K}, B))",
@@ -661,7 +682,9 @@ def _constrained_body(d: Derivation, plain, head: list, damp: list, code, mass: 
         "@njit(cache=True, inline='always')",
         "def constraint_terms(q, v, p, phi, Psi, Pdv):",
         '    """phi (nh,), Psi (nc, n), Psi_dot v (nc,) of one member into the arrays given."""',
-        *head, *[f"    {s} = {code(e)}" for s, e in reps], *out,
+        *head,
+        *[f"    {s} = {code(e)}" for s, e in reps],
+        *out,
         "    return",
         "",
         "",
@@ -714,7 +737,11 @@ def _constrained_body(d: Derivation, plain, head: list, damp: list, code, mass: 
         "    for i in range(N):",
         "        f[i] = tau[i, 0] - Cv[i] - G[i]",
         *[f"    f[{i}] -= pk[{j}] * vk[{i}]" for i, j in damp],
-        *(["    F = np.empty(N)", "    friction_member(vk, pk, F)", "    for i in range(N):", "        f[i] -= F[i]"] if d.F is not None else []),
+        *(
+            ["    F = np.empty(N)", "    friction_member(vk, pk, F)", "    for i in range(N):", "        f[i] -= F[i]"]
+            if d.F is not None
+            else []
+        ),
         "    for i in range(NC):",
         "        gamma[i] = -Pdv[i]",
         "",
@@ -739,9 +766,17 @@ def _constrained_body(d: Derivation, plain, head: list, damp: list, code, mass: 
         '    """M (n, n, B), f = tau - (C v + G + F) into X[0] (n, B), Psi (nc, n, B), gamma = -Psi_dot v (nc, B)."""',
         "    B = q.shape[1]",
         *params,
-        *_simd_lines(d, mass + force + rows_P + [-e for e in pdv],
-                     [f"M[{i}, {j}, b]" for i, j in upper] + [f"X[0, {i}, b]" for i in range(n)]
-                     + [f"P[{k}, {j}, b]" for k in range(nc) for j in range(n)] + [f"g[{k}, b]" for k in range(nc)], code, True, "y"),
+        *_simd_lines(
+            d,
+            mass + force + rows_P + [-e for e in pdv],
+            [f"M[{i}, {j}, b]" for i, j in upper]
+            + [f"X[0, {i}, b]" for i in range(n)]
+            + [f"P[{k}, {j}, b]" for k in range(nc) for j in range(n)]
+            + [f"g[{k}, b]" for k in range(nc)],
+            code,
+            True,
+            "y",
+        ),
         *[f"        M[{j}, {i}, b] = M[{i}, {j}, b]" for i, j in upper if i != j],
         *[f"        X[0, {i}, b] -= {psyms[j]} * v[{i}, b]" for i, j in damp],
         "",
@@ -758,8 +793,16 @@ def _constrained_body(d: Derivation, plain, head: list, damp: list, code, mass: 
         '    """phi (nh, B), Psi (nc, n, B) and M (n, n, B) of a batch in columns, one pass."""',
         "    B = q.shape[1]",
         *params,
-        *_simd_lines(d, phis + rows_P + mass, [f"phi[{k}, b]" for k in range(nh)]
-                     + [f"P[{k}, {j}, b]" for k in range(nc) for j in range(n)] + [f"M[{i}, {j}, b]" for i, j in upper], code, False, "y"),
+        *_simd_lines(
+            d,
+            phis + rows_P + mass,
+            [f"phi[{k}, b]" for k in range(nh)]
+            + [f"P[{k}, {j}, b]" for k in range(nc) for j in range(n)]
+            + [f"M[{i}, {j}, b]" for i, j in upper],
+            code,
+            False,
+            "y",
+        ),
         *[f"        M[{j}, {i}, b] = M[{i}, {j}, b]" for i, j in upper if i != j],
         "",
         "",
@@ -846,7 +889,9 @@ def _columns_body(d: Derivation, mass: list, force: list, psyms: list, upper: li
         *[f"    {x} = theta[{k}, 0]" for k, x in enumerate(psyms)],
         "    M = np.empty((N, N, B))",
         "    r = np.empty((N, B))",
-        *_simd_lines(d, mass + force, [f"M[{i}, {j}, b]" for i, j in upper] + [f"r[{i}, b]" for i in range(n)], code, True, "y"),
+        *_simd_lines(
+            d, mass + force, [f"M[{i}, {j}, b]" for i, j in upper] + [f"r[{i}, b]" for i in range(n)], code, True, "y"
+        ),
         *[f"        M[{j}, {i}, b] = M[{i}, {j}, b]" for i, j in upper if i != j],
         *[f"        r[{i}, b] -= {psyms[j]} * v[{i}, b]" for i, j in damp],
         "    ok = np.ones(B, np.bool_)",
@@ -919,7 +964,13 @@ class DerivedModel(Model):
         qr, vr, shape = self._flat_rows(q, v)
         M, Cv, G, E = self.generated.rows(qr, vr, self.kernel_params())
         lead = shape[:-1]
-        return M.reshape(lead + (n, n)), Cv.reshape(shape), G.reshape(shape), E[:, 0].reshape(lead), E[:, 1].reshape(lead)
+        return (
+            M.reshape(lead + (n, n)),
+            Cv.reshape(shape),
+            G.reshape(shape),
+            E[:, 0].reshape(lead),
+            E[:, 1].reshape(lead),
+        )
 
     def mass_matrix(self, q: np.ndarray) -> np.ndarray:
         return self._terms(q)[0]
@@ -964,7 +1015,11 @@ class ConstrainedDerivedModel(DerivedModel, ConstrainedModel):
         qr, vr, shape = self._flat_rows(q, v)
         phi, Psi, Pdv = self.generated.constraint_rows(qr, vr, self.kernel_params())
         lead = shape[:-1]
-        return phi.reshape(lead + (self.derivation.nh,)), Psi.reshape(lead + (self.nc, n)), Pdv.reshape(lead + (self.nc,))
+        return (
+            phi.reshape(lead + (self.derivation.nh,)),
+            Psi.reshape(lead + (self.nc, n)),
+            Pdv.reshape(lead + (self.nc,)),
+        )
 
     def constraint_residual(self, q: np.ndarray) -> np.ndarray:
         return self._constraint_terms(q)[0]
@@ -998,7 +1053,9 @@ class ConstrainedDerivedModel(DerivedModel, ConstrainedModel):
         ind, dep = list(self.independent), self._dependent()
         q_ind = as_vector(q_ind, len(ind), "q_ind")
         guess = as_vector(guess, self.nq, "guess")
-        q = np.array(np.broadcast_to(guess, np.broadcast_shapes(q_ind.shape[:-1], guess.shape[:-1]) + (self.nq,)), float)
+        q = np.array(
+            np.broadcast_to(guess, np.broadcast_shapes(q_ind.shape[:-1], guess.shape[:-1]) + (self.nq,)), float
+        )
         rows = list(self._rows())
         if not rows:
             q[..., ind] = q_ind
@@ -1084,7 +1141,9 @@ def model_class(d: Derivation) -> type:
         return _CLASSES[key]
     generated = load_generated(source)
     checks = d.checks or ("finite",) * len(d.params)
-    fields = [(k, float, param(default, c, "", f"parameter {k} of {d.name}")) for (k, default), c in zip(d.params, checks)]
+    fields = [
+        (k, float, param(default, c, "", f"parameter {k} of {d.name}")) for (k, default), c in zip(d.params, checks)
+    ]
     P = dataclasses.make_dataclass(f"{d.name}Params", fields, bases=(DerivedParams,), frozen=True)
     P.derivation = d
     n, nu = len(d.q), d.B.shape[1]
@@ -1147,7 +1206,9 @@ def cached_derivation(name: str, q: Sequence[Any], T: Any, V: Any, params: Mappi
                 return stored[1]
         except Exception:  # a damaged or foreign file: derive again and overwrite it
             pass
-    d = derive_equations(name, q, T, V, params, actuation, damping, constraints, velocity_constraints, independent, friction=friction)
+    d = derive_equations(
+        name, q, T, V, params, actuation, damping, constraints, velocity_constraints, independent, friction=friction
+    )
     folder.mkdir(parents=True, exist_ok=True)
     _write(path, pickle.dumps((key, d)))
     _SOURCES[id(d)] = (d, source)

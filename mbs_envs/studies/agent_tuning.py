@@ -63,7 +63,9 @@ def rank_key(evaluation: Mapping[str, float], env_id: str) -> tuple[float, float
 
 
 def _train_candidate(task: dict[str, Any]) -> dict[str, Any]:
-    return train(TrainConfig(**task["config"]), pathlib.Path(task["out"]), overwrite=True)  # a re-run of a search replaces its candidates
+    return train(
+        TrainConfig(**task["config"]), pathlib.Path(task["out"]), overwrite=True
+    )  # a re-run of a search replaces its candidates
 
 
 def tune_agent(env_id: str, algo: str, steps: int, grid: list[dict[str, float]], out: pathlib.Path, seed: int = 0,
@@ -94,7 +96,9 @@ def tune_agent(env_id: str, algo: str, steps: int, grid: list[dict[str, float]],
     out = pathlib.Path(out)
     tasks = []
     for k, hyper in enumerate(grid):
-        cfg = dict(env_id=env_id, algo=algo, steps=steps, seed=seed, eval_seeds=eval_seeds, **candidate_config(hyper), **config)
+        cfg = dict(
+            env_id=env_id, algo=algo, steps=steps, seed=seed, eval_seeds=eval_seeds, **candidate_config(hyper), **config
+        )
         TrainConfig(**cfg)  # validate every candidate before training any
         tasks.append({"config": cfg, "out": str(out / f"candidate{k}")})
     records = run_tasks(_train_candidate, tasks, max_workers=workers)

@@ -1,5 +1,4 @@
-"""The speed benchmark against peers timed in the same process: single and batched steps against Gymnasium's Acrobot and CartPole, the chains against Pinocchio, MuJoCo, PPO through the SB3 adapter (``scripts/bench.py`` is its command line).
-"""
+"""The speed benchmark against peers timed in the same process: single and batched steps against Gymnasium's Acrobot and CartPole, the chains against Pinocchio, MuJoCo, PPO through the SB3 adapter (``scripts/bench.py`` is its command line)."""
 
 from __future__ import annotations
 
@@ -32,9 +31,13 @@ def single_step(repeats: int, steps: int) -> dict:
         "Acrobot-v1": (gym.make("Acrobot-v1"), [int(a) for a in rng.integers(0, 3, steps)]),
         "Planar2R-v0": (gym.make("mbs_envs/Planar2R-v0"), list(rng.uniform(-1, 1, (steps, 2)).astype(np.float32))),
         "Planar2R-v0 (numpy path)": (
-            gym.make("mbs_envs/Planar2R-v0", compiled=False), list(rng.uniform(-1, 1, (steps, 2)).astype(np.float32))
+            gym.make("mbs_envs/Planar2R-v0", compiled=False),
+            list(rng.uniform(-1, 1, (steps, 2)).astype(np.float32)),
         ),
-        "Planar2R-v0 at dt 0.2 s": (gym.make("mbs_envs/Planar2R-v0", **AT_ACROBOT_DT), list(rng.uniform(-1, 1, (steps, 2)).astype(np.float32))),
+        "Planar2R-v0 at dt 0.2 s": (
+            gym.make("mbs_envs/Planar2R-v0", **AT_ACROBOT_DT),
+            list(rng.uniform(-1, 1, (steps, 2)).astype(np.float32)),
+        ),
     }
     times: dict[str, list[float]] = {k: [] for k in peers}
     for _ in tqdm(range(repeats), desc="single step"):
@@ -62,7 +65,9 @@ def step_errors(n_states: int = 50) -> dict:
         torque = float(rng.choice(acro.AVAIL_TORQUE))
         aug = np.append(s, torque)
         ns = rk4(acro._dsdt, aug, [0, acro.dt])  # what Acrobot-v1's step integrates
-        ref = solve_ivp(lambda t, y: acro._dsdt(y), (0, acro.dt), aug, method="DOP853", rtol=1e-12, atol=1e-12).y[:4, -1]
+        ref = solve_ivp(lambda t, y: acro._dsdt(y), (0, acro.dt), aug, method="DOP853", rtol=1e-12, atol=1e-12).y[
+            :4, -1
+        ]
         err_acro = max(err_acro, float(np.max(np.abs(ns[:4] - ref))))
     env = gym.make("mbs_envs/Planar2R-v0").unwrapped  # its defaults: RK4, 2 substeps per 10 ms
     states = rng.bit_generator.state  # the same states and actions for both settings
@@ -76,7 +81,11 @@ def step_errors(n_states: int = 50) -> dict:
         "planar2r_substeps": env.substeps,
         "planar2r_max_state_error_per_step": err_ours,
         "ratio_acrobot_to_planar2r": err_acro / err_ours,
-        "planar2r_at_acrobot_dt": {**AT_ACROBOT_DT, "max_state_error_per_step": err_02, "ratio_acrobot_to_planar2r": err_acro / err_02},
+        "planar2r_at_acrobot_dt": {
+            **AT_ACROBOT_DT,
+            "max_state_error_per_step": err_02,
+            "ratio_acrobot_to_planar2r": err_acro / err_02,
+        },
     }
 
 
@@ -88,7 +97,9 @@ def planar2r_step_error(env, rng: np.random.Generator, n_states: int) -> float:
         action = rng.uniform(-1, 1, 2)
         env.reset(options={"q": q, "v": v})
         env.step(action)  # exactly what a user's step integrates
-        ref = mbs_envs.simulate(model, q, v, env.dt, dt=env.dt, integrator="dop853", u=action * env.u_max, rtol=1e-12, atol=1e-12)
+        ref = mbs_envs.simulate(
+            model, q, v, env.dt, dt=env.dt, integrator="dop853", u=action * env.u_max, rtol=1e-12, atol=1e-12
+        )
         err = max(err, float(np.max(np.abs(env.q - ref.q[-1]))), float(np.max(np.abs(env.v - ref.v[-1]))))
     return err
 
@@ -112,7 +123,9 @@ def batched_step(num_envs: int, repeats: int, steps: int) -> dict:
         ),
     }  # fmt: skip
     actions = {
-        name: [env.action_space.sample() for _ in range(steps)] if "CartPole" in name else list(rng.uniform(-1, 1, (steps, num_envs, 2)))
+        name: [env.action_space.sample() for _ in range(steps)]
+        if "CartPole" in name
+        else list(rng.uniform(-1, 1, (steps, num_envs, 2)))
         for name, env in peers.items()
     }
     times: dict[str, list[float]] = {k: [] for k in peers}
@@ -124,7 +137,14 @@ def batched_step(num_envs: int, repeats: int, steps: int) -> dict:
     floor = trig_floor(num_envs, 3)
     return {
         "num_envs": num_envs,
-        "trig_floor": {**floor, **{k.replace("per_env_step_us", "ratio_to_cartpole"): v / (ref * 1e6) for k, v in floor.items() if k.endswith("_us")}},
+        "trig_floor": {
+            **floor,
+            **{
+                k.replace("per_env_step_us", "ratio_to_cartpole"): v / (ref * 1e6)
+                for k, v in floor.items()
+                if k.endswith("_us")
+            },
+        },
         "per_env_step_us": {k: v * 1e6 for k, v in per_env.items()},
         "ratio_to_cartpole": {k: v / ref for k, v in per_env.items()},
     }
@@ -250,7 +270,12 @@ def mujoco_step_error(env, n_states: int = 50, refine: int = 200) -> dict:
 
 
 def sb3_throughput(
-    n_envs_list: list[int], samples: int, iterations: int, threads: list[int], repeats: int, env_id: str = "mbs_envs/Planar2R-v0"
+    n_envs_list: list[int],
+    samples: int,
+    iterations: int,
+    threads: list[int],
+    repeats: int,
+    env_id: str = "mbs_envs/Planar2R-v0",
 ) -> dict:
     """PPO env-steps per second on ``env_id``, adapter against ``make_vec_env`` of single envs, for
     each torch thread count and ``n_envs``: medians over ``repeats`` interleaved timings.
@@ -289,7 +314,10 @@ def sb3_throughput(
             "SB3 make_vec_env (DummyVecEnv of single envs)": make_vec_env(env_id, n_envs=n_envs, seed=0),
             "mbs_envs SB3 adapter (batched)": make_sb3_vec_env(env_id, n_envs=n_envs, seed=0),
         }
-        models = {k: PPO("MlpPolicy", v, n_steps=n_steps, batch_size=samples // 4, n_epochs=1, seed=0, device="cpu") for k, v in venvs.items()}
+        models = {
+            k: PPO("MlpPolicy", v, n_steps=n_steps, batch_size=samples // 4, n_epochs=1, seed=0, device="cpu")
+            for k, v in venvs.items()
+        }
         for model in models.values():
             model.learn(samples)  # warm-up
         times: dict[str, dict[str, list[float]]] = {k: {"learn": [], "rollout": []} for k in venvs}
@@ -299,7 +327,9 @@ def sb3_throughput(
                 times[k]["rollout"].append(rollout(models[k], venvs[k], n_steps))
         for venv in venvs.values():
             venv.close()
-        res = {k: {f"{what}_env_steps_per_s": 1 / float(np.median(t)) for what, t in v.items()} for k, v in times.items()}
+        res = {
+            k: {f"{what}_env_steps_per_s": 1 / float(np.median(t)) for what, t in v.items()} for k, v in times.items()
+        }
         a, b = res.values()
         out[f"{n_threads} torch threads, {n_envs} envs"] = {"torch_threads": n_threads, "n_envs": n_envs, "n_steps": n_steps, "results": res,
                        "ratio_learn": b["learn_env_steps_per_s"] / a["learn_env_steps_per_s"],
@@ -316,8 +346,10 @@ def sb3_scenes(env_ids: list[str], out: pathlib.Path) -> dict:
     (out / "sb3_scenes.json").write_text(json.dumps(result, indent=2, default=float))
     for env_id, r in result.items():
         for name, run in r["runs"].items():
-            print(f"{env_id}, {name}: PPO learn {run['ratio_learn']:.1f}x make_vec_env, rollouts {run['ratio_rollout']:.1f}x "
-                  f"({run['results']})")
+            print(
+                f"{env_id}, {name}: PPO learn {run['ratio_learn']:.1f}x make_vec_env, rollouts {run['ratio_rollout']:.1f}x "
+                f"({run['results']})"
+            )
     print(f"written to {out}/sb3_scenes.json")
     return result
 
@@ -350,8 +382,13 @@ def run(out: pathlib.Path, quick: bool = False) -> dict:
         "batched": batched_step(1024, reps, 20 if quick else 100),
         "chain": chain_dynamics(),
         "mujoco": mujoco_step(reps, 200),
-        "sb3": sb3_throughput([16, 256] if quick else [64, 256, 1024], 4096 if quick else 16384, 1 if quick else 2,
-                              [1] if quick else sorted({1, _torch_threads()}), reps if quick else 5),
+        "sb3": sb3_throughput(
+            [16, 256] if quick else [64, 256, 1024],
+            4096 if quick else 16384,
+            1 if quick else 2,
+            [1] if quick else sorted({1, _torch_threads()}),
+            reps if quick else 5,
+        ),
     }
     add_zero_cost_env_bound(result)
     (out / "bench.json").write_text(json.dumps(result, indent=2, default=float))
@@ -371,8 +408,11 @@ def report(r: dict) -> str:
         f"  at Acrobot's control step (dt 0.2 s, {AT_ACROBOT_DT['substeps']} RK4 substeps: the default 5 ms physics step): "
         f"{s['ratio_planar2r_at_acrobot_dt_to_acrobot']:.2f}x Acrobot's time, error {s['error']['planar2r_at_acrobot_dt']['max_state_error_per_step']:.2e}, "
         f"{s['error']['planar2r_at_acrobot_dt']['ratio_acrobot_to_planar2r']:.3g}x lower",
-        f"batched per env-step at {b['num_envs']} [us]: " + ", ".join(f"{k} {v:.3f}" for k, v in b["per_env_step_us"].items()),
-        "  ratio to CartPole: " + ", ".join(f"{k} {v:.2f}" for k, v in b["ratio_to_cartpole"].items()) + " (target <= 3)",
+        f"batched per env-step at {b['num_envs']} [us]: "
+        + ", ".join(f"{k} {v:.3f}" for k, v in b["per_env_step_us"].items()),
+        "  ratio to CartPole: "
+        + ", ".join(f"{k} {v:.2f}" for k, v in b["ratio_to_cartpole"].items())
+        + " (target <= 3)",
         f"  the step's sines and cosines of {b['trig_floor']['angles_per_member']} angles per member alone: by libm "
         f"{b['trig_floor']['libm_per_env_step_us']:.3f} us ({b['trig_floor']['libm_ratio_to_cartpole']:.2f}x CartPole's whole step), "
         f"by the SIMD sincos {b['trig_floor']['simd_sincos_per_env_step_us']:.3f} us ({b['trig_floor']['simd_sincos_ratio_to_cartpole']:.2f}x)",
@@ -380,20 +420,38 @@ def report(r: dict) -> str:
         f"t(400)/t(50) batched {c['t400_over_t50_batched']:.2f}, single {c['t400_over_t50_single']:.2f} (target <= 12)",
     ]
     if "n100_single_over_pin" in c:
-        lines.append(f"  vs Pinocchio aba: single {c['n100_single_over_pin']:.2f}x (target <= 3), batched per env {c['n100_batched_per_env_over_pin']:.2f}x (target <= 1)")
+        lines.append(
+            f"  vs Pinocchio aba: single {c['n100_single_over_pin']:.2f}x (target <= 3), batched per env {c['n100_batched_per_env_over_pin']:.2f}x (target <= 1)"
+        )
     m = r["mujoco"]
     if "skipped" in m:
         lines.append(f"mujoco: skipped ({m['skipped']})")
     else:
         e = m["error"]
-        lines.append(f"InvertedDoublePendulum-v5 step: {m['median_step_us']:.1f} us (Acrobot-v1 {m['acrobot_us']:.1f} us in the same section); "
-                     f"Planar2R-v0 / IDP: {s['median_step_us']['Planar2R-v0'] / m['median_step_us']:.2f}x")
-        lines.append(f"  error per control step (dt {e['dt']:g} s, RK4 {e['frame_skip']} x {e['timestep']:g} s): {e['max_state_error_per_step']:.1e} "
-                     f"(reference error {e['reference_error_estimate']:.0e}; steps with active constraints {e['steps_with_active_constraints']})")
+        lines.append(
+            f"InvertedDoublePendulum-v5 step: {m['median_step_us']:.1f} us (Acrobot-v1 {m['acrobot_us']:.1f} us in the same section); "
+            f"Planar2R-v0 / IDP: {s['median_step_us']['Planar2R-v0'] / m['median_step_us']:.2f}x"
+        )
+        lines.append(
+            f"  error per control step (dt {e['dt']:g} s, RK4 {e['frame_skip']} x {e['timestep']:g} s): {e['max_state_error_per_step']:.1e} "
+            f"(reference error {e['reference_error_estimate']:.0e}; steps with active constraints {e['steps_with_active_constraints']})"
+        )
     for n, q in p["runs"].items():
-        lines.append(f"PPO env-steps/s, {n}: " + "; ".join(f"{k}: learn {v['learn_env_steps_per_s']:.0f}, rollout {v['rollout_env_steps_per_s']:.0f}" for k, v in q["results"].items()))
-        lines.append(f"  adapter / make_vec_env: learn {q['ratio_learn']:.2f}x, rollout {q['ratio_rollout']:.2f}x (target >= 10)"
-                     + (f"; learn with a zero-cost env at most {q['ratio_learn_zero_cost_env_bound']:.2f}x" if "ratio_learn_zero_cost_env_bound" in q else ""))
+        lines.append(
+            f"PPO env-steps/s, {n}: "
+            + "; ".join(
+                f"{k}: learn {v['learn_env_steps_per_s']:.0f}, rollout {v['rollout_env_steps_per_s']:.0f}"
+                for k, v in q["results"].items()
+            )
+        )
+        lines.append(
+            f"  adapter / make_vec_env: learn {q['ratio_learn']:.2f}x, rollout {q['ratio_rollout']:.2f}x (target >= 10)"
+            + (
+                f"; learn with a zero-cost env at most {q['ratio_learn_zero_cost_env_bound']:.2f}x"
+                if "ratio_learn_zero_cost_env_bound" in q
+                else ""
+            )
+        )
     return "\n".join(lines)
 
 
@@ -403,7 +461,9 @@ def plot(r: dict, path: pathlib.Path) -> None:
     s = dict(r["single"]["median_step_us"])
     if "median_step_us" in r["mujoco"]:
         s["InvertedDouble-\nPendulum-v5 (MuJoCo)"] = r["mujoco"]["median_step_us"]
-    axes[0].bar(range(len(s)), list(s.values()), tick_label=[k.replace(" (", "\n(").replace(" at ", "\nat ") for k in s])
+    axes[0].bar(
+        range(len(s)), list(s.values()), tick_label=[k.replace(" (", "\n(").replace(" at ", "\nat ") for k in s]
+    )
     axes[0].set_ylabel("median step [us]")
     axes[0].set_title("single env step")
     b = r["batched"]["per_env_step_us"]
@@ -424,8 +484,12 @@ def plot(r: dict, path: pathlib.Path) -> None:
     for n_threads in sorted({q["torch_threads"] for q in runs}):
         sel = [q for q in runs if q["torch_threads"] == n_threads]
         ns = [q["n_envs"] for q in sel]
-        axes[3].semilogx(ns, [q["ratio_learn"] for q in sel], "o-", base=2, label=f"whole learn, torch {n_threads} thr.")
-        axes[3].semilogx(ns, [q["ratio_rollout"] for q in sel], "s--", base=2, label=f"rollouts, torch {n_threads} thr.")
+        axes[3].semilogx(
+            ns, [q["ratio_learn"] for q in sel], "o-", base=2, label=f"whole learn, torch {n_threads} thr."
+        )
+        axes[3].semilogx(
+            ns, [q["ratio_rollout"] for q in sel], "s--", base=2, label=f"rollouts, torch {n_threads} thr."
+        )
     axes[3].axhline(10, color="k", ls=":", label="target")
     axes[3].set_xlabel("n_envs")
     axes[3].set_ylabel("adapter / make_vec_env env-steps per s")

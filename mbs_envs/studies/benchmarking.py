@@ -69,8 +69,12 @@ def _pinocchio_serial(joint: Callable[[Any, int], Any], offset: np.ndarray, m: n
     model = pin.Model()
     parent = 0
     for i in range(len(m)):
-        parent = model.addJoint(parent, joint(pin, i), pin.SE3(np.eye(3), np.asarray(offset[i], float)), f"joint{i + 1}")
-        model.appendBodyToJoint(parent, pin.Inertia(m[i], np.asarray(com[i], float), np.asarray(inertia[i], float)), pin.SE3.Identity())
+        parent = model.addJoint(
+            parent, joint(pin, i), pin.SE3(np.eye(3), np.asarray(offset[i], float)), f"joint{i + 1}"
+        )
+        model.appendBodyToJoint(
+            parent, pin.Inertia(m[i], np.asarray(com[i], float), np.asarray(inertia[i], float)), pin.SE3.Identity()
+        )
     model.gravity.linear[:] = g_vec
     model.armature[:] = armature
     return pin, model, model.createData()
@@ -81,7 +85,9 @@ def pinocchio_spatial_chain(chain: Any):
     (``JointModelRevoluteUnaligned`` about each axis, the same placements, inertias, gravity and
     armature), or None without ``pin`` (:func:`_pinocchio_serial`)."""
     p = chain.params
-    return _pinocchio_serial(lambda pin, i: pin.JointModelRevoluteUnaligned(p.axis[i]), p.offset, p.m, p.com, p.inertia, p.g_vec, p.armature)
+    return _pinocchio_serial(
+        lambda pin, i: pin.JointModelRevoluteUnaligned(p.axis[i]), p.offset, p.m, p.com, p.inertia, p.g_vec, p.armature
+    )
 
 
 def pinocchio_chain(chain: SerialChain):
@@ -92,4 +98,12 @@ def pinocchio_chain(chain: SerialChain):
     offset[1:, 0] = p.l[:-1]
     com = np.zeros((n, 3))
     com[:, 0] = p.r
-    return _pinocchio_serial(lambda pin, i: pin.JointModelRZ(), offset, p.m, com, [np.diag([I] * 3) for I in p.I], [0.0, -p.g, 0.0], p.armature)
+    return _pinocchio_serial(
+        lambda pin, i: pin.JointModelRZ(),
+        offset,
+        p.m,
+        com,
+        [np.diag([I] * 3) for I in p.I],
+        [0.0, -p.g, 0.0],
+        p.armature,
+    )

@@ -81,7 +81,9 @@ class EnvFacts:
 
 def to_markdown(rst: str) -> str:
     """A docstring's inline reStructuredText as Markdown: ````x```` -> ```x```, ``:class:`~a.b.C``` -> ```C```."""
-    text = re.sub(r":(?:class|func|meth|mod|data|attr|obj):`~?([^`]+)`", lambda m: f"`{m.group(1).split('.')[-1]}`", rst)
+    text = re.sub(
+        r":(?:class|func|meth|mod|data|attr|obj):`~?([^`]+)`", lambda m: f"`{m.group(1).split('.')[-1]}`", rst
+    )
     return text.replace("``", "`")
 
 

@@ -50,7 +50,9 @@ def applies(scene: str) -> bool:
     return isinstance(gym.make(SCENES[scene][0]).unwrapped, SwingUpEnv)
 
 
-def planner_hold_share(ctrl: Any, A: np.ndarray, B: np.ndarray, sigma: float, tol: float, windows: int = 2000, seed: int = 0) -> float:
+def planner_hold_share(
+    ctrl: Any, A: np.ndarray, B: np.ndarray, sigma: float, tol: float, windows: int = 2000, seed: int = 0
+) -> float:
     """The share of the success rule's windows (both angles within ``tol`` [rad] for 2 s, after 3 s of settling) that
     the hold of ``ctrl`` (a :class:`controllers.PlannedSwingUp`: its law of ``ctrl.hold_law`` on its own nominal
     model, with its rescue or recovery, saturated at its torque limit) holds on the plant linearized as ``(A, B)``,
@@ -73,13 +75,18 @@ def catch_rows(scene: str, conditions: list[Condition]) -> list[dict[str, Any]]:
         A, B = upright_linearization(plant)
         bound = saturation_bound(A, B, u_max, cond.delay * dt)
         case = PlantCase(plant, cond.delay)
-        caught = [axis_catch(case, x_up, lqr.K, u_max, dt, substeps, j, 1.5 * b if np.isfinite(b) else 5.0) for j, b in enumerate(bound)]
+        caught = [
+            axis_catch(case, x_up, lqr.K, u_max, dt, substeps, j, 1.5 * b if np.isfinite(b) else 5.0)
+            for j, b in enumerate(bound)
+        ]
         floor = noise_floor(A, B, dt, cond.obs_noise)[:2].tolist() if cond.obs_noise > 0 else None
         hold = start = planner_hold = None
         if cond.obs_noise > 0:
             hold, start = (lqg_hold_share(A, B, dt, cond.obs_noise, nominal.upright_tolerance, int(round(HOLD / dt)), settle_steps=n)
                            for n in (300, 0))  # fmt: skip
-            if planner.hold:  # (where the planner uses no hold, none: on the pendubot its upright LQR holds every window)
+            if (
+                planner.hold
+            ):  # (where the planner uses no hold, none: on the pendubot its upright LQR holds every window)
                 planner_hold = planner_hold_share(planner, A, B, cond.obs_noise, nominal.upright_tolerance)
         rows.append({"scene": scene, "condition": cond.name, "bound": [float(b) for b in bound], "lqr_catch": caught, "noise_floor": floor,
                      "lqg_hold": hold, "lqg_hold_from_start": start, "planner_hold": planner_hold})  # fmt: skip

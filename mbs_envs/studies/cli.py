@@ -39,7 +39,7 @@ def json_object(text: str) -> dict[str, Any]:
     except json.JSONDecodeError as e:
         raise argparse.ArgumentTypeError(f"must be a JSON object, got {text!r} ({e.msg})") from None
     if not isinstance(value, dict):
-        raise argparse.ArgumentTypeError(f"must be a JSON object ({{\"name\": value, ...}}), got {text!r}")
+        raise argparse.ArgumentTypeError(f'must be a JSON object ({{"name": value, ...}}), got {text!r}')
     return value
 
 

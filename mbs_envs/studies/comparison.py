@@ -51,7 +51,7 @@ def load_policy(spec: str, nominal_env: gym.Env, catch_gains: Mapping[str, float
         from .handover import hand_over
         from .training import load_agent
 
-        return hand_over(load_agent(pathlib.Path(spec[len(HAND_OVER):]))[0], nominal_env, **(catch_gains or {}))
+        return hand_over(load_agent(pathlib.Path(spec[len(HAND_OVER) :]))[0], nominal_env, **(catch_gains or {}))
     if catch_gains:
         raise ValueError(f"catch_gains: {spec!r} is neither a controller with gains nor an RL + LQR pair")
     if ":" in spec and not pathlib.Path(spec).exists():
@@ -84,7 +84,9 @@ def find_agents(root: pathlib.Path, scene: str) -> dict[str, list[str]]:
     folder = pathlib.Path(root) / env_id
     out: dict[str, list[str]] = {}
     for algo_dir in sorted(p for p in folder.glob("*") if p.is_dir()):
-        runs = sorted(p.parent for p in algo_dir.glob("seed*/agent.zip")) or ([algo_dir] if (algo_dir / "agent.zip").exists() else [])
+        runs = sorted(p.parent for p in algo_dir.glob("seed*/agent.zip")) or (
+            [algo_dir] if (algo_dir / "agent.zip").exists() else []
+        )
         if runs:
             name, kind = AGENT_GROUPS.get(algo_dir.name, (algo_dir.name.upper(), "RL"))
             out[name] = [str(r) for r in runs]
@@ -111,7 +113,9 @@ def latency_us(policy: Any, obs: np.ndarray, noise: float = 0.0, repeats: int = 
     observed value shows its uncached cost here.
     """
     rng = np.random.default_rng(seed)
-    inputs = obs + (rng.normal(0.0, noise, (repeats + 1,) + obs.shape) if noise > 0 else np.zeros((repeats + 1,) + obs.shape))
+    inputs = obs + (
+        rng.normal(0.0, noise, (repeats + 1,) + obs.shape) if noise > 0 else np.zeros((repeats + 1,) + obs.shape)
+    )
     inputs = inputs.astype(obs.dtype)
     policy.predict(inputs[0], deterministic=True)
     times = []
@@ -143,10 +147,15 @@ def evaluate_cell(task: dict[str, Any]) -> list[dict[str, Any]]:
     for name, specs in task["policies"].items():
         for k, spec in enumerate([specs] if isinstance(specs, str) else specs):
             policy = load_policy(spec, nominal)
-            episodes = rollout_batch(venv, policy, task["seeds"], obs_noise=condition.obs_noise, noise_seed=1, delay=condition.delay)
+            episodes = rollout_batch(
+                venv, policy, task["seeds"], obs_noise=condition.obs_noise, noise_seed=1, delay=condition.delay
+            )
             lat = lat_noisy = float("nan")
             if condition.name == "nominal" and k == 0:
-                lat, lat_noisy = latency_us(policy, obs0), latency_us(policy, obs0, noise=task.get("latency_noise", 0.01))
+                lat, lat_noisy = (
+                    latency_us(policy, obs0),
+                    latency_us(policy, obs0, noise=task.get("latency_noise", 0.01)),
+                )
             for seed, ep in zip(task["seeds"], episodes):
                 metrics, failed = scoring(ep)
                 rows.append({"scene": scene, "condition": condition.name, "policy": name, "kind": kind_of(name),
@@ -157,7 +166,9 @@ def evaluate_cell(task: dict[str, Any]) -> list[dict[str, Any]]:
     return rows
 
 
-def hierarchical_bootstrap(groups: list[np.ndarray], n_boot: int = 2000, seed: int = 0, level: float = 0.95) -> tuple[float, float, float]:
+def hierarchical_bootstrap(
+    groups: list[np.ndarray], n_boot: int = 2000, seed: int = 0, level: float = 0.95
+) -> tuple[float, float, float]:
     """Mean of the pooled values and its bootstrap confidence interval.
 
     Each replicate resamples the groups (training seeds) with replacement,
@@ -216,8 +227,12 @@ def summarize_policy(rows: list[dict[str, Any]]) -> dict[str, Any]:
         for m in ("success_wide", "time_near_upright"):
             groups = [np.array([float(r[m]) for r in by_seed[k]]) for k in seeds]
             out[m], out[m + "_lo"], out[m + "_hi"] = hierarchical_bootstrap(groups)
-    for m in ("rms_error_settled", "max_error", "rms_torque", "peak_torque", "return") + (("time_to_swing_up", "energy_used") if swing_up else ()):
-        groups = [np.array([float(r[m]) for r in by_seed[k] if not r["failed"] and np.isfinite(float(r[m]))]) for k in seeds]
+    for m in ("rms_error_settled", "max_error", "rms_torque", "peak_torque", "return") + (
+        ("time_to_swing_up", "energy_used") if swing_up else ()
+    ):
+        groups = [
+            np.array([float(r[m]) for r in by_seed[k] if not r["failed"] and np.isfinite(float(r[m]))]) for k in seeds
+        ]
         out[m], out[m + "_lo"], out[m + "_hi"] = hierarchical_bootstrap(groups)
     if swing_up:  # every episode runs its full length unless it diverged, so its return can be compared as is
         groups = [np.array([float(r["return"]) for r in by_seed[k] if not int(r.get("diverged", 0))]) for k in seeds]
@@ -225,12 +240,16 @@ def summarize_policy(rows: list[dict[str, Any]]) -> dict[str, Any]:
     for m in ("latency_us", "latency_noisy_us"):
         values = [float(r[m]) for r in rows if np.isfinite(float(r.get(m, float("nan"))))]
         out[m] = float(np.median(values)) if values else float("nan")
-    start = [float(r["start_peak_torque"]) for r in rows if np.isfinite(float(r.get("start_peak_torque", float("nan"))))]
+    start = [
+        float(r["start_peak_torque"]) for r in rows if np.isfinite(float(r.get("start_peak_torque", float("nan"))))
+    ]
     out["start_peak_torque"] = float(np.max(start)) if start else float("nan")
     return out
 
 
-def best_policy(by_policy: dict[str, dict[str, Any]], kind: str, min_success: float = 0.95, scoring: str = "tracking") -> str | None:
+def best_policy(
+    by_policy: dict[str, dict[str, Any]], kind: str, min_success: float = 0.95, scoring: str = "tracking"
+) -> str | None:
     """The best policy of ``kind``.
 
     Tracking: the smallest settled error among those with success >= ``min_success``; a
@@ -241,9 +260,14 @@ def best_policy(by_policy: dict[str, dict[str, Any]], kind: str, min_success: fl
     metric = ERROR_METRIC[scoring]
     if scoring == "swing-up":
         names = [n for n, m in by_policy.items() if m["kind"] == kind and m["success"] > 0]
-        key = lambda n: (-by_policy[n]["success"], by_policy[n][metric] if np.isfinite(by_policy[n][metric]) else np.inf)  # noqa: E731
+        key = lambda n: (
+            -by_policy[n]["success"],
+            by_policy[n][metric] if np.isfinite(by_policy[n][metric]) else np.inf,
+        )  # noqa: E731
         return min(names, key=key) if names else None
-    names = [n for n, m in by_policy.items() if m["kind"] == kind and m["success"] >= min_success and np.isfinite(m[metric])]
+    names = [
+        n for n, m in by_policy.items() if m["kind"] == kind and m["success"] >= min_success and np.isfinite(m[metric])
+    ]
     return min(names, key=lambda n: by_policy[n][metric]) if names else None
 
 

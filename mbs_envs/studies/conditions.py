@@ -14,7 +14,9 @@ import numpy as np
 from ..envs.registry import SCENES as REGISTRY
 
 #: scene -> (env id, env kwargs, model-based controllers by display name -> "module:class"), from the registry
-SCENES: dict[str, tuple[str, dict, dict[str, str]]] = {s.name: (s.id, dict(s.kwargs), dict(s.controllers)) for s in REGISTRY if s.compared}
+SCENES: dict[str, tuple[str, dict, dict[str, str]]] = {
+    s.name: (s.id, dict(s.kwargs), dict(s.controllers)) for s in REGISTRY if s.compared
+}
 
 
 @dataclasses.dataclass(frozen=True)

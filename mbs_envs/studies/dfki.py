@@ -332,7 +332,9 @@ def sweep_part(env_id: str, make_policy: Any, part: SweepPart) -> np.ndarray:
     m = part.members
     kwargs = {} if part.member_params is None else {"member_params": part.member_params[m]}
     count = m.stop - m.start
-    venv = gym.make_vec(env_id, num_envs=count, vectorization_mode="vector_entry_point", autoreset_mode="Disabled", **kwargs)
+    venv = gym.make_vec(
+        env_id, num_envs=count, vectorization_mode="vector_entry_point", autoreset_mode="Disabled", **kwargs
+    )
     try:
         res = run(venv, make_policy(gym.make(env_id)), list(range(m.start, m.stop)), part.perturbation.rows(m),
                   noise_seed=part.noise_seed, batch=(part.size, m.start))  # fmt: skip
@@ -341,13 +343,21 @@ def sweep_part(env_id: str, make_policy: Any, part: SweepPart) -> np.ndarray:
     return run_success(res)
 
 
-def assemble_sweep(meta: Mapping[str, Mapping[str, Any]], parts: list[SweepPart], success: list[np.ndarray]) -> dict[str, dict[str, Any]]:
+def assemble_sweep(
+    meta: Mapping[str, Mapping[str, Any]], parts: list[SweepPart], success: list[np.ndarray]
+) -> dict[str, dict[str, Any]]:
     """The sweep's result (:func:`sweep`) from its parts' successes (any order of parts)."""
     out: dict[str, dict[str, Any]] = {}
     for axis, info in meta.items():
-        mine = sorted(((p.members.start, p.size, ok) for p, ok in zip(parts, success) if p.axis == axis), key=lambda t: t[0])
+        mine = sorted(
+            ((p.members.start, p.size, ok) for p, ok in zip(parts, success) if p.axis == axis), key=lambda t: t[0]
+        )
         ok = np.concatenate([o for _, _, o in mine]) if mine else np.empty(0)
-        if not mine or len(ok) != mine[0][1] or [a for a, _, _ in mine] != list(np.cumsum([0] + [len(o) for _, _, o in mine[:-1]])):
+        if (
+            not mine
+            or len(ok) != mine[0][1]
+            or [a for a, _, _ in mine] != list(np.cumsum([0] + [len(o) for _, _, o in mine[:-1]]))
+        ):
             raise ValueError(f"the parts of axis {axis!r} do not make up its batch once")
         out[axis] = {**info, "success": ok, "fraction": float(np.mean(ok))}
     out["score"] = {"value": float(np.mean([out[a]["fraction"] for a in meta]))}

@@ -1,5 +1,4 @@
-"""The DFKI protocol's study: every swing-up controller and shipped agent on the protocol ids, the simulation-v2 score and the robustness-v2 sweep, their tuning on the protocol, the report and the figures (``scripts/dfki.py`` is its command line).
-"""
+"""The DFKI protocol's study: every swing-up controller and shipped agent on the protocol ids, the simulation-v2 score and the robustness-v2 sweep, their tuning on the protocol, the report and the figures (``scripts/dfki.py`` is its command line)."""
 
 from __future__ import annotations
 
@@ -49,7 +48,10 @@ def run(args: argparse.Namespace) -> dict:
         skipped = [f"{n} ({s})" for (s, n), c in catches.items() if c is None]
         jobs = [j for j in jobs if catches[j] is not None]
         if skipped:
-            print("--robust-catch: no catch tuned for robustness (--tune-robust-catch --write), not run: " + ", ".join(skipped))
+            print(
+                "--robust-catch: no catch tuned for robustness (--tune-robust-catch --write), not run: "
+                + ", ".join(skipped)
+            )
         if not jobs:
             raise SystemExit("dfki.py: no policy has a catch tuned for robustness (run --tune-robust-catch --write)")
     gains = {(s, n): protocol_gains(s, n) if n in SWING_UP_CONTROLLERS else (None, "") for s, n in jobs}
@@ -63,7 +65,9 @@ def run(args: argparse.Namespace) -> dict:
         tasks += [{**base[j], "part": part} for j, part in parts]
         owner = [j for j, _ in parts]
     tic = time.perf_counter()
-    results = run_tasks(dfki.controller_job, tasks, ray_address=args.ray, max_workers=args.workers, progress="DFKI protocol")
+    results = run_tasks(
+        dfki.controller_job, tasks, ray_address=args.ray, max_workers=args.workers, progress="DFKI protocol"
+    )
     wall = time.perf_counter() - tic
     for j, ((scene, name), res) in enumerate(zip(jobs, results)):
         source = gains[scene, name][1]
@@ -72,7 +76,12 @@ def run(args: argparse.Namespace) -> dict:
         row = {"scene": scene, "controller": name, "gains": source, **c, "wall_s": res["wall_s"]}
         if args.robust_catch:
             row["catch_gains"] = json.dumps(base[j]["catch_gains"], sort_keys=True)
-        plot_run(res["run"], gym.make(SCENES[scene]).unwrapped.model.params, f"{scene}: {name}", args.out / f"run_{scene}_{slug(name)}.png")
+        plot_run(
+            res["run"],
+            gym.make(SCENES[scene]).unwrapped.model.params,
+            f"{scene}: {name}",
+            args.out / f"run_{scene}_{slug(name)}.png",
+        )
         if args.robustness:
             mine = [(t["part"], r) for t, r, o in zip(tasks[len(jobs) :], results[len(jobs) :], owner) if o == j]
             sweeps[(scene, name)] = dfki.assemble_sweep(metas[j], [p for p, _ in mine], [r["success"] for _, r in mine])
@@ -87,7 +96,9 @@ def run(args: argparse.Namespace) -> dict:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
-    command = "python scripts/dfki.py " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("dfki.py") else None
+    command = (
+        "python scripts/dfki.py " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("dfki.py") else None
+    )
     record = {"command": command, "rows": rows, "sweeps": {f"{s} | {n}": to_json(r) for (s, n), r in sweeps.items()},
               "protocol": {s: SCENES[s] for s in scenes}, "values_per_axis": args.values, "seed": args.seed, "wall_s": wall}  # fmt: skip
     (args.out / "dfki.json").write_text(json.dumps(record, indent=2, default=float))
@@ -186,7 +197,9 @@ def tune_robust_catch(args: argparse.Namespace) -> dict:
     from mbs_envs.studies import dfki_tuning
 
     args.out.mkdir(parents=True, exist_ok=True)
-    command = "python scripts/dfki.py " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("dfki.py") else None
+    command = (
+        "python scripts/dfki.py " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("dfki.py") else None
+    )
     record: dict = {"procedure": dfki_tuning.robust_catch.__doc__, "command": command, "tuning_set": dict(dfki_tuning.ROBUST_SET),
                     "rates_from_angles": args.rates_from_angles, "gains": {}, "scenes": {}}  # fmt: skip
     rows = []
@@ -194,7 +207,10 @@ def tune_robust_catch(args: argparse.Namespace) -> dict:
         specs = catching_policies(scene, args.agents)
         if args.controller:
             specs = {n: s for n, s in specs.items() if n in args.controller or catch_group(n) in args.controller}
-        pols = {n: {"spec": s, "gains": protocol_gains(scene, n)[0] if n in SWING_UP_CONTROLLERS else None} for n, s in specs.items()}
+        pols = {
+            n: {"spec": s, "gains": protocol_gains(scene, n)[0] if n in SWING_UP_CONTROLLERS else None}
+            for n, s in specs.items()
+        }
         groups: dict[str, list[str]] = {}
         for n in pols:
             groups.setdefault(catch_group(n), []).append(n)
@@ -202,7 +218,14 @@ def tune_robust_catch(args: argparse.Namespace) -> dict:
         if args.release_stage:
             res = release_stage(scene, pols, groups, args, progress)
         else:
-            res = dfki_tuning.robust_catch(SCENES[scene], pols, groups, rates_from_angles=args.rates_from_angles, workers=args.workers, progress=progress)
+            res = dfki_tuning.robust_catch(
+                SCENES[scene],
+                pols,
+                groups,
+                rates_from_angles=args.rates_from_angles,
+                workers=args.workers,
+                progress=progress,
+            )
         record["gains"][SCENES[scene]] = {g + CATCH_SUFFIX: pick for g, pick in res["picks"].items()}
         picked = {g: [r for r in res["rows"] if r["policy"] in groups[g] and all(r.get(k) == v for k, v in pick.items())]
                   for g, pick in res["picks"].items()}  # fmt: skip
@@ -215,13 +238,19 @@ def tune_robust_catch(args: argparse.Namespace) -> dict:
         record["scenes"][scene] = {"groups": groups, "picks": res["picks"], "wall_s": res["wall_s"]}
         rows += [{"scene": scene, **r} for r in res["rows"]]
         for g, pick in res["picks"].items():
-            print(f"{scene}, {g}: {pick}, tuning-set robustness " + ", ".join(f"{r['score']:.3f}" for r in picked[g]) + f" ({res['wall_s']:.0f} s)")
+            print(
+                f"{scene}, {g}: {pick}, tuning-set robustness "
+                + ", ".join(f"{r['score']:.3f}" for r in picked[g])
+                + f" ({res['wall_s']:.0f} s)"
+            )
     record["rows"] = rows
     write_tuning(args.out, "robust_catch", rows, record, args.write)
     return record
 
 
-def release_stage(scene: str, pols: dict, groups: dict[str, list[str]], args: argparse.Namespace, progress: str) -> dict:
+def release_stage(
+    scene: str, pols: dict, groups: dict[str, list[str]], args: argparse.Namespace, progress: str
+) -> dict:
     """``--release-stage``: per group with a stored robust catch, its ``lqr_r`` and ``catch`` with each release factor
     (``--release-values`` or :data:`~mbs_envs.studies.dfki_tuning.ROBUST_RELEASE`), one tuning run per group; the
     results merged as :func:`mbs_envs.studies.dfki_tuning.robust_catch` returns them. Groups without one are skipped."""
@@ -269,7 +298,9 @@ def tune(args: argparse.Namespace) -> dict:
     from mbs_envs.studies import dfki_tuning, tuning
 
     args.out.mkdir(parents=True, exist_ok=True)
-    command = "python scripts/dfki.py " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("dfki.py") else None
+    command = (
+        "python scripts/dfki.py " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("dfki.py") else None
+    )
     record: dict = {"procedure": dfki_tuning.__doc__, "command": command, "gains": {}, "scores": {}}
     rows = []
     scenes = args.scene or sorted(SCENES)
@@ -295,7 +326,10 @@ def slug(name: str) -> str:
 
 
 def to_json(res: dict) -> dict:
-    return {a: {k: (np.asarray(v).tolist() if isinstance(v, np.ndarray) else v) for k, v in d.items()} for a, d in res.items()}
+    return {
+        a: {k: (np.asarray(v).tolist() if isinstance(v, np.ndarray) else v) for k, v in d.items()}
+        for a, d in res.items()
+    }
 
 
 def plot_run(run_: dict, p, title: str, path: pathlib.Path) -> None:
@@ -318,14 +352,22 @@ def plot_run(run_: dict, p, title: str, path: pathlib.Path) -> None:
 
 def gains_sentence(rows: list[dict]) -> str:
     """Which controllers ran with gains tuned on the protocol and which with those of our own scene."""
-    by = {src: sorted({f"{r['controller']} ({r['scene']})" for r in rows if r.get("gains") == src}) for src in ("protocol", "own scene")}
+    by = {
+        src: sorted({f"{r['controller']} ({r['scene']})" for r in rows if r.get("gains") == src})
+        for src in ("protocol", "own scene")
+    }
     parts = []
     if by["protocol"]:
-        parts.append("tuned on the protocol itself (`scripts/dfki.py --tune`, `mbs_envs/studies/dfki_tuning.py`; the identified planner's "
-                     "entry picked there between its own scene's and the adaptive controller's pick) for " + ", ".join(by["protocol"]))
+        parts.append(
+            "tuned on the protocol itself (`scripts/dfki.py --tune`, `mbs_envs/studies/dfki_tuning.py`; the identified planner's "
+            "entry picked there between its own scene's and the adaptive controller's pick) for "
+            + ", ".join(by["protocol"])
+        )
     if by["own scene"]:
-        parts.append("those the project's tuning picked on our own scene of the same task (`mbs_envs/<scene>-v1`, `controllers/tuned.json`; "
-                     "none tuned on this plant) for " + ", ".join(by["own scene"]))
+        parts.append(
+            "those the project's tuning picked on our own scene of the same task (`mbs_envs/<scene>-v1`, `controllers/tuned.json`; "
+            "none tuned on this plant) for " + ", ".join(by["own scene"])
+        )
     return "; ".join(parts) + "." if parts else "none (agents only)."
 
 
@@ -336,7 +378,9 @@ def report(rows: list[dict], args: argparse.Namespace) -> str:
            "(simulation v2) as `mbs_envs/studies/dfki.py` computes them. Our controllers' gains: "
            + gains_sentence(rows), ""]  # fmt: skip
     if args.rates_from_angles:
-        passed = sorted({int(round(r["robust velocity noise"] * args.values)) for r in rows if "robust velocity noise" in r})
+        passed = sorted(
+            {int(round(r["robust velocity noise"] * args.values)) for r in rows if "robust velocity noise" in r}
+        )
         out += ["**Rates from angles** (`--rates-from-angles`): every policy here sees the joint rates differenced from the "
                 "observed angles (the second-order backward difference, `controllers.estimator.RatesFromAngles`) instead "
                 "of the observed rates. The velocity-noise axis perturbs only the observed rates, so it reaches these "

@@ -51,8 +51,11 @@ from .comparison import listed, scaled_params
 from .tuning import TUNING_CONDITIONS, swing_up_grid, swing_up_refine_grid
 
 #: the controllers tuned on the protocol: display name -> ``"module:Class"``
-TUNED = {"swing-up + LQR": "mbs_envs.controllers:SwingUpLQR", "adaptive swing-up + LQR": "mbs_envs.controllers:AdaptiveSwingUpLQR",
-         "identified iLQR + TVLQR": "mbs_envs.controllers:PlannedSwingUp"}
+TUNED = {
+    "swing-up + LQR": "mbs_envs.controllers:SwingUpLQR",
+    "adaptive swing-up + LQR": "mbs_envs.controllers:AdaptiveSwingUpLQR",
+    "identified iLQR + TVLQR": "mbs_envs.controllers:PlannedSwingUp",
+}
 #: the LQR's input weight [(N m)^-2] of the first stage's candidates (the scenes' first stage, :mod:`mbs_envs.studies.tuning`)
 FIRST_STAGE_R = 1.0
 #: the gains a member may carry (:func:`with_member_gains`)
@@ -69,8 +72,11 @@ def protocol_grid() -> list[dict[str, float]]:
     """The first stage's candidates on the protocol: swing-up + LQR's grid (:func:`~mbs_envs.studies.tuning.swing_up_grid`)
     with ``k_q`` up to 200 1/s^2, ``k_v`` up to 40 1/s and ``k_E`` up to 64 1/(J s) (a run on that grid picked its top
     ``k_E`` on both protocols and its top ``k_q`` and ``k_v`` on the pendubot's), the catch level as there."""
-    return swing_up_grid(k_q=(1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0), k_v=(0.25, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 40.0),
-                         k_E=(0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0))
+    return swing_up_grid(
+        k_q=(1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0),
+        k_v=(0.25, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 40.0),
+        k_E=(0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0),
+    )
 
 
 def with_member_gains(controller: Any, entries: list[dict[str, Any]]) -> Any:
@@ -96,7 +102,9 @@ def with_member_gains(controller: Any, entries: list[dict[str, Any]]) -> Any:
     r = [float(e.get("lqr_r", controller.lqr_r)) for e in entries]
     if len(set(r)) > 1:
         if isinstance(controller, AdaptiveSwingUpLQR):
-            raise ValueError("with_member_gains: entries' lqr_r differ, but an adaptive controller solves its LQR with one weight")
+            raise ValueError(
+                "with_member_gains: entries' lqr_r differ, but an adaptive controller solves its LQR with one weight"
+            )
         gains = [upright_lqr(controller.model, controller.Q, np.full((1, 1), ri)) for ri in r]
         controller.K = np.stack([K for K, _ in gains])
         controller.S = np.stack([S for _, S in gains])
@@ -154,8 +162,16 @@ def pulse_success(env_id: str, spec: str, entries: list[dict[str, Any]], episode
     pulses = dfki.random_pulses(np.random.default_rng(seed), episodes, np.arange(steps) * dt)
     members = [e for e in entries for _ in range(episodes)]
     policy = with_member_gains(make_controller(spec, env, entries[0]), members)
-    venv = gym.make_vec(env_id, num_envs=len(members), vectorization_mode="vector_entry_point", autoreset_mode="Disabled")
-    res = run(venv, policy, list(range(len(members))), Perturbation(pulses=np.tile(pulses, (len(entries), 1, 1))), noise_seed=seed)
+    venv = gym.make_vec(
+        env_id, num_envs=len(members), vectorization_mode="vector_entry_point", autoreset_mode="Disabled"
+    )
+    res = run(
+        venv,
+        policy,
+        list(range(len(members))),
+        Perturbation(pulses=np.tile(pulses, (len(entries), 1, 1))),
+        noise_seed=seed,
+    )
     venv.close()
     return dfki.run_success(res).reshape(len(entries), episodes).mean(axis=1)
 
@@ -309,7 +325,7 @@ def robust_catch(env_id: str, policies: Mapping[str, Mapping[str, Any]], groups:
     results = run_tasks(dfki.controller_job, tasks, max_workers=workers, progress=progress)
     rows, per = [], 1 + len(parts)
     for i, (name, k) in enumerate(keys):
-        nominal, done = results[i * per], results[i * per + 1:(i + 1) * per]
+        nominal, done = results[i * per], results[i * per + 1 : (i + 1) * per]
         swept = dfki.assemble_sweep(meta, parts, [r["success"] for r in done])
         rows.append({"policy": name, **candidates[k], "nominal_success": float(nominal["criteria"]["success"]),
                      **{a: swept[a]["fraction"] for a in meta}, "score": swept["score"]["value"]})  # fmt: skip
@@ -329,10 +345,15 @@ def pick_catches(rows: list[Mapping[str, Any]], groups: Mapping[str, list[str]],
     """
     picks = {}
     for group, members in groups.items():
+
         def key(k: int) -> tuple[float, float]:
-            mine = [r for r in rows if r["policy"] in members and all(r[name] == v for name, v in candidates[k].items())]
+            mine = [
+                r for r in rows if r["policy"] in members and all(r[name] == v for name, v in candidates[k].items())
+            ]
             if len(mine) != len(members):
-                raise ValueError(f"rows: group {group!r} has {len(mine)} rows for candidate {dict(candidates[k])}, not {len(members)}")
+                raise ValueError(
+                    f"rows: group {group!r} has {len(mine)} rows for candidate {dict(candidates[k])}, not {len(members)}"
+                )
             return float(all(r["nominal_success"] for r in mine)), float(np.mean([r["score"] for r in mine]))
 
         picks[group] = dict(candidates[max(range(len(candidates)), key=lambda k: (key(k), -k))])

@@ -1,5 +1,4 @@
-"""The rolling disk's report: the derived critical spin beside the simulated threshold, and LQR, PD steering and no control over test seeds (``scripts/disk_report.py`` is its command line).
-"""
+"""The rolling disk's report: the derived critical spin beside the simulated threshold, and LQR, PD steering and no control over test seeds (``scripts/disk_report.py`` is its command line)."""
 
 from __future__ import annotations
 

@@ -189,8 +189,15 @@ def swing_up_metrics(ep: Episode, hold: float = HOLD, dt: float | None = None) -
         time_up = float(ep.t[down[-1]]) if len(down) else 0.0  # from the step after the last one outside
     dist = np.max(np.abs(ep.tracking_error), axis=-1) if len(ep.t) else np.zeros(0)
     wide = bool(len(ep.t) and not ep.terminated and np.all(dist[last] <= WIDE_TOLERANCE))
-    out.update({"success": success, "time_to_swing_up": time_up, "energy_used": float(np.sum(np.abs(ep.power)) * dt),
-                "success_wide": wide, "time_near_upright": float(np.sum(dist <= NEAR_UPRIGHT) * dt)})
+    out.update(
+        {
+            "success": success,
+            "time_to_swing_up": time_up,
+            "energy_used": float(np.sum(np.abs(ep.power)) * dt),
+            "success_wide": wide,
+            "time_near_upright": float(np.sum(dist <= NEAR_UPRIGHT) * dt),
+        }
+    )
     return out
 
 

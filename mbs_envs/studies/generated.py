@@ -31,8 +31,10 @@ def index_page(facts: list[catalogue.EnvFacts]) -> str:
     """The environments' index page: the table and the toctree of the pages."""
     table = catalogue.environments_table(facts, link="{slug}.md")
     toc = "\n".join(f.slug for f in facts)
-    return (f"# Environments\n\nEvery id registers with `import mbs_envs`; each page below is generated from the env "
-            f"class's docstring (`python scripts/readme.py`).\n\n{table}\n\n```{{toctree}}\n:hidden:\n\n{toc}\n```\n")
+    return (
+        f"# Environments\n\nEvery id registers with `import mbs_envs`; each page below is generated from the env "
+        f"class's docstring (`python scripts/readme.py`).\n\n{table}\n\n```{{toctree}}\n:hidden:\n\n{toc}\n```\n"
+    )
 
 
 def gallery_page(root: pathlib.Path) -> str:

@@ -43,7 +43,9 @@ def catching_controller(env: Any, lqr_r: float | None = None) -> Any:
     if isinstance(env.unwrapped, SwingUpLQR.fits):
         return SwingUpLQR(env) if lqr_r is None else SwingUpLQR(env, lqr_r=lqr_r)
     if lqr_r is not None:
-        raise ValueError(f"lqr_r: only the 2R arm's catching LQR takes an input weight, not {type(env.unwrapped).__name__}'s")
+        raise ValueError(
+            f"lqr_r: only the 2R arm's catching LQR takes an input weight, not {type(env.unwrapped).__name__}'s"
+        )
     if isinstance(env.unwrapped, EnergySwingUpLQR.fits):
         return EnergySwingUpLQR(env)
     raise ValueError(f"no swing-up controller catches on {type(env.unwrapped).__name__}")
@@ -62,7 +64,9 @@ def hand_over(agent: Any, env: Any, catch: float | None = None, release: float |
     return HandOverPolicy(agent, lqr, catch, release)
 
 
-def tune_catch(scene: str, agents: list[Any], grid: list[dict[str, float]], seeds: list[int]) -> tuple[dict[str, float], list[dict[str, Any]]]:
+def tune_catch(
+    scene: str, agents: list[Any], grid: list[dict[str, float]], seeds: list[int]
+) -> tuple[dict[str, float], list[dict[str, Any]]]:
     """The catch level and hysteresis of the pair, picked on tuning seeds over the plant set.
 
     Each entry of ``grid`` (``{"catch": c, "release": r}``) hands every agent of ``agents`` over to the
@@ -130,7 +134,11 @@ class HandOverPolicy:
         d = self.lqr.decode_observation(obs.reshape(-1, obs.shape[-1]))
         inner, balancing = state if state is not None else (None, None)
         balancing, u_lqr = self.lqr.balance(d.q, d.v, balancing, episode_start, self.level, self.release)
-        a_rl, inner = self.agent.predict(observation, state=inner, episode_start=episode_start, deterministic=deterministic)
+        a_rl, inner = self.agent.predict(
+            observation, state=inner, episode_start=episode_start, deterministic=deterministic
+        )
         a_lqr = np.clip(u_lqr[:, None] / self.lqr.u_max, -1.0, 1.0)
-        action = np.where(balancing[:, None], a_lqr, np.asarray(a_rl, float).reshape(len(balancing), -1)).astype(np.float32)
+        action = np.where(balancing[:, None], a_lqr, np.asarray(a_rl, float).reshape(len(balancing), -1)).astype(
+            np.float32
+        )
         return (action[0] if obs.ndim == 1 else action), (inner, balancing)

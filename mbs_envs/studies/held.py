@@ -48,7 +48,9 @@ class HeldPolicy:
             count = np.where(np.asarray(episode_start, bool).reshape(n), 0, count)
         decide = count % self.action_repeat == 0
         if held is None or decide.any():
-            fresh, inner = self.policy.predict(observation, state=inner, episode_start=episode_start, deterministic=deterministic)
+            fresh, inner = self.policy.predict(
+                observation, state=inner, episode_start=episode_start, deterministic=deterministic
+            )
             rows = np.asarray(fresh).reshape(n, -1)
             held = rows.copy() if held is None else np.where(decide[:, None], rows, held)
         action = held[0].copy() if single else held.copy()

@@ -55,7 +55,9 @@ def run(args: argparse.Namespace) -> dict:
         for c in conds:
             scene_seeds = seed_ranges.test_seeds(n_swing) if scoring_of(scene) == "swing-up" else seeds
             tasks.append({"scene": scene, "condition": vars(c), "seeds": scene_seeds, "policies": policies})
-    print(f"{len(tasks)} cells ({len(scenes)} scenes x {len(conds)} conditions), {n_seeds} test seeds each ({n_swing} on swing-up scenes)")
+    print(
+        f"{len(tasks)} cells ({len(scenes)} scenes x {len(conds)} conditions), {n_seeds} test seeds each ({n_swing} on swing-up scenes)"
+    )
     if args.ray is None and args.workers > 1:
         results = run_tasks(cmp.evaluate_cell, tasks, max_workers=args.workers, progress="cells")
     elif args.ray is None:
@@ -63,18 +65,26 @@ def run(args: argparse.Namespace) -> dict:
     else:
         results = run_tasks(cmp.evaluate_cell, tasks, ray_address=args.ray)
     rows = [r for cell in results for r in cell]
-    robust, sweeps = (None, None) if args.no_robustness else robustness(args, {scene: sr.policies(scene, agents[scene]) for scene in scenes})
+    robust, sweeps = (
+        (None, None)
+        if args.no_robustness
+        else robustness(args, {scene: sr.policies(scene, agents[scene]) for scene in scenes})
+    )
     with open(args.out / "episodes.csv", "w", newline="") as f:  # swing-up rows carry more columns
         w = csv.DictWriter(f, fieldnames=list(dict.fromkeys(k for r in rows for k in r)), restval="")
         w.writeheader()
         w.writerows(rows)
     summary = summarize(rows)
-    sizing = {scene: sizing_tables(scene, seeds) for scene in tqdm(scenes, desc="sizing") if registry.scene(scene).sizing}
+    sizing = {
+        scene: sizing_tables(scene, seeds) for scene in tqdm(scenes, desc="sizing") if registry.scene(scene).sizing
+    }
     curves = {scene: training_curves(agents[scene]) for scene in scenes}
     for scene in scenes:
         plot_scene(scene, summary[scene], args.out / f"comparison_{scene}.png")
     plot_learning_curves(summary, curves, args.out / "learning_curves.png")
-    catch = [r for scene in scenes if scoring_of(scene) == "swing-up" and applies(scene) for r in catch_rows(scene, conds)]
+    catch = [
+        r for scene in scenes if scoring_of(scene) == "swing-up" and applies(scene) for r in catch_rows(scene, conds)
+    ]
     report = make_report(summary, sizing, agents, curves, seeds, conds, n_swing, catch, robust)
     (args.out / "report.md").write_text(report)
     if sweeps:
@@ -86,7 +96,9 @@ def run(args: argparse.Namespace) -> dict:
     print(headline(summary))
     swing = swing_up_headline(summary)
     if swing:
-        print("\nswing-up scenes (success within 0.1 / 0.2 rad for the last 2 s; per condition: success 0.1 / 0.2 rad / time near upright [s])")
+        print(
+            "\nswing-up scenes (success within 0.1 / 0.2 rad for the last 2 s; per condition: success 0.1 / 0.2 rad / time near upright [s])"
+        )
         print(swing)
     if robust:
         print("\nrobustness score (mean success over the six axes; report.md has each axis)")
@@ -115,7 +127,9 @@ def robustness(args: argparse.Namespace, policies: dict[str, dict[str, list[str]
     n, pulses = (2, 2) if args.quick else (args.robustness_values, args.robustness_pulses)
     jobs = sr.tasks(policies, n, args.robustness_seeds, pulses)
     tic = time.perf_counter()
-    results = run_tasks(sr.sweep_job, jobs, ray_address=args.ray, max_workers=args.workers, progress="robustness sweeps")
+    results = run_tasks(
+        sr.sweep_job, jobs, ray_address=args.ray, max_workers=args.workers, progress="robustness sweeps"
+    )
     _, summary, sweeps = sr.collect(jobs, results)
     return {"values_per_axis": n, "seeds_per_value": args.robustness_seeds, "pulse_episodes": pulses, "wall_s": time.perf_counter() - tic,
             "scenes": summary}, sweeps  # fmt: skip
@@ -193,7 +207,13 @@ def swing_up_headline(summary: dict) -> str:
             others = [n for n, m in nominal.items() if m["kind"] == kind and n != name] if kind == "model-based" else []
             for label, shown in [(f"best {kind}", name)] + [(kind, n) for n in others]:
                 m = nominal[shown]
-                cells = [success(m), success(m, "success_wide"), ci(m, "time_near_upright"), ci(m, "time_to_swing_up"), ci(m, "energy_used")]
+                cells = [
+                    success(m),
+                    success(m, "success_wide"),
+                    ci(m, "time_near_upright"),
+                    ci(m, "time_to_swing_up"),
+                    ci(m, "energy_used"),
+                ]
                 cells += [f"{by_cond[c][shown]['success']:.0%} / {by_cond[c][shown]['success_wide']:.0%} / "
                           f"{by_cond[c][shown]['time_near_upright']:.1f}" for c in conds]  # fmt: skip
                 lines.append(f"| {scene} | {label} | {shown} | " + " | ".join(cells) + " |")
@@ -225,15 +245,26 @@ def headline(summary: dict) -> str:
             label = name if kind == "model-based" else rl_label(name, cmp.verdict_against(m, pd_of(nominal)))
             cells = [f"{ci(m, 'rms_error_settled')} | {success(m)}"]
             for c in ("mismatch -20%", "mismatch +20%"):
-                cells.append(f"{ci(by_cond[c][name], 'rms_error_settled')} | {success(by_cond[c][name])}" if c in by_cond else "- | -")
+                cells.append(
+                    f"{ci(by_cond[c][name], 'rms_error_settled')} | {success(by_cond[c][name])}"
+                    if c in by_cond
+                    else "- | -"
+                )
             cells.append(ci(m, "return"))
-            lines.append(f"| {scene} | best {kind} | {label} | " + " | ".join(cells) + f" | {m['latency_us']:.0f} ({m['latency_noisy_us']:.0f}) |")
+            lines.append(
+                f"| {scene} | best {kind} | {label} | "
+                + " | ".join(cells)
+                + f" | {m['latency_us']:.0f} ({m['latency_noisy_us']:.0f}) |"
+            )
     return "\n".join(lines)
 
 
 def two_metrics(summary: dict) -> str:
     """Per scene, the best policy by settled error and the best by episode return (nominal, >= 95 % success)."""
-    lines = ["| scene | best by settled error (t >= 1 s) | best by return (the reward the agents maximize) |", "|---|---|---|"]
+    lines = [
+        "| scene | best by settled error (t >= 1 s) | best by return (the reward the agents maximize) |",
+        "|---|---|---|",
+    ]
     for scene, by_cond in summary.items():
         if scoring_of(scene) != "tracking":
             continue
@@ -242,7 +273,9 @@ def two_metrics(summary: dict) -> str:
             continue
         by_err = min(ok, key=lambda n: ok[n]["rms_error_settled"])
         by_ret = max(ok, key=lambda n: ok[n]["return"])
-        lines.append(f"| {scene} | {by_err}: {ci(ok[by_err], 'rms_error_settled')} | {by_ret}: {ci(ok[by_ret], 'return')} |")
+        lines.append(
+            f"| {scene} | {by_err}: {ci(ok[by_err], 'rms_error_settled')} | {by_ret}: {ci(ok[by_ret], 'return')} |"
+        )
     return "\n".join(lines)
 
 
@@ -265,7 +298,9 @@ def sizing_tables(scene: str, seeds: list[int]) -> dict:
     out = {"seeds": [seeds[0], seeds[-1]], "drives": drives, "torque_limit": env.u_max.tolist()}
     if per_seed[0].peak_joint_force is not None:
         f = np.array([s.peak_joint_force for s in per_seed]).max(axis=0)
-        out["peak_joint_force_N"] = dict(zip(["O (ground-crank)", "A (crank-coupler)", "B (coupler-rocker)", "C (rocker-ground)"], f.tolist()))
+        out["peak_joint_force_N"] = dict(
+            zip(["O (ground-crank)", "A (crank-coupler)", "B (coupler-rocker)", "C (rocker-ground)"], f.tolist())
+        )
     return out
 
 
@@ -314,7 +349,9 @@ def plot_scene(scene: str, by_cond: dict, path: pathlib.Path) -> None:
         ax_s.legend(fontsize=7, ncol=len(policies), loc="upper center")
     else:
         fig, ax = plt.subplots(figsize=(12, 4.5))
-        ax.set_title(f"{scene}: mean and 95 % CI over test episodes (and training seeds); labels: success rate if < 100 %")
+        ax.set_title(
+            f"{scene}: mean and 95 % CI over test episodes (and training seeds); labels: success rate if < 100 %"
+        )
     bars(ax, x, width, policies, [[by_cond[c][p] for c in conds] for p in policies], key, label_success=not swing_up)
     if swing_up:
         ax.set_ylim(bottom=0.0)
@@ -350,7 +387,9 @@ def bars(ax: Any, x: np.ndarray, width: float, policies: list[str], cells: list[
                 ax.annotate(text, (xi, v[key + "_hi"] * scale), xytext=(0, 3), textcoords="offset points", fontsize=6, ha="center",
                             va="bottom", rotation=90)  # fmt: skip
             else:
-                ax.text(xi, 0.02, text, transform=foot, fontsize=6, ha="center", va="bottom", rotation=90, color=f"C{k}")
+                ax.text(
+                    xi, 0.02, text, transform=foot, fontsize=6, ha="center", va="bottom", rotation=90, color=f"C{k}"
+                )
 
 
 def plot_learning_curves(summary: dict, curves: dict, path: pathlib.Path) -> None:
@@ -400,8 +439,17 @@ def plot_learning_curves(summary: dict, curves: dict, path: pathlib.Path) -> Non
     save(fig, path, rect=(0, 0, 1, 1 - 0.5 / fig.get_figheight()))  # room for the two-line title
 
 
-def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: list[int], conds: list, n_swing: int | None = None,
-                catch: list | None = None, robust: dict | None = None) -> str:
+def make_report(
+    summary: dict,
+    sizing: dict,
+    agents: dict,
+    curves: dict,
+    seeds: list[int],
+    conds: list,
+    n_swing: int | None = None,
+    catch: list | None = None,
+    robust: dict | None = None,
+) -> str:
     tuned_record = json.loads(tuned.PATH.read_text()) if tuned.PATH.exists() else {}
     L = ["# RL agents against model-based controllers", ""]
     swing_seeds = f"; on the swing-up scenes {n_swing}, seeds 0-{n_swing - 1}" if n_swing else ""
@@ -458,11 +506,16 @@ def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: 
               "(`mbs_envs.studies.catch.planner_hold_share`, 2,000 windows; blank where the planner uses no hold: on the "
               "pendubot its upright LQR holds every window). Neither share is a "
               "bound on what physics allows under noise; the noise floor is:", "", catch_table(catch), ""]  # fmt: skip
-    L += ["**Two metrics.** The error columns are the tracking error after the first second; the agents were trained on the "
-          "reward, whose return also counts the start transient and the effort: per step "
-          "`-(w_e |e|^2 + w_de |v_ref - v|^2 + w_u |a|^2)` with `(w_e, w_de, w_u) = (1, 0.1, 1e-3)` on the joint-tracking "
-          "scenes (`a` the normalized action), the disk's heading, lean, spin and effort terms (`mbs_envs/envs/rolling_disk.py`). "
-          "The two can disagree; an agent is marked \"does not beat PD\" only where it loses on both:", "", two_metrics(summary), ""]
+    L += [
+        "**Two metrics.** The error columns are the tracking error after the first second; the agents were trained on the "
+        "reward, whose return also counts the start transient and the effort: per step "
+        "`-(w_e |e|^2 + w_de |v_ref - v|^2 + w_u |a|^2)` with `(w_e, w_de, w_u) = (1, 0.1, 1e-3)` on the joint-tracking "
+        "scenes (`a` the normalized action), the disk's heading, lean, spin and effort terms (`mbs_envs/envs/rolling_disk.py`). "
+        'The two can disagree; an agent is marked "does not beat PD" only where it loses on both:',
+        "",
+        two_metrics(summary),
+        "",
+    ]
     L += ["![learning curves](learning_curves.png)", ""]
     if tuned_record:
         L += ["## Model-based gains: how they were chosen", "", "```", (tuned_record.get("procedure") or "").strip(), "```", "",
@@ -473,7 +526,9 @@ def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: 
               "(The DFKI protocol ids' entries are tuned and scored on the protocol: `scripts/dfki.py --tune`, `docs/figures/dfki_tuning/`.)", "",
               "| env | controller | tuned gains | tuned: failures / error | pre-tuning default | pre-tuning: failures / error | at grid edge |", "|---|---|---|---|---|---|---|"]  # fmt: skip
         pairs = []
-        protocol = {entry[0] for entry in PROTOCOL_IDS}  # tuned on the DFKI protocol (scripts/dfki.py --tune), scored there
+        protocol = {
+            entry[0] for entry in PROTOCOL_IDS
+        }  # tuned on the DFKI protocol (scripts/dfki.py --tune), scored there
         for env_id, by_c in tuned_record["gains"].items():
             if env_id in protocol:
                 continue
@@ -500,7 +555,9 @@ def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: 
                      "peak torque | return, all episodes | us/action (noisy) |")  # fmt: skip
             L.append("|---|---|---|---|---|---|---|---|---|---|---|")
         else:
-            L.append("| condition | policy | success | RMS error t>=1 s | max error | RMS torque | peak torque | return | us/action (noisy) |")
+            L.append(
+                "| condition | policy | success | RMS error t>=1 s | max error | RMS torque | peak torque | return | us/action (noisy) |"
+            )
             L.append("|---|---|---|---|---|---|---|---|---|")
         for cond, by_policy in by_cond.items():
             for name, m in by_policy.items():
@@ -516,20 +573,35 @@ def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: 
             m = by_cond["nominal"][name]
             if swing_up:
                 mb = by_cond["nominal"].get(best_mb) if best_mb else None
-                better = mb is None or (m["success"], -np.nan_to_num(m["time_to_swing_up"], nan=np.inf)) > (mb["success"], -np.nan_to_num(mb["time_to_swing_up"], nan=np.inf))
-                verdict = (f"{'beats' if better else '**does not beat**'} {best_mb or 'the model-based controller'} at the nominal plant "
-                           f"(success {m['success']:.0%} against {mb['success']:.0%})" if mb else "no model-based controller swings up")
+                better = mb is None or (m["success"], -np.nan_to_num(m["time_to_swing_up"], nan=np.inf)) > (
+                    mb["success"],
+                    -np.nan_to_num(mb["time_to_swing_up"], nan=np.inf),
+                )
+                verdict = (
+                    f"{'beats' if better else '**does not beat**'} {best_mb or 'the model-based controller'} at the nominal plant "
+                    f"(success {m['success']:.0%} against {mb['success']:.0%})"
+                    if mb
+                    else "no model-based controller swings up"
+                )
                 if mb and not better and m["return_all"] > mb["return_all"]:  # the reward and the task disagree: say so
-                    verdict += (f", though its mean return is higher ({m['return_all']:.0f} against {mb['return_all']:.0f}): "
-                                "the reward pays for height along the way, and the agent gathers it without holding the arm upright")
+                    verdict += (
+                        f", though its mean return is higher ({m['return_all']:.0f} against {mb['return_all']:.0f}): "
+                        "the reward pays for height along the way, and the agent gathers it without holding the arm upright"
+                    )
             else:
                 verdict = cmp.verdict_against(m, pd) + " at the nominal plant (settled error and return)"
                 if verdict.startswith("does not beat"):
                     verdict = f"**{verdict}**"
             L.append(f"- {name}: {len(c['runs'])} training seed(s), {verdict}.")
             for r in c["runs"]:
-                before = "" if not r.get("init") else f", after {r['init']['steps']:,} on {r['init']['env_id']} (`{r['init']['from']}`)"
-                L.append(f"  - seed {r['seed']}: `{r['command']}` ({r['steps']:,} env steps{before}, {r['wall']:.0f} s of training)")
+                before = (
+                    ""
+                    if not r.get("init")
+                    else f", after {r['init']['steps']:,} on {r['init']['env_id']} (`{r['init']['from']}`)"
+                )
+                L.append(
+                    f"  - seed {r['seed']}: `{r['command']}` ({r['steps']:,} env steps{before}, {r['wall']:.0f} s of training)"
+                )
         if best_mb:
             L.append(f"- Best model-based at the nominal plant: {best_mb}.")
         L.append("")
@@ -545,14 +617,22 @@ def make_report(summary: dict, sizing: dict, agents: dict, curves: dict, seeds: 
               "and is listed separately: the largest torque computed torque applied in the first second of any nominal test episode.", ""]  # fmt: skip
         for scene, s in sizing.items():
             transient = summary[scene]["nominal"].get("computed torque", {}).get("start_peak_torque", float("nan"))
-            L += [f"### {scene}", "", "| drive | peak torque: max / 95th pct [N m] | RMS torque max [N m] | peak power: max / 95th pct [W] | torque limit [N m] |", "|---|---|---|---|---|"]
+            L += [
+                f"### {scene}",
+                "",
+                "| drive | peak torque: max / 95th pct [N m] | RMS torque max [N m] | peak power: max / 95th pct [W] | torque limit [N m] |",
+                "|---|---|---|---|---|",
+            ]
             for d in s["drives"]:
                 L.append(f"| {d['drive'] + 1} | {d['peak_torque_max']:.3g} / {d['peak_torque_p95']:.3g} | {d['rms_torque_max']:.3g} | "
                          f"{d['peak_power_max']:.3g} / {d['peak_power_p95']:.3g} | {s['torque_limit'][d['drive']]:.3g} |")  # fmt: skip
             L.append("")
             L.append(f"Start transient (computed torque, t <= 1 s, nominal, any drive): peak {transient:.3g} N m.")
             if "peak_joint_force_N" in s:
-                L.append("Peak joint reaction forces over all seeds [N] (from the Lagrange multipliers): " + ", ".join(f"{k} {v:.3g}" for k, v in s["peak_joint_force_N"].items()))
+                L.append(
+                    "Peak joint reaction forces over all seeds [N] (from the Lagrange multipliers): "
+                    + ", ".join(f"{k} {v:.3g}" for k, v in s["peak_joint_force_N"].items())
+                )
             L.append("")
     return "\n".join(L) + "\n"
 

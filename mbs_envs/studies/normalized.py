@@ -41,7 +41,12 @@ class ObsNormalization:
     def of(cls, vec_normalize: Any) -> "ObsNormalization":
         """The current statistics of a ``VecNormalize`` (copied: later training leaves them alone)."""
         rms = vec_normalize.obs_rms
-        return cls(np.array(rms.mean, float), np.array(rms.var, float), float(vec_normalize.clip_obs), float(vec_normalize.epsilon))
+        return cls(
+            np.array(rms.mean, float),
+            np.array(rms.var, float),
+            float(vec_normalize.clip_obs),
+            float(vec_normalize.epsilon),
+        )
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         """The normalized observation, float32, the shape of ``obs``."""
@@ -72,4 +77,6 @@ class NormalizedPolicy:
         self.normalize = normalize
 
     def predict(self, observation: Any, state: Any = None, episode_start: Any = None, deterministic: bool = True):
-        return self.policy.predict(self.normalize(observation), state=state, episode_start=episode_start, deterministic=deterministic)
+        return self.policy.predict(
+            self.normalize(observation), state=state, episode_start=episode_start, deterministic=deterministic
+        )

@@ -33,7 +33,9 @@ def run_tasks(fn: Callable[[Any], Any], tasks: list[Any], ray_address: str | Non
     workers = max_workers or min(len(tasks), multiprocessing.cpu_count())
     context = multiprocessing.get_context("spawn")
     threads = max(1, multiprocessing.cpu_count() // workers)  # each worker's share of the cores
-    with ProcessPoolExecutor(workers, mp_context=context, initializer=_worker_start, initargs=(os.getpid(), threads)) as pool:
+    with ProcessPoolExecutor(
+        workers, mp_context=context, initializer=_worker_start, initargs=(os.getpid(), threads)
+    ) as pool:
         futures = [pool.submit(fn, t) for t in tasks]
         bar = progress_bar(len(tasks), progress)
         for _ in as_completed(futures):

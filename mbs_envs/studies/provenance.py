@@ -43,7 +43,9 @@ def pin_numerics() -> dict[str, str]:
         If torch is already imported (MKL and torch read these when they load).
     """
     if "torch" in sys.modules:
-        raise RuntimeError("pin_numerics() must run before torch is imported: MKL and torch read their settings when they load")
+        raise RuntimeError(
+            "pin_numerics() must run before torch is imported: MKL and torch read their settings when they load"
+        )
     for name, value in PINNED.items():
         os.environ.setdefault(name, value)
     return {name: os.environ[name] for name in PINNED}

@@ -67,7 +67,9 @@ def resolve_policy(env_id: str, name: str) -> tuple[str, str]:
         return name, next((c for c, spec in scene.controllers.items() if spec == name), name.split(":")[-1])
     if (pathlib.Path(name) / "agent.zip").exists():
         return name, pathlib.Path(name).name
-    raise ValueError(f"policy {name!r} is not known on {env_id}; one of {policy_names(env_id)}, 'module:Class' or an agent folder")
+    raise ValueError(
+        f"policy {name!r} is not known on {env_id}; one of {policy_names(env_id)}, 'module:Class' or an agent folder"
+    )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -153,7 +155,9 @@ def write_video(frames: np.ndarray, path: pathlib.Path, fps: float, colours: int
         sample = Image.fromarray(np.concatenate([frames[0], frames[len(frames) // 2], frames[-1]], axis=0))
         palette = sample.quantize(colors=colours, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
         paletted = [im.quantize(palette=palette, dither=Image.Dither.NONE) for im in images]
-        paletted[0].save(path, save_all=True, append_images=paletted[1:], duration=int(round(1000.0 / fps)), loop=0, optimize=True)
+        paletted[0].save(
+            path, save_all=True, append_images=paletted[1:], duration=int(round(1000.0 / fps)), loop=0, optimize=True
+        )
     elif path.suffix == ".mp4":
         import imageio.v2 as imageio
 

@@ -121,7 +121,9 @@ def integrator_soak(env_id: str, integrator: str, episodes: int = 32, num_envs: 
         r = guarded(bound=None, fn=lambda: random_episodes(env_id, episodes, num_envs=num_envs, seed=seed, integrator=integrator,
                                             max_episode_steps=episode_steps, step_bound_s=hang_s))  # fmt: skip
         r = r or {}
-        out.update({k: r.get(k, 0) for k in ("episodes", "steps", "divergences_reported", "terminations", "slowest_step_s")})
+        out.update(
+            {k: r.get(k, 0) for k in ("episodes", "steps", "divergences_reported", "terminations", "slowest_step_s")}
+        )
         out["nonfinite"] += r.get("nonfinite_observations", 0) + r.get("nonfinite_rewards", 0)
         rng = np.random.default_rng(seed)
         env = gym.make(env_id, integrator=integrator, torque_limit=1e200)
@@ -189,7 +191,9 @@ def determinism(env_id: str, steps: int = 100, num_envs: int = 4, seed: int = 12
 
     runs["sync"] = gym_run(gym.vector.SyncVectorEnv([make] * num_envs))
     runs["async (spawn)"] = gym_run(gym.vector.AsyncVectorEnv([make] * num_envs, context="spawn"))
-    runs["batched"] = gym_run(gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", **kwargs))
+    runs["batched"] = gym_run(
+        gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", **kwargs)
+    )
     for method in ("spawn", "forkserver"):
         venv = SubprocVecEnv([make] * num_envs, start_method=method)
         venv.seed(seed)
@@ -240,7 +244,6 @@ def parameter_edges() -> list[dict]:
             rows.append({**row, "outcome": "diverged (reported)" if np.any(tr.diverged) else "stable",
                          "all_finite": finite, "relative_energy_drift": float(np.max(np.abs(E - E[0]))) / scale})  # fmt: skip
     return rows
-
 
 
 #: the calls :func:`adversarial_soak` makes that must be refused with ``ValueError`` and change nothing
@@ -323,11 +326,18 @@ def adversarial_soak(env_id: str, rounds: int = 500, num_envs: int = 4, seed: in
                     "reset options type": lambda: env.reset(options={"q": ["1"] * nq}),
                     "reset seed": lambda: env.reset(seed=value if value is not None else -1),
                     "reset seed list": lambda: env.reset(seed=[0] * (num_envs - 1) + [-1]),
-                    "reset mask": lambda: env.reset(options={"reset_mask": [value] * num_envs if value is not True else "yes"}),
-                    "action": lambda: env.step(np.where(env._autoreset[:, None], 0.0, np.nan) * np.ones((num_envs, nu))
-                                               if not env._autoreset.all() else "x"),  # fmt: skip
+                    "reset mask": lambda: env.reset(
+                        options={"reset_mask": [value] * num_envs if value is not True else "yes"}
+                    ),
+                    "action": lambda: env.step(
+                        np.where(env._autoreset[:, None], 0.0, np.nan) * np.ones((num_envs, nu))
+                        if not env._autoreset.all()
+                        else "x"
+                    ),  # fmt: skip
                     "set_attr value": lambda: env.set_attr(name, value),
-                    "set_attr name": lambda: env.set_attr(str(rng.choice(["model", "max_episode_steps", "n_links", "dtt", "np_random"])), 1),
+                    "set_attr name": lambda: env.set_attr(
+                        str(rng.choice(["model", "max_episode_steps", "n_links", "dtt", "np_random"])), 1
+                    ),
                     "model": lambda: setattr(env, "model", None),
                 }
                 before = state(env)
@@ -337,7 +347,9 @@ def adversarial_soak(env_id: str, rounds: int = 500, num_envs: int = 4, seed: in
                     if not same(state(env), before):
                         out["changed_by_refusal"] += 1
                 else:
-                    if call == "set_attr value":  # a value valid for that setting (e.g. 1j is not, -1.0 may be): restore
+                    if (
+                        call == "set_attr value"
+                    ):  # a value valid for that setting (e.g. 1j is not, -1.0 may be): restore
                         setattr(env.env, name, getattr(twin.env, name))
                     else:
                         out["accepted_bad"] += 1
@@ -350,7 +362,12 @@ def adversarial_soak(env_id: str, rounds: int = 500, num_envs: int = 4, seed: in
             env, twin = make(), make()  # start over: one divergence would count every later round
             env.reset(seed=seed)
             twin.reset(seed=seed)
-    out.update(env_id=env_id, rounds=rounds, counts=dict(counts), refused=sum(v for k, v in counts.items() if k.startswith("refused:")))
+    out.update(
+        env_id=env_id,
+        rounds=rounds,
+        counts=dict(counts),
+        refused=sum(v for k, v in counts.items() if k.startswith("refused:")),
+    )
     return out
 
 

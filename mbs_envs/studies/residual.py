@@ -59,7 +59,9 @@ class ResidualPolicy:
         self.correction = correction
         self.bound = check_bound(bound)
 
-    def predict(self, observation: np.ndarray, state: Any = None, episode_start: Any = None, deterministic: bool = True):
+    def predict(
+        self, observation: np.ndarray, state: Any = None, episode_start: Any = None, deterministic: bool = True
+    ):
         a_base, state = self.base.predict(observation, state=state, episode_start=episode_start, deterministic=True)
         a_rl, _ = self.correction.predict(observation, deterministic=deterministic)
         return combine(a_base, a_rl, self.bound), state
@@ -90,7 +92,9 @@ def residual_vec_env(venv: Any, base: Any, bound: float) -> Any:
             return self._obs
 
         def step_async(self, actions: np.ndarray) -> None:
-            a_base, self._state = base.predict(self._obs, state=self._state, episode_start=self._start, deterministic=True)
+            a_base, self._state = base.predict(
+                self._obs, state=self._state, episode_start=self._start, deterministic=True
+            )
             self.venv.step_async(combine(a_base, actions, beta))
 
         def step_wait(self):

@@ -176,7 +176,9 @@ def plot_success(results: dict[str, list[dict[str, Any]]], axes: tuple[str, ...]
             else:
                 x = np.asarray(values, float)
                 grid = np.unique(x)
-                ax.plot(grid, [ok[x == g].mean() + 0.012 * j for g in grid], marker="o", ms=3, label=name)  # offset: lines stay apart
+                ax.plot(
+                    grid, [ok[x == g].mean() + 0.012 * j for g in grid], marker="o", ms=3, label=name
+                )  # offset: lines stay apart
         ax.set_title(axis, fontsize=9)
         ax.set_ylim(-0.05, 1.05 + 0.012 * len(results))  # room for the offset lines at 1
     panels.flat[0].set_ylabel("success")

@@ -128,7 +128,9 @@ def _chain_free_motions(label: str, drive, bent) -> list[tuple]:
 
 def _chain_stiff_cases(label: str, drive, bent, quick: bool) -> list:
     """200 (and, unless ``quick``, 500) links with drives over 5 s; 200 bare links over 0.3 s."""
-    cases = [Case(f"{label} N={n}, drives", drive(n), bent(n), np.zeros(n), 5.0) for n in ((200,) if quick else (200, 500))]
+    cases = [
+        Case(f"{label} N={n}, drives", drive(n), bent(n), np.zeros(n), 5.0) for n in ((200,) if quick else (200, 500))
+    ]
     cases.append(Case(f"{label} N=200, bare", drive(200, False), bent(200), np.zeros(200), 0.3))
     return cases
 
@@ -149,7 +151,13 @@ def serial_chain_stiff_cases(quick: bool = False) -> list:
 def spatial_chain_drive_chain(n: int, armature: bool = True) -> SpatialChain:
     """The default spatial chain of ``n`` links: SpatialChain-v0's model (its drives' armature), or bare."""
     model = SpatialChain(n_links=n)
-    return model.with_params(model.params.replace(armature=reach_gravity_torque(model) / SpatialChainEnv.rotor_acceleration)) if armature else model
+    return (
+        model.with_params(
+            model.params.replace(armature=reach_gravity_torque(model) / SpatialChainEnv.rotor_acceleration)
+        )
+        if armature
+        else model
+    )
 
 
 def _spatial_chain_bent(n: int) -> np.ndarray:

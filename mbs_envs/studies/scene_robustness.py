@@ -141,7 +141,9 @@ def velocity_entries(env: Any, seed: int = 0) -> tuple[int, ...]:
     return tuple(int(i) for i in np.flatnonzero(a != b))
 
 
-def model_variations(scene: str, params: Any, u_max: np.ndarray, model: Any, n: int) -> list[tuple[str, float, dict[str, Any] | None]]:
+def model_variations(
+    scene: str, params: Any, u_max: np.ndarray, model: Any, n: int
+) -> list[tuple[str, float, dict[str, Any] | None]]:
     """The model axis as ``(parameter, value, params changes or None)``.
 
     ``value``: the factor of a scaled parameter, the friction in N m s/rad of a damping one (the top, for an
@@ -244,7 +246,11 @@ def sweep(scene: str, make_policy: Callable[[Any], Any], n: int = N_VALUES, seed
             pulses = np.zeros((pulse_episodes, steps, base.model.nv))
             pulses[..., coords] = pushed
             members = [seeds[i % len(seeds)] for i in range(pulse_episodes)]
-            out[axis] = {"values": list(range(pulse_episodes)), "seeds": members, "success": batch(members, Perturbation(pulses=pulses))}
+            out[axis] = {
+                "values": list(range(pulse_episodes)),
+                "seeds": members,
+                "success": batch(members, Perturbation(pulses=pulses)),
+            }
         else:
             values = np.linspace(*getattr(spec, {"velocity noise": "velocity_noise", "torque noise": "torque_noise",
                                                  "torque response": "response", "time delay": "delay"}[axis]), n)  # fmt: skip
@@ -332,7 +338,9 @@ def collect(jobs: list[Mapping[str, Any]], results: list[Mapping[str, Any]]) -> 
     summary = {scene: {name: {**summarize([r["sweep"] for r in rs]), "kind": kind_of(name), "wall_s": [r["wall_s"] for r in rs],
                               "skipped": rs[0]["sweep"]["model"]["skipped"]}
                        for name, rs in by_name.items()} for scene, by_name in grouped.items()}  # fmt: skip
-    sweeps = {scene: {name: [r["sweep"] for r in rs] for name, rs in by_name.items()} for scene, by_name in grouped.items()}
+    sweeps = {
+        scene: {name: [r["sweep"] for r in rs] for name, rs in by_name.items()} for scene, by_name in grouped.items()
+    }
     return rows, summary, sweeps
 
 
@@ -343,7 +351,12 @@ def plot(sweeps: Mapping[str, Mapping[str, list]], folder: Any) -> None:
     from .robustness import plot_success
 
     for scene, by_policy in sweeps.items():
-        plot_success(dict(by_policy), AXES, f"{scene}: robustness sweep, success", pathlib.Path(folder) / f"robustness_{scene}.png")
+        plot_success(
+            dict(by_policy),
+            AXES,
+            f"{scene}: robustness sweep, success",
+            pathlib.Path(folder) / f"robustness_{scene}.png",
+        )
 
 
 def markdown_table(by_policy: Mapping[str, Mapping[str, Any]]) -> list[str]:
@@ -358,10 +371,12 @@ def markdown_table(by_policy: Mapping[str, Mapping[str, Any]]) -> list[str]:
 
 def describe(n: int, n_seeds: int, pulse_episodes: int) -> str:
     """One paragraph that says what the sweep's tables show."""
-    return (f"Six axes (`mbs_envs/studies/scene_robustness.py` gives each scene's ranges), {n} values per axis, {n_seeds} test "
-            f"seed(s) per value, {pulse_episodes} perturbation episodes: model parameters x [0.75, 1.25] one at a time and "
-            "joint friction from 0, velocity-measurement noise (std 0-0.5), torque noise (std 0-0.18 of each limit), a "
-            "first-order torque response (0.1-2), an observation delay (0-0.05 s), random torque pulses. Success [%] by the "
-            f"scene's rule (tracking: the whole episode with a settled RMS error <= {TOLERANCE} rad; swing-up: within 0.1 rad "
-            "of upright for the last 2 s), agents pooled over their training seeds; score = mean of the six (the DFKI "
-            "benchmark's robustness v2 carried over to our scenes). Wall: median seconds of one sweep in one process.")
+    return (
+        f"Six axes (`mbs_envs/studies/scene_robustness.py` gives each scene's ranges), {n} values per axis, {n_seeds} test "
+        f"seed(s) per value, {pulse_episodes} perturbation episodes: model parameters x [0.75, 1.25] one at a time and "
+        "joint friction from 0, velocity-measurement noise (std 0-0.5), torque noise (std 0-0.18 of each limit), a "
+        "first-order torque response (0.1-2), an observation delay (0-0.05 s), random torque pulses. Success [%] by the "
+        f"scene's rule (tracking: the whole episode with a settled RMS error <= {TOLERANCE} rad; swing-up: within 0.1 rad "
+        "of upright for the last 2 s), agents pooled over their training seeds; score = mean of the six (the DFKI "
+        "benchmark's robustness v2 carried over to our scenes). Wall: median seconds of one sweep in one process."
+    )

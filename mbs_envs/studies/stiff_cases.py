@@ -165,8 +165,16 @@ def long_run_row(run: LongRun, method: str) -> dict[str, Any]:
     import time
 
     c0 = time.process_time()
-    tr = simulate(run.model, run.q0, run.v0, run.steps * run.dt, dt=run.dt, integrator=method,
-                  stabilization=run.stabilization, compiled=False)  # CPU times of methods on one implementation
+    tr = simulate(
+        run.model,
+        run.q0,
+        run.v0,
+        run.steps * run.dt,
+        dt=run.dt,
+        integrator=method,
+        stabilization=run.stabilization,
+        compiled=False,
+    )  # CPU times of methods on one implementation
     cpu = time.process_time() - c0
     E = run.model.energy(tr.q, tr.v)
     return {
@@ -220,7 +228,9 @@ def step_time(model: Model, method: str, compiled: bool, steps: int = 20, repeat
     return float(np.median(times))
 
 
-def largest_settling_step(n: int, method: str, dts: list[float], t_final: float = 5.0, tol: float = 1e-3) -> dict[str, Any]:
+def largest_settling_step(
+    n: int, method: str, dts: list[float], t_final: float = 5.0, tol: float = 1e-3
+) -> dict[str, Any]:
     """Largest ``dt`` (scanned from the coarsest) at which :func:`stiff_pd_chain` runs without
     divergence and ends within ``tol`` of its target (it settles in ~10 ms; ``t_final`` 5 s)."""
     model, q0, v0, law, target = stiff_pd_chain(n)
@@ -232,8 +242,20 @@ def largest_settling_step(n: int, method: str, dts: list[float], t_final: float 
             continue
         error = float(np.max(np.abs(tr.q[-1] - target)))
         if error <= tol:
-            return {"n_links": n, "integrator": method, "largest_stable_dt": dt, "final_error": error, "flagged_above": flagged}
-    return {"n_links": n, "integrator": method, "largest_stable_dt": None, "final_error": None, "flagged_above": flagged}
+            return {
+                "n_links": n,
+                "integrator": method,
+                "largest_stable_dt": dt,
+                "final_error": error,
+                "flagged_above": flagged,
+            }
+    return {
+        "n_links": n,
+        "integrator": method,
+        "largest_stable_dt": None,
+        "final_error": None,
+        "flagged_above": flagged,
+    }
 
 
 # -- what to pick, at the environments' control step (scripts/what_to_pick.py) ----------------

@@ -62,7 +62,9 @@ def check_init(config: "TrainConfig") -> dict[str, Any]:
     if config.hyper:
         raise ValueError("init: a continued run keeps the source's hyperparameters; hyper must be empty")
     if config.normalize:
-        raise ValueError("init: continuing a normalized run is not supported (only its observation statistics are saved)")
+        raise ValueError(
+            "init: continuing a normalized run is not supported (only its observation statistics are saved)"
+        )
     return source
 
 
@@ -167,11 +169,15 @@ class TrainConfig:
             raise ValueError(f"algo must be one of {sorted(ALGOS)}, got {self.algo!r}")
         if not (isinstance(self.steps, int) and self.steps > 0):
             raise ValueError(f"steps must be a positive integer, got {self.steps!r}")
-        if self.n_envs is not None and not (isinstance(self.n_envs, int) and 0 < self.n_envs <= seed_ranges.MAX_MEMBERS):
+        if self.n_envs is not None and not (
+            isinstance(self.n_envs, int) and 0 < self.n_envs <= seed_ranges.MAX_MEMBERS
+        ):
             raise ValueError(f"n_envs must be an integer in [1, {seed_ranges.MAX_MEMBERS}], got {self.n_envs!r}")
         if not (isinstance(self.seed, int) and self.seed >= 0):
             raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
-        if self.net_arch is not None and not (len(self.net_arch) > 0 and all(isinstance(k, int) and k > 0 for k in self.net_arch)):
+        if self.net_arch is not None and not (
+            len(self.net_arch) > 0 and all(isinstance(k, int) and k > 0 for k in self.net_arch)
+        ):
             raise ValueError(f"net_arch must be positive layer widths, got {self.net_arch!r}")
         check_bound(self.residual_bound)
         check_action_repeat(self.action_repeat)
@@ -274,13 +280,18 @@ def evaluate(policy: Any, env_id: str, seeds: list[int], env_kwargs: dict, **rol
     over the episodes that did not fail: a failed episode's figure would flatter
     it (the failure rate says how many failed).
     """
-    venv = gym.make_vec(env_id, num_envs=len(seeds), vectorization_mode="vector_entry_point", autoreset_mode="Disabled", **env_kwargs)
+    venv = gym.make_vec(
+        env_id, num_envs=len(seeds), vectorization_mode="vector_entry_point", autoreset_mode="Disabled", **env_kwargs
+    )
     episodes = rollout_batch(venv, policy, seeds, **rollout_kwargs)
     venv.close()
     scoring = registry.scene(env_id).scoring
     scored = [SCORING[scoring](ep) for ep in episodes]
     ok = [m for m, failed in scored if not failed]
-    out = {k: float(np.mean([m[k] for m, _ in scored])) for k in ("return", "rms_error", "max_error", "rms_torque", "peak_torque")}
+    out = {
+        k: float(np.mean([m[k] for m, _ in scored]))
+        for k in ("return", "rms_error", "max_error", "rms_torque", "peak_torque")
+    }
     for k in dict.fromkeys(("rms_error_settled", ERROR_METRIC[scoring])):
         out[k] = float(np.mean([m[k] for m in ok])) if ok else float("nan")
     out["failure_rate"] = float(np.mean([failed for _, failed in scored]))
@@ -290,8 +301,14 @@ def evaluate(policy: Any, env_id: str, seeds: list[int], env_kwargs: dict, **rol
 class TrainingLog(BaseCallback):
     """Progress bar, and the deterministic policy's metrics every ``eval_every`` env-steps."""
 
-    def __init__(self, config: TrainConfig, eval_every: int, as_policy: Any = None, csv_path: pathlib.Path | None = None,
-                 on_row: Any = None):
+    def __init__(
+        self,
+        config: TrainConfig,
+        eval_every: int,
+        as_policy: Any = None,
+        csv_path: pathlib.Path | None = None,
+        on_row: Any = None,
+    ):
         super().__init__()
         self.on_row = on_row  # called with each evaluation's row (e.g. to keep the best agent)
         self.csv_path = csv_path
@@ -306,7 +323,9 @@ class TrainingLog(BaseCallback):
 
     def _on_training_start(self) -> None:
         self._t0 = time.perf_counter()
-        self._bar = tqdm(total=self.config.steps, desc=f"{self.config.algo} {self.config.env_id}", unit="step", mininterval=1.0)
+        self._bar = tqdm(
+            total=self.config.steps, desc=f"{self.config.algo} {self.config.env_id}", unit="step", mininterval=1.0
+        )
         self._evaluate()
 
     @property
@@ -317,7 +336,12 @@ class TrainingLog(BaseCallback):
     def _evaluate(self) -> None:
         tic = time.perf_counter()
         seeds = seed_ranges.validation_seeds(self.config.eval_seeds)
-        metrics = evaluate(self.as_policy(self.model), self.config.env_id, seeds, {**self.config.env_kwargs, **self.config.eval_env_kwargs})
+        metrics = evaluate(
+            self.as_policy(self.model),
+            self.config.env_id,
+            seeds,
+            {**self.config.env_kwargs, **self.config.eval_env_kwargs},
+        )
         self.eval_time += time.perf_counter() - tic
         wall = time.perf_counter() - self._t0 - self.eval_time
         self.rows.append({"timesteps": self.env_steps, "train_wall_s": wall, **metrics})
@@ -419,12 +443,20 @@ def _train(config: TrainConfig, out: pathlib.Path, tensorboard: bool, checkpoint
 
     torch.set_num_threads(1)
     members = seed_ranges.training_members(config.seed, config.members)
-    venv = make_sb3_vec_env(config.env_id, n_envs=config.members, seed=members[0], action_repeat=config.action_repeat,
-                            perturb=config.perturb, **{**config.env_kwargs, **config.train_env_kwargs})
+    venv = make_sb3_vec_env(
+        config.env_id,
+        n_envs=config.members,
+        seed=members[0],
+        action_repeat=config.action_repeat,
+        perturb=config.perturb,
+        **{**config.env_kwargs, **config.train_env_kwargs},
+    )
     base = base_gains = None
     if config.residual:
         nominal = gym.make(config.env_id, **config.env_kwargs)
-        base_gains = default_gains_entry(config.residual, nominal)  # recorded: a later retune leaves this agent's base alone
+        base_gains = default_gains_entry(
+            config.residual, nominal
+        )  # recorded: a later retune leaves this agent's base alone
         base = make_controller(config.residual, nominal, base_gains)
         venv = residual_vec_env(venv, base, config.residual_bound)
     hyper = hyperparameters(config, venv.action_space.shape[0])
@@ -432,7 +464,9 @@ def _train(config: TrainConfig, out: pathlib.Path, tensorboard: bool, checkpoint
     if config.normalize:  # the agent's own observations (a residual's base sees the plain ones)
         venv = VecNormalize(venv, norm_obs=True, norm_reward=True, gamma=hyper["gamma"])
         normalization = lambda: ObsNormalization.of(venv)  # noqa: E731
-    as_policy = lambda model: as_evaluated(model, config.action_repeat, base, config.residual_bound, normalization and normalization())  # noqa: E731
+    as_policy = lambda model: as_evaluated(
+        model, config.action_repeat, base, config.residual_bound, normalization and normalization()
+    )  # noqa: E731
     source = None
     if config.init is None:
         model = ALGOS[config.algo](
@@ -457,11 +491,17 @@ def _train(config: TrainConfig, out: pathlib.Path, tensorboard: bool, checkpoint
             if config.normalize:
                 ObsNormalization.of(venv).save(out)
 
-    log = TrainingLog(config, config.eval_every or max(config.steps // 10, 1), as_policy, out / "training_log.csv", on_row=keep)
+    log = TrainingLog(
+        config, config.eval_every or max(config.steps // 10, 1), as_policy, out / "training_log.csv", on_row=keep
+    )
     callbacks: list[BaseCallback] = [log]
     if checkpoint_every:
         every = checkpoint_every // (config.members * config.action_repeat)
-        callbacks.append(CheckpointCallback(max(every, 1), str(out / "checkpoints"), name_prefix="agent", save_vecnormalize=config.normalize))
+        callbacks.append(
+            CheckpointCallback(
+                max(every, 1), str(out / "checkpoints"), name_prefix="agent", save_vecnormalize=config.normalize
+            )
+        )
     model.learn(config.steps // config.action_repeat, callback=CallbackList(callbacks))
     wall = log.train_wall_s
     if not kept:  # the last agent (keep_best: the best evaluated one is saved already)
@@ -481,20 +521,34 @@ def _train(config: TrainConfig, out: pathlib.Path, tensorboard: bool, checkpoint
         "training_member_seeds": [members[0], members[-1]],
         "validation_seeds": [seed_ranges.VALIDATION[0], seed_ranges.VALIDATION[config.eval_seeds - 1]],
         "net_arch": config.layers,
-        "residual": {"base": config.residual, "gains": base_gains, "bound": config.residual_bound} if config.residual else None,
+        "residual": {"base": config.residual, "gains": base_gains, "bound": config.residual_bound}
+        if config.residual
+        else None,
         "hyperparameters": {k: (repr(v) if k == "action_noise" else v) for k, v in hyper.items()},
         "hyper_overrides": config.hyper,
         "action_repeat": config.action_repeat,
         "normalize": config.normalize,
         "perturb": config.perturb,
-        "init": None if source is None else {"from": str(config.init), "env_id": source["env_id"], "steps": source["steps"],
-                                             "init": source.get("init")},
-        "command": "python scripts/train.py " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("train.py") else None,
+        "init": None
+        if source is None
+        else {
+            "from": str(config.init),
+            "env_id": source["env_id"],
+            "steps": source["steps"],
+            "init": source.get("init"),
+        },
+        "command": "python scripts/train.py " + " ".join(sys.argv[1:])
+        if sys.argv and sys.argv[0].endswith("train.py")
+        else None,
         "train_wall_s": wall,
         "final_evaluation": log.rows[-1],
         "kept": dict(kept) if kept else None,
-        "versions": {"python": platform.python_version(), "stable_baselines3": stable_baselines3.__version__,
-                     "torch": torch.__version__, "numpy": np.__version__},  # fmt: skip
+        "versions": {
+            "python": platform.python_version(),
+            "stable_baselines3": stable_baselines3.__version__,
+            "torch": torch.__version__,
+            "numpy": np.__version__,
+        },  # fmt: skip
     }
     (out / "config.json").write_text(json.dumps(record, indent=2, default=str))
     return record
@@ -514,12 +568,16 @@ def load_agent(folder: pathlib.Path) -> tuple[Any, dict[str, Any]]:
     residual = record.get("residual")
     normalization = ObsNormalization.load(folder) if record.get("normalize") else None
     if residual:
-        base = make_controller(residual["base"], gym.make(record["env_id"], **record.get("env_kwargs", {})), residual.get("gains"))
+        base = make_controller(
+            residual["base"], gym.make(record["env_id"], **record.get("env_kwargs", {})), residual.get("gains")
+        )
         return as_evaluated(model, 1, base, residual["bound"], normalization), record
     return as_evaluated(model, record.get("action_repeat", 1), None, 0.0, normalization), record
 
 
-def as_evaluated(model: Any, action_repeat: int, base: Any, bound: float, normalization: ObsNormalization | None) -> Any:
+def as_evaluated(
+    model: Any, action_repeat: int, base: Any, bound: float, normalization: ObsNormalization | None
+) -> Any:
     """The trained ``model`` as it is evaluated: on normalized observations if it trained on them,
     as the bounded correction of ``base`` (a residual agent), holding its decisions for
     ``action_repeat`` steps."""
@@ -564,6 +622,7 @@ def ship(src: pathlib.Path, dst: pathlib.Path) -> int:
     for name in SHIPPED_FILES[2:]:
         if (src / name).exists():
             shutil.copyfile(src / name, dst / name)
-    (dst / "config.json").write_text(json.dumps({**record, "shipped_without_optimizer_state": True}, indent=2, default=str))
+    (dst / "config.json").write_text(
+        json.dumps({**record, "shipped_without_optimizer_state": True}, indent=2, default=str)
+    )
     return (dst / "agent.zip").stat().st_size
-

@@ -119,8 +119,13 @@ def energy_swing_up_grid() -> list[dict[str, float]]:
     0.05 kg m/s times 1 J for the cart-pole), so its grid sits far above the arm's."""
     return [
         {"k_q": kq, "k_v": kv, "k_E": kE, "a_max": a, "catch": c}
-        for kq, kv, kE, a, c in itertools.product((3.0, 5.0, 10.0, 20.0), (0.5, 1.0, 2.0), (300.0, 1000.0, 3000.0), (8.0, 10.0, 15.0, 20.0, 30.0),
-                                                  (10.0, 30.0, 100.0))
+        for kq, kv, kE, a, c in itertools.product(
+            (3.0, 5.0, 10.0, 20.0),
+            (0.5, 1.0, 2.0),
+            (300.0, 1000.0, 3000.0),
+            (8.0, 10.0, 15.0, 20.0, 30.0),
+            (10.0, 30.0, 100.0),
+        )
     ]
 
 
@@ -129,7 +134,9 @@ def swing_up_refine_grid(best: dict[str, Any]) -> list[dict[str, Any]]:
     weight and the catch level (module docstring)."""
     return [
         {**best, "catch": c, "lqr_r": r}
-        for r, c in itertools.product([10.0**k for k in range(-1, 7)], [f * 10.0**k for k in range(8) for f in (1.0, 3.0)][:-1] + [1e8])
+        for r, c in itertools.product(
+            [10.0**k for k in range(-1, 7)], [f * 10.0**k for k in range(8) for f in (1.0, 3.0)][:-1] + [1e8]
+        )
     ]
 
 
@@ -142,10 +149,12 @@ def planner_grid(best: dict[str, Any]) -> list[dict[str, Any]]:
 
 
 #: controller display name -> the grid of a second stage around the first stage's pick
-REFINE: dict[str, Callable[[dict[str, Any]], list[dict[str, Any]]]] = {"swing-up + LQR": swing_up_refine_grid,
-                                                                     "adaptive swing-up + LQR": swing_up_refine_grid,
-                                                                     "energy swing-up + LQR": swing_up_refine_grid,
-                                                                     "identified iLQR + TVLQR": planner_grid}
+REFINE: dict[str, Callable[[dict[str, Any]], list[dict[str, Any]]]] = {
+    "swing-up + LQR": swing_up_refine_grid,
+    "adaptive swing-up + LQR": swing_up_refine_grid,
+    "energy swing-up + LQR": swing_up_refine_grid,
+    "identified iLQR + TVLQR": planner_grid,
+}
 
 #: controller display name -> its grid
 GRIDS: dict[str, Callable[[], list[dict[str, Any]]]] = {
@@ -181,7 +190,11 @@ class Score:
         are ranked, after equal failures, by the mean error over the conditions where some
         episode succeeded (inf if none)."""
         finite = [e for e in self.per_condition.values() if np.isfinite(e)]
-        return (self.failure_rate, self.error if np.isfinite(self.error) else np.inf, float(np.mean(finite)) if finite else np.inf)
+        return (
+            self.failure_rate,
+            self.error if np.isfinite(self.error) else np.inf,
+            float(np.mean(finite)) if finite else np.inf,
+        )
 
 
 def score(scene: str, name: str, entry: dict[str, Any] | None, seeds: list[int],
@@ -197,7 +210,9 @@ def score(scene: str, name: str, entry: dict[str, Any] | None, seeds: list[int],
         extra = {} if max_episode_steps is None else {"max_episode_steps": max_episode_steps}
         venv = gym.make_vec(env_id, num_envs=len(seeds), vectorization_mode="vector_entry_point",
                             autoreset_mode="Disabled", **plant_kwargs(scene, cond), **extra)  # fmt: skip
-        episodes = rollout_batch(venv, policy, seeds, obs_noise=cond.obs_noise, noise_seed=1, delay=cond.delay)  # as the comparison
+        episodes = rollout_batch(
+            venv, policy, seeds, obs_noise=cond.obs_noise, noise_seed=1, delay=cond.delay
+        )  # as the comparison
         venv.close()
         scored = [SCORING[scoring](ep) for ep in episodes]
         ok = [m[ERROR_METRIC[scoring]] for m, failed in scored if not failed]
@@ -254,7 +269,11 @@ def at_grid_edge(best: dict[str, Any], grid: list[dict[str, Any]]) -> list[str]:
     for key, value in best.items():  # a setting with two values is a choice, not a range
         if isinstance(value, (int, float)):
             # absent from an earlier stage's grid; None: the setting off, beyond its largest value (the identification's gate)
-            values = [np.inf if g[key] is None else g[key] for g in grid if key in g and (g[key] is None or isinstance(g[key], (int, float)))]
+            values = [
+                np.inf if g[key] is None else g[key]
+                for g in grid
+                if key in g and (g[key] is None or isinstance(g[key], (int, float)))
+            ]
             if len(set(values)) > 2 and value in (min(values), max(values)):
                 edges.append(key)
         elif isinstance(value, list):

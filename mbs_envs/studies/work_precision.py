@@ -49,7 +49,16 @@ from ..models.base import Model
 from .numerics import state_difference
 
 #: fixed-step methods of the set (the joint-implicit one on unconstrained models)
-FIXED = ("euler", "semi_implicit_euler", "midpoint", "rk4", "implicit_euler", "sdirk2", "sdirk3", "joint_implicit_euler")
+FIXED = (
+    "euler",
+    "semi_implicit_euler",
+    "midpoint",
+    "rk4",
+    "implicit_euler",
+    "sdirk2",
+    "sdirk3",
+    "joint_implicit_euler",
+)
 #: adaptive methods (scipy's), swept over ``rtol = atol``
 ADAPTIVE = ("rk45", "dop853", "radau", "bdf", "lsoda")
 #: tolerance of the two reference solutions
@@ -146,7 +155,9 @@ def forced_problems(t_final: float = 1.0) -> list[Problem]:
 # -- running ---------------------------------------------------------------------------------
 
 
-def solve(p: Problem, method: str, setting: float, compiled: bool = False, model: Model | None = None) -> tuple[np.ndarray, np.ndarray, bool]:
+def solve(
+    p: Problem, method: str, setting: float, compiled: bool = False, model: Model | None = None
+) -> tuple[np.ndarray, np.ndarray, bool]:
     """One run: states on the output grid, shape ``(steps + 1, n)`` each, and whether it finished.
 
     ``setting`` is ``dt`` for fixed-step methods (``interval / dt`` substeps per
@@ -247,7 +258,10 @@ def reference(p: Problem) -> Reference:
 
 def errors(p: Problem, ref: Reference, Q: np.ndarray, V: np.ndarray) -> dict[str, float]:
     """``final_error, trajectory_error, energy_drift, constraint_residual`` (module docstring; NaN where not defined)."""
-    out = {"final_error": state_difference(Q[-1], V[-1], ref.q[-1], ref.v[-1]), "trajectory_error": state_difference(Q, V, ref.q, ref.v)}
+    out = {
+        "final_error": state_difference(Q[-1], V[-1], ref.q[-1], ref.v[-1]),
+        "trajectory_error": state_difference(Q, V, ref.q, ref.v),
+    }
     if p.conservative:
         E = p.model.energy(Q, V)
         out["energy_drift"] = float(np.max(np.abs(E - E[0])))

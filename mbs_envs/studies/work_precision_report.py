@@ -1,5 +1,4 @@
-"""The work-precision report: every scene's free and forced problems under every integrator, error against run time and evaluations, the CSV, the figures and the summary (``scripts/work_precision.py`` is its command line; :mod:`mbs_envs.studies.work_precision` holds the measurements).
-"""
+"""The work-precision report: every scene's free and forced problems under every integrator, error against run time and evaluations, the CSV, the figures and the summary (``scripts/work_precision.py`` is its command line; :mod:`mbs_envs.studies.work_precision` holds the measurements)."""
 
 from __future__ import annotations
 
@@ -44,7 +43,9 @@ def run(
     unknown = sorted(set(methods) - set(wp.FIXED + wp.ADAPTIVE))
     if unknown:
         raise ValueError(f"unknown methods {unknown}; known: {list(wp.FIXED + wp.ADAPTIVE)}")
-    jobs = [(p, m, s) for p in chosen for m in methods if wp.applies(p, m) for s in wp.settings(p, m, n_fixed, n_adaptive)]
+    jobs = [
+        (p, m, s) for p in chosen for m in methods if wp.applies(p, m) for s in wp.settings(p, m, n_fixed, n_adaptive)
+    ]
     rows, refs = [], {}
     with tqdm(total=len(jobs) + len(chosen), desc="work-precision", unit="run") as bar:
         for p in chosen:
@@ -84,7 +85,9 @@ def run(
     (out / "work_precision.md").write_text(summary)
     (out / "work_precision.json").write_text(json.dumps(meta, indent=2))
     print(summary)
-    print(f"run time {time.perf_counter() - t_start:.0f} s; written to {out}/work_precision.csv, .md, .json and one PNG per problem")
+    print(
+        f"run time {time.perf_counter() - t_start:.0f} s; written to {out}/work_precision.csv, .md, .json and one PNG per problem"
+    )
     return rows
 
 
@@ -96,7 +99,9 @@ def write_csv(rows: list[dict], path: pathlib.Path) -> None:
         w.writerows(rows)
 
 
-def plot_problem(rows: list[dict], p: wp.Problem | None, ref: wp.Reference | float, path: pathlib.Path, title: str | None = None) -> None:
+def plot_problem(
+    rows: list[dict], p: wp.Problem | None, ref: wp.Reference | float, path: pathlib.Path, title: str | None = None
+) -> None:
     """Three panels: trajectory error against median time and against evaluations (the floor drawn),
     and energy drift (free), constraint residual (constrained) or final error against time.
     One colour per integrator; solid numpy path, dotted compiled path, dashed adaptive."""
@@ -104,7 +109,11 @@ def plot_problem(rows: list[dict], p: wp.Problem | None, ref: wp.Reference | flo
     floor = ref if isinstance(ref, float) else ref.floor
     kinds = {r["kind_of_problem"] for r in rows}
     has_residual = any(np.isfinite(r["constraint_residual"]) for r in rows)
-    third = "energy_drift" if kinds == {"free"} and not has_residual else ("constraint_residual" if has_residual else "final_error")
+    third = (
+        "energy_drift"
+        if kinds == {"free"} and not has_residual
+        else ("constraint_residual" if has_residual else "final_error")
+    )
     panels = [("time_median_s", "trajectory_error"), ("rhs_evaluations", "trajectory_error"), ("time_median_s", third)]
     fig, axes = plt.subplots(1, 3, figsize=(17, 4.8))
     colors = plt.get_cmap("tab20").colors
@@ -156,9 +165,18 @@ def replot(out: pathlib.Path) -> None:
     rows, meta = load(out)
     for name, info in meta["problems"].items():
         sub = [r for r in rows if r["problem"] == name]
-        what = f"torque held per {info['interval_s']:g} s control step, default friction" if info["forced"] else "free motion"
-        plot_problem(sub, None, float(info["reference_floor"]), out / f"work_precision_{name}.png",
-                     f"{name}: {info['interval_s'] * info['steps']:g} s, {what}")
+        what = (
+            f"torque held per {info['interval_s']:g} s control step, default friction"
+            if info["forced"]
+            else "free motion"
+        )
+        plot_problem(
+            sub,
+            None,
+            float(info["reference_floor"]),
+            out / f"work_precision_{name}.png",
+            f"{name}: {info['interval_s'] * info['steps']:g} s, {what}",
+        )
 
 
 def summarize(rows: list[dict], floors: dict[str, float]) -> str:

@@ -84,7 +84,9 @@ def test_lqr_refuses_bad_weights(kwargs, match):
         LQR(gym.make(ENV_ID), **kwargs)
 
 
-@pytest.mark.parametrize("kwargs, match", [({"k_h": -1.0}, "k_h"), ({"k_lean": np.nan}, "k_lean"), ({"k_x": 1.0}, "k_x")])
+@pytest.mark.parametrize(
+    "kwargs, match", [({"k_h": -1.0}, "k_h"), ({"k_lean": np.nan}, "k_lean"), ({"k_x": 1.0}, "k_x")]
+)
 def test_steering_pd_refuses_bad_gains(kwargs, match):
     with pytest.raises(ValueError, match=match):
         SteeringPD(gym.make(ENV_ID), **kwargs)
@@ -96,7 +98,9 @@ def test_steering_pd_heading_loop_turns_the_disk_toward_the_reference():
     env = gym.make(ENV_ID)
     errors = {}
     for k_h in (0.0, 1.0):
-        venv = gym.make_vec(ENV_ID, num_envs=len(seeds), vectorization_mode="vector_entry_point", autoreset_mode="Disabled")
+        venv = gym.make_vec(
+            ENV_ID, num_envs=len(seeds), vectorization_mode="vector_entry_point", autoreset_mode="Disabled"
+        )
         eps = rollout_batch(venv, SteeringPD(env, k_h=k_h), seeds)
         errors[k_h] = np.mean([episode_metrics(e)["rms_error"] for e in eps if not e.terminated])
     assert errors[1.0] < 0.7 * errors[0.0]

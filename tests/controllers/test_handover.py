@@ -44,7 +44,9 @@ def test_hands_over_inside_the_region_only_and_keeps_the_agent_state(acrobot):
     mid = encode_swingup((Q_UP + x_mid[:2])[None], x_mid[None, 2:])
     assert policy.predict(mid, state=(inner, np.array([True])))[1][1].tolist() == [True]
     assert policy.predict(mid, state=(inner, np.array([False])))[1][1].tolist() == [False]
-    assert policy.predict(mid, state=(inner, np.array([True])), episode_start=np.array([True]))[1][1].tolist() == [False]
+    assert policy.predict(mid, state=(inner, np.array([True])), episode_start=np.array([True]))[1][1].tolist() == [
+        False
+    ]
     with pytest.raises(ValueError, match="level"):
         HandOverPolicy(Push(), lqr, 0.0)
 
@@ -66,13 +68,21 @@ def test_from_inside_the_sampled_region_the_pair_balances_to_the_end(acrobot):
     policy = HandOverPolicy(Push(), lqr, level)
     x_up = np.concatenate([Q_UP, np.zeros(2)])
     box = np.array([0.4, 0.8, 2.0, 4.0])
-    c_star, _ = estimate_region([PlantCase(lqr.model)], x_up, lqr.K, lqr.S, float(lqr.u_max[0]), 0.01, 2, box, samples=300, rounds=6)
-    dx = np.random.default_rng(3).uniform(-1, 1, (2_000_000, 4)) * box  # where the estimate samples: the box, below half its level
+    c_star, _ = estimate_region(
+        [PlantCase(lqr.model)], x_up, lqr.K, lqr.S, float(lqr.u_max[0]), 0.01, 2, box, samples=300, rounds=6
+    )
+    dx = (
+        np.random.default_rng(3).uniform(-1, 1, (2_000_000, 4)) * box
+    )  # where the estimate samples: the box, below half its level
     starts = dx[np.einsum("bi,ij,bj->b", dx, lqr.S, dx) < 0.5 * c_star][:3]
     assert len(starts) == 3
     for x0 in starts:
         env.reset(seed=0, options={"q": Q_UP + x0[:2], "v": x0[2:]})
-        obs, state, start = env.unwrapped.observe(env.unwrapped.q[None], env.unwrapped.v[None], None, None)[0], None, True
+        obs, state, start = (
+            env.unwrapped.observe(env.unwrapped.q[None], env.unwrapped.v[None], None, None)[0],
+            None,
+            True,
+        )
         for _ in range(400):
             a, state = policy.predict(obs, state, np.array([start]))
             start = False
@@ -91,7 +101,9 @@ def test_the_catch_level_is_tuned_on_tuning_seeds_over_the_plant_set():
     pump = SwingUpLQR(gym.make("mbs_envs/Acrobot-v1"), catch=1e-12)  # the energy pump alone: it never catches by itself
     grid = [{"catch": 1e-6, "release": 4.0}, {"catch": 1000.0, "release": 4.0}]
     best, rows = tune_catch("Acrobot", [pump], grid, [20_000, 20_001])
-    assert len(rows) == len(grid) * len(TUNING_CONDITIONS) and {r["condition"] for r in rows} == {c.name for c in TUNING_CONDITIONS}
+    assert len(rows) == len(grid) * len(TUNING_CONDITIONS) and {r["condition"] for r in rows} == {
+        c.name for c in TUNING_CONDITIONS
+    }
     nominal = {r["catch"]: r["success"] for r in rows if r["condition"] == "nominal"}
     assert nominal[1e-6] == 0.0 and nominal[1000.0] > 0.0  # no catch, no balance; the swing-up + LQR's level catches
     assert best == grid[1]

@@ -33,7 +33,12 @@ def test_energy_is_linear_in_the_base_parameters():
     for arm in random_arms(rng, 20):
         q, v = rng.uniform(-4, 4, (50, 2)), rng.uniform(-10, 10, (50, 2))
         E = arm.energy(q, v)
-        assert np.allclose(ident.energy_regressor(q, v) @ ident.base_parameters(arm.params), E, rtol=1e-12, atol=1e-12 * np.abs(E).max())
+        assert np.allclose(
+            ident.energy_regressor(q, v) @ ident.base_parameters(arm.params),
+            E,
+            rtol=1e-12,
+            atol=1e-12 * np.abs(E).max(),
+        )
 
 
 def test_a_model_from_base_parameters_has_the_same_dynamics():
@@ -44,7 +49,13 @@ def test_a_model_from_base_parameters_has_the_same_dynamics():
     assert not np.isnan(ident.gauge(th, 9.81)).any()
     model = ident.identified_model(th, Planar2R(driven=(1,)))
     q, v, u = rng.uniform(-4, 4, (30, 2)), rng.uniform(-10, 10, (30, 2)), rng.uniform(-10, 10, (30, 1))
-    for name, args in (("mass_matrix", (q,)), ("bias", (q, v)), ("gravity", (q,)), ("energy", (q, v)), ("forward_dynamics", (q, v, u))):
+    for name, args in (
+        ("mass_matrix", (q,)),
+        ("bias", (q, v)),
+        ("gravity", (q,)),
+        ("energy", (q, v)),
+        ("forward_dynamics", (q, v, u)),
+    ):
         got = getattr(model, name)(*args)
         want = np.array([getattr(a, name)(*(x[i] for x in args)) for i, a in enumerate(arms)])
         assert np.allclose(got, want, rtol=1e-12, atol=1e-12 * np.abs(want).max()), name
@@ -74,7 +85,9 @@ def test_batched_riccati_solution_matches_python_control(driven, r):
     # it was 1.4e-12 on an AMD EPYC at r = 1e-3, where |S A| is 5x |S|, and 0.3e-12 against the terms)
     assert np.abs(sum(terms)).max() <= 1e-12 * max(np.abs(t).max() for t in terms)
     # python-control's own residual is up to 3e-7 relative at r = 1e5 (S spans 1e-1 to 1e7): agree to that
-    assert np.allclose(S[0], S0, rtol=1e-6, atol=1e-6 * np.abs(S0).max()) and np.allclose(K[0], K0, rtol=1e-6, atol=1e-6 * np.abs(K0).max())
+    assert np.allclose(S[0], S0, rtol=1e-6, atol=1e-6 * np.abs(S0).max()) and np.allclose(
+        K[0], K0, rtol=1e-6, atol=1e-6 * np.abs(K0).max()
+    )
     assert np.array_equal(S[0], S[2])
     K1, S1 = care(2 * A, B, Q, R)
     assert np.allclose(S[1], S1, rtol=1e-13, atol=1e-13 * np.abs(S1).max())
@@ -125,7 +138,9 @@ def test_the_estimate_converges_to_the_plant_and_the_lqr_to_its_own(env_id, scal
     from mbs_envs.controllers.adaptive_swingup import K_, THETA
 
     assert np.abs(state[:, THETA] / th_true - 1).max() < 2e-3
-    oracle = SwingUpLQR(gym.make(env_id, **plant_kwargs(env_id.split("/")[1].split("-")[0], Condition("c", scale))), lqr_r=policy.lqr_r)
+    oracle = SwingUpLQR(
+        gym.make(env_id, **plant_kwargs(env_id.split("/")[1].split("-")[0], Condition("c", scale))), lqr_r=policy.lqr_r
+    )
     K = state[:, K_]
     assert np.abs(K - oracle.K.ravel()).max() < 0.01 * np.abs(oracle.K).max()
 
@@ -145,7 +160,9 @@ def test_memory_is_per_member_and_reset_at_episode_start():
             assert np.array_equal(a_i, action[i]) and np.array_equal(states[i], state[i])
         start[:] = False
         obs, *_ = venv.step(action)
-    fresh = policy.initial_state(*(np.atleast_2d(x) for x in (policy.decode_observation(obs).q, policy.decode_observation(obs).v)))
+    fresh = policy.initial_state(
+        *(np.atleast_2d(x) for x in (policy.decode_observation(obs).q, policy.decode_observation(obs).v))
+    )
     _, after = policy.predict(obs, state=state, episode_start=np.array([False, True, False]))
     from mbs_envs.controllers.adaptive_swingup import MODE, U
 
@@ -155,10 +172,25 @@ def test_memory_is_per_member_and_reset_at_episode_start():
     assert not np.array_equal(after[0][1:26], fresh[0][1:26])
 
 
-@pytest.mark.parametrize("kwargs", [{"window": 0}, {"window": 2.5}, {"prior": 0.0}, {"prior": -1.0}, {"prior": np.nan},
-                                    {"obs_noise": -0.01}, {"obs_noise": np.inf}, {"process_noise": (1e-4, 1e-2)},
-                                    {"process_noise": ((1e-4, 0.0), (1e-3, 1e-2))}, {"process_noise": "big"},
-                                    {"gate": 0.0}, {"gate": -0.1}, {"gate": np.nan}, {"gate": "tight"}])
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"window": 0},
+        {"window": 2.5},
+        {"prior": 0.0},
+        {"prior": -1.0},
+        {"prior": np.nan},
+        {"obs_noise": -0.01},
+        {"obs_noise": np.inf},
+        {"process_noise": (1e-4, 1e-2)},
+        {"process_noise": ((1e-4, 0.0), (1e-3, 1e-2))},
+        {"process_noise": "big"},
+        {"gate": 0.0},
+        {"gate": -0.1},
+        {"gate": np.nan},
+        {"gate": "tight"},
+    ],
+)
 def test_bad_settings_are_refused_by_name(kwargs):
     with pytest.raises(ValueError, match=next(iter(kwargs))):
         AdaptiveSwingUpLQR(gym.make("mbs_envs/Acrobot-v1"), **kwargs)
@@ -170,7 +202,9 @@ def test_gains_fall_back_to_the_swing_up_entry_only_without_an_own_entry():
     from mbs_envs.controllers import tuned
 
     table = tuned._table()
-    entry = table.get("mbs_envs/Acrobot-v1", {}).get("adaptive swing-up + LQR") or table.get("mbs_envs/Acrobot-v0", {}).get("adaptive swing-up + LQR")
+    entry = table.get("mbs_envs/Acrobot-v1", {}).get("adaptive swing-up + LQR") or table.get(
+        "mbs_envs/Acrobot-v0", {}
+    ).get("adaptive swing-up + LQR")
     assert own == (entry if entry is not None else base)
     saved = dict(table)
     try:  # without an own entry: the swing-up + LQR's
@@ -400,7 +434,13 @@ def test_a_push_does_not_bias_the_gated_estimate_and_a_batch_of_gates_acts_as_ea
                 states.append(np.array(s, copy=True))
                 return a, s
 
-        venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", autoreset_mode="Disabled", max_episode_steps=steps)
+        venv = gym.make_vec(
+            env_id,
+            num_envs=n,
+            vectorization_mode="vector_entry_point",
+            autoreset_mode="Disabled",
+            max_episode_steps=steps,
+        )
         res = run(venv, Logged(), list(range(n)), Perturbation(pulses=np.repeat(push, n, axis=0)), noise_seed=0)
         return res, np.array(states).reshape(len(states), n, -1)
 

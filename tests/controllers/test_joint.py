@@ -56,7 +56,9 @@ def test_pd_with_gravity_compensation_holds_a_posture_exactly():
     tr = simulate(env.unwrapped.model, [-1.5, 0.0], [0.0, 0.0], 8.0, dt=2e-3, u=continuous_law(ctrl, ref))
     np.testing.assert_allclose(tr.q[-1], [-0.6, 1.1], atol=1e-6)
     # plain PD sags under gravity (by about kp^-1 G: at kp = 100 N m/rad, by more than 0.05 rad)
-    tr_pd = simulate(env.unwrapped.model, [-1.5, 0.0], [0.0, 0.0], 8.0, dt=2e-3, u=continuous_law(PD(env, kp=100.0, kd=20.0), ref))
+    tr_pd = simulate(
+        env.unwrapped.model, [-1.5, 0.0], [0.0, 0.0], 8.0, dt=2e-3, u=continuous_law(PD(env, kp=100.0, kd=20.0), ref)
+    )
     assert np.max(np.abs(tr_pd.q[-1] - [-0.6, 1.1])) > 0.05
 
 
@@ -118,7 +120,9 @@ def test_controllers_saturate_at_the_torque_limit():
     assert np.all(np.abs(a) == 1.0)
 
 
-@pytest.mark.parametrize("kwargs, match", [({"kp": -1.0}, "kp"), ({"kd": np.nan}, "kd"), ({"kp": [1.0, 2.0, 3.0]}, "kp")])
+@pytest.mark.parametrize(
+    "kwargs, match", [({"kp": -1.0}, "kp"), ({"kd": np.nan}, "kd"), ({"kp": [1.0, 2.0, 3.0]}, "kp")]
+)
 def test_bad_gains_raise(kwargs, match):
     with pytest.raises(ValueError, match=match):
         ComputedTorque(gym.make(ENV_ID), **kwargs)

@@ -39,7 +39,9 @@ def test_the_difference_errs_by_a_third_of_the_jerk_and_amplifies_angle_noise_by
     with independent angle noise of std s its std is ``s sqrt(26) / (2 dt)`` (1e5 samples: within 1 %)."""
     c = np.array([[7.0, -3.0]])
     q = [c * t**3 / 6 for t in (-2 * DT, -DT, 0.0)]
-    np.testing.assert_allclose(rates_from_angles(q[2], q[1], q[0], np.array([2]), np.zeros((1, 2)), DT), -c * DT**2 / 3, rtol=0, atol=1e-12)  # the wrap's rounding (pi's ulp / dt)
+    np.testing.assert_allclose(
+        rates_from_angles(q[2], q[1], q[0], np.array([2]), np.zeros((1, 2)), DT), -c * DT**2 / 3, rtol=0, atol=1e-12
+    )  # the wrap's rounding (pi's ulp / dt)
     rng = np.random.default_rng(5)
     s = 1e-3
     n = rng.normal(0, s, (3, 100_000, 2))
@@ -87,7 +89,11 @@ def test_the_wrapped_policy_sees_the_differenced_rates_whatever_rates_are_observ
     assert not np.array_equal(a[4, 1], b[4, 1]) and np.array_equal(a[4, [0, 2]], b[4, [0, 2]])  # member 1 restarted
     q32 = np.arctan2(streams[0][..., 2:4].astype(float), streams[0][..., 0:2].astype(float))
     np.testing.assert_allclose(a[1, :, 4:6], ((q32[1] - q32[0]) / env.unwrapped.dt).astype(np.float32), rtol=1e-6)
-    np.testing.assert_allclose(a[3, :, 4:6], ((3 * (q32[3] - q32[2]) - (q32[2] - q32[1])) / (2 * env.unwrapped.dt)).astype(np.float32), rtol=1e-6)
+    np.testing.assert_allclose(
+        a[3, :, 4:6],
+        ((3 * (q32[3] - q32[2]) - (q32[2] - q32[1])) / (2 * env.unwrapped.dt)).astype(np.float32),
+        rtol=1e-6,
+    )
 
 
 def test_a_state_passed_in_is_left_as_it_was_and_single_equals_batched():
@@ -157,4 +163,6 @@ def test_stable_baselines3s_evaluate_policy_runs_the_wrapped_controller():
         action, state = ctrl.predict(obs, state=state, episode_start=start)
         obs, r, term, trunc, _ = env.step(action)
         total, start, done = total + r, False, term or trunc
-    assert mean == pytest.approx(total, rel=1e-6)  # the same rewards summed in another order and precision (SB3's float32 buffers)
+    assert mean == pytest.approx(
+        total, rel=1e-6
+    )  # the same rewards summed in another order and precision (SB3's float32 buffers)

@@ -22,7 +22,9 @@ def test_bound_is_the_closed_form_of_decoupled_modes():
     # two unstable modes: each coordinate bounded by its own slab; a delay shrinks each by e^(lambda tau)
     A2, B2 = np.diag([2.0, 5.0]), np.array([[1.0], [2.0]])
     np.testing.assert_allclose(saturation_bound(A2, B2, 1.0), [0.5, 0.4], rtol=1e-12)
-    np.testing.assert_allclose(saturation_bound(A2, B2, 1.0, delay=0.1), [0.5 * np.exp(-0.2), 0.4 * np.exp(-0.5)], rtol=1e-12)
+    np.testing.assert_allclose(
+        saturation_bound(A2, B2, 1.0, delay=0.1), [0.5 * np.exp(-0.2), 0.4 * np.exp(-0.5)], rtol=1e-12
+    )
 
 
 def test_beyond_the_bound_no_input_recovers_the_scalar_plant():
@@ -81,10 +83,17 @@ def test_the_region_estimate_holds_on_fresh_samples_and_fails_beyond(acrobot):
     reach = np.abs(W.T @ B[:, 0]) * u_max / lam.real[lam.real > 0]
     inside, outside = dx[cost < 0.5 * level][:64], dx[np.any(np.abs(dx @ W) > 1.5 * reach, axis=-1)][:64]
     assert len(inside) >= 16 and len(outside) >= 16
-    fallen = np.array([np.pi / 2, np.pi, 20.0, 40.0])  # a run that leaves this has fallen (no count of a loop back to upright)
-    caught = lambda d: np.all(np.abs(closed_loop_final([PlantCase(m)], x_up + d, x_up, ctrl.K, u_max, 0.01, 2, 500, fallen)[0]) <= 0.1, axis=-1)  # noqa: E731
+    fallen = np.array(
+        [np.pi / 2, np.pi, 20.0, 40.0]
+    )  # a run that leaves this has fallen (no count of a loop back to upright)
+    caught = lambda d: np.all(
+        np.abs(closed_loop_final([PlantCase(m)], x_up + d, x_up, ctrl.K, u_max, 0.01, 2, 500, fallen)[0]) <= 0.1,
+        axis=-1,
+    )  # noqa: E731
     assert caught(inside).all()  # fresh samples, not those the level came from
-    assert not caught(outside).any()  # beyond the unstable mode's slab (with 50 % for the nonlinear arm): physics loses them
+    assert not caught(
+        outside
+    ).any()  # beyond the unstable mode's slab (with 50 % for the nonlinear arm): physics loses them
     # a plant set can only shrink it
     heavy = m.with_params(m.params.replace(m2=1.2, l2=1.2, r2=0.6, I2=1.2**3 * m.params.I2))
     both, _ = estimate_region([PlantCase(m), PlantCase(heavy)], x_up, ctrl.K, ctrl.S, u_max, 0.01, 2, box, samples=600)
@@ -166,10 +175,14 @@ def test_the_lqg_hold_share_falls_with_the_noise_and_matches_the_stationary_spre
     assert lqg_hold_share(A, B, dt, 0.01, 0.2 * floor[1], 200, grid=grid) == 0.0
     one = lqg_hold_share(A, B, dt, 0.01, 0.1, 1, grid=grid)  # one step: P(both angles inside) at the stationary spread
     p_elbow = scipy.stats.norm.cdf(0.1 / floor[1]) * 2 - 1  # the elbow alone, at the floor: an upper estimate
-    assert one <= p_elbow + 0.035 and one > 0.5  # (the whole grid: test_no_lqg_controller_of_the_grid_beats_the_floor_in_one_step)
+    assert (
+        one <= p_elbow + 0.035 and one > 0.5
+    )  # (the whole grid: test_no_lqg_controller_of_the_grid_beats_the_floor_in_one_step)
     # from the most favourable start (exactly upright, the estimate exact; no settling) a window is held more often
     # than once stationary, less so the longer the controllers settle first (Anderson: a wider Gaussian holds fewer)
-    by_settle = [lqg_hold_share(A, B, dt, 0.01, 0.1, 200, windows=1000, settle_steps=n, grid=grid) for n in (0, 50, 300)]
+    by_settle = [
+        lqg_hold_share(A, B, dt, 0.01, 0.1, 200, windows=1000, settle_steps=n, grid=grid) for n in (0, 50, 300)
+    ]
     assert by_settle[0] > by_settle[1] > by_settle[2] and by_settle[0] < 1.0
     # the batch of controllers gives each its own share: a grid of one is that controller's share in the whole grid
     whole = lqg_hold_share(A, B, dt, 0.01, 0.1, 50, windows=300, grid=grid)
@@ -237,8 +250,16 @@ def test_an_edge_gain_holds_more_windows_than_any_lqg_controller_of_the_grid():
 
     share = planner_hold_share(ctrl, A, B, 0.01, 0.1, windows=1000, seed=1)
     assert abs(share - with_edge) < 0.07  # two draws of 1,000 windows: about 2 standard errors of their difference
-    row = {"scene": "Acrobot", "condition": "obs noise 0.01", "bound": [0.2, 1.0, 0.5, 2.0], "lqr_catch": [0.1, 0.5, 0.2, 1.0],
-           "noise_floor": [0.015, 0.054], "lqg_hold": 0.39, "lqg_hold_from_start": 0.63, "planner_hold": share}
+    row = {
+        "scene": "Acrobot",
+        "condition": "obs noise 0.01",
+        "bound": [0.2, 1.0, 0.5, 2.0],
+        "lqr_catch": [0.1, 0.5, 0.2, 1.0],
+        "noise_floor": [0.015, 0.054],
+        "lqg_hold": 0.39,
+        "lqg_hold_from_start": 0.63,
+        "planner_hold": share,
+    }
     assert catch_table([row]).splitlines()[-1].endswith(f"| 39% (63% from upright) | {share:.0%} |")
 
 
@@ -250,7 +271,12 @@ def test_the_band_rule_recovers_outside_the_band_until_within_the_way_back():
     x = np.array([[0.09, 0.0, 5.0, -5.0], [0.0, -0.11, 0.0, 0.0], [0.07, 0.0, 0.0, 0.0], [0.05, -0.05, 0.0, 0.0]])
     assert recovering(x, np.zeros(4, bool), 0.1, 0.06).tolist() == [False, True, False, False]
     assert recovering(x, np.ones(4, bool), 0.1, 0.06).tolist() == [True, True, True, False]
-    assert recovering(x, np.ones(4, bool), [0.1, 0.1, 0.1, 0.1], 0.1).tolist() == [False, True, False, False]  # back = band: no hysteresis
+    assert recovering(x, np.ones(4, bool), [0.1, 0.1, 0.1, 0.1], 0.1).tolist() == [
+        False,
+        True,
+        False,
+        False,
+    ]  # back = band: no hysteresis
 
 
 def test_recovering_into_the_hold_keeps_more_windows():
@@ -298,7 +324,12 @@ def test_the_arms_map_about_upright_agrees_with_its_linearization_to_third_order
     assert err(1e-6) < 1e-8 * np.abs(1e-6 * x @ A_d.T).max()  # measured 6.5e-9
     L = steady_kalman(A_d, 0.01)[0]
     K = ctrl.K.reshape(1, 4)
-    assert hold_shares(A_d, B_d, L, K, 0.01, 10.0, 50, 20, 10, arm=ArmMap(ctrl.model, ctrl.goal, ctrl.dt, ctrl.substeps, drop=0.0))[0] == 0.0
+    assert (
+        hold_shares(
+            A_d, B_d, L, K, 0.01, 10.0, 50, 20, 10, arm=ArmMap(ctrl.model, ctrl.goal, ctrl.dt, ctrl.substeps, drop=0.0)
+        )[0]
+        == 0.0
+    )
     assert hold_shares(A_d, B_d, L, K, 0.01, 10.0, 50, 20, 10, arm=arm)[0] == 1.0
 
 
@@ -341,7 +372,9 @@ def test_the_zero_dynamics_are_the_driven_angles_transmission_zeros():
         assert np.allclose(np.sort(zeros.real), [-lam, lam], rtol=1e-9) and np.allclose(zeros.imag, 0.0)
         q = np.random.default_rng(0).normal(size=(50, 2))
         a = lam**2
-        np.testing.assert_allclose(q @ M.T @ c, a * (q @ c) - g * q[:, j], rtol=0, atol=1e-12 * np.abs(M).max() * np.abs(c).max())
+        np.testing.assert_allclose(
+            q @ M.T @ c, a * (q @ c) - g * q[:, j], rtol=0, atol=1e-12 * np.abs(M).max() * np.abs(c).max()
+        )
 
 
 def test_the_zero_dynamics_law_places_the_closed_loop_where_its_derivation_says():
@@ -357,12 +390,16 @@ def test_the_zero_dynamics_law_places_the_closed_loop_where_its_derivation_says(
     coef = zero_dynamics(A, B, 1)
     lam, g = coef[2], coef[3]
     r, reach, omega = 22.5, 0.095, 60.0
-    K = -np.array([zero_dynamics_input(e, coef, r, 1e15, omega, 1) for e in np.eye(4)])  # a reach too far to bend it: linear
+    K = -np.array(
+        [zero_dynamics_input(e, coef, r, 1e15, omega, 1) for e in np.eye(4)]
+    )  # a reach too far to bend it: linear
     k = (lam + r) / g
     loop = np.array([[-r, -g, 0.0], [0.0, 0.0, 1.0], [-k * r**2, -(omega**2) - k * r * g, -2.0 * omega + k * g]])
     expected = np.sort_complex(np.concatenate([[-lam], np.linalg.eigvals(loop)]))
     got = np.sort_complex(np.linalg.eigvals(A - B @ K[None]))
-    np.testing.assert_allclose(got, expected, rtol=1e-7, atol=0)  # (entries of A - B K near 2e5: LAPACK's eigenvalues to ~1e-9 here)
+    np.testing.assert_allclose(
+        got, expected, rtol=1e-7, atol=0
+    )  # (entries of A - B K near 2e5: LAPACK's eigenvalues to ~1e-9 here)
     assert (got.real < 0).all()
     # far off, the request stops at its reach: with the driven angle at rest at +-reach and a huge unstable mode
     # pushing it out, the law asks the acceleration of a request at the reach (its rate 0 where the tanh is flat)
@@ -401,12 +438,15 @@ def test_the_rescue_rule_starts_past_the_trigger_and_ends_below_the_release_with
     coef = zero_dynamics(A, B, 1)
     zd = ZeroDynamicsHold(reach=0.095, trigger=1.2, release=0.5)
     capture = coef[3] * 0.095 / coef[2]
+
     # states with a chosen z and angles: the shoulder's rate makes up z (z = c . v + lam c . q)
     def at(z_over_capture, q=(0.0, 0.0)):
         return np.array([q[0], q[1], (z_over_capture * capture - coef[2] * (coef[:2] @ q)) / coef[0], 0.0])
 
     x = np.stack([at(1.21), at(-1.21), at(1.19, (0.09, 0.0)), at(0.49), at(0.49, (0.0, 0.09)), at(0.51)])
-    np.testing.assert_allclose(zero_dynamics_mode(x, coef) / capture, [1.21, -1.21, 1.19, 0.49, 0.49, 0.51], rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(
+        zero_dynamics_mode(x, coef) / capture, [1.21, -1.21, 1.19, 0.49, 0.49, 0.51], rtol=1e-12, atol=1e-12
+    )
     assert rescuing(x, coef, np.zeros(6, bool), zd, 0.085).tolist() == [True, True, False, False, False, False]
     assert rescuing(x, coef, np.ones(6, bool), zd, 0.085).tolist() == [True, True, True, False, True, True]
 

@@ -13,7 +13,20 @@ import mbs_envs  # noqa: F401
 from mbs_envs.controllers import PlannedSwingUp
 from mbs_envs.controllers import trajectory as traj
 from mbs_envs.controllers.control_map import rk4_map, state_error
-from mbs_envs.controllers.planned_swingup import CLOCK, KE_, KH_, KR_, ZD_, LENGTH, NIS, NIS_LIMIT, PHASE, PUMPING_GRID, SINCE, hold_pays
+from mbs_envs.controllers.planned_swingup import (
+    CLOCK,
+    KE_,
+    KH_,
+    KR_,
+    ZD_,
+    LENGTH,
+    NIS,
+    NIS_LIMIT,
+    PHASE,
+    PUMPING_GRID,
+    SINCE,
+    hold_pays,
+)
 from mbs_envs.envs.swingup import Q_UP
 
 GOAL = np.concatenate([Q_UP, np.zeros(2)])
@@ -32,7 +45,9 @@ def test_compiled_map_is_the_envs_map(env_id):
     for _ in range(20):
         x, u = rng.uniform(-4, 4, 4), rng.uniform(-10, 10)
         want = rk4_map(model, x, np.array([u]), 0.01, 2)
-        assert np.allclose(traj.step_map(x, u, int(model.driven[0]), theta_of(model), 0.01, 2), want, rtol=0, atol=1e-12)
+        assert np.allclose(
+            traj.step_map(x, u, int(model.driven[0]), theta_of(model), 0.01, 2), want, rtol=0, atol=1e-12
+        )
 
 
 @pytest.mark.parametrize("env_id", ["mbs_envs/Acrobot-v1", "mbs_envs/Pendubot-v1"])
@@ -48,7 +63,11 @@ def test_compiled_filter_step_is_the_numpy_filter_step(env_id):
     rng = np.random.default_rng(3)
     B = 40
     p = c.model.params
-    th = ident.base_parameters(p.batched(m1=p.m1 * rng.uniform(0.7, 1.3, B), m2=p.m2 * rng.uniform(0.7, 1.3, B), r2=p.r2 * rng.uniform(0.7, 1.3, B)))
+    th = ident.base_parameters(
+        p.batched(
+            m1=p.m1 * rng.uniform(0.7, 1.3, B), m2=p.m2 * rng.uniform(0.7, 1.3, B), r2=p.r2 * rng.uniform(0.7, 1.3, B)
+        )
+    )
     model = ident.identified_model(th, c.model)
     X = rng.uniform(-9, 9, (B, 4))
     A = rng.normal(size=(B, 4, 4)) * 10.0 ** rng.uniform(-4, 0, (B, 1, 1))
@@ -58,7 +77,9 @@ def test_compiled_filter_step_is_the_numpy_filter_step(env_id):
     Q_w = c.Q_w[rng.integers(0, 2, B)]
     x_want, P_want = ekf_step(model, X, P, u[:, None], Y, c.dt, c.substeps, Q_w, c.R_n)
     x, P_new = np.empty_like(X), np.empty_like(P)
-    traj.ekf_steps(X, P, u, Y, np.ascontiguousarray(c.kernel_theta(th).T), c.driven, c.dt, c.substeps, Q_w, c.R_n, EPS, x, P_new)
+    traj.ekf_steps(
+        X, P, u, Y, np.ascontiguousarray(c.kernel_theta(th).T), c.driven, c.dt, c.substeps, Q_w, c.R_n, EPS, x, P_new
+    )
     assert np.allclose(x, x_want, rtol=0, atol=1e-8)
     assert np.allclose(P_new, P_want, rtol=1e-8, atol=1e-8 * np.abs(P_want).max(axis=(1, 2), keepdims=True))
 
@@ -104,9 +125,13 @@ def test_jacobians_are_those_of_the_map():
         for j in range(4):
             d = np.zeros(4)
             d[j] = e
-            col = (rk4_map(model, X[k] + d, U[k : k + 1], 0.01, 2) - rk4_map(model, X[k] - d, U[k : k + 1], 0.01, 2)) / (2 * e)
+            col = (
+                rk4_map(model, X[k] + d, U[k : k + 1], 0.01, 2) - rk4_map(model, X[k] - d, U[k : k + 1], 0.01, 2)
+            ) / (2 * e)
             assert np.allclose(A[k, :, j], col, atol=2e-6 * max(1.0, np.abs(col).max()))
-        col = (rk4_map(model, X[k], U[k : k + 1] + e, 0.01, 2) - rk4_map(model, X[k], U[k : k + 1] - e, 0.01, 2)) / (2 * e)
+        col = (rk4_map(model, X[k], U[k : k + 1] + e, 0.01, 2) - rk4_map(model, X[k], U[k : k + 1] - e, 0.01, 2)) / (
+            2 * e
+        )
         assert np.allclose(b[k], col, atol=2e-6)
 
 
@@ -135,7 +160,11 @@ def test_the_line_search_rollout_and_cost_are_their_formulas():
     for W in (np.zeros((4, 4)), np.diag([1.0, 2.0, 0.1, 0.3])):
         dx = X - GOAL
         dx[:, :2] = (dx[:, :2] + np.pi) % (2 * np.pi) - np.pi
-        J = 0.5 * 0.1 * dt * np.sum(Un**2) + 0.5 * dt * np.einsum("ki,ij,kj->", dx[:H], W, dx[:H]) + 0.5 * dx[H] @ S_T @ dx[H]
+        J = (
+            0.5 * 0.1 * dt * np.sum(Un**2)
+            + 0.5 * dt * np.einsum("ki,ij,kj->", dx[:H], W, dx[:H])
+            + 0.5 * dx[H] @ S_T @ dx[H]
+        )
         assert traj._cost(X, Un, GOAL, 0.1, W, S_T, dt) == pytest.approx(J, rel=1e-13)
     U[3] = np.nan
     assert not traj._rollout(x0, U, Xref, kff, K, 0.5, u_max, 1, th, dt, 2, X, Un)
@@ -249,22 +278,46 @@ def test_the_protocols_episode_swings_up_on_knots_each_member_as_alone(env_id):
     runs = []
     for n in (1, 2):
         kwargs = {} if n == 1 else {"member_params": [{}, {"m2": 1.2 * p.m2}]}
-        venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", autoreset_mode="Disabled", **kwargs)
+        venv = gym.make_vec(
+            env_id, num_envs=n, vectorization_mode="vector_entry_point", autoreset_mode="Disabled", **kwargs
+        )
         runs.append(dfki.record(venv, PlannedSwingUp(env, **gains), list(range(n)))[0])
     for key in ("q", "v", "u"):
         assert np.array_equal(runs[0][key], runs[1][key])
     assert dfki.evaluate(runs[:1], p.l1, p.l2)[0]["success"] == 1.0
 
 
-@pytest.mark.parametrize("x0, inside", [((0.005, 0.0, 0.0, 0.0), True), ((-0.004, 0.01, 0.02, -0.05), True),
-                                         ((0.02, -0.03, 0.05, 0.0), False), ((0.1, 0.0, 0.0, 0.0), False)])
+@pytest.mark.parametrize(
+    "x0, inside",
+    [
+        ((0.005, 0.0, 0.0, 0.0), True),
+        ((-0.004, 0.01, 0.02, -0.05), True),
+        ((0.02, -0.03, 0.05, 0.0), False),
+        ((0.1, 0.0, 0.0, 0.0), False),
+    ],
+)
 def test_the_lqr_takes_over_exactly_where_its_simulated_region_says(x0, inside):
     """Within its region (the saturated LQR simulated on the model ends upright) a member balances at once and
     holds; outside it the LQR is not handed the arm. ``predict`` never writes into the state it is given."""
     env = gym.make("mbs_envs/Acrobot-v1", start_noise=0.0)
     ctrl = PlannedSwingUp(env, plan_time=10.0)
     x = GOAL + np.array(x0)
-    assert traj.lqr_catches(x, ctrl.K[0], GOAL, 10.0, 1, theta_of(env.unwrapped.model), 0.01, 2, ctrl.catch_steps, ctrl.catch_tol, np.inf) == inside
+    assert (
+        traj.lqr_catches(
+            x,
+            ctrl.K[0],
+            GOAL,
+            10.0,
+            1,
+            theta_of(env.unwrapped.model),
+            0.01,
+            2,
+            ctrl.catch_steps,
+            ctrl.catch_tol,
+            np.inf,
+        )
+        == inside
+    )
     obs, _ = env.reset(options={"q": x[:2], "v": x[2:]})
     state, start = None, True
     for k in range(200 if inside else 1):
@@ -279,8 +332,15 @@ def test_the_lqr_takes_over_exactly_where_its_simulated_region_says(x0, inside):
         assert info["upright"] and np.abs(info["tracking_error"]).max() < 0.01 and state[0][PHASE] == 3.0
 
 
-@pytest.mark.parametrize("x0, law", [((0.005, 0.0, 0.0, 0.0), "edge"), ((0.004, 0.0, 0.02, 0.0), "edge"), ((0.004, 0.0, 0.04, 0.0), "edge"),
-                                     ((0.004, 0.0, 0.04, 0.0), "zero_dynamics")])
+@pytest.mark.parametrize(
+    "x0, law",
+    [
+        ((0.005, 0.0, 0.0, 0.0), "edge"),
+        ((0.004, 0.0, 0.02, 0.0), "edge"),
+        ((0.004, 0.0, 0.04, 0.0), "edge"),
+        ((0.004, 0.0, 0.04, 0.0), "zero_dynamics"),
+    ],
+)
 def test_a_balancing_member_holds_exactly_where_the_hold_lqrs_simulated_region_says(x0, law):
     """Phase 3: a member balancing since the step before switches to the hold LQR exactly where its filter is
     consistent (the running mean of its normalized innovations below :data:`NIS_LIMIT`), its estimate is within
@@ -314,19 +374,32 @@ def test_a_balancing_member_holds_exactly_where_the_hold_lqrs_simulated_region_s
         model = ident.identified_model(row[THETA][None], ctrl.model)
         A, B = upright_linearization(model, (1,))
         A_d, B_d = region.discretize(A[0], B[0], 0.01)
-        K_hold, K_edge, K_rec = (np.asarray(control.dlqr(A_d, B_d, Q, ctrl.R_hold)[0]).reshape(4) for Q in (ctrl.Q_hold, ctrl.Q_edge, ctrl.Q_recover))
+        K_hold, K_edge, K_rec = (
+            np.asarray(control.dlqr(A_d, B_d, Q, ctrl.R_hold)[0]).reshape(4)
+            for Q in (ctrl.Q_hold, ctrl.Q_edge, ctrl.Q_recover)
+        )
         off = np.abs(row[XH][:2] - GOAL[:2]).max()
         if before == 2.0:
             theta = np.ascontiguousarray(np.asarray(model.kernel_params(), float).reshape(-1, 1))
-            region_says = traj.lqr_catches(row[XH], K_hold, GOAL, 10.0, 1, theta, 0.01, 2, ctrl.catch_steps, ctrl.catch_tol, ctrl.edge)
+            region_says = traj.lqr_catches(
+                row[XH], K_hold, GOAL, 10.0, 1, theta, 0.01, 2, ctrl.catch_steps, ctrl.catch_tol, ctrl.edge
+            )
             assert (row[PHASE] == 3.0) == (region_says and row[NIS] < NIS_LIMIT and off <= ctrl.hold_back)
         if row[PHASE] == 3.0 and law == "edge":
-            assert all(np.allclose(row[c], k, rtol=1e-9, atol=0) for c, k in ((KH_, K_hold), (KE_, K_edge), (KR_, K_rec)))
+            assert all(
+                np.allclose(row[c], k, rtol=1e-9, atol=0) for c, k in ((KH_, K_hold), (KE_, K_edge), (KR_, K_rec))
+            )
         elif row[PHASE] == 3.0:
             beta, a = B[0][2:, 0], (np.array([B[0][3, 0], -B[0][2, 0]]) @ A[0][2:, 0]) / B[0][3, 0]  # p'' = a p - g q_2
-            assert np.allclose(row[ZD_][:3], [beta[1], -beta[0], np.sqrt(a)], rtol=1e-9, atol=0) and row[ZD_.stop] == 0.0
+            assert (
+                np.allclose(row[ZD_][:3], [beta[1], -beta[0], np.sqrt(a)], rtol=1e-9, atol=0) and row[ZD_.stop] == 0.0
+            )
             assert np.allclose(row[KR_], K_rec, rtol=1e-9, atol=0)
-            assert row[MODE] == 2.0 and np.array_equal(ctrl.filter_noise(row[None])[0], ctrl.Q_w_hold) and off <= ctrl.hold_band
+            assert (
+                row[MODE] == 2.0
+                and np.array_equal(ctrl.filter_noise(row[None])[0], ctrl.Q_w_hold)
+                and off <= ctrl.hold_band
+            )
         phases.append(row[PHASE])
         obs, _, _, _, info = env.step(action)
     assert phases[0] == 2.0 and phases[-1] == 3.0
@@ -338,7 +411,12 @@ def test_holding_members_of_a_batch_act_as_each_alone():
     with noise, one of them pushed by torque noise, give in a batch exactly the actions and memories each gives alone."""
     envs = [gym.make("mbs_envs/Acrobot-v1", start_noise=0.0) for _ in range(2)]
     ctrl = PlannedSwingUp(envs[0], plan_time=10.0)
-    obs = np.stack([env.reset(options={"q": GOAL[:2] + dq, "v": np.zeros(2)})[0] for env, dq in zip(envs, ([0.003, 0.0], [-0.002, 0.01]))])
+    obs = np.stack(
+        [
+            env.reset(options={"q": GOAL[:2] + dq, "v": np.zeros(2)})[0]
+            for env, dq in zip(envs, ([0.003, 0.0], [-0.002, 0.01]))
+        ]
+    )
     rng = np.random.default_rng(1)
     state, states, start, phases = None, [None, None], np.ones(2, bool), set()
     for k in range(150):
@@ -381,7 +459,12 @@ def test_the_hold_trusts_the_model_only_while_the_observations_agree_with_it(tor
     nis, phases, off = np.array(nis[100:]), np.array(phases[100:]), np.array(off[100:])
     if torque_noise == 0.0:
         left, back = ((phases[1:] == b) & (phases[:-1] == a) for a, b in ((3.0, 4.0), (4.0, 3.0)))
-        assert 0.5 < nis.mean() < 2.0 and nis.max() < NIS_LIMIT and (phases == 3.0).mean() > 0.8 and set(phases) <= {3.0, 4.0}
+        assert (
+            0.5 < nis.mean() < 2.0
+            and nis.max() < NIS_LIMIT
+            and (phases == 3.0).mean() > 0.8
+            and set(phases) <= {3.0, 4.0}
+        )
         assert (off[1:][left] > ctrl.hold_band).all() and (off[1:][back] <= ctrl.hold_back).all()
     else:
         assert nis.min() > NIS_LIMIT and (phases == 2.0).all()
@@ -402,7 +485,9 @@ def test_a_holding_member_that_leaves_the_band_recovers_into_the_hold():
     rng = np.random.default_rng(0)
     state, start, phases, off = None, True, [], []
     for k in range(500):  # (here it leaves at 1.1 and 3.3 s)
-        action, state = ctrl.predict(obs + rng.normal(0.0, 0.01, obs.shape).astype(obs.dtype), state=state, episode_start=start)
+        action, state = ctrl.predict(
+            obs + rng.normal(0.0, 0.01, obs.shape).astype(obs.dtype), state=state, episode_start=start
+        )
         start = False
         phases.append(state[0][PHASE])
         off.append(np.abs(state[0][XH][:2] - GOAL[:2]).max())
@@ -420,7 +505,10 @@ def test_the_hold_pays_on_the_acrobot_and_not_on_the_pendubot():
     noise (no filter) the stage is off; ``hold`` set by hand overrides the rule."""
     from mbs_envs.controllers import region
 
-    acrobot, pendubot = PlannedSwingUp(gym.make("mbs_envs/Acrobot-v1"), hold_law="edge"), PlannedSwingUp(gym.make("mbs_envs/Pendubot-v1"))
+    acrobot, pendubot = (
+        PlannedSwingUp(gym.make("mbs_envs/Acrobot-v1"), hold_law="edge"),
+        PlannedSwingUp(gym.make("mbs_envs/Pendubot-v1")),
+    )
     assert acrobot.hold and not pendubot.hold
     assert hold_pays(acrobot, 0.1) and not hold_pays(pendubot, 0.1)
     assert not hold_pays(acrobot, 1.0)  # a tolerance both hold always: no gain
@@ -467,17 +555,55 @@ def test_a_batch_acts_as_each_member_alone():
     assert (state[0][:, SINCE] < state[0][:, CLOCK]).all()  # both tried to plan (at 0.5 s), each alike alone
 
 
-@pytest.mark.parametrize("kwargs", [{"plan_time": -1.0}, {"horizon": 0.0}, {"iterations": 1.5}, {"w_u": 0.0}, {"w_T": -1.0},
-                                    {"margin": 0.0}, {"margin": 1.5}, {"accept": 0.0}, {"funnel": np.nan}, {"drop": -0.3},
-                                    {"track_r": 0.0}, {"w_x": -1.0}, {"retry": np.inf}, {"plan_step": 0.0}, {"plan_step": np.nan},
-                                    {"plan_h": 0.0}, {"plan_h": -1.0}, {"hold": "yes"}, {"hold_q": (1.0, 1.0)}, {"hold_q": (1.0, -1.0, 1.0)},
-                                    {"hold_r": 0.0}, {"hold_noise": (1e-5, np.nan)}, {"hold_noise": 1e-5}, {"edge_q": (1.0, 0.0, 1.0)}, {"recover_q": (1.0, np.inf, 1.0)},
-                                    {"edge_q": 300.0}, {"edge": 0.0}, {"edge": np.inf}, {"edge_lead": -0.01}, {"hold_band": 0.0},
-                                    {"hold_back": 0.2}, {"hold_back": 0.0}, {"hold_law": "lqr"}, {"hold_rate": 0.0},
-                                    {"hold_reach": 0.2}, {"hold_reach": -0.05}, {"hold_omega": np.inf}, {"hold_omega": 0.0},
-                                    {"hold_rescue_reach": 0.05}, {"hold_rescue_reach": 0.5}, {"hold_trigger": 0.4}, {"hold_release": 0.0},
-                                    {"hold_release": 1.5},
-                                    {"hold": True, "obs_noise": 0.0}])
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"plan_time": -1.0},
+        {"horizon": 0.0},
+        {"iterations": 1.5},
+        {"w_u": 0.0},
+        {"w_T": -1.0},
+        {"margin": 0.0},
+        {"margin": 1.5},
+        {"accept": 0.0},
+        {"funnel": np.nan},
+        {"drop": -0.3},
+        {"track_r": 0.0},
+        {"w_x": -1.0},
+        {"retry": np.inf},
+        {"plan_step": 0.0},
+        {"plan_step": np.nan},
+        {"plan_h": 0.0},
+        {"plan_h": -1.0},
+        {"hold": "yes"},
+        {"hold_q": (1.0, 1.0)},
+        {"hold_q": (1.0, -1.0, 1.0)},
+        {"hold_r": 0.0},
+        {"hold_noise": (1e-5, np.nan)},
+        {"hold_noise": 1e-5},
+        {"edge_q": (1.0, 0.0, 1.0)},
+        {"recover_q": (1.0, np.inf, 1.0)},
+        {"edge_q": 300.0},
+        {"edge": 0.0},
+        {"edge": np.inf},
+        {"edge_lead": -0.01},
+        {"hold_band": 0.0},
+        {"hold_back": 0.2},
+        {"hold_back": 0.0},
+        {"hold_law": "lqr"},
+        {"hold_rate": 0.0},
+        {"hold_reach": 0.2},
+        {"hold_reach": -0.05},
+        {"hold_omega": np.inf},
+        {"hold_omega": 0.0},
+        {"hold_rescue_reach": 0.05},
+        {"hold_rescue_reach": 0.5},
+        {"hold_trigger": 0.4},
+        {"hold_release": 0.0},
+        {"hold_release": 1.5},
+        {"hold": True, "obs_noise": 0.0},
+    ],
+)
 def test_bad_settings_are_refused_by_name(kwargs):
     with pytest.raises(ValueError, match=next(iter(kwargs))):
         PlannedSwingUp(gym.make("mbs_envs/Acrobot-v1"), **kwargs)
@@ -542,7 +668,9 @@ def test_the_gains_of_a_plan_are_the_tvlqr_along_it_whichever_jacobians_they_cam
         Hn, _ = traj.refine(x0, U0.copy(), np.zeros((H + 1, 4)), np.zeros((H, 4)), GOAL, ctrl.S, ctrl.w_u, ctrl.W, ctrl.P_T, ctrl.Q,
                             ctrl.track_r, u_plan, driven, th, ctrl.dt, ctrl.substeps, iterations, traj.ALPHAS, U_out, X_out, K_out)  # fmt: skip
         assert Hn == H and np.array_equal(X_out, X)
-        assert np.array_equal(K_out, traj.tvlqr(X_out, U_out, ctrl.Q, ctrl.track_r, ctrl.S, driven, th, ctrl.dt, ctrl.substeps))
+        assert np.array_equal(
+            K_out, traj.tvlqr(X_out, U_out, ctrl.Q, ctrl.track_r, ctrl.S, driven, th, ctrl.dt, ctrl.substeps)
+        )
         if current:  # the Jacobians handed back are those along the result
             A2, b2 = np.empty_like(A), np.empty_like(b)
             traj.jacobians(X, U_out, driven, th, ctrl.dt, ctrl.substeps, A2, b2)
@@ -560,7 +688,9 @@ def test_members_plan_on_threads_with_the_same_result(monkeypatch):
     n = 3
     out, together = {}, []
     thread_map = planned_swingup.thread_map
-    monkeypatch.setattr(planned_swingup, "thread_map", lambda f, items: together.append(len(items)) or thread_map(f, items))
+    monkeypatch.setattr(
+        planned_swingup, "thread_map", lambda f, items: together.append(len(items)) or thread_map(f, items)
+    )
     for threads in ("1", "3"):
         monkeypatch.setenv("MBS_ENVS_PLAN_THREADS", threads)
         venv = gym.make_vec("mbs_envs/Acrobot-v1", num_envs=n, vectorization_mode="vector_entry_point")
@@ -588,8 +718,10 @@ def _lane_states(rng, L):
     return X
 
 
-@pytest.mark.parametrize("env_id, params", [("mbs_envs/Acrobot-v1", {"b1": 0.05, "b2": 0.02}),
-                                            ("mbs_envs/Pendubot-v1", {"f1": 0.1, "f2": 0.05, "b1": 0.01})])
+@pytest.mark.parametrize(
+    "env_id, params",
+    [("mbs_envs/Acrobot-v1", {"b1": 0.05, "b2": 0.02}), ("mbs_envs/Pendubot-v1", {"f1": 0.1, "f2": 0.05, "b1": 0.01})],
+)
 def test_one_lane_is_that_lane_of_many_and_the_map_to_round_off(env_id, params):
     """The planner's map on lanes: every lane of a batch of 37 (a vector width's remainder) has the bits of the same
     state stepped alone, with angles beyond the fast sine's and wrap's ranges, a NaN lane, viscous friction only

@@ -14,12 +14,16 @@ REAL_DTYPES = ["<f2", ">f2", "<f4", ">f4", "<f8", ">f8", "i1", ">i2", "<i4", ">i
 
 
 @settings(max_examples=40, deadline=None)
-@given(dtype=st.sampled_from(REAL_DTYPES), values=st.lists(st.floats(-3, 3), min_size=2, max_size=2), vector=st.booleans())
+@given(
+    dtype=st.sampled_from(REAL_DTYPES), values=st.lists(st.floats(-3, 3), min_size=2, max_size=2), vector=st.booleans()
+)
 def test_real_dtypes_and_byte_orders_step_like_float64(dtype, values, vector):
     a = np.array(values).astype(dtype)
     a64 = a.astype(np.float64)
     if vector:
-        envs = [gym.make_vec("mbs_envs/Planar2R-v0", num_envs=2, vectorization_mode="vector_entry_point") for _ in range(2)]
+        envs = [
+            gym.make_vec("mbs_envs/Planar2R-v0", num_envs=2, vectorization_mode="vector_entry_point") for _ in range(2)
+        ]
         a, a64 = np.stack([a, a]), np.stack([a64, a64])
     else:
         envs = [gym.make("mbs_envs/Planar2R-v0") for _ in range(2)]

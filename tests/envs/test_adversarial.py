@@ -42,14 +42,34 @@ def _report_case_counts(request):
     """After the module: how many generated cases each class ran (visible with ``-s``)."""
     yield
     print("\ngenerated adversarial cases:", dict(CASES))
+
+
 IDS = list(mbs_envs.ENV_IDS)
 #: the joint-tracking scenes (start_noise, reward_weights and compiled are their keywords)
 TRACKING_IDS = [i for i in IDS if i != "mbs_envs/RollingDisk-v0"]
 
 #: values a user may pass by mistake, beyond the documented types and ranges
 WILD = st.one_of(
-    st.sampled_from(["0.01", "x", "", b"1", None, True, False, 1j, [1, 2], (0.1,), {"a": 1}, {1, 2}, object(),
-                     np.datetime64("2020-01-01"), np.array([np.nan]), np.array("1.0")]),  # fmt: skip
+    st.sampled_from(
+        [
+            "0.01",
+            "x",
+            "",
+            b"1",
+            None,
+            True,
+            False,
+            1j,
+            [1, 2],
+            (0.1,),
+            {"a": 1},
+            {1, 2},
+            object(),
+            np.datetime64("2020-01-01"),
+            np.array([np.nan]),
+            np.array("1.0"),
+        ]
+    ),  # fmt: skip
     st.floats(allow_nan=True, allow_infinity=True),
     st.integers(-(10**20), 10**20),
     st.lists(st.floats(-1e3, 1e3), min_size=0, max_size=4),
@@ -82,12 +102,19 @@ def test_constructor_keywords_give_a_working_env_or_a_value_error(pair, value):
         env = gym.make(env_id, **{key: value}, disable_env_checker=True)
     except ValueError as err:
         message = str(err)
-        assert key in message or key in ("params", "integrator", "rtol", "stabilization", "compiled") or "params" in message, message
+        assert (
+            key in message
+            or key in ("params", "integrator", "rtol", "stabilization", "compiled")
+            or "params" in message
+        ), message
         return
     _usable(env)
 
 
-@pytest.mark.parametrize("dt", [5e-324, pytest.param(2.2250738585e-313, marks=pytest.mark.slow), pytest.param(1e-300, marks=pytest.mark.slow)])
+@pytest.mark.parametrize(
+    "dt",
+    [5e-324, pytest.param(2.2250738585e-313, marks=pytest.mark.slow), pytest.param(1e-300, marks=pytest.mark.slow)],
+)
 def test_every_scene_takes_a_subnormal_or_tiny_dt(dt):
     """Found by the test above in two runs (1 / dt overflowed render_fps, and the disk's trail length):
     a valid dt this small builds, resets and steps every scene (deterministic here)."""
@@ -95,7 +122,14 @@ def test_every_scene_takes_a_subnormal_or_tiny_dt(dt):
         _usable(gym.make(env_id, dt=dt, disable_env_checker=True))
 
 
-SETTABLE = {"dt": WILD, "substeps": WILD, "start_noise": WILD, "reward_weights": WILD, "divergence_limit": WILD, "u_max": WILD}
+SETTABLE = {
+    "dt": WILD,
+    "substeps": WILD,
+    "start_noise": WILD,
+    "reward_weights": WILD,
+    "divergence_limit": WILD,
+    "u_max": WILD,
+}
 
 
 @settings(max_examples=examples(60), deadline=None, suppress_health_check=list(HealthCheck))
@@ -140,7 +174,9 @@ def _near_singular_states(env_id: str) -> st.SearchStrategy:
     """Start states around each scene's singular and beyond-limit configurations."""
     env = gym.make(env_id).unwrapped
     nq, nv = env.model.nq, env.model.nv
-    big = st.sampled_from([0.0, 1.0, -np.pi / 2, np.pi / 2, np.pi, 1e7, 1e8, 1e8 * (1 + 1e-15), 1e9, 1e300, np.nan, -np.inf])
+    big = st.sampled_from(
+        [0.0, 1.0, -np.pi / 2, np.pi / 2, np.pi, 1e7, 1e8, 1e8 * (1 + 1e-15), 1e9, 1e300, np.nan, -np.inf]
+    )
     small = st.floats(-4, 4)
     entry = st.one_of(small, big)
     q = st.lists(entry, min_size=nq, max_size=nq)
@@ -286,7 +322,9 @@ def test_fourbar_whose_crank_cannot_turn_is_refused_at_construction():
         gym.make("mbs_envs/FourBar-v0", params={"l1": 0.9})
 
 
-@pytest.mark.parametrize("kwargs, match", [({"divergence_limit": 1.0}, "divergence_limit"), ({"params": {"g": 1e300}}, "'g'")])
+@pytest.mark.parametrize(
+    "kwargs, match", [({"divergence_limit": 1.0}, "divergence_limit"), ({"params": {"g": 1e300}}, "'g'")]
+)
 @pytest.mark.parametrize("env_id", ["mbs_envs/Planar2R-v0", "mbs_envs/RollingDisk-v0"])
 def test_settings_that_would_start_outside_the_space_are_refused(env_id, kwargs, match):
     if "params" in kwargs and env_id.endswith("Planar2R-v0"):
@@ -306,7 +344,9 @@ def test_controllers_refuse_envs_they_do_not_fit():
         ComputedTorque(gym.make("mbs_envs/Planar2R-v0"), kp=np.nan)
 
 
-@pytest.mark.parametrize("env_id", ["mbs_envs/Planar2R-v0", "mbs_envs/FourBar-v0", "mbs_envs/RollingDisk-v0", "mbs_envs/SerialChain-v0"])
+@pytest.mark.parametrize(
+    "env_id", ["mbs_envs/Planar2R-v0", "mbs_envs/FourBar-v0", "mbs_envs/RollingDisk-v0", "mbs_envs/SerialChain-v0"]
+)
 def test_a_ready_params_instance_works_for_every_id(env_id):
     env = gym.make(env_id)
     params = env.unwrapped.model.params

@@ -37,7 +37,9 @@ def test_checkers_without_warnings(env_id):
     from gymnasium.utils.env_checker import check_env
     from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
-    envs = [gym.make(env_id).unwrapped for _ in range(2)]  # made outside: making a superseded version (v0) warns by design
+    envs = [
+        gym.make(env_id).unwrapped for _ in range(2)
+    ]  # made outside: making a superseded version (v0) warns by design
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         check_env(envs[0], skip_render_check=True)
@@ -95,7 +97,12 @@ def test_bad_actions_raise_and_lose_nothing(env_id):
     env.reset(seed=0)
     nu = env.action_space.shape[0]
     q, v, t = env.unwrapped.q, env.unwrapped.v, env.unwrapped.t
-    for bad, match in (([np.nan] * nu, "finite"), ([np.inf] + [0.0] * (nu - 1), "finite"), ([0.0] * (nu + 1), "shape"), ("left", "action must be real numbers")):
+    for bad, match in (
+        ([np.nan] * nu, "finite"),
+        ([np.inf] + [0.0] * (nu - 1), "finite"),
+        ([0.0] * (nu + 1), "shape"),
+        ("left", "action must be real numbers"),
+    ):
         with pytest.raises(ValueError, match=match):
             env.step(bad)
     np.testing.assert_array_equal(env.unwrapped.q, q)

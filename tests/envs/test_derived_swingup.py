@@ -82,7 +82,9 @@ def test_the_cart_poles_height_is_its_closed_form_and_observations_decode():
     q = rng.uniform(-2.4, 2.4, (500, 2)) * np.array([1.0, 3.0])
     v = rng.normal(size=(500, 2)) * 5
     info, obs, _ = task_rows(env.task_params, env.model, q, v, np.full(500, 0.5), np.zeros((500, 1)))
-    np.testing.assert_allclose(info[:, 1], np.cos(q[:, 1]), rtol=0, atol=1e-12)  # h = cos th: the pole's centre's height over l / 2
+    np.testing.assert_allclose(
+        info[:, 1], np.cos(q[:, 1]), rtol=0, atol=1e-12
+    )  # h = cos th: the pole's centre's height over l / 2
     dec = env.decode_observation(obs)
     np.testing.assert_allclose(np.cos(dec.q[:, 1] - q[:, 1]), 1.0, atol=1e-6)  # float32 observations
     np.testing.assert_allclose(dec.q[:, 0], q[:, 0], rtol=1e-6)
@@ -90,9 +92,17 @@ def test_the_cart_poles_height_is_its_closed_form_and_observations_decode():
     assert obs.shape == (500, 5) and env.observation_space.shape == (5,)
     p = env.model.params  # docs/physics.md §6c's closed forms
     c, sn = np.cos(q[:, 1]), np.sin(q[:, 1])
-    M = np.stack([np.stack([np.full(500, p.m0 + p.m), p.m * p.l / 2 * c], -1), np.stack([p.m * p.l / 2 * c, np.full(500, p.m * p.l**2 / 3)], -1)], -2)
+    M = np.stack(
+        [
+            np.stack([np.full(500, p.m0 + p.m), p.m * p.l / 2 * c], -1),
+            np.stack([p.m * p.l / 2 * c, np.full(500, p.m * p.l**2 / 3)], -1),
+        ],
+        -2,
+    )
     np.testing.assert_allclose(env.model.mass_matrix(q), M, rtol=1e-12, atol=1e-15)
-    h = np.stack([-p.m * p.l / 2 * sn * v[:, 1] ** 2 + p.b_x * v[:, 0], -p.m * p.g * p.l / 2 * sn + p.b_th * v[:, 1]], -1)
+    h = np.stack(
+        [-p.m * p.l / 2 * sn * v[:, 1] ** 2 + p.b_x * v[:, 0], -p.m * p.g * p.l / 2 * sn + p.b_th * v[:, 1]], -1
+    )
     np.testing.assert_allclose(env.model.bias(q, v), h, rtol=1e-12, atol=1e-12)
 
 
@@ -128,7 +138,9 @@ def test_running_off_the_rail_terminates_and_costs_at_least_what_staying_on_it_c
     act = np.concatenate([np.ones((4, 1)), rng.uniform(-1, 1, (5000, 1))])
     rows, _, out = task_rows(p, envs[0].unwrapped.model, q, np.zeros_like(q), np.full(len(q), 0.5), act)
     assert not out.any() and np.all(rows[:, 0] >= -p.step_loss - 1e-12)
-    assert rows[:4, 0].min() >= -p.step_loss - 1e-12 and rows[0, 0] <= -p.step_loss + 0.05  # the bound is nearly attained
+    assert (
+        rows[:4, 0].min() >= -p.step_loss - 1e-12 and rows[0, 0] <= -p.step_loss + 0.05
+    )  # the bound is nearly attained
 
 
 def test_bad_swing_up_settings_are_refused_by_name(derived_acrobot):
@@ -143,7 +155,12 @@ def test_bad_swing_up_settings_are_refused_by_name(derived_acrobot):
     with pytest.raises(ValueError, match="more potential energy than hanging"):
         DerivedSwingUpEnv(model, **{**kw, "upright": [0.0, np.pi], "hanging": [0.0, 0.0]}, angles=[th])
     with pytest.raises(ValueError, match="underactuated"):
-        DerivedSwingUpEnv(gym.make("mbs_envs/CartDoublePendulum-v0").unwrapped.model, torque_limit=1.0, upright=[0, 0, 0], hanging=[0, np.pi, 0])
+        DerivedSwingUpEnv(
+            gym.make("mbs_envs/CartDoublePendulum-v0").unwrapped.model,
+            torque_limit=1.0,
+            upright=[0, 0, 0],
+            hanging=[0, np.pi, 0],
+        )
     with pytest.raises(ValueError, match="task must be one of"):
         derived_env.register("mbs_envs_test/Bad-v0", model, task="balance", torque_limit=1.0)
     with pytest.raises(ValueError, match="start_noise = 3 reaches beyond bounds of coordinate 0"):
@@ -194,7 +211,9 @@ def test_the_pumping_law_drives_the_poles_energy_to_upright():
     rate = (E_p(q + h * v, v + h * a) - E_p(q - h * v, v - h * a)) / (2 * h)
     M = model.mass_matrix(q)
     expected = -50.0 * (E_p(q, v) - c.E_up) * (M[:, 0, 1] * v[:, 1]) ** 2
-    np.testing.assert_allclose(rate, expected, rtol=1e-6, atol=1e-7)  # central differences: O(h^2) and 1e-10 / h round-off
+    np.testing.assert_allclose(
+        rate, expected, rtol=1e-6, atol=1e-7
+    )  # central differences: O(h^2) and 1e-10 / h round-off
     sat = EnergySwingUpLQR(env, k_q=0.0, k_v=0.0, k_E=50.0, a_max=2.0)  # saturated: the same sign, the pump bounded
     a = model.forward_dynamics(q, v, sat.swing_up(q, v)[:, None])
     rate = (E_p(q + h * v, v + h * a) - E_p(q - h * v, v - h * a)) / (2 * h)

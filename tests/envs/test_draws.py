@@ -51,7 +51,11 @@ def test_a_batch_of_references_is_its_members_drawn_one_by_one_with_numpys_metho
         g = np.random.default_rng(s)
         center, total = g.uniform(lo, hi), g.uniform(0.5, 1.0, size=2) * amp
         weights = g.dirichlet(np.ones(3), size=2)
-        omega, phase, rate = g.uniform(0.5, 3.0, size=(2, 3)), g.uniform(0.0, 2 * np.pi, size=(2, 3)), g.uniform(-1.0, 2.0, size=2)
+        omega, phase, rate = (
+            g.uniform(0.5, 3.0, size=(2, 3)),
+            g.uniform(0.0, 2 * np.pi, size=(2, 3)),
+            g.uniform(-1.0, 2.0, size=2),
+        )
         for got, want in zip((refs.center[s], refs.amplitude[s], refs.omega[s], refs.phase[s], refs.rate[s]),
                              (center, total[:, None] * weights, omega, phase, rate)):  # fmt: skip
             assert np.array_equal(got, want)

@@ -181,14 +181,20 @@ def vector_machine_for(env_id: str):
                 "seed float": lambda: env.reset(seed=1.5),
                 "seed list": lambda: env.reset(seed=[0, -1, 2]),
                 "reset_mask": lambda: env.reset(options={"reset_mask": [np.nan] * n}),
-                "action nan": lambda: env.step(np.where(env._autoreset[:, None], 0.0, np.nan) * np.ones((n, nu))
-                                               if not env._autoreset.all() else "x"),  # every member resetting: NaN would be ignored  # fmt: skip
+                "action nan": lambda: env.step(
+                    np.where(env._autoreset[:, None], 0.0, np.nan) * np.ones((n, nu))
+                    if not env._autoreset.all()
+                    else "x"
+                ),  # every member resetting: NaN would be ignored  # fmt: skip
                 "set_attr bad value": lambda: env.set_attr(name, value),
                 "set_attr not a setting": lambda: env.set_attr("max_episode_steps", 3),
                 "model": lambda: setattr(env, "model", None),
                 # a per-joint value as a list: one value per member by Gymnasium's rule, so refused where nu != n
-                "set_attr short list": lambda: (env.set_attr("u_max", [float(x) for x in env.env.u_max]) if nu != n
-                                                else env.set_attr("dt", [0.01] * (n - 1))),  # fmt: skip
+                "set_attr short list": lambda: (
+                    env.set_attr("u_max", [float(x) for x in env.env.u_max])
+                    if nu != n
+                    else env.set_attr("dt", [0.01] * (n - 1))
+                ),  # fmt: skip
                 "set_attr unequal list": lambda: env.set_attr("dt", [0.01] * (n - 1) + [0.02]),
             }
             try:
@@ -199,7 +205,11 @@ def vector_machine_for(env_id: str):
                 assert kind == "set_attr bad value", f"{kind} was accepted"
                 setattr(env.env, name, before[4][name])
                 return
-            assert np.array_equal(env._qc, before[0]) and np.array_equal(env._vc, before[1]) and np.array_equal(env._t, before[2])
+            assert (
+                np.array_equal(env._qc, before[0])
+                and np.array_equal(env._vc, before[1])
+                and np.array_equal(env._t, before[2])
+            )
             assert repr([g.bit_generator.state for g in env._rngs]) == before[3]
 
         @invariant()

@@ -40,7 +40,11 @@ def consistent(ahead) -> None:
     assert all((b is not None) == (s == READY) for b, s in zip(ahead.before, ahead.status))
 
 
-ops = st.lists(st.sampled_from(["step"] * 8 + ["seed", "mask", "seed mask", "options", "setting", "deepcopy", "pickle"]), min_size=10, max_size=60)
+ops = st.lists(
+    st.sampled_from(["step"] * 8 + ["seed", "mask", "seed mask", "options", "setting", "deepcopy", "pickle"]),
+    min_size=10,
+    max_size=60,
+)
 
 
 @pytest.mark.parametrize("env_id", IDS)
@@ -48,7 +52,9 @@ ops = st.lists(st.sampled_from(["step"] * 8 + ["seed", "mask", "seed mask", "opt
 @given(calls=ops, seed=st.integers(0, 2**31))
 def test_autoresets_from_starts_drawn_ahead_are_the_single_envs_resets(env_id, calls, seed):
     kw = KW.get(env_id, {})
-    venv = gym.make_vec(env_id, num_envs=N, vectorization_mode="vector_entry_point", max_episode_steps=EPISODE, **kw).unwrapped
+    venv = gym.make_vec(
+        env_id, num_envs=N, vectorization_mode="vector_entry_point", max_episode_steps=EPISODE, **kw
+    ).unwrapped
     singles = [gym.make(env_id, max_episode_steps=EPISODE, **kw) for _ in range(N)]
     rng = np.random.default_rng(seed)
     obs, _ = venv.reset(seed=seed)
@@ -153,7 +159,11 @@ def test_a_start_the_task_refuses_raises_at_the_same_step_as_without_drawing_ahe
         venv.reset(seed=1)
     q_first = [venv.q[:, 0].copy() for venv in envs]
     assert np.array_equal(*q_first)
-    threshold = float(np.quantile(np.concatenate([envs[0].env.sample_start({}, np.random.default_rng(s))[1][:1] for s in range(40)]), 0.8))
+    threshold = float(
+        np.quantile(
+            np.concatenate([envs[0].env.sample_start({}, np.random.default_rng(s))[1][:1] for s in range(40)]), 0.8
+        )
+    )
     for venv in envs:  # from now on, about a fifth of the starts are refused
         venv.env._check_start = refuse_when(threshold).__get__(venv.env)
     rng = np.random.default_rng(5)
@@ -190,7 +200,9 @@ def test_a_large_batch_draws_ahead_at_most_a_bounded_number_of_starts_per_call(m
 
     monkeypatch.setattr(StartsAhead, "MOST", 8)
     monkeypatch.setattr(StartsAhead, "BATCH", 4)
-    venv = gym.make_vec("mbs_envs/Acrobot-v1", num_envs=40, vectorization_mode="vector_entry_point", max_episode_steps=3).unwrapped
+    venv = gym.make_vec(
+        "mbs_envs/Acrobot-v1", num_envs=40, vectorization_mode="vector_entry_point", max_episode_steps=3
+    ).unwrapped
     venv.reset(seed=2)
     ahead = venv._ahead
     assert ahead.ready(venv, np.array([33])).all()  # needed, and 7 others
@@ -214,7 +226,9 @@ def test_a_large_batch_draws_ahead_at_most_a_bounded_number_of_starts_per_call(m
         consistent(ahead)
 
 
-@pytest.mark.parametrize("kw", [{"randomize": {"m2": 0.3, "l1": 0.2}}, {"member_params": [{"m2": 0.8 + 0.1 * i} for i in range(6)]}])
+@pytest.mark.parametrize(
+    "kw", [{"randomize": {"m2": 0.3, "l1": 0.2}}, {"member_params": [{"m2": 0.8 + 0.1 * i} for i in range(6)]}]
+)
 def test_randomized_members_draw_their_parameters_ahead_with_their_starts(kw):
     """Domain randomization draws each member's parameters first at a reset (its start may depend on them): drawn
     ahead, the parameters come with the start, and the run equals the one that draws at the autoreset."""

@@ -43,13 +43,20 @@ def test_deterministic_axes_give_the_sweeps_episodes_bit_for_bit():
         seen, *_ = env.step(policy.predict(seen)[0])
     q, v = env.unwrapped.q, env.unwrapped.v
     lag = np.where([a == "torque response" for a in axes], env.value, 1.0)
-    ref = run(plain(n), Feedback(), list(range(n)), Perturbation(response=lag, delay=env.delay.copy(), pulses=env.pulses.copy()))
+    ref = run(
+        plain(n),
+        Feedback(),
+        list(range(n)),
+        Perturbation(response=lag, delay=env.delay.copy(), pulses=env.pulses.copy()),
+    )
     np.testing.assert_array_equal(q, ref["q"])
     np.testing.assert_array_equal(v, ref["v"])
     nominal = run(plain(n), Feedback(), list(range(n)), Perturbation())
     for i, a in enumerate(axes):
         assert (a == "nominal") == np.array_equal(q[i], nominal["q"][i]), (i, a)
-    assert (env.delay[[a == "time delay" for a in axes]] >= 2).all() and (env.delay[[a != "time delay" for a in axes]] == 0).all()
+    assert (env.delay[[a == "time delay" for a in axes]] >= 2).all() and (
+        env.delay[[a != "time delay" for a in axes]] == 0
+    ).all()
 
 
 def test_noise_reaches_only_its_entries_and_has_its_spread():
@@ -67,12 +74,16 @@ def test_noise_reaches_only_its_entries_and_has_its_spread():
     d = np.array(diffs)  # (steps, n, 6)
     assert (d[:, :, :4] == 0).all() and (d[:, ~noisy_obs] == 0).all()
     sd = d[:, noisy_obs][:, :, 4:].std()
-    assert abs(sd - 0.3) < 0.3 * 5 / np.sqrt(d[:, noisy_obs][:, :, 4:].size)  # 5 standard errors of a std estimate (~1/sqrt(2N))
+    assert abs(sd - 0.3) < 0.3 * 5 / np.sqrt(
+        d[:, noisy_obs][:, :, 4:].size
+    )  # 5 standard errors of a std estimate (~1/sqrt(2N))
 
 
 def test_a_member_reset_by_mask_draws_afresh_and_the_others_keep_theirs():
     n = 12
-    env = PerturbedVectorEnv(plain(n, 20), TrainingPerturbations(torque_response=(0.1, 2.0), time_delay=(0.0, 0.04)), seed=1)
+    env = PerturbedVectorEnv(
+        plain(n, 20), TrainingPerturbations(torque_response=(0.1, 2.0), time_delay=(0.0, 0.04)), seed=1
+    )
     env.reset(seed=list(range(n)))
     for _ in range(5):
         env.step(np.full((n, 1), 0.2, np.float32))
@@ -127,7 +138,9 @@ def test_bad_ranges_are_refused_by_name(spec, culprit):
 
 def test_refusals_leave_the_env_and_its_generator_as_they_were():
     with pytest.raises(ValueError, match="Disabled"):
-        PerturbedVectorEnv(gym.make_vec(ENV, num_envs=2, vectorization_mode="vector_entry_point", preset="dfki_c1"), "dfki")
+        PerturbedVectorEnv(
+            gym.make_vec(ENV, num_envs=2, vectorization_mode="vector_entry_point", preset="dfki_c1"), "dfki"
+        )
     with pytest.raises(ValueError, match="noise_index"):
         PerturbedVectorEnv(plain(2), {"velocity_noise": (0, 1), "noise_index": (6,)})
     with pytest.raises(ValueError, match="pulses"):  # the benchmark's six pulses 1 s apart need 7 s
@@ -135,7 +148,14 @@ def test_refusals_leave_the_env_and_its_generator_as_they_were():
     env = PerturbedVectorEnv(plain(4, 3500), TrainingPerturbations.dfki(), seed=0)
     env.reset(seed=[0, 1, 2, 3])
     env.step(np.full((4, 1), 0.1, np.float32))
-    state = (env.rng.bit_generator.state, env.k.copy(), env.applied.copy(), env.unwrapped.q, env.unwrapped.v, env.history.copy())
+    state = (
+        env.rng.bit_generator.state,
+        env.k.copy(),
+        env.applied.copy(),
+        env.unwrapped.q,
+        env.unwrapped.v,
+        env.history.copy(),
+    )
     for bad in (np.full((4, 1), np.nan, np.float32), np.zeros((3, 1), np.float32), np.zeros((4, 2))):
         with pytest.raises(ValueError, match="actions"):
             env.step(bad)
@@ -154,7 +174,9 @@ def test_sb3_trains_behind_it_and_config_records_the_ranges(tmp_path):
 
     short = {**TrainingPerturbations.dfki().as_dict(), "pulses": SHORT_PULSES}
     for k in (1, 10):
-        venv = make_sb3_vec_env(ENV, n_envs=4, seed=0, action_repeat=k, perturb=short, preset="dfki_c1", max_episode_steps=80)
+        venv = make_sb3_vec_env(
+            ENV, n_envs=4, seed=0, action_repeat=k, perturb=short, preset="dfki_c1", max_episode_steps=80
+        )
         venv.reset()
         ends = 0
         for _ in range(170 // k + 2):

@@ -25,7 +25,9 @@ def test_conversion_reproduces_their_mass_matrix():
     # their potential (presets' docstring convention: y up, origin at the shoulder)
     qd = q + presets.ANGLE_OFFSET
     p = theirs
-    V_theirs = -p.g * (p.m1 * p.r1 * np.cos(qd[:, 0]) + p.m2 * (p.l1 * np.cos(qd[:, 0]) + p.r2 * np.cos(qd[:, 0] + qd[:, 1])))
+    V_theirs = -p.g * (
+        p.m1 * p.r1 * np.cos(qd[:, 0]) + p.m2 * (p.l1 * np.cos(qd[:, 0]) + p.r2 * np.cos(qd[:, 0] + qd[:, 1]))
+    )
     dV = model.potential_energy(q) - V_theirs
     np.testing.assert_allclose(dV, dV[0], atol=1e-12)
 

@@ -117,7 +117,11 @@ def test_1_the_model_cannot_be_swapped_by_any_route(env_id):
        seed=st.integers(0, 2**31))  # fmt: skip
 def test_2_copies_of_a_vector_env_mid_episode_step_as_the_original(env_id, compiled, steps, how, seed):
     CASES["2 vector copies"] += 1
-    v = make_vec(env_id, compiled=compiled, max_episode_steps=5) if env_id != "mbs_envs/RollingDisk-v0" else make_vec(env_id, max_episode_steps=5)
+    v = (
+        make_vec(env_id, compiled=compiled, max_episode_steps=5)
+        if env_id != "mbs_envs/RollingDisk-v0"
+        else make_vec(env_id, max_episode_steps=5)
+    )
     v.reset(seed=seed)
     rng = np.random.default_rng(seed)
     for _ in range(steps):
@@ -179,7 +183,11 @@ def test_3_a_vector_seed_list_with_one_bad_seed_reseeds_no_member(env_id):
 # -- 4. one seed rule ----------------------------------------------------------------------------
 
 BAD_SEEDS = st.one_of(
-    st.floats(allow_nan=True), st.integers(max_value=-1), st.text(max_size=3), st.booleans(), st.just(2**128),
+    st.floats(allow_nan=True),
+    st.integers(max_value=-1),
+    st.text(max_size=3),
+    st.booleans(),
+    st.just(2**128),
     st.sampled_from([np.float64(1.0), np.bool_(True), 1j, b"1", object()]),
 )
 
@@ -291,7 +299,13 @@ def test_7_every_setting_is_validated_by_every_route(env_id):
     for name in names:
         for value in WILD:
             for route in ("attribute", "vector set_attr", "sb3 set_attr"):
-                env = single if route == "attribute" else venv.unwrapped.env if route == "vector set_attr" else sb3.venv.venv.env
+                env = (
+                    single
+                    if route == "attribute"
+                    else venv.unwrapped.env
+                    if route == "vector set_attr"
+                    else sb3.venv.venv.env
+                )
                 before = copy.deepcopy(getattr(env, name))
                 try:
                     if route == "attribute":
@@ -303,7 +317,9 @@ def test_7_every_setting_is_validated_by_every_route(env_id):
                 except ValueError:
                     CASES["7 refused settings"] += 1
                     after = getattr(env, name)
-                    assert type(after) is type(before) and np.array_equal(np.asarray(after, dtype=object), np.asarray(before, dtype=object))
+                    assert type(after) is type(before) and np.array_equal(
+                        np.asarray(after, dtype=object), np.asarray(before, dtype=object)
+                    )
                     continue
                 CASES["7 accepted settings"] += 1
                 setattr(env, name, before)  # accepted: a valid value (e.g. 1e300 for a limit); put it back
@@ -314,7 +330,17 @@ def test_7_every_setting_is_validated_by_every_route(env_id):
                 CASES["7 read-only arrays"] += 1
                 with pytest.raises(ValueError, match="read-only"):
                     value[...] = -40.0
-    for name in ("max_episode_steps", "n_links", "dtt", "model", "divergence_limit", "integrator", "_q", "np_random", 3):
+    for name in (
+        "max_episode_steps",
+        "n_links",
+        "dtt",
+        "model",
+        "divergence_limit",
+        "integrator",
+        "_q",
+        "np_random",
+        3,
+    ):
         CASES["7 names that are not settings"] += 1
         with pytest.raises(ValueError):
             venv.unwrapped.set_attr(name, 5)
@@ -458,7 +484,9 @@ def test_the_adversarial_soak_is_clean_now_and_finds_a_refusal_that_reseeds(monk
 
     clean = adversarial_soak("mbs_envs/Planar2R-v0", rounds=80, seed=1)
     assert clean["refused"] > 10
-    assert clean["accepted_bad"] == clean["changed_by_refusal"] == clean["disagreements"] == clean["other_exceptions"] == 0
+    assert (
+        clean["accepted_bad"] == clean["changed_by_refusal"] == clean["disagreements"] == clean["other_exceptions"] == 0
+    )
     original = MBSVectorEnv._member_generators
 
     def reseeds_first(self, seed):  # class 3 as it was: members reseeded before the seeds were all checked

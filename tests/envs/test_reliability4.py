@@ -184,7 +184,9 @@ def test_script_arguments_are_refused_before_any_work(tmp_path, capsys, script, 
 # -- 10. controllers name what they refuse --------------------------------------------------------------------
 
 
-CONTROLLERS = [(s.id, dict(s.kwargs), name, spec) for s in registry.SCENES if s.compared for name, spec in s.controllers.items()]
+CONTROLLERS = [
+    (s.id, dict(s.kwargs), name, spec) for s in registry.SCENES if s.compared for name, spec in s.controllers.items()
+]
 
 
 @pytest.mark.parametrize("env_id, kwargs, name, spec", CONTROLLERS, ids=[f"{c[0]}-{c[2]}" for c in CONTROLLERS])
@@ -220,8 +222,12 @@ def test_a_user_input_cannot_write_into_the_integrators_state(integrator):
 
     with pytest.raises(ValueError, match="read-only"):
         simulate(model, [-1.0, 0.5], [0.0, 0.0], 0.05, dt=1e-2, integrator=integrator, u=writes)
-    reads = simulate(model, [-1.0, 0.5], [0.0, 0.0], 0.05, dt=1e-2, integrator=integrator, u=lambda t, q, v: model.gravity(q))
-    held = simulate(model, [-1.0, 0.5], [0.0, 0.0], 0.05, dt=1e-2, integrator=integrator, u=lambda t, q, v: model.gravity(q.copy()))
+    reads = simulate(
+        model, [-1.0, 0.5], [0.0, 0.0], 0.05, dt=1e-2, integrator=integrator, u=lambda t, q, v: model.gravity(q)
+    )
+    held = simulate(
+        model, [-1.0, 0.5], [0.0, 0.0], 0.05, dt=1e-2, integrator=integrator, u=lambda t, q, v: model.gravity(q.copy())
+    )
     assert np.array_equal(reads.q, held.q)
 
 

@@ -78,7 +78,9 @@ def test_the_disk_shows_its_lean_heading_and_spin():
     q, v = model.rolling_state(lean=1.0, dspin=10.0)
     env.reset(seed=0, options={"q": q, "v": v})
     fallen = env.render()
-    red_text = np.count_nonzero((fallen[..., 0] > 150) & (fallen[..., 1] < 60) & (fallen[..., 2] < 60) & (np.arange(500)[:, None] < 90))
+    red_text = np.count_nonzero(
+        (fallen[..., 0] > 150) & (fallen[..., 1] < 60) & (fallen[..., 2] < 60) & (np.arange(500)[:, None] < 90)
+    )
     assert red_text > 20
     env.close()
 
@@ -91,7 +93,9 @@ def test_the_contact_path_is_traced_behind_the_disk():
         env.step(np.zeros(2, np.float32))
     path = env.unwrapped.trail()
     assert path.shape == (101, 3) and np.ptp(path[:, :2], axis=0).max() > 0.1  # it rolled away
-    np.testing.assert_allclose(path[-1], env.unwrapped.q[:3] + env.unwrapped.model.contact_offset(env.unwrapped.q), atol=1e-12)
+    np.testing.assert_allclose(
+        path[-1], env.unwrapped.q[:3] + env.unwrapped.model.contact_offset(env.unwrapped.q), atol=1e-12
+    )
     env.close()
 
 
@@ -109,7 +113,9 @@ def test_a_100_link_chain_stays_legible():
 
 
 def test_vector_render_gives_captioned_frames_per_member():
-    venv = gym.make_vec("mbs_envs/Acrobot-v0", num_envs=2, vectorization_mode="vector_entry_point", render_mode="rgb_array")
+    venv = gym.make_vec(
+        "mbs_envs/Acrobot-v0", num_envs=2, vectorization_mode="vector_entry_point", render_mode="rgb_array"
+    )
     venv.reset(seed=[0, 1])
     frames = venv.render()
     assert len(frames) == 2 and all(f.shape == (500, 500, 3) for f in frames)
@@ -177,7 +183,11 @@ def test_rendering_without_display_or_sound_card_prints_nothing_alarming():
     import sys
 
     pytest.importorskip("pygame", reason="pygame (the render extra) is not installed")
-    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "SDL_VIDEODRIVER", "SDL_AUDIODRIVER", "XDG_RUNTIME_DIR")}
+    env = {
+        k: v
+        for k, v in os.environ.items()
+        if k not in ("DISPLAY", "SDL_VIDEODRIVER", "SDL_AUDIODRIVER", "XDG_RUNTIME_DIR")
+    }
     code = ("import gymnasium as gym, mbs_envs\n"
             "e = gym.make('mbs_envs/Planar2R-v0', render_mode='rgb_array'); e.reset(seed=0); print(e.render().shape)")  # fmt: skip
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)

@@ -69,7 +69,10 @@ def test_bad_spin_ref_option():
         gym.make(ENV_ID).reset(seed=0, options={"spin_ref": np.nan})
 
 
-@pytest.mark.parametrize("kwargs, match", [({"lean_limit": 2.0}, "lean_limit"), ({"stabilization": "x"}, "stabilization"), ({"params": {"r": 0.0}}, "r")])
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [({"lean_limit": 2.0}, "lean_limit"), ({"stabilization": "x"}, "stabilization"), ({"params": {"r": 0.0}}, "r")],
+)
 def test_bad_construction(kwargs, match):
     with pytest.raises(ValueError, match=match):
         gym.make(ENV_ID, **kwargs)

@@ -36,7 +36,9 @@ def test_default_drives_hold_the_horizontal_chain_and_have_armature():
     assert np.all(env2.model.params.armature == 0) and np.all(env2.u_max == 2.0)
 
 
-@pytest.mark.parametrize("params, match", [({"n_links": 3}, "n_links"), ({"m": -1.0}, "'m'"), ({"armature": np.nan}, "armature")])
+@pytest.mark.parametrize(
+    "params, match", [({"n_links": 3}, "n_links"), ({"m": -1.0}, "'m'"), ({"armature": np.nan}, "armature")]
+)
 def test_bad_construction_raises(params, match):
     with pytest.raises(ValueError, match=match):
         gym.make(ENV_ID, n_links=4, params=params)

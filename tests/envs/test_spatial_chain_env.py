@@ -50,12 +50,18 @@ def test_drives_bound_every_gravity_torque_and_equal_the_planar_holding_torque()
     offset = np.zeros((n, 3))
     offset[1:, 0] = l[:-1]
     spatial = SpatialChain(n_links=n, m=m, l=l, axis=axis, offset=offset, g_vec=(0.0, -9.81, 0.0))
-    np.testing.assert_allclose(reach_gravity_torque(spatial), SerialChainEnv.horizontal_gravity_torque(planar), rtol=1e-13)
+    np.testing.assert_allclose(
+        reach_gravity_torque(spatial), SerialChainEnv.horizontal_gravity_torque(planar), rtol=1e-13
+    )
     env = gym.make(ENV_ID, n_links=n).unwrapped
     bare = SpatialChain(n_links=n)
     np.testing.assert_allclose(env.u_max, reach_gravity_torque(bare), rtol=1e-14)
-    np.testing.assert_allclose(env.model.params.armature, reach_gravity_torque(bare) / SpatialChainEnv.rotor_acceleration, rtol=1e-14)
-    assert env.u_max[0] == pytest.approx(9.81 * 0.5, rel=1e-12)  # the base carries the 1 kg, 1 m chain at half its length
+    np.testing.assert_allclose(
+        env.model.params.armature, reach_gravity_torque(bare) / SpatialChainEnv.rotor_acceleration, rtol=1e-14
+    )
+    assert env.u_max[0] == pytest.approx(
+        9.81 * 0.5, rel=1e-12
+    )  # the base carries the 1 kg, 1 m chain at half its length
 
 
 @pytest.mark.parametrize("n", [1, 2, 10])

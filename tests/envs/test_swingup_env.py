@@ -97,7 +97,9 @@ def test_swing_up_controller_reaches_upright_at_the_nominal_plant(env_id, at_lea
     wins = [m for m, failed in scored if not failed]
     assert len(wins) >= at_least
     for m in wins:
-        assert 0 < m["time_to_swing_up"] <= 13 and m["energy_used"] > 39.0  # 13 s: the last 2 s of 15 are upright  # at least the 39.2 J from hanging to upright
+        assert (
+            0 < m["time_to_swing_up"] <= 13 and m["energy_used"] > 39.0
+        )  # 13 s: the last 2 s of 15 are upright  # at least the 39.2 J from hanging to upright
 
 
 def test_swing_up_controller_balances_from_near_upright_with_lqr():
@@ -131,7 +133,9 @@ def test_second_tuning_stage_refines_the_lqr_weight_and_catch_around_a_pick():
     best, rows = tuning.tune("Acrobot", "swing-up + LQR", n_seeds=1, start=start, max_episode_steps=20)
     assert len(rows) == len(tuning.swing_up_refine_grid(start)) and {r["stage"] for r in rows} == {2}
     assert {**start, "lqr_r": 1.0} in [r["entry"] for r in rows]  # the first stage's pick is a candidate
-    assert all({k: r["entry"][k] for k in ("k_q", "k_v", "k_E")} == {k: start[k] for k in ("k_q", "k_v", "k_E")} for r in rows)
+    assert all(
+        {k: r["entry"][k] for k in ("k_q", "k_v", "k_E")} == {k: start[k] for k in ("k_q", "k_v", "k_E")} for r in rows
+    )
     grid = tuning.GRIDS["swing-up + LQR"]() + tuning.swing_up_refine_grid(start)
     assert set(tuning.at_grid_edge({**start, "lqr_r": 1e6}, grid)) == {"lqr_r"}  # settings of either stage
     chosen = next(r for r in rows if r["entry"] == best)
@@ -156,7 +160,9 @@ def test_swing_up_metrics_on_a_made_up_episode():
 
 
 def test_an_input_delay_applies_the_previous_action():
-    venv = gym.make_vec(IDS[0], num_envs=2, vectorization_mode="vector_entry_point", autoreset_mode="Disabled", max_episode_steps=3)
+    venv = gym.make_vec(
+        IDS[0], num_envs=2, vectorization_mode="vector_entry_point", autoreset_mode="Disabled", max_episode_steps=3
+    )
 
     class Ramp:
         k = 0

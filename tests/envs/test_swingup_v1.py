@@ -33,7 +33,9 @@ def test_holding_within_the_tolerance_pays_more_than_hovering_outside_it(env_id)
     old, _ = reward_at(env_id.replace("v1", "v0"), np.array([0.05, 0.0]), action=0.5)
     new, info = reward_at(env_id, np.array([0.05, 0.0]), action=0.5)
     assert new == pytest.approx(old + 1.0, abs=1e-12)
-    assert new == pytest.approx(info["reward_height"] + info["reward_upright"] + info["reward_effort"] + info["reward_hold"], abs=1e-12)
+    assert new == pytest.approx(
+        info["reward_height"] + info["reward_upright"] + info["reward_effort"] + info["reward_hold"], abs=1e-12
+    )
 
 
 @pytest.mark.parametrize("env_id", V1)

@@ -20,7 +20,9 @@ def test_tracking_task_functions_replay_a_planar2r_episode():
         rate_range=None, n_components=3, start_noise=0.1,
     )  # fmt: skip
     env = gym.make("mbs_envs/Planar2R-v0").unwrapped
-    assert all(np.array_equal(getattr(env.task_params, f), getattr(p, f)) for f in vars(p)), "the env holds these parameters"
+    assert all(np.array_equal(getattr(env.task_params, f), getattr(p, f)) for f in vars(p)), (
+        "the env holds these parameters"
+    )
     obs, _ = env.reset(seed=4)
     rng = np.random.default_rng(4)  # what reset(seed=4) seeds
     refs = tracking.sample(p, [rng])  # a batch of one member, drawn from its generator
@@ -39,7 +41,9 @@ def test_tracking_task_functions_replay_a_planar2r_episode():
 
 
 def test_swing_up_task_functions_replay_an_acrobot_episode():
-    p = swingup.SwingUpTaskParams(weights=np.array([1.0, 0.05, 0.01]), u_max=np.array([10.0]), driven=1, tolerance=0.1, start_noise=0.1)
+    p = swingup.SwingUpTaskParams(
+        weights=np.array([1.0, 0.05, 0.01]), u_max=np.array([10.0]), driven=1, tolerance=0.1, start_noise=0.1
+    )
     env = gym.make("mbs_envs/Acrobot-v0").unwrapped
     obs, _ = env.reset(seed=2)
     q, v = (x[0] for x in swingup.start(p, [np.random.default_rng(2)]))

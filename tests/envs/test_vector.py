@@ -18,7 +18,14 @@ EPISODE = 40  # short episodes, so 200 steps include several autoresets per memb
 
 def make_pair(env_id, n, mode=AutoresetMode.NEXT_STEP, **kw):
     kw = {**SMALL.get(env_id, {}), **kw}
-    venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", max_episode_steps=EPISODE, autoreset_mode=mode, **kw)
+    venv = gym.make_vec(
+        env_id,
+        num_envs=n,
+        vectorization_mode="vector_entry_point",
+        max_episode_steps=EPISODE,
+        autoreset_mode=mode,
+        **kw,
+    )
     singles = [gym.make(env_id, max_episode_steps=EPISODE, **kw) for _ in range(n)]
     return venv, singles
 
@@ -30,7 +37,9 @@ def test_vector_env_equals_single_envs_over_200_steps_with_autoresets(env_id):
     assert isinstance(venv.unwrapped, MBSVectorEnv)
     assert venv.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
     obs, _ = venv.reset(seed=11)
-    np.testing.assert_allclose(obs, np.stack([e.reset(seed=11 + i)[0] for i, e in enumerate(singles)]), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(
+        obs, np.stack([e.reset(seed=11 + i)[0] for i, e in enumerate(singles)]), rtol=0, atol=1e-12
+    )
     rng = np.random.default_rng(0)
     done = np.zeros(n, bool)
     resets = 0
@@ -141,7 +150,9 @@ def test_domain_randomization_draws_members_parameters_from_their_seeds():
     with pytest.raises(ValueError, match="per-member"):
         gym.make_vec("mbs_envs/FourBar-v0", num_envs=2, vectorization_mode="vector_entry_point", randomize={"m2": 0.1})
     with pytest.raises(ValueError, match="unknown parameter"):
-        gym.make_vec("mbs_envs/Planar2R-v0", num_envs=2, vectorization_mode="vector_entry_point", randomize={"mass": 0.1})
+        gym.make_vec(
+            "mbs_envs/Planar2R-v0", num_envs=2, vectorization_mode="vector_entry_point", randomize={"mass": 0.1}
+        )
 
 
 def test_domain_randomization_over_a_range_draws_the_parameter_itself():
@@ -168,7 +179,9 @@ def test_domain_randomization_over_a_range_draws_the_parameter_itself():
     assert not np.array_equal(venv.unwrapped.model.params.b2, b2)  # drawn again at the reset
     for bad, match in (((0.1, 0.0), "low <= high"), ((0.0,), "range"), ((-1.0, 0.1), "b2"), ((0.0, np.nan), "finite")):
         with pytest.raises(ValueError, match=match):
-            gym.make_vec("mbs_envs/AcrobotDFKI-v1", num_envs=2, vectorization_mode="vector_entry_point", randomize={"b2": bad})
+            gym.make_vec(
+                "mbs_envs/AcrobotDFKI-v1", num_envs=2, vectorization_mode="vector_entry_point", randomize={"b2": bad}
+            )
 
 
 def test_reset_mask_and_seed_lists():
@@ -220,7 +233,9 @@ def test_batched_rollout_scores_like_single_rollouts(env_id):
 
     env = gym.make(env_id, max_episode_steps=60)
     policy = (LQR if "Disk" in env_id else ComputedTorque)(env)
-    venv = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", autoreset_mode="Disabled", max_episode_steps=60)
+    venv = gym.make_vec(
+        env_id, num_envs=2, vectorization_mode="vector_entry_point", autoreset_mode="Disabled", max_episode_steps=60
+    )
     batch = rollout_batch(venv, policy, [3, 4])
     for ep_b, seed in zip(batch, [3, 4]):
         ep = rollout(env, policy, seed)
@@ -234,7 +249,9 @@ def test_batched_rollout_scores_like_single_rollouts(env_id):
 
 
 def test_rgb_array_render_gives_one_frame_per_member():
-    venv = gym.make_vec("mbs_envs/RollingDisk-v0", num_envs=2, vectorization_mode="vector_entry_point", render_mode="rgb_array")
+    venv = gym.make_vec(
+        "mbs_envs/RollingDisk-v0", num_envs=2, vectorization_mode="vector_entry_point", render_mode="rgb_array"
+    )
     venv.reset(seed=0)
     frames = venv.render()
     assert len(frames) == 2 and frames[0].ndim == 3 and frames[0].shape[-1] == 3
@@ -295,7 +312,9 @@ def test_held_policy_decides_every_k_calls_per_member_and_restarts_with_episodes
 
         def predict(self, obs, state=None, episode_start=None, deterministic=True):
             Counter.calls += 1
-            return np.full((np.atleast_2d(obs).shape[0], 1), float(Counter.calls)).squeeze(0) if np.ndim(obs) == 1 else np.full((len(obs), 1), float(Counter.calls)), None
+            return np.full((np.atleast_2d(obs).shape[0], 1), float(Counter.calls)).squeeze(0) if np.ndim(
+                obs
+            ) == 1 else np.full((len(obs), 1), float(Counter.calls)), None
 
     policy, state, seen = HeldPolicy(Counter(), 3), None, []
     for k in range(7):
@@ -386,7 +405,9 @@ def test_apply_impulse_changes_momentum_by_the_impulse():
     J = np.array([[0.3, -0.1], [0.0, 0.2], [-1.0, 1.0]])
     v0, q = base.v, base.q
     base.apply_impulse(J)
-    np.testing.assert_allclose(np.einsum("nij,nj->ni", base.model.mass_matrix(q), base.v - v0), J, rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(
+        np.einsum("nij,nj->ni", base.model.mass_matrix(q), base.v - v0), J, rtol=1e-12, atol=1e-14
+    )
     before = base.v
     for bad in (J[:2], np.full((3, 2), np.nan), "x"):
         with pytest.raises(ValueError, match="J"):

@@ -13,7 +13,9 @@ from mbs_envs.models import FourBar, grashof_class
 from tests.lagrange import lagrange, planar_chain
 
 RNG = np.random.default_rng(7)
-PARAMS = dict(l0=1.1, l1=0.35, l2=0.9, l3=0.85, m1=0.4, m2=1.2, m3=0.7, r1=0.2, r2=0.4, r3=0.5, I1=0.01, I2=0.09, I3=0.05)
+PARAMS = dict(
+    l0=1.1, l1=0.35, l2=0.9, l3=0.85, m1=0.4, m2=1.2, m3=0.7, r1=0.2, r2=0.4, r3=0.5, I1=0.01, I2=0.09, I3=0.05
+)
 
 
 @functools.lru_cache(maxsize=None)
@@ -41,7 +43,9 @@ def sympy_fourbar():
     names = ["l0", "l1", "l2", "l3", "m1", "m2", "m3", "r1", "r2", "r3", "I1", "I2", "I3", "g"]
     lookup = {**s, "m3": m3, "r3": r3, "I3": I3, "l0": l0, "l3": l3}
     args = [lookup[n] for n in names] + q + dq
-    return names, {k: sp.lambdify(args, e, "numpy") for k, e in dict(M=M, Cv=Cv, G=G, phi=phi, Psi=Psi, dPsi_v=dPsi_v).items()}
+    return names, {
+        k: sp.lambdify(args, e, "numpy") for k, e in dict(M=M, Cv=Cv, G=G, phi=phi, Psi=Psi, dPsi_v=dPsi_v).items()
+    }
 
 
 def random_consistent_states(model, n=10):

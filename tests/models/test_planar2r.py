@@ -76,9 +76,7 @@ def test_closed_form_at_special_configurations():
         -p.g * (p.m1 * p.r1 + p.m2 * (p.l1 + p.r2)), abs=1e-12
     )
     # Coriolis at th2 = pi/2, dth1 = 1, dth2 = 0: (0, m2 l1 r2)
-    np.testing.assert_allclose(
-        model.coriolis([0.3, np.pi / 2], [1.0, 0.0]), [0.0, p.m2 * p.l1 * p.r2], atol=1e-12
-    )
+    np.testing.assert_allclose(model.coriolis([0.3, np.pi / 2], [1.0, 0.0]), [0.0, p.m2 * p.l1 * p.r2], atol=1e-12)
 
 
 def acrobot_env():
@@ -143,9 +141,7 @@ def test_inverse_dynamics_inverts_forward_dynamics():
     np.testing.assert_allclose(model.inverse_dynamics(q, v, a), u, rtol=0, atol=1e-11)
     # and the other way round
     a2 = RNG.uniform(-30, 30, (100, 2))
-    np.testing.assert_allclose(
-        model.forward_dynamics(q, v, model.inverse_dynamics(q, v, a2)), a2, rtol=0, atol=1e-11
-    )
+    np.testing.assert_allclose(model.forward_dynamics(q, v, model.inverse_dynamics(q, v, a2)), a2, rtol=0, atol=1e-11)
 
 
 def test_energy_rate_is_input_power_minus_friction_power():
@@ -187,7 +183,9 @@ def test_batched_equals_unbatched():
     assert a.shape == (4, 5, 2) and E.shape == (4, 5)
     for i in range(4):
         for j in range(5):
-            np.testing.assert_allclose(a[i, j], model.forward_dynamics(q[i, j], v[i, j], u[i, j]), rtol=1e-14, atol=1e-14)
+            np.testing.assert_allclose(
+                a[i, j], model.forward_dynamics(q[i, j], v[i, j], u[i, j]), rtol=1e-14, atol=1e-14
+            )
             assert E[i, j] == pytest.approx(model.energy(q[i, j], v[i, j]), rel=1e-14)
     # broadcasting: one q against many v
     a_b = model.forward_dynamics(q[0, 0], v[0], None)

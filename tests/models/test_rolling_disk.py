@@ -179,7 +179,9 @@ def test_going_flat_stops_cleanly():
         model.rolling_state(lean=1.56)
 
 
-@pytest.mark.parametrize("kwargs, culprit", [({"m": 0.0}, "m"), ({"r": -1.0}, "r"), ({"b_roll": -0.1}, "b_roll"), ({"g": np.nan}, "g")])
+@pytest.mark.parametrize(
+    "kwargs, culprit", [({"m": 0.0}, "m"), ({"r": -1.0}, "r"), ({"b_roll": -0.1}, "b_roll"), ({"g": np.nan}, "g")]
+)
 def test_bad_parameters(kwargs, culprit):
     with pytest.raises(ValueError, match=culprit):
         RollingDisk(**kwargs)

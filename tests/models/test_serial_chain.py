@@ -20,7 +20,17 @@ RNG = np.random.default_rng(11)
 def random_chain(n, rng=RNG):
     l = rng.uniform(0.1, 1.0, n)  # noqa: E741
     m = rng.uniform(0.1, 2.0, n)
-    return SerialChain(n_links=n, m=m, l=l, r=l * rng.uniform(0, 1, n), I=m * l**2 * rng.uniform(0.01, 0.2, n), armature=rng.uniform(0, 0.05, n), b=rng.uniform(0, 0.2, n), f=rng.uniform(0, 0.1, n), v_s=0.3)
+    return SerialChain(
+        n_links=n,
+        m=m,
+        l=l,
+        r=l * rng.uniform(0, 1, n),
+        I=m * l**2 * rng.uniform(0.01, 0.2, n),
+        armature=rng.uniform(0, 0.05, n),
+        b=rng.uniform(0, 0.2, n),
+        f=rng.uniform(0, 0.1, n),
+        v_s=0.3,
+    )
 
 
 def random_state(n, batch=(), rng=RNG):
@@ -30,7 +40,9 @@ def random_state(n, batch=(), rng=RNG):
 def test_two_links_reproduce_planar2r():
     p = dict(m1=1.3, m2=0.7, l1=0.9, l2=1.1, r1=0.4, r2=0.6, I1=0.05, I2=0.08, b1=0.2, b2=0.1, f1=0.3, f2=0.05, v_s=0.1)
     ref = Planar2R(**p)
-    chain = SerialChain(n_links=2, m=[1.3, 0.7], l=[0.9, 1.1], r=[0.4, 0.6], I=[0.05, 0.08], b=[0.2, 0.1], f=[0.3, 0.05], v_s=0.1)
+    chain = SerialChain(
+        n_links=2, m=[1.3, 0.7], l=[0.9, 1.1], r=[0.4, 0.6], I=[0.05, 0.08], b=[0.2, 0.1], f=[0.3, 0.05], v_s=0.1
+    )
     q, v = random_state(2, (20,))
     u = RNG.uniform(-5, 5, (20, 2))
     np.testing.assert_allclose(chain.mass_matrix(q), ref.mass_matrix(q), atol=1e-12)
@@ -142,7 +154,14 @@ def test_batched_equals_unbatched():
 
 @pytest.mark.parametrize(
     "kwargs, culprit",
-    [({"n_links": 0}, "n_links"), ({"n_links": 2.5}, "n_links"), ({"n_links": 3, "m": [1.0, 2.0]}, "'m'"), ({"l": -1.0}, "'l'"), ({"I": 0.0, "r": 0.0}, "I, r"), ({"links": 3}, "links")],
+    [
+        ({"n_links": 0}, "n_links"),
+        ({"n_links": 2.5}, "n_links"),
+        ({"n_links": 3, "m": [1.0, 2.0]}, "'m'"),
+        ({"l": -1.0}, "'l'"),
+        ({"I": 0.0, "r": 0.0}, "I, r"),
+        ({"links": 3}, "links"),
+    ],
 )
 def test_bad_parameters(kwargs, culprit):
     with pytest.raises(ValueError, match=culprit):
@@ -169,7 +188,9 @@ def test_aba_agrees_with_pinocchio(n):
     u = RNG.uniform(-1, 1, n)
     a_pin = np.array(pin.aba(model, data, q, v, u))
     np.testing.assert_allclose(chain.aba(q, v, u), a_pin, atol=1e-10 * np.max(np.abs(a_pin)))
-    np.testing.assert_allclose(chain.rnea(q, v, u), np.array(pin.rnea(model, data, q, v, u)), atol=1e-10 * max(1.0, np.max(np.abs(u))))
+    np.testing.assert_allclose(
+        chain.rnea(q, v, u), np.array(pin.rnea(model, data, q, v, u)), atol=1e-10 * max(1.0, np.max(np.abs(u)))
+    )
 
 
 def test_numpy_kinematics_follow_the_kernels_formulas():

@@ -44,7 +44,9 @@ def pinocchio_model(chain: SpatialChain):
     return pinocchio_spatial_chain(chain)
 
 
-@pytest.mark.parametrize("n", [1, 2, 7, pytest.param(50, marks=pytest.mark.slow), pytest.param(500, marks=pytest.mark.slow)])  # 50, 500: the slow set (scripts/bench_chain.py checks N = 500 on every run)
+@pytest.mark.parametrize(
+    "n", [1, 2, 7, pytest.param(50, marks=pytest.mark.slow), pytest.param(500, marks=pytest.mark.slow)]
+)  # 50, 500: the slow set (scripts/bench_chain.py checks N = 500 on every run)
 @pytest.mark.parametrize("axes", ["random", "coordinate"])
 def test_agrees_with_pinocchio(n, axes):
     """Random chains, with random joint axes (the full rotation) or coordinate axes of either sign (the frames'
@@ -65,7 +67,9 @@ def test_agrees_with_pinocchio(n, axes):
         assert rel(chain.aba(q, v, a), pin.aba(model, data, q, v, a)) < 1e-11
         # Pinocchio's kinetic energy leaves the armature out
         T_arm = 0.5 * np.sum(chain.params.armature * v**2)
-        assert abs(chain.kinetic_energy(q, v) - T_arm - pin.computeKineticEnergy(model, data, q, v)) < 1e-11 * max(1.0, abs(float(chain.kinetic_energy(q, v))))
+        assert abs(chain.kinetic_energy(q, v) - T_arm - pin.computeKineticEnergy(model, data, q, v)) < 1e-11 * max(
+            1.0, abs(float(chain.kinetic_energy(q, v)))
+        )
         V = pin.computePotentialEnergy(model, data, q)
         assert abs(chain.potential_energy(q) - V) < 1e-11 * max(1.0, abs(V))
 
@@ -165,7 +169,12 @@ def test_batched_equals_member_by_member():
     batch = chain.rnea(q, v, a), chain.mass_matrix(q), chain.aba(q, v, a), chain.energy(q, v)
     for i in range(2):
         for j in range(5):
-            one = chain.rnea(q[i, j], v[i, j], a[i, j]), chain.mass_matrix(q[i, j]), chain.aba(q[i, j], v[i, j], a[i, j]), chain.energy(q[i, j], v[i, j])
+            one = (
+                chain.rnea(q[i, j], v[i, j], a[i, j]),
+                chain.mass_matrix(q[i, j]),
+                chain.aba(q[i, j], v[i, j], a[i, j]),
+                chain.energy(q[i, j], v[i, j]),
+            )
             for x, y in zip(batch, one):
                 np.testing.assert_array_equal(x[i, j], y)
 
@@ -184,7 +193,9 @@ def test_compiled_path_equals_the_numpy_path_and_the_shifted_solve_is_M_plus_dia
     slow = advance(chain, get("rk4"), 0.0, q, v, 0.02, 2, u=u, compiled=False)
     np.testing.assert_array_equal(fast[0], slow[0])
     np.testing.assert_array_equal(fast[1], slow[1])
-    np.testing.assert_allclose(chain.energy(q, v), chain.kinetic_energy(q, v) + chain.potential_energy(q), rtol=1e-14, atol=1e-14)
+    np.testing.assert_allclose(
+        chain.energy(q, v), chain.kinetic_energy(q, v) + chain.potential_energy(q), rtol=1e-14, atol=1e-14
+    )
     d = rng.uniform(0, 1, (4, 5))
     M = chain.mass_matrix(q) + np.einsum("bi,ij->bij", d, np.eye(5))
     rhs = u - chain.rnea(q, v, np.zeros_like(v))
@@ -237,7 +248,9 @@ def test_aba_and_rnea_scale_linearly():
     assert np.all(ratios <= 12), ratios
 
 
-@pytest.mark.parametrize("n, full", [(1, False), (2, False), (7, False), (10, False), (50, False), (2, True), (7, True)])
+@pytest.mark.parametrize(
+    "n, full", [(1, False), (2, False), (7, False), (10, False), (50, False), (2, True), (7, True)]
+)
 def test_tiled_aba_gives_each_member_the_bits_of_the_member_by_member_aba(n, full):
     """The vector env's kernel with shared parameters runs members in SIMD tiles (``aba_tiles``); each member's
     result is the member-by-member ``aba_into``'s bit for bit, for batches that fill tiles and leave a remainder, at states
@@ -285,6 +298,7 @@ def test_member_kernels_keep_no_reference_counts_and_the_step_kernels_allocate_o
     for f in (sc.frames_into, sc.aba_into, sc.rnea_into, sc.crba_into, sc.energy_member, sc._acceleration_members,
               sc._energy_members):  # fmt: skip
         assert f.targetoptions.get("_nrt") is False, f.__name__
+
     @njit
     def repeat(k, q, v, tau, theta, a, E):  # the kernels called k times inside compiled code (no unboxing per call)
         for _ in range(k):
@@ -298,7 +312,10 @@ def test_member_kernels_keep_no_reference_counts_and_the_step_kernels_allocate_o
 
     rng = np.random.default_rng(3)
     model = random_chain(4, rng)
-    for B, theta in ((1, batch_theta(model, 1)), (5, np.repeat(batch_theta(model, 1), 5, axis=1) * rng.uniform(0.9, 1.1, (1, 5)))):
+    for B, theta in (
+        (1, batch_theta(model, 1)),
+        (5, np.repeat(batch_theta(model, 1), 5, axis=1) * rng.uniform(0.9, 1.1, (1, 5))),
+    ):
         q, v, tau = rng.normal(size=(3, 4, B))
         a, E = np.empty((4, B)), np.empty(B)
         repeat(1, q, v, tau, theta, a, E)  # compiled before counting
@@ -310,7 +327,11 @@ def test_member_kernels_keep_no_reference_counts_and_the_step_kernels_allocate_o
         finally:
             if not was:
                 nrt.memsys_disable_stats()
-        assert (four[0] - once[0], four[1] - once[1]) == (6, 6), (B, once, four)  # three more calls of each: one buffer each
+        assert (four[0] - once[0], four[1] - once[1]) == (6, 6), (
+            B,
+            once,
+            four,
+        )  # three more calls of each: one buffer each
         assert a.tobytes() == a0.tobytes() and E.tobytes() == E0.tobytes()
         for fill in (np.nan, -1e300, 0.0):  # the member loops on buffers holding anything: the same bits
             sc._acceleration_members(q, v, tau, theta, np.full(sc._member_size(4, 4), fill), a)

@@ -27,7 +27,9 @@ def arm_lagrangian():
     x1, y1 = r1 * sp.cos(q1), r1 * sp.sin(q1)
     x2, y2 = l1 * sp.cos(q1) + r2 * sp.cos(q1 + q2), l1 * sp.sin(q1) + r2 * sp.sin(q1 + q2)
     d = lambda e: e.diff(t)  # noqa: E731
-    T = (m1 * (d(x1) ** 2 + d(y1) ** 2) + I1 * d(q1) ** 2 + m2 * (d(x2) ** 2 + d(y2) ** 2) + I2 * (d(q1) + d(q2)) ** 2) / 2
+    T = (
+        m1 * (d(x1) ** 2 + d(y1) ** 2) + I1 * d(q1) ** 2 + m2 * (d(x2) ** 2 + d(y2) ** 2) + I2 * (d(q1) + d(q2)) ** 2
+    ) / 2
     V = g * (m1 * y1 + m2 * y2)
     return (q1, q2), T, V
 
@@ -37,7 +39,9 @@ def pair(tmp_path_factory):
     (q1, q2), T, V = arm_lagrangian()
     hand = Planar2R(m1=1.3, m2=0.7, l1=0.9, l2=1.1, r1=0.4, r2=0.6, I1=0.08, I2=0.05, b1=0.2, b2=0.1)
     params = {k: getattr(hand.params, k) for k in NAMES}
-    d = symbolic.cached_derivation("Arm2R", (q1, q2), T, V, params, damping={q1: "b1", q2: "b2"}, cache=tmp_path_factory.mktemp("derived"))
+    d = symbolic.cached_derivation(
+        "Arm2R", (q1, q2), T, V, params, damping={q1: "b1", q2: "b2"}, cache=tmp_path_factory.mktemp("derived")
+    )
     return symbolic.model_class(d)(), hand
 
 
@@ -168,7 +172,9 @@ def test_a_registered_env_from_the_derived_arm_gives_planar2r_v0s_episodes(pair)
         o2, r2, *_ = theirs.step(a[k])
         assert abs(r1 - r2) <= 1e-10 * max(1.0, abs(r2))
     np.testing.assert_allclose(ours.unwrapped.q, theirs.unwrapped.q, rtol=0, atol=1e-10)
-    np.testing.assert_allclose(ours.unwrapped.draw_points(ours.unwrapped.q), hand.joint_positions(ours.unwrapped.q), atol=1e-12)
+    np.testing.assert_allclose(
+        ours.unwrapped.draw_points(ours.unwrapped.q), hand.joint_positions(ours.unwrapped.q), atol=1e-12
+    )
     assert ours.render().shape == (500, 500, 3)
     venv = gym.make_vec("mbs_envs_test/Arm2R-v0", num_envs=3, vectorization_mode="vector_entry_point")
     vo, _ = venv.reset(seed=[5, 6, 7])
@@ -193,7 +199,10 @@ def fourbar_lagrangian():
     T = (m1 * (d(x1) ** 2 + d(y1) ** 2) + I1 * d(th1) ** 2 + m2 * (d(x2) ** 2 + d(y2) ** 2) + I2 * (d(th1) + d(ph2)) ** 2
          + (I3 + m3 * r3**2) * d(ph1) ** 2) / 2  # fmt: skip
     V = g * (m1 * y1 + m2 * y2 + m3 * r3 * sp.sin(ph1))
-    phi = [l1 * sp.cos(th1) + l2 * sp.cos(th1 + ph2) - l0 - l3 * sp.cos(ph1), l1 * sp.sin(th1) + l2 * sp.sin(th1 + ph2) - l3 * sp.sin(ph1)]
+    phi = [
+        l1 * sp.cos(th1) + l2 * sp.cos(th1 + ph2) - l0 - l3 * sp.cos(ph1),
+        l1 * sp.sin(th1) + l2 * sp.sin(th1 + ph2) - l3 * sp.sin(ph1),
+    ]
     return (th1, ph2, ph1), T, V, phi
 
 
@@ -274,18 +283,24 @@ def test_the_derived_constrained_mechanisms_are_the_hand_written_ones(which, fou
     assert rel(lam[..., rows], hand.multipliers(qc, vc, u[:5])) < 1e-12
 
 
-@pytest.mark.parametrize("which", ["fourbar", pytest.param("disk", marks=pytest.mark.slow)])  # the disk's compile: slow set
+@pytest.mark.parametrize(
+    "which", ["fourbar", pytest.param("disk", marks=pytest.mark.slow)]
+)  # the disk's compile: slow set
 def test_derived_constrained_episodes_are_the_hand_written_ones_and_hold_the_constraints(which, fourbars, disks):
     """Simulations (RK4 with projection, compiled and numpy) equal the hand-written model's to 1e-10; over 1e4
     steps the projection keeps |phi| and |Psi v| below 1e-10."""
     derived, hand = fourbars if which == "fourbar" else disks
     q0, v0 = hand.moving_state()  # the disk rolling at twice its critical spin, leaning 0.1 rad
-    u = np.array([0.3]) if which == "fourbar" else np.array([0.01, 0.0])  # a steering torque of 0.3 N m would topple the disk
+    u = (
+        np.array([0.3]) if which == "fourbar" else np.array([0.01, 0.0])
+    )  # a steering torque of 0.3 N m would topple the disk
     rng = np.random.default_rng(2)
     qb, vb = hand.moving_state()
     qb, vb = hand.project(qb + rng.normal(0, 0.01, (4, hand.nq)), vb + rng.normal(0, 0.1, (4, hand.nv)))
     fast = advance(derived, get("rk4"), 0.0, qb, vb, 0.05, 5, u=u, stabilization=derived.stabilization(), compiled=True)
-    slow = advance(derived, get("rk4"), 0.0, qb, vb, 0.05, 5, u=u, stabilization=derived.stabilization(), compiled=False)
+    slow = advance(
+        derived, get("rk4"), 0.0, qb, vb, 0.05, 5, u=u, stabilization=derived.stabilization(), compiled=False
+    )
     assert rel(fast[0], slow[0]) < 1e-12 and rel(fast[1], slow[1]) < 1e-12
     a = simulate(derived, q0, v0, 2.0, dt=0.01, integrator="rk4", u=u)
     b = simulate(hand, q0, v0, 2.0, dt=0.01, integrator="rk4", u=u)
@@ -302,19 +317,29 @@ def test_constrained_lagrangians_that_are_malformed_are_refused_by_name():
     params = {k: 1.0 for k in FOURBAR[:14]}
     params.update(l1=0.3, l3=0.8)
     with pytest.raises(ValueError, match=r"constraints\[1\].*not a function of the coordinates alone.*rates"):
-        symbolic.derive_equations("Bad", (th1, ph2, ph1), T, V, params, constraints=[phi[0], th1.diff(t) - 1], independent=[th1])
+        symbolic.derive_equations(
+            "Bad", (th1, ph2, ph1), T, V, params, constraints=[phi[0], th1.diff(t) - 1], independent=[th1]
+        )
     with pytest.raises(ValueError, match=r"constraints\[0\].*holds none of"):
-        symbolic.derive_equations("Bad", (th1, ph2, ph1), T, V, params, constraints=[sp.Symbol("l0") - 1], independent=[th1, ph2])
+        symbolic.derive_equations(
+            "Bad", (th1, ph2, ph1), T, V, params, constraints=[sp.Symbol("l0") - 1], independent=[th1, ph2]
+        )
     with pytest.raises(ValueError, match=r"velocity_constraints\[0\].*linear and homogeneous"):
-        symbolic.derive_equations("Bad", (th1, ph2, ph1), T, V, params, velocity_constraints=[th1.diff(t) ** 2], independent=[th1, ph2])
+        symbolic.derive_equations(
+            "Bad", (th1, ph2, ph1), T, V, params, velocity_constraints=[th1.diff(t) ** 2], independent=[th1, ph2]
+        )
     with pytest.raises(ValueError, match=r"constraints\[0\].*without a value in params: \['k'\]"):
-        symbolic.derive_equations("Bad", (th1, ph2, ph1), T, V, params, constraints=[phi[0] * sp.Symbol("k")], independent=[th1, ph2])
+        symbolic.derive_equations(
+            "Bad", (th1, ph2, ph1), T, V, params, constraints=[phi[0] * sp.Symbol("k")], independent=[th1, ph2]
+        )
     with pytest.raises(ValueError, match="independent: a constrained mechanism names"):
         symbolic.derive_equations("Bad", (th1, ph2, ph1), T, V, params, constraints=phi)
     with pytest.raises(ValueError, match="independent: 2 coordinates given"):
         symbolic.derive_equations("Bad", (th1, ph2, ph1), T, V, params, constraints=phi, independent=[th1, ph2])
     with pytest.raises(ValueError, match="dependent, or do not fix"):  # the same closure twice
-        symbolic.derive_equations("Bad", (th1, ph2, ph1), T, V, params, constraints=[phi[0], 2 * phi[0]], independent=[th1])
+        symbolic.derive_equations(
+            "Bad", (th1, ph2, ph1), T, V, params, constraints=[phi[0], 2 * phi[0]], independent=[th1]
+        )
     x, y = dynamicsymbols("x y")
     with pytest.raises(ValueError, match="mass matrix of Bad is singular"):  # two rates that only ever appear summed
         symbolic.derive_equations("Bad", (x, y), sp.Symbol("m") * (x.diff(t) + y.diff(t)) ** 2 / 2, 0, {"m": 1.0})
@@ -372,7 +397,9 @@ def test_parameters_named_like_the_generated_codes_locals_are_their_own():
     d = symbolic.derive_equations("Clash", (x, th), T, g * C * bob[1], params, damping={x: "b", th: "B"})
     model = symbolic.model_class(d)()
     q = np.array([[0.1, 0.5], [-0.3, 2.0]])
-    np.testing.assert_allclose(model.mass_matrix(q)[0], [[1.9, 0.4 * 0.7 * np.cos(0.5)], [0.4 * 0.7 * np.cos(0.5), 0.4 * 0.49]], rtol=1e-14)
+    np.testing.assert_allclose(
+        model.mass_matrix(q)[0], [[1.9, 0.4 * 0.7 * np.cos(0.5)], [0.4 * 0.7 * np.cos(0.5), 0.4 * 0.49]], rtol=1e-14
+    )
     v, u = np.array([[1.0, -2.0], [0.5, 0.3]]), np.array([[1.0, 0.2], [-0.5, 0.0]])
     fast = advance(model, get("rk4"), 0.0, q, v, 0.05, 5, u=u, compiled=True)
     slow = advance(model, get("rk4"), 0.0, q, v, 0.05, 5, u=u, compiled=False)
@@ -399,7 +426,9 @@ def test_a_coulomb_and_stribeck_friction_law_derives_as_the_hand_written_one(tmp
                     df1=0.4, df2=0.2, v_s=0.01, v_st=0.1)  # fmt: skip
     params = {k: getattr(hand.params, k) for k in NAMES + ("f1", "f2", "df1", "df2", "v_s", "v_st")}
     law = {q1: coulomb_stribeck(q1.diff(t), f1, df1), q2: coulomb_stribeck(q2.diff(t), f2, df2)}
-    d = symbolic.cached_derivation("Arm2RF", (q1, q2), T, V, params, damping={q1: "b1", q2: "b2"}, friction=law, cache=tmp_path)
+    d = symbolic.cached_derivation(
+        "Arm2RF", (q1, q2), T, V, params, damping={q1: "b1", q2: "b2"}, friction=law, cache=tmp_path
+    )
     derived = symbolic.model_class(d)()
     rng = np.random.default_rng(7)
     q, u = rng.normal(size=(2, 300, 2)) * np.array([3.0, 10.0])[:, None, None]
@@ -447,7 +476,9 @@ def test_friction_laws_that_are_malformed_are_refused_by_name():
     x = dynamicsymbols("x")
     with pytest.raises(ValueError, match=r"friction: x\(t\) is not a coordinate"):
         symbolic.derive_equations("Bad", (q1, q2), T, V, params, friction={x: x.diff(t)})
-    with pytest.raises(ValueError, match=r"the law of q1\(t\) is not a function of the rates alone: it holds \['q2\(t\)'\]"):
+    with pytest.raises(
+        ValueError, match=r"the law of q1\(t\) is not a function of the rates alone: it holds \['q2\(t\)'\]"
+    ):
         symbolic.derive_equations("Bad", (q1, q2), T, V, params, friction={q1: sp.sin(q2) * q1.diff(t)})
     with pytest.raises(ValueError, match=r"uses symbols without a value in params: \['mu'\]"):
         symbolic.derive_equations("Bad", (q1, q2), T, V, params, friction={q1: sp.Symbol("mu") * sp.tanh(q1.diff(t))})

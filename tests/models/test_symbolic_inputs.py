@@ -40,7 +40,7 @@ def test_complex_numbers_and_explicit_time_are_refused(tmp_path):
 
 
 def test_smooth_elementary_terms_are_taken(tmp_path):
-    V = m * g * (sp.cos(q1) + sp.sqrt(1 + q2**2) + sp.atan(q2) + sp.exp(-q1**2) + sp.log(2 + sp.cos(q2)))
+    V = m * g * (sp.cos(q1) + sp.sqrt(1 + q2**2) + sp.atan(q2) + sp.exp(-(q1**2)) + sp.log(2 + sp.cos(q2)))
     model = symbolic.derive("Smooth", [q1, q2], T, V, PARAMS, friction={q1: sp.tanh(q1.diff(t) / 0.01)}, cache=tmp_path)
     assert model.nq == 2
 

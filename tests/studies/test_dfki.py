@@ -93,8 +93,11 @@ def test_upright_run_succeeds_and_scores_by_its_criteria():
 
 
 #: the published simulation leaderboard v2 (criteria and score as printed), as the module stores it, every robot
-LEADERBOARD_V2 = {f"{robot}: {name}": row for robot, board in dfki.PUBLISHED_SIMULATION_V2.items()
-                  for name, row in board["rows"].items()}
+LEADERBOARD_V2 = {
+    f"{robot}: {name}": row
+    for robot, board in dfki.PUBLISHED_SIMULATION_V2.items()
+    for name, row in board["rows"].items()
+}
 
 
 @pytest.mark.parametrize("name", sorted(LEADERBOARD_V2))
@@ -127,7 +130,9 @@ class Bang:
 
 
 def test_record_follows_the_protocol_and_matches_the_env():
-    venv = gym.make_vec("mbs_envs/AcrobotDFKI-v1", num_envs=2, vectorization_mode="vector_entry_point", autoreset_mode="Disabled")
+    venv = gym.make_vec(
+        "mbs_envs/AcrobotDFKI-v1", num_envs=2, vectorization_mode="vector_entry_point", autoreset_mode="Disabled"
+    )
     runs = dfki.record(venv, Bang(), [0, 1])
     assert len(runs) == 2
     r = runs[0]

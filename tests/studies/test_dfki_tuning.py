@@ -45,7 +45,10 @@ def test_member_gains_refuse_per_member_weights_on_the_adaptive_controller():
 
 
 def test_rank_puts_failures_first_then_the_mean_score():
-    per = {"a": np.array([[1, 0.5], [1, 0.2], [0, 0.0], [1, 0.4]]), "b": np.array([[1, 0.1], [1, 0.3], [1, 0.9], [1, 0.3]])}
+    per = {
+        "a": np.array([[1, 0.5], [1, 0.2], [0, 0.0], [1, 0.4]]),
+        "b": np.array([[1, 0.1], [1, 0.3], [1, 0.9], [1, 0.3]]),
+    }
     # failures: 0, 0, 1, 0; mean scores 0.3, 0.25, 0.45, 0.35
     assert dfki_tuning.rank(per).tolist() == [3, 0, 1, 2]
 
@@ -65,7 +68,9 @@ def test_tune_returns_a_candidate_of_each_stage(monkeypatch):
     assert len(adaptive) == 2 + 2  # the first grid, then the gates with its pick
     assert [r["entry"].get("gate") for r in adaptive[2:]] == [None, 0.1]
     assert all("pulses success" in r for r in adaptive[2:]) and not any("pulses success" in r for r in adaptive[:2])
-    assert {k: v for k, v in out["adaptive swing-up + LQR"]["best"].items() if k != "gate"} in [r["entry"] for r in adaptive[:2]]
+    assert {k: v for k, v in out["adaptive swing-up + LQR"]["best"].items() if k != "gate"} in [
+        r["entry"] for r in adaptive[:2]
+    ]
     assert out["adaptive swing-up + LQR"]["best"]["lqr_r"] == out["swing-up + LQR"]["best"]["lqr_r"]
     own = dfki_tuning.own_scene_entry(ACRO, "identified iLQR + TVLQR")
     assert own == tuned.tuned_gains(gym.make("mbs_envs/Acrobot-v1"), "identified iLQR + TVLQR")
@@ -95,13 +100,18 @@ def test_the_kick_moves_an_acrobot_at_rest_and_only_there():
         y = -c.k_q * qq[0, 1] - c.k_v * vv[0, 1] + c.k_E * E_err * vv[0, 0]
         np.testing.assert_allclose(c.swing_up(qq, vv), collocated_pfl(c.model, qq, vv, y, 1), rtol=1e-13, atol=1e-13)
     # the episode starts moving: the elbow is off rest after the first step
-    venv = gym.make_vec(ACRO, num_envs=1, vectorization_mode="vector_entry_point", autoreset_mode="Disabled", max_episode_steps=5)
+    venv = gym.make_vec(
+        ACRO, num_envs=1, vectorization_mode="vector_entry_point", autoreset_mode="Disabled", max_episode_steps=5
+    )
     r = dfki.record(venv, c, [0])[0]
     assert np.abs(r["v"][-1]).max() > REST_TOL
 
 
 def test_stored_entry_walks_the_chains_and_says_when_there_is_none(monkeypatch):
-    table = {"mbs_envs/Acrobot-v0": {"swing-up + LQR": {"k_q": 1.0}}, "mbs_envs/AcrobotDFKI-v1": {"adaptive swing-up + LQR": {"k_q": 2.0}}}
+    table = {
+        "mbs_envs/Acrobot-v0": {"swing-up + LQR": {"k_q": 1.0}},
+        "mbs_envs/AcrobotDFKI-v1": {"adaptive swing-up + LQR": {"k_q": 2.0}},
+    }
     monkeypatch.setattr(tuned, "_table", lambda: table)
     assert tuned.stored_entry("mbs_envs/Acrobot-v1", "adaptive swing-up + LQR") == {"k_q": 1.0}  # plant, then laws
     assert tuned.stored_entry("mbs_envs/AcrobotDFKI-v1", "identified iLQR + TVLQR") == {"k_q": 2.0}
@@ -127,22 +137,34 @@ def test_pick_catches_needs_every_nominal_swing_up_then_the_best_mean_score():
     def row(policy, k, ok, score):
         return {"policy": policy, **cands[k], "nominal_success": ok, "score": score}
 
-    rows = [row("A", 0, 1.0, 0.70), row("A", 1, 1.0, 0.80), row("A", 2, 1.0, 0.80),  # a tie: the first candidate
-            row("s0", 0, 1.0, 0.60), row("s0", 1, 1.0, 0.90), row("s0", 2, 1.0, 0.70),
-            row("s1", 0, 1.0, 0.60), row("s1", 1, 0.0, 0.95), row("s1", 2, 1.0, 0.70)]  # 1: best mean, but s1 fails nominally
+    rows = [
+        row("A", 0, 1.0, 0.70),
+        row("A", 1, 1.0, 0.80),
+        row("A", 2, 1.0, 0.80),  # a tie: the first candidate
+        row("s0", 0, 1.0, 0.60),
+        row("s0", 1, 1.0, 0.90),
+        row("s0", 2, 1.0, 0.70),
+        row("s1", 0, 1.0, 0.60),
+        row("s1", 1, 0.0, 0.95),
+        row("s1", 2, 1.0, 0.70),
+    ]  # 1: best mean, but s1 fails nominally
     picks = dfki_tuning.pick_catches(rows, {"model-based": ["A"], "RL + LQR": ["s0", "s1"]}, cands)
     assert picks == {"model-based": cands[1], "RL + LQR": cands[2]}
     with pytest.raises(ValueError, match="group 'RL \\+ LQR' has 1 rows"):
         dfki_tuning.pick_catches(rows[:-1], {"RL + LQR": ["s0", "s1"]}, cands)
-    assert dfki_tuning.robust_catch_grid()[0] == {"lqr_r": dfki_tuning.ROBUST_LQR_R[0], "catch": dfki_tuning.ROBUST_CATCH[0]}
+    assert dfki_tuning.robust_catch_grid()[0] == {
+        "lqr_r": dfki_tuning.ROBUST_LQR_R[0],
+        "catch": dfki_tuning.ROBUST_CATCH[0],
+    }
     assert len(dfki_tuning.robust_catch_grid()) == len(dfki_tuning.ROBUST_LQR_R) * len(dfki_tuning.ROBUST_CATCH)
-
 
 
 def test_release_grid_keeps_the_pick_and_tries_each_factor_in_order():
     pick = {"lqr_r": 10.0, "catch": 30.0, "release": 4.0}
     grid = dfki_tuning.release_grid(pick)
-    assert [c["release"] for c in grid] == list(dfki_tuning.ROBUST_RELEASE) and grid[0]["release"] == 4.0  # today's value first
+    assert [c["release"] for c in grid] == list(dfki_tuning.ROBUST_RELEASE) and grid[0][
+        "release"
+    ] == 4.0  # today's value first
     assert all((c["lqr_r"], c["catch"]) == (10.0, 30.0) for c in grid)
     assert [c["release"] for c in dfki_tuning.release_grid(pick, (16, 32.0))] == [16.0, 32.0]  # a widened grid
     for bad in ((), (1.0,), (0.5, 2.0), (np.inf,), (np.nan,)):
@@ -151,6 +173,7 @@ def test_release_grid_keeps_the_pick_and_tries_each_factor_in_order():
     # the rule on stage-2 rows: candidates differing only in release are told apart
     rows = [{"policy": "A", **c, "nominal_success": 1.0, "score": s} for c, s in zip(grid, (0.7, 0.7, 0.8, 0.8, 0.6))]
     assert dfki_tuning.pick_catches(rows, {"g": ["A"]}, grid) == {"g": grid[2]}
+
 
 def test_a_job_runs_with_the_catch_it_is_given(tmp_path):
     """``catch_gains`` replaces the catching LQR's weight and level: the tuned values give the tuned episode bit for bit,
@@ -168,7 +191,9 @@ def test_a_job_runs_with_the_catch_it_is_given(tmp_path):
     with pytest.raises(ValueError, match="unknown keys \\['k_q'\\]"):
         dfki.controller_job({**task, "catch_gains": {"k_q": 1.0}})
     with pytest.raises(ValueError, match="neither a controller with gains nor an RL \\+ LQR pair"):
-        dfki.controller_job({"env_id": ACRO, "spec": "mbs_envs.controllers:SwingUpLQR", "gains": None, "catch_gains": {"catch": 1.0}})
+        dfki.controller_job(
+            {"env_id": ACRO, "spec": "mbs_envs.controllers:SwingUpLQR", "gains": None, "catch_gains": {"catch": 1.0}}
+        )
 
     class Agent:
         def predict(self, obs, state=None, episode_start=None, deterministic=True):

@@ -13,7 +13,14 @@ ENV = "mbs_envs/Acrobot-v1"
 
 
 def venv(n, steps=40, **kw):
-    return gym.make_vec(ENV, num_envs=n, vectorization_mode="vector_entry_point", autoreset_mode="Disabled", max_episode_steps=steps, **kw)
+    return gym.make_vec(
+        ENV,
+        num_envs=n,
+        vectorization_mode="vector_entry_point",
+        autoreset_mode="Disabled",
+        max_episode_steps=steps,
+        **kw,
+    )
 
 
 class Recorder:
@@ -148,7 +155,9 @@ def test_sweep_runs_every_axis_batched(monkeypatch, capsys):
             return np.zeros((len(obs), 1), np.float32), state
 
     monkeypatch.setattr(gym.envs.registration.registry["mbs_envs/AcrobotDFKI-v1"], "max_episode_steps", 50)
-    monkeypatch.setattr(dfki, "random_pulses", lambda rng, episodes, t: np.zeros((episodes, len(t), 2)))  # 0.1 s: no room for 6 pulses
+    monkeypatch.setattr(
+        dfki, "random_pulses", lambda rng, episodes, t: np.zeros((episodes, len(t), 2))
+    )  # 0.1 s: no room for 6 pulses
     res = dfki.sweep("mbs_envs/AcrobotDFKI-v1", lambda env: Nothing(), n=3, progress=True)
     assert f"{len(dfki.AXES)}/{len(dfki.AXES)}" in capsys.readouterr().err
     assert set(res) == set(dfki.AXES) | {"score"}
@@ -232,8 +241,14 @@ def test_a_tuning_set_draws_the_axes_values_apart_from_the_grid():
     drawn_model = meta["model"]["values"] + meta["model"]["skipped"]
     nominal = {"m1r1": presets.DFKI_C1.m1 * presets.DFKI_C1.r1, "m2r2": presets.DFKI_C1.m2 * presets.DFKI_C1.r2}
     for name in dfki.MODEL_FACTORS:
-        f = np.array([v for n, v in drawn_model if n == name]) / nominal.get(name, getattr(presets.DFKI_C1, name, None) or 1.0)
-        assert len(f) == 5 and ((f >= 0.75) & (f <= 1.25)).all() and not np.isin(np.round(f, 12), np.round(np.linspace(0.75, 1.25, 5), 12)).any(), name
+        f = np.array([v for n, v in drawn_model if n == name]) / nominal.get(
+            name, getattr(presets.DFKI_C1, name, None) or 1.0
+        )
+        assert (
+            len(f) == 5
+            and ((f >= 0.75) & (f <= 1.25)).all()
+            and not np.isin(np.round(f, 12), np.round(np.linspace(0.75, 1.25, 5), 12)).any()
+        ), name
     for name in dfki.MODEL_DAMPING:
         b = np.array([v for n, v in drawn_model if n == name])
         assert len(b) == 3 and ((b >= 0.0) & (b <= 0.1)).all() and not np.isin(b, np.linspace(0.0, 0.1, 3)).any(), name

@@ -113,7 +113,9 @@ def test_sweep_bookkeeping_on_a_tiny_grid(monkeypatch):
     monkeypatch.setattr(sr, "SWEEPS", {**sr.SWEEPS, "Planar2R": tiny})
     from mbs_envs.studies.comparison import load_policy
 
-    res = sr.sweep("Planar2R", lambda env: load_policy(SCENES["Planar2R"][2]["PD"], env), n=2, seeds=(5, 6), pulse_episodes=3)
+    res = sr.sweep(
+        "Planar2R", lambda env: load_policy(SCENES["Planar2R"][2]["PD"], env), n=2, seeds=(5, 6), pulse_episodes=3
+    )
     assert set(res) == set(sr.AXES) | {"score"}
     assert res["model"]["values"] == [("m2", 0.75), ("m2", 0.75), ("m2", 1.25), ("m2", 1.25), ("b1", 0.0), ("b1", 0.0)]
     assert res["model"]["seeds"] == [5, 6] * 3
@@ -135,7 +137,14 @@ def test_unperturbed_members_of_every_axis_are_the_nominal_episode():
     env_id = SCENES["Acrobot"][0]
 
     def venv(**kw):
-        return gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", autoreset_mode="Disabled", max_episode_steps=60, **kw)
+        return gym.make_vec(
+            env_id,
+            num_envs=2,
+            vectorization_mode="vector_entry_point",
+            autoreset_mode="Disabled",
+            max_episode_steps=60,
+            **kw,
+        )
 
     policy = lambda: load_policy(SCENES["Acrobot"][2]["swing-up + LQR"], gym.make(env_id))  # noqa: E731
     plain = rollout_batch(venv(), policy(), [3, 4])
