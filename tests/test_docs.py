@@ -85,6 +85,23 @@ def test_no_development_history_in_what_users_read(page):
     assert not hits, f"{page.name}: {hits}"
 
 
+def test_no_development_history_in_the_reports_the_docs_include():
+    """A report a page includes is read as the page; its provenance line (``Run on: ...``) may say when and where."""
+    included = {
+        (page.parent / m).resolve()
+        for page in DOC_PAGES
+        for m in re.findall(r"```\{include\} (\S+)", page.read_text())
+        if (page.parent / m).suffix == ".md" and "CHANGELOG" not in m
+    }
+    assert included  # the benchmarks and performance pages include reports
+    hits = {}
+    for path in sorted(included):
+        text = "\n".join(line for line in path.read_text().splitlines() if not line.startswith("Run on:"))
+        if HISTORY.findall(text):
+            hits[str(path.relative_to(ROOT))] = HISTORY.findall(text)
+    assert not hits, hits
+
+
 def test_no_development_history_in_docstrings_script_help_or_shipped_json():
     import subprocess
 
