@@ -29,17 +29,10 @@ from tqdm import tqdm
 from mbs_envs import integrators
 from mbs_envs.studies import numerics
 from mbs_envs.studies import stiff_cases as sc
+from mbs_envs.studies.work_precision import FIXED
 
-METHODS = (
-    "euler",
-    "semi_implicit_euler",
-    "midpoint",
-    "rk4",
-    "implicit_euler",
-    "sdirk2",
-    "sdirk3",
-    "joint_implicit_euler",
-)
+#: the fixed-step methods compared (the work-precision study's set)
+METHODS = FIXED
 
 
 def run(
