@@ -84,7 +84,7 @@ def test_the_derivation_is_cached_on_disk_and_the_model_pickles(tmp_path, monkey
     def refuse(*args, **kwargs):
         raise AssertionError("derived again although cached")
 
-    monkeypatch.setattr(symbolic, "derive_equations", refuse)
+    monkeypatch.setattr(symbolic.cache, "derive_equations", refuse)
     again = symbolic.cached_derivation("Arm2R", (q1, q2), T, V, params, cache=tmp_path)
     assert again.M == first.M and again.Cv == first.Cv and again.params == first.params
     with pytest.raises(AssertionError, match="derived again"):  # other parameters are another Lagrangian's key
@@ -105,17 +105,17 @@ def test_the_generated_source_is_kept_beside_the_derivation_for_this_version_of_
     source = symbolic.source_of(d)
     assert source == symbolic.generate_source(d)
     kept = list(tmp_path.glob("derivation_*.source"))
-    assert len(kept) == 1 and symbolic.package_stamp()[:16] in kept[0].name
+    assert len(kept) == 1 and symbolic.cache.package_stamp()[:16] in kept[0].name
     head, _, body = kept[0].read_text().partition("\n")
-    assert body == source and head == symbolic._source_stamp(source)  # the source under its checksum
+    assert body == source and head == symbolic.cache._source_stamp(source)  # the source under its checksum
 
     def refuse(*args, **kwargs):
         raise AssertionError("printed again although kept")
 
-    monkeypatch.setattr(symbolic, "generate_source", refuse)
+    monkeypatch.setattr(symbolic.cache, "generate_source", refuse)
     again = symbolic.cached_derivation("Arm2R", (q1, q2), T, V, params, cache=tmp_path)  # a new process's derivation
     assert symbolic.source_of(again) == source
-    monkeypatch.setattr(symbolic, "package_stamp", lambda: "0" * 40)  # another version of the package
+    monkeypatch.setattr(symbolic.cache, "package_stamp", lambda: "0" * 40)  # another version of the package
     other = symbolic.cached_derivation("Arm2R", (q1, q2), T, V, params, cache=tmp_path)
     with pytest.raises(AssertionError, match="printed again"):
         symbolic.source_of(other)
