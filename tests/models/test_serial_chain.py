@@ -197,7 +197,7 @@ def test_numpy_kinematics_follow_the_kernels_formulas():
     """``SerialChain.kinematics`` (numpy, batched over any leading shape) against the member kernel
     ``_member_kinematics`` chain by chain: the running sums in the same order give the same angles
     bit for bit; sin/cos differ by at most an ulp, so positions agree to 1e-15 m per link."""
-    from mbs_envs.models import serial_chain as sc
+    from mbs_envs.models import serial_recursions as sc
 
     rng = np.random.default_rng(4)
     N = 9

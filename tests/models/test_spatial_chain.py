@@ -294,8 +294,9 @@ def test_member_kernels_keep_no_reference_counts_and_the_step_kernels_allocate_o
 
     from mbs_envs.dynamics.compiled import batch_theta
     from mbs_envs.models import spatial_chain as sc
+    from mbs_envs.models import spatial_recursions as sr
 
-    for f in (sc.frames_into, sc.aba_into, sc.rnea_into, sc.crba_into, sc.energy_member, sc._acceleration_members,
+    for f in (sr.frames_into, sr.aba_into, sr.rnea_into, sr.crba_into, sr.energy_member, sc._acceleration_members,
               sc._energy_members):  # fmt: skip
         assert f.targetoptions.get("_nrt") is False, f.__name__
 
