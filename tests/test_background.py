@@ -222,7 +222,7 @@ def test_a_single_env_switches_to_compiled_code_without_changing_its_episode(mon
         rng = np.random.default_rng(5)
         h = hashlib.sha1(obs.tobytes())
         for i in range(60):
-            u._direct_call = (
+            u.dispatch._direct = (
                 None  # looked up again at every step (a real switch: when the child's answers move the generation)
             )
             if i < forced:  # the Python of its step, as while the child process compiles

@@ -17,7 +17,7 @@ import pytest
 import mbs_envs  # noqa: F401  (registers the ids)
 from mbs_envs import integrators
 from mbs_envs.dynamics.compiled import advance_compiled, batch_theta, compiled_stepping
-from mbs_envs.envs.base import validate_action
+from mbs_envs.envs.actions import validate_action
 from mbs_envs.models import FourBar, Planar2R, RollingDisk
 from mbs_envs.dynamics.simulate import advance
 
@@ -456,7 +456,7 @@ def test_chain_kernels_take_whole_tiles_by_simd_with_the_member_paths_bits():
     Coulomb friction in some members only, an angle beyond the SIMD sincos's range, a NaN and
     signed zeros; and equals the numpy model to 1e-12."""
     from mbs_envs.models import SerialChain
-    from mbs_envs.models import serial_chain as sc
+    from mbs_envs.models import serial_recursions as sc
 
     rng = np.random.default_rng(12)
     N, B = 7, 2 * sc.TILE + 5
@@ -533,7 +533,7 @@ def test_chain_acceleration_kernel_writes_any_output_layout():
     from numba import njit
 
     from mbs_envs.models import SerialChain
-    from mbs_envs.models import serial_chain as sc
+    from mbs_envs.models import serial_recursions as sc
 
     N, B = 5, 2 * sc.TILE + 6
     theta = batch_theta(SerialChain(n_links=N), B)
@@ -557,7 +557,7 @@ def test_chain_acceleration_kernel_writes_any_output_layout():
 
 @pytest.mark.parametrize("setting, value", [("dt", 0.02), ("substeps", 3), ("u_max", np.array([2.0, 1.0]))])
 def test_a_setting_changed_after_steps_reaches_the_compiled_step(setting, value):
-    """The step kernel's packed arguments are kept between steps (``MBSEnv._step_arguments``) and
+    """The step kernel's packed arguments are kept between steps (``StepDispatch.arguments``) and
     rebuilt when a setting changes: a changed ``dt``, ``substeps`` or ``u_max`` steps as an env
     built with it does (the cached arguments would step with the old one)."""
     changed = gym.make("mbs_envs/Planar2R-v0").unwrapped
@@ -646,7 +646,7 @@ def test_a_single_envs_direct_step_follows_its_settings_model_and_task_and_survi
     env = gym.make("mbs_envs/SerialChain-v0", n_links=3).unwrapped
     env.reset(seed=1)
     run(env, 5)
-    first = env._direct_call
+    first = env.dispatch._direct
     env.substeps = 2  # a setting: new stepper arguments
     fresh = gym.make("mbs_envs/SerialChain-v0", n_links=3).unwrapped
     fresh.substeps = 2
@@ -654,11 +654,11 @@ def test_a_single_envs_direct_step_follows_its_settings_model_and_task_and_survi
     run(fresh, 5)
     fresh._q[:], fresh._v[:], fresh._t = env._q, env._v, env._t
     np.testing.assert_array_equal(run(env, 20, seed=2), run(fresh, 20, seed=2))
-    assert env._direct_call is not first
+    assert env.dispatch._direct is not first
     env.reset(seed=4)  # a new episode's task
     fresh.reset(seed=4)
     np.testing.assert_array_equal(run(env, 20), run(fresh, 20))
-    before = env._direct_call
+    before = env.dispatch._direct
     env.model.params = env.model.params.replace(m=np.array([0.5, 0.3, 0.2]))  # a parameter: new kernel parameters
     heavy = gym.make("mbs_envs/SerialChain-v0", n_links=3).unwrapped  # the same drives; its first step after the change
     heavy.substeps = 2
@@ -666,10 +666,10 @@ def test_a_single_envs_direct_step_follows_its_settings_model_and_task_and_survi
     heavy.model.params = env.model.params
     heavy._q[:], heavy._v[:], heavy._t, heavy._task = env._q, env._v, env._t, env._task
     np.testing.assert_array_equal(run(env, 20, seed=3), run(heavy, 20, seed=3))
-    assert env._direct_call is not before
+    assert env.dispatch._direct is not before
     twin = pickle.loads(pickle.dumps(env))
     deep = copy.deepcopy(env)
-    assert "_direct_call" not in twin.__dict__ and "_direct_call" not in deep.__dict__
+    assert "_dispatch" not in twin.__dict__ and "_dispatch" not in deep.__dict__
     a, b, c = run(env, 30), run(twin, 30), run(deep, 30)
     np.testing.assert_array_equal(a, b)
     np.testing.assert_array_equal(a, c)

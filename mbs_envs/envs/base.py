@@ -17,177 +17,24 @@ from typing import Any, ClassVar
 import gymnasium as gym
 from gymnasium.utils import seeding
 from ..dynamics import background
-from ..dynamics.jit import njit
 import numpy as np
 
 from ..dynamics import integrators
 from .. import validation as check
-from ..dynamics.compiled import TableauArrays, batch_theta, compiled_stepping, projection_tol
+from ..dynamics.compiled import TableauArrays
 from ..models.base import Model, as_vector
 from ..dynamics.simulate import DIVERGENCE_LIMIT, advance, diverged
-from .rendering import PlanarRenderer, Shape, Text
+from .rendering import PlanarRenderer
+from .dispatch import StepDispatch
+from .drawing import Drawable
 from .stacking import tree_pick
+from .budget import check_work_budget
+from .actions import validate_action
 
 
 def _scalar(x: Any) -> Any:
     """0-d arrays and numpy scalars as Python scalars (a single env's ``info``); arrays unchanged."""
     return x.item() if (isinstance(x, np.ndarray) and x.ndim == 0) or isinstance(x, np.generic) else x
-
-
-@njit
-def _clip_unit(a, out):  # pragma: no cover - compiled
-    """``out = clip(a, -1, 1)``; False (``out`` unspecified) if any entry is not finite (one pass
-    without an early exit, so that it is SIMD code)."""
-    ok = True
-    for i in range(a.shape[0]):
-        x = a[i]
-        ok &= abs(x) < np.inf  # False for NaN and for +-inf
-        out[i] = min(max(x, -1.0), 1.0)
-    return ok
-
-
-#: dtypes the compiled clip takes as they are (native byte order)
-_FAST_DTYPES = (np.dtype(np.float64), np.dtype(np.float32))
-
-
-def validate_action(action: Any, nu: int, num_envs: int | None = None) -> np.ndarray:
-    """Check a normalized action (or a vector env's batch of them) and saturate it to ``[-1, 1]``.
-
-    Parameters
-    ----------
-    action : array_like, shape (nu,), or (num_envs, nu) for a batch
-        A scalar is accepted when ``nu == 1`` (one per member for a batch).
-    nu : int
-    num_envs : int, optional
-        Members of a batch (None: a single action).
-
-    Returns
-    -------
-    ndarray, shape (nu,) or (num_envs, nu)
-        The action clipped to ``[-1, 1]`` (finite out-of-range values saturate).
-
-    Raises
-    ------
-    ValueError
-        For an action that is not real numbers (strings, complex numbers,
-        dates), wrongly shaped, NaN or infinite (naming the members of a
-        batch that are not finite). Real numbers of any dtype and byte order
-        (float16, big-endian, integers) are converted.
-    """
-    batch = () if num_envs is None else (num_envs,)
-    if type(action) is np.ndarray and action.shape == batch + (nu,) and action.dtype in _FAST_DTYPES:
-        out = np.empty(action.shape)  # the common case, fast: a native float array of the right shape
-        if _clip_unit(action.reshape(-1), out.reshape(-1)):
-            return out
-    name = "action" if num_envs is None else "actions"
-    a = check.reals(action, name, bools=True)  # any real dtype and byte order, as native float64
-    if nu == 1 and a.shape == batch:
-        a = a[..., None]
-    if a.shape != batch + (nu,):
-        raise ValueError(f"{name} must have shape {batch + (nu,)}, got shape {a.shape}")
-    finite = np.all(np.isfinite(a), axis=-1)
-    if not np.all(finite):
-        which = f"got {a.tolist()}" if num_envs is None else f"members {np.flatnonzero(~finite).tolist()} are not"
-        raise ValueError(f"{name} must be finite; {which}")
-    return np.clip(a, -1.0, 1.0)
-
-
-#: The work budget of one member's control step, in equation-of-motion evaluations times degrees
-#: of freedom (:func:`step_work`). 2e6 is about a second of the numpy path (~5 us per 2-dof evaluation)
-#: and well above every setting the studies use (the largest: RK4 x 40 substeps on the 2R, 320;
-#: a 500-link chain under RK4, 2,000); SDIRK3 with 1e5 substeps on the 2R (1.4e7) took minutes per step.
-STEP_WORK_BUDGET = 2e6
-#: The work budget of one batched step (members x :func:`step_work`): 1e6 members of the 2R under RK4.
-BATCH_WORK_BUDGET = 2e8
-#: The most members a batched env holds: each keeps its own generator (~1 kB) besides its state.
-MAX_MEMBERS = 2**20
-
-
-#: the environment variable that sets the memory budget of a batched env [bytes] (default: half the machine's memory)
-MEMORY_BUDGET_VAR = "MBS_ENVS_MEMORY_BUDGET"
-
-
-def memory_budget() -> float:
-    """The bytes a batched env may take: ``MBS_ENVS_MEMORY_BUDGET`` if set (a number of bytes, e.g. ``8e9``), else half
-    of the machine's physical memory.
-
-    Raises
-    ------
-    ValueError
-        If the variable is set to something other than a positive number.
-    """
-    import os
-
-    text = os.environ.get(MEMORY_BUDGET_VAR, "").strip()
-    if text:
-        try:
-            value = float(text)
-        except ValueError:
-            value = float("nan")
-        if not (0 < value < float("inf")):
-            raise ValueError(f"{MEMORY_BUDGET_VAR} must be a positive number of bytes, got {text!r}")
-        return value
-    return 0.5 * os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-
-
-def memory_per_member(nq: int, nv: int, obs_dim: int) -> float:
-    """An upper estimate of a batched env's bytes per member while it steps: ``1.5 (1500 + 64 (nq + nv + obs_dim))``.
-
-    Measured on every kind of scene (RSS after reset and three steps of 4,000-20,000 members, beyond that of 8):
-    2.1-2.5 kB for the 2R, four-bar, disk and cart-pole (the formula 2.5-2.8 kB before the factor), 32-51 kB for the
-    100-link chains (52.7 kB); the factor 1.5 covers the reset's transient peak and other batch sizes.
-    """
-    return 1.5 * (1500.0 + 64.0 * (nq + nv + obs_dim))
-
-
-def step_work(integrator: Any, substeps: int, nv: int) -> float:
-    """Equation-of-motion evaluations per control step times ``nv`` (the work of one member's step).
-
-    Explicit Runge-Kutta: ``substeps x stages``; implicit (SDIRK, implicit Euler): each stage counts
-    its Newton iterations (``max_iter``) times the ``1 + nv`` evaluations of a finite-difference
-    Jacobian; the joint-implicit Euler 8 iterations of ``1 + nv``; the adaptive scipy methods choose
-    their own steps (counted as one evaluation per substep: their cost is the tolerance's business).
-    """
-    tableau = getattr(integrator, "tableau", None)
-    stages = len(tableau.c) if tableau is not None else 1
-    iterations = getattr(integrator, "max_iter", None)
-    if iterations is not None:
-        stages *= iterations * (1 + nv)
-    elif isinstance(integrator, integrators.JointImplicitEuler):
-        stages = 8 * (1 + nv)
-    return float(substeps) * stages * nv
-
-
-def check_work_budget(env: Any, num_envs: int = 1) -> None:
-    """Refuse settings whose control step would exceed :data:`STEP_WORK_BUDGET` (one member) or, for
-    ``num_envs`` members, :data:`BATCH_WORK_BUDGET`, :data:`MAX_MEMBERS` or the memory budget
-    (:func:`memory_budget`, :func:`memory_per_member`): a ``ValueError`` stating the budget and the settings that
-    break it."""
-    work = step_work(env.integrator, env.substeps, env.model.nv)
-    if work > STEP_WORK_BUDGET:
-        raise ValueError(
-            f"substeps = {env.substeps} with integrator {type(env.integrator).__name__} on {env.model.nv} dof is "
-            f"{work:.3g} evaluations x dof per control step, above the work budget of {STEP_WORK_BUDGET:.0e} "
-            f"(mbs_envs.envs.base.STEP_WORK_BUDGET); use fewer substeps or a cheaper integrator"
-        )
-    if num_envs > MAX_MEMBERS:
-        raise ValueError(
-            f"num_envs = {num_envs} is above the budget of {MAX_MEMBERS} members (mbs_envs.envs.base.MAX_MEMBERS)"
-        )
-    if num_envs * work > BATCH_WORK_BUDGET:
-        raise ValueError(
-            f"num_envs = {num_envs} members x {work:.3g} evaluations x dof per step is {num_envs * work:.3g}, above the "
-            f"batch work budget of {BATCH_WORK_BUDGET:.0e} (mbs_envs.envs.base.BATCH_WORK_BUDGET); use fewer members or substeps"
-        )
-    if num_envs > 1:
-        need = num_envs * memory_per_member(env.model.nq, env.model.nv, int(np.prod(env.observation_space.shape)))
-        budget = memory_budget()
-        if need > budget:
-            raise ValueError(
-                f"num_envs = {num_envs} members of {type(env).__name__} ({env.model.nq} coordinates) would need about "
-                f"{need / 2**30:.3g} GiB, above the memory budget of {budget / 2**30:.3g} GiB (half the machine's memory, "
-                f"or {MEMORY_BUDGET_VAR} in bytes); use fewer members"
-            )
 
 
 def checked_residual_limit() -> check.Checked:
@@ -196,7 +43,7 @@ def checked_residual_limit() -> check.Checked:
     return check.Checked(lambda x, name: check.real(x, name, 1e-8, 1.0))
 
 
-class MBSEnv(gym.Env):
+class MBSEnv(Drawable, gym.Env):
     """Base of all mbs_envs environments (see the module docstring).
 
     Parameters
@@ -254,7 +101,7 @@ class MBSEnv(gym.Env):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         options = {k: v for k, v in (("rtol", rtol), ("atol", atol)) if v is not None}
-        self._want_compiled = check.boolean(compiled, "compiled")
+        self.wants_compiled = check.boolean(compiled, "compiled")
         self.model = model
         self.integrator = integrators.get(integrator, **options)
         if isinstance(self.integrator, integrators.JointImplicitEuler):
@@ -293,6 +140,14 @@ class MBSEnv(gym.Env):
     residual_limit: float = np.inf
 
     @property
+    def dispatch(self) -> StepDispatch:
+        """The compiled step's dispatch (:mod:`mbs_envs.envs.dispatch`): which kernel, with which arguments, kept."""
+        d = self.__dict__.get("_dispatch")
+        if d is None or d.env is not self:  # (a shallow copy of the env builds its own)
+            d = self._dispatch = StepDispatch(self)
+        return d
+
+    @property
     def compiled(self) -> TableauArrays | None:
         """The tableau of the compiled step, or None when steps take the numpy path.
 
@@ -302,28 +157,7 @@ class MBSEnv(gym.Env):
         (:func:`mbs_envs.dynamics.compiled.compiled_stepping`); unless constructed with
         ``compiled=False``. Both paths give the same episodes (to rounding, 1e-12).
         """
-        cached = self.__dict__.get("_compiled_for")  # decided again only when one of these is replaced
-        if (
-            cached is None
-            or cached[0] is not self.integrator
-            or cached[1] is not self.stabilization
-            or cached[2] is not self.model
-        ):
-            cached = self._compiled_for = (self.integrator, self.stabilization, self.model, self._compiled_tableau())
-        return cached[3]
-
-    def _compiled_tableau(self) -> TableauArrays | None:
-        B = self.model.actuation
-        selects = bool(np.all((B == 0) | (B == 1)) and np.all(B.sum(axis=0) == 1) and np.all(B.sum(axis=1) <= 1))
-        if (
-            not self._want_compiled
-            or "step_kernel" not in type(self).__dict__
-            or self.step_kernel is None
-            or not selects
-        ):
-            return None
-        self._actuated = np.argmax(B, axis=0).astype(np.int64)
-        return compiled_stepping(self.model, self.integrator, self.stabilization)
+        return self.dispatch.tableau()
 
     def task_arguments(self) -> tuple:
         """The task kernel's static arguments (scenes with a ``step_kernel``)."""
@@ -346,18 +180,6 @@ class MBSEnv(gym.Env):
             layout += (("constraint_residual", None, False), ("multipliers", self.model.nc, False))
         return layout
 
-    def _info_columns(self) -> tuple[int, tuple]:
-        """``(width, ((name, column, width, boolean), ...))`` of :meth:`info_layout`, the reward
-        (column 0) left out; computed once (the layout is fixed at construction)."""
-        cached = self.__dict__.get("_info_columns_cache")
-        if cached is None:
-            columns, c = [], 0
-            for name, w, boolean in self.info_layout():
-                columns.append((name, c, w, boolean))
-                c += 1 if w is None else w
-            cached = self._info_columns_cache = (c, tuple(columns[1:]))
-        return cached
-
     def run_step_kernel(
         self,
         model: Model,
@@ -369,7 +191,8 @@ class MBSEnv(gym.Env):
         tab: TableauArrays | None = None,
         full_info: bool = True,
     ) -> tuple:
-        """The compiled control step of a batch (a single env: one member), in place.
+        """The compiled control step of a batch (a single env: one member), in place (:meth:`StepDispatch.run
+        <mbs_envs.envs.dispatch.StepDispatch.run>`).
 
         Parameters
         ----------
@@ -402,72 +225,12 @@ class MBSEnv(gym.Env):
         bad, terminated : ndarray of bool, shape (B,)
             Diverged; ended (diverged or the task's termination).
         """
-        B, nu = q.shape[1], model.nu
-        tab = self.compiled if tab is None else tab
-        stepper, control = self._step_arguments(tab, model.nc, bool(full_info))
-        buf = np.empty((nu + self._info_columns()[0], B))  # u and info: one allocation
-        u, info = buf[:nu], buf[nu:]
-        obs = np.empty(self.observation_space.shape + (B,), np.float32)
-        flags = np.zeros((2, B), bool)
-        bad, terminated = flags[0], flags[1]
-        theta, task = batch_theta(model, B), self.task_arguments()
-        state, out = (q, v, t, action), (u, obs, info, bad, terminated)
-        if B > 1:  # compiled before the first step (its Python would loop over the members); no floating-point warnings
-            kernel = self.step_kernel if self.batched_step_kernel is None else self.batched_step_kernel
-            kernel(theta, stepper, control, task + task_columns, state, out)
-            return obs.T, info.T, u.T, bad, terminated
-        # a single env: its overload called directly (:func:`mbs_envs.dynamics.jit.direct`), looked up again when an
-        # argument object changes (a setting, the model's parameters, the episode's task); the state and the outputs
-        # are built above the same way every step, so their types repeat. Until the kernel is compiled, its Python
-        # (the same bits, :mod:`mbs_envs.dynamics.background`), looked up again once the compiling child has answered
-        c = self.__dict__.get("_direct_call")
-        if (
-            c is None or c[0] is not theta or c[1] is not stepper or c[2] is not control or c[3] is not task
-            or c[4] is not task_columns or (c[7] is not None and c[7] != background.generation())
-        ):  # fmt: skip
-            head = (theta, stepper, control, task + task_columns)
-            f, compiled = background.entry(self.step_kernel, head + (state, out))
-            c = self._direct_call = (
-                theta,
-                stepper,
-                control,
-                task,
-                task_columns,
-                head,
-                f,
-                None if compiled else background.generation(),
-            )
-        c[6](*c[5], state, out)
-        return obs.T, info.T, u.T, bad, terminated
-
-    def _step_arguments(self, tab: TableauArrays, nc: int, full_info: bool) -> tuple:
-        """``(stepper, control)`` of the step kernel (:mod:`mbs_envs.envs.engine`), kept until a setting
-        changes (:func:`mbs_envs.validation.settings_version`, the stabilization, ``residual_limit``)."""
-        stab, actuated = self.stabilization, self._actuated
-        key = (check.settings_version(self), self.residual_limit, nc, full_info)
-        c = self.__dict__.get("_step_arguments_cache")
-        if c is None or c[0] is not tab or c[1] is not stab or c[2] is not actuated or c[3] != key:
-            stepper = tab.packed(self.dt / self.substeps, self.substeps, projection_tol(stab))
-            control = (
-                float(self.dt),
-                float(self.divergence_limit),
-                float(self.residual_limit),
-                np.array(self.u_max),
-                actuated,
-                nc,
-                full_info,
-            )  # writable copies: compiled code takes one array type
-            c = self._step_arguments_cache = (tab, stab, actuated, key, (stepper, control))
-        return c[4]
+        return self.dispatch.run(model, q, v, t, task_columns, action, tab, full_info)
 
     def info_rows(self, info: np.ndarray) -> dict[str, np.ndarray]:
         """The named ``info`` entries of :meth:`run_step_kernel`'s array, one row per member
         (``(B,)`` or ``(B, width)``; the reward left out)."""
-        out = {}
-        for name, c, w, boolean in self._info_columns()[1]:
-            x = info[:, c] if w is None else info[:, c : c + w]
-            out[name] = x.astype(bool) if boolean else x
-        return out
+        return self.dispatch.info_rows(info)
 
     def _step_compiled(self, action: Any, tab: TableauArrays):
         a = validate_action(action, self.model.nu)  # raises before any change
@@ -482,7 +245,7 @@ class MBSEnv(gym.Env):
         row = info_row[0]
         values = row.tolist()  # one conversion, not one per entry (:meth:`info_rows` is slower for one member)
         named = {name: (bool(values[c]) if boolean else values[c]) if w is None else row[c : c + w]
-                 for name, c, w, boolean in self._info_columns()[1]}  # fmt: skip
+                 for name, c, w, boolean in self.dispatch.info_columns()[1]}  # fmt: skip
         return self._single_step_result(obs, values, terminated, bad, named)
 
     def _single_step_result(self, obs, reward, terminated, bad, named: dict) -> tuple:
@@ -640,43 +403,6 @@ class MBSEnv(gym.Env):
     def task_info(self, q: np.ndarray, v: np.ndarray, now: Any, task: Any, u: np.ndarray) -> dict[str, Any]:
         """Task quantities for ``info``, each shaped ``(...)`` or ``(..., k)``."""
         return {}
-
-    def _drawing(
-        self, q: np.ndarray, t: float, task: Any, u: np.ndarray, trail: np.ndarray | None = None
-    ) -> list[Shape]:
-        """What to draw of the state ``q`` at time ``t`` of an episode's ``task`` under the input
-        ``u`` [SI] (:mod:`mbs_envs.envs.rendering` shapes, world coordinates); ``trail`` the
-        scene's recent path where it keeps one (the disk's contact points, :meth:`trail`)."""
-        raise NotImplementedError
-
-    #: what the caption calls ``info["tracking_error"]`` (its norm is shown)
-    error_label: ClassVar[str] = "tracking error"
-
-    def _caption(self, q: np.ndarray, v: np.ndarray, t: float, task: Any, u: np.ndarray) -> list[Shape]:
-        """The time and the norm of the tracking error [rad] as text."""
-        e = self.task_info(q, v, self.task_now(np.asarray(t), task), task, u).get("tracking_error")
-        lines = [f"t = {t:5.2f} s"]
-        if e is not None:
-            lines.append(f"{self.error_label} {float(np.linalg.norm(e)):.3g} rad")
-        return [Text(line, row) for row, line in enumerate(lines)]
-
-    def _torque_arcs(self, u: np.ndarray) -> list[tuple[int, float]]:
-        """``(joint, u / u_max)`` of each input acting on one joint alone (a column of ``B``
-        with one nonzero entry, e.g. the driven joints of an arm)."""
-        B = np.asarray(self.model.actuation)
-        out = []
-        for k in range(B.shape[1]):
-            (rows,) = np.nonzero(B[:, k])
-            if len(rows) == 1:
-                out.append((int(rows[0]), float(u[k] * B[rows[0], k] / self.u_max[k])))
-        return out
-
-    def _render_extent(self) -> float:
-        raise NotImplementedError
-
-    def _render_center(self, q: np.ndarray) -> tuple[float, float]:
-        """World point at the centre of the picture of ``q`` [m]."""
-        return (0.0, 0.0)
 
     def now(self) -> Any:
         """``task_now`` at the current time."""
@@ -864,8 +590,7 @@ class MBSEnv(gym.Env):
             return self._step(action)
         with background.allowed():  # kernels not compiled yet run as Python meanwhile (mbs_envs.dynamics.background)
             out = self._step(action)
-        c = self.__dict__.get("_direct_call")
-        self._warm = c is not None and c[7] is None
+        self._warm = self.dispatch.warm
         return out
 
     def _step(self, action: Any):
@@ -932,52 +657,9 @@ class MBSEnv(gym.Env):
         info.update({k: _scalar(x) for k, x in task.items()})
         return info
 
-    def render(self):
-        if self.render_mode is None:
-            gym.logger.warn(
-                "You are calling render method without specifying any render mode. "
-                'Set render_mode at initialization, e.g. gym.make(id, render_mode="rgb_array")'
-            )
-            return None
-        self._require_reset("render")
-        return self.render_state(self._q, self._t, self._task, self._v, self._u, self.trail())
-
-    def trail(self) -> np.ndarray | None:
-        """The recent path drawn behind the scene (None: the scene keeps none)."""
-        return None
-
-    #: whether the renderer draws the ground line ``y = 0``
-    draws_ground: ClassVar[bool] = True
-
-    def render_state(self, q: np.ndarray, t: float, task: Any, v: np.ndarray | None = None, u: np.ndarray | None = None,
-                     trail: np.ndarray | None = None) -> Any:  # fmt: skip
-        """Draw the state ``(q, v)`` at time ``t`` of an episode's ``task`` under the input ``u`` [SI]
-        (this env's renderer and mode); without ``v`` no error caption, without ``u`` no torque arcs."""
-        if self._renderer is None:
-            self._renderer = PlanarRenderer(
-                self._render_extent(),
-                self.render_mode,
-                self.metadata["render_fps"],
-                center=(0.0, 0.0),
-                ground=self.draws_ground,
-            )
-        self._renderer.center = np.asarray(self._render_center(q), float)  # the camera follows (the disk rolls away)
-        u_draw = np.zeros(self.model.nu) if u is None else np.asarray(u, float)
-        shapes = self._drawing(q, t, task, u_draw, trail)
-        if v is not None:
-            shapes = shapes + self._caption(q, v, t, task, u_draw)
-        else:
-            shapes = shapes + [Text(f"t = {t:5.2f} s")]
-        return self._renderer.draw(shapes)
-
-    def close(self) -> None:
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
-
     def __getstate__(self) -> dict:
         state = self.__dict__.copy()
         state["_renderer"] = None  # a pygame window is not picklable; reopened on demand
-        state.pop("_direct_call", None)  # nor a compiled entry point; looked up again
+        state.pop("_dispatch", None)  # nor a compiled entry point: the dispatch is built again
         state.pop("_warm", None)
         return state

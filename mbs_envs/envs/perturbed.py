@@ -30,7 +30,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorWrapper
 
 from .. import validation as check
-from .base import validate_action
+from .actions import validate_action
 
 #: the axes a member can draw at a reset, in this order ("nominal": none)
 TRAINING_AXES = ("nominal", "velocity noise", "torque noise", "torque response", "time delay", "perturbations")

@@ -54,7 +54,9 @@ from gymnasium.vector.utils import batch_space
 
 from .. import validation as check
 from ..dynamics.memory import keep_freed_memory
-from .base import MBSEnv, check_work_budget, validate_action
+from .actions import validate_action
+from .base import MBSEnv
+from .budget import check_work_budget
 from .lookahead import StartsAhead
 from .stacking import tree_assign, tree_pick
 

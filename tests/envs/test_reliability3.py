@@ -33,7 +33,7 @@ from hypothesis import strategies as st
 
 import mbs_envs
 from mbs_envs.dynamics.simulate import MAX_STORED_VALUES, simulate
-from mbs_envs.envs import base as envbase
+from mbs_envs.envs import budget as envbase
 from mbs_envs.envs.registry import SCENES
 from mbs_envs.envs.sb3 import make_sb3_vec_env
 from mbs_envs.models.planar2r import Planar2R

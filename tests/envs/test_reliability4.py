@@ -286,7 +286,7 @@ def test_rates_from_angles_refuses_a_changed_step():
 
 
 def test_a_batch_that_cannot_fit_is_refused_at_make_stating_need_and_budget(monkeypatch):
-    from mbs_envs.envs.base import memory_budget
+    from mbs_envs.envs.budget import memory_budget
 
     monkeypatch.delenv("MBS_ENVS_MEMORY_BUDGET", raising=False)
     assert memory_budget() == 0.5 * os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")  # the default
@@ -308,7 +308,7 @@ def test_the_memory_estimate_bounds_what_a_batch_takes():
     """RSS growth of a batch of 4,000 members through reset and three steps stays under the estimate."""
     code = """
         import gc, os, numpy as np, gymnasium as gym, mbs_envs
-        from mbs_envs.envs.base import memory_per_member
+        from mbs_envs.envs.budget import memory_per_member
 
         def rss():
             with open("/proc/self/statm") as f:
