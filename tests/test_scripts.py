@@ -531,38 +531,41 @@ def test_bench_scenes_times_every_registered_scene():
     """The scene benchmark reads the registry: every scene (and SerialChain at 10 and 100 links) is timed."""
     from mbs_envs.envs import registry
 
-    script = load_script("bench_scenes.py")
-    r = script["measure"](repeats=1, steps=5, num_envs=4, cold=False)
-    names = [k for k in r["single_step_us"] if k != script["PEER"]]
-    assert {script["scenes"]()[k][0] for k in names} == {s.id for s in registry.SCENES}
+    from mbs_envs.studies import scene_bench as sb
+
+    r = sb.measure(repeats=1, steps=5, num_envs=4, cold=False)
+    names = [k for k in r["single_step_us"] if k != sb.PEER]
+    assert {sb.scenes()[k][0] for k in names} == {s.id for s in registry.SCENES}
     assert (
         "SerialChain-v0 (n_links=100)" in names and "Acrobot-v0" in names and "Acrobot-v1" in names
     )  # ours, not the peer
     assert all(np.isfinite(v) and v > 0 for v in r["single_ratio_to_acrobot"].values())
-    assert "Pendubot-v0" in script["table"](r, "test")
+    assert "Pendubot-v0" in sb.table(r, "test")
 
 
 def test_bench_scenes_takes_medians_over_processes():
     """``--processes``: each figure the median over the processes (the ratios per process first), the batched
     ratios' range beside it, every run kept; the table shows the range."""
-    script = load_script("bench_scenes.py")
+    from mbs_envs.studies import scene_bench as sb
+
     runs = []
     for t_env, t_cart, t_acro in ((2.0, 0.5, 10.0), (3.0, 0.5, 12.0), (9.0, 1.0, 11.0)):
-        runs.append({"num_envs": 8, "python_path": "x", "single_step_us": {script["PEER"]: t_acro, "S": 2 * t_env},
-                     "single_ratio_to_acrobot": {script["PEER"]: 1.0, "S": 2 * t_env / t_acro},
+        runs.append({"num_envs": 8, "python_path": "x", "single_step_us": {sb.PEER: t_acro, "S": 2 * t_env},
+                     "single_ratio_to_acrobot": {sb.PEER: 1.0, "S": 2 * t_env / t_acro},
                      "batched_per_env_step_us": {"CartPole-v1": t_cart, "S": t_env},
                      "batched_ratio_to_cartpole": {"CartPole-v1": 1.0, "S": t_env / t_cart}})  # fmt: skip
-    r = script["combine"](runs)
+    r = sb.combine(runs)
     assert r["processes"] == 3 and r["runs"] == runs
     assert r["batched_per_env_step_us"]["S"] == 3.0 and r["batched_ratio_to_cartpole"]["S"] == 6.0  # not 3.0 / 0.5
-    assert r["batched_ratio_range"]["S"] == [4.0, 9.0] and r["single_step_us"][script["PEER"]] == 11.0
-    assert "6.0x [4.0, 9.0]" in script["table"](r, "t") and "medians of 3 fresh processes" in script["table"](r, "t")
+    assert r["batched_ratio_range"]["S"] == [4.0, 9.0] and r["single_step_us"][sb.PEER] == 11.0
+    assert "6.0x [4.0, 9.0]" in sb.table(r, "t") and "medians of 3 fresh processes" in sb.table(r, "t")
 
 
 def test_bench_scenes_sweeps_batch_sizes():
     """``--sizes``: every batched scene and CartPole at each batch size, the ratio to CartPole of the same size."""
-    script = load_script("bench_scenes.py")
-    r = script["sweep"]([2, 3], repeats=1, steps=5)
+    from mbs_envs.studies import scene_bench as sb
+
+    r = sb.sweep([2, 3], repeats=1, steps=5)
     for n in ("2", "3"):
         per, ratio = r["per_env_step_us"][n], r["ratio_to_cartpole"][n]
         assert (
@@ -570,8 +573,20 @@ def test_bench_scenes_sweeps_batch_sizes():
         )
         assert ratio["CartPole-v1"] == 1.0 and all(np.isfinite(v) and v > 0 for v in per.values())
         assert all(ratio[k] == per[k] / per["CartPole-v1"] for k in per)
-    text = script["sweep_table"](r)
+    text = sb.sweep_table(r)
     assert "| 2 envs | 3 envs |" in text and "Pendubot-v0" in text
+
+
+def test_bench_scenes_measures_a_checkout_in_a_fresh_process():
+    """``--baseline``: the measurement runs as this module's file in a fresh process on a checkout (here this one)."""
+    import pathlib
+
+    from mbs_envs.studies import scene_bench as sb
+
+    root = pathlib.Path(sb.__file__).resolve().parents[2]
+    r = sb.child(root, repeats=1, steps=3, num_envs=2, cold=False)
+    assert pathlib.Path(r["python_path"]).resolve() == root and r["num_envs"] == 2
+    assert set(r["single_step_us"]) == set(sb.scenes()) | {sb.PEER}
 
 
 def test_train_continues_an_earlier_versions_agent_on_the_new_reward(tmp_path):
