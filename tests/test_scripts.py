@@ -483,8 +483,9 @@ def test_what_to_pick_tiny_configuration(tmp_path):
 
 def test_stiff_cases_tiny_configuration(tmp_path):
     """Viscous b = 400: RK4 fails (reported) above its limit; SDIRK2 is usable 10x beyond it."""
-    script = load_script("stiff_cases.py")
-    result = script["run"](tmp_path, quick=True, cases=["viscous b=400"], methods=["rk4", "sdirk2"])
+    from mbs_envs.studies.stiff_report import run
+
+    result = run(tmp_path, quick=True, cases=["viscous b=400"], methods=["rk4", "sdirk2"])
     rows = {r["integrator"]: r for r in result["summary"]}
     limit = rows["rk4"]["rk4_limit_predicted"]
     assert rows["rk4"]["largest_stable_dt"] is None or rows["rk4"]["largest_stable_dt"] <= limit
