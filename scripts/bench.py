@@ -39,8 +39,7 @@ import sys
 os.environ.setdefault("MBS_ENVS_JIT", "sync")  # the steps timed are compiled ones (mbs_envs.dynamics.background)
 
 import mbs_envs  # noqa: E402,F401  (registers the ids)
-from mbs_envs.studies.bench_peers import *  # noqa: E402,F403  (the library: mbs_envs.studies.bench_peers)
-from mbs_envs.studies.bench_peers import run  # noqa: E402,F401
+from mbs_envs.studies.bench_peers import run, sb3_scenes  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> int:

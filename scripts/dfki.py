@@ -44,8 +44,7 @@ import sys
 os.environ.setdefault("MBS_ENVS_JIT", "sync")
 
 import mbs_envs  # noqa: E402,F401  (registers the ids)
-from mbs_envs.studies.dfki_job import *  # noqa: E402,F403  (the library: mbs_envs.studies.dfki_job)
-from mbs_envs.studies.dfki_job import run  # noqa: E402,F401
+from mbs_envs.studies.dfki_job import SCENES, check_args, run, tune, tune_robust_catch  # noqa: E402
 from mbs_envs.studies import dfki, provenance  # noqa: E402,F401
 
 

@@ -24,8 +24,7 @@ import sys
 
 
 import mbs_envs  # noqa: E402,F401  (registers the ids)
-from mbs_envs.studies.disk_report import *  # noqa: E402,F403  (the library: mbs_envs.studies.disk_report)
-from mbs_envs.studies.disk_report import run  # noqa: E402,F401
+from mbs_envs.studies.disk_report import run  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -26,26 +26,16 @@ import csv
 import json
 import pathlib
 import sys
-from collections.abc import Callable
-
 import gymnasium as gym
 import numpy as np
 from tqdm import tqdm
-
 import mbs_envs  # noqa: F401
 from mbs_envs.controllers import PlannedSwingUp, region
 from mbs_envs.controllers.planned_swingup import EDGE_Q, HOLD_Q, HOLD_SETTLE, HOLD_WINDOW, RECOVER_Q
 from mbs_envs.controllers.swingup import upright_linearization
 from mbs_envs.studies.plotting import pyplot, save
 
-#: the search's ranges: log10 of the weights (passive angle, driven angle, rates) of each gain, and the edge [rad],
-#: lead [s] and way back [rad]
-LOG_HOLD, LOG_EDGE, LOG_RECOVER = (
-    ((4.5, -1.5, -1.0), (7.5, 1.0, 1.5)),
-    ((-2.5, -2.0, 1.0), (1.5, 1.0, 4.0)),
-    ((-2.0, -1.0, -3.0), (3.0, 4.5, 2.0)),
-)
-EDGE, LEAD, BACK = (0.065, 0.09), (0.0, 0.06), (0.04, 0.1)
+from mbs_envs.studies.hold_search import draw
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -59,20 +49,6 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--noise", type=float, default=0.01, help="observation noise std per state entry [rad, rad/s]")
     p.add_argument("--seed", type=int, default=1, help="draws the candidates (and the search's noise: seed + 100)")
     return p.parse_args(argv)
-
-
-def draw(rng: np.random.Generator, make: Callable[..., np.ndarray], n: int) -> list[dict]:
-    """``n`` candidates whose three gains all exist and stabilize the linearization (``make`` returns them or raises)."""
-    out: list[dict] = []
-    while len(out) < n:
-        w = [10 ** rng.uniform(*bounds) for bounds in (LOG_HOLD, LOG_EDGE, LOG_RECOVER)]
-        try:
-            K = make(*w)
-        except ValueError:
-            continue
-        out.append({"hold_q": w[0], "edge_q": w[1], "recover_q": w[2], "K": K, "edge": rng.uniform(*EDGE), "edge_lead": rng.uniform(*LEAD),
-                    "hold_back": rng.uniform(*BACK)})  # fmt: skip
-    return out
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import json
 import pathlib
+import importlib
 import runpy
 
 import gymnasium as gym
@@ -68,10 +69,12 @@ def test_compare_quick_end_to_end(tmp_path, capfd):
     being an error here (issue 37: matplotlib's "Tight layout not applied")."""
     import warnings
 
+    from mbs_envs.studies import main_job as lib
+
     script = load_script("compare.py")
     with warnings.catch_warnings():
         warnings.filterwarnings("error", module=r"(mbs_envs|controllers)(\..*)?$")
-        out = script["run"](
+        out = lib.run(
             script["parse_args"](["--out", str(tmp_path), "--quick", "--scene", "Planar2R", "--workers", "2"])
         )
     printed = capfd.readouterr()
@@ -110,8 +113,10 @@ def test_compare_quick_end_to_end(tmp_path, capfd):
 
 @pytest.mark.slow  # the swing-up metrics stay in the default run (tests/envs/test_swingup_env.py); this is the script end to end
 def test_compare_scores_a_swing_up_scene_by_success_time_and_energy(tmp_path):
+    from mbs_envs.studies import main_job as lib
+
     script = load_script("compare.py")
-    out = script["run"](
+    out = lib.run(
         script["parse_args"](
             [
                 "--out",
@@ -283,8 +288,10 @@ def test_tune_agent_trains_each_candidate_and_ranks_them(tmp_path):
     c = {"failure_rate": 1.0, "time_to_swing_up": float("nan"), "return": 5.0}
     d = {"failure_rate": 1.0, "time_to_swing_up": float("nan"), "return": -5.0}
     assert sorted([a, b, c, d], key=lambda e: rank_key(e, "mbs_envs/Acrobot-v0")) == [b, a, c, d]
+    from mbs_envs.studies import agent_search as lib
+
     script = load_script("tune_agent.py")
-    record = script["run"](script["parse_args"](["--env", "mbs_envs/Acrobot-v0", "--algo", "ppo", "--steps", "1024", "--n-envs", "8",
+    record = lib.run(script["parse_args"](["--env", "mbs_envs/Acrobot-v0", "--algo", "ppo", "--steps", "1024", "--n-envs", "8",
                                                  "--grid", "gamma=0.99,0.998", "--eval-seeds", "2", "--workers", "1", "--out", str(tmp_path)]))  # fmt: skip
     assert [r["hyper"] for r in record["rows"]] == [{"gamma": 0.99}, {"gamma": 0.998}]
     assert record["best"] == min(record["rows"], key=lambda r: rank_key(r, "mbs_envs/Acrobot-v0"))["hyper"]
@@ -319,11 +326,13 @@ def test_shipped_agents_load_predict_and_document_their_training():
 @pytest.mark.slow
 def test_compare_cells_on_a_local_ray_instance(tmp_path):
     pytest.importorskip("ray")
+    from mbs_envs.studies import main_job as lib
+
     script = load_script("compare.py")
-    out = script["run"](
+    out = lib.run(
         script["parse_args"](["--out", str(tmp_path), "--quick", "--scene", "Planar2R", "--no-agents", "--ray"])
     )
-    local = script["run"](
+    local = lib.run(
         script["parse_args"](
             ["--out", str(tmp_path / "local"), "--quick", "--scene", "Planar2R", "--no-agents", "--workers", "1"]
         )
@@ -335,24 +344,27 @@ def test_compare_cells_on_a_local_ray_instance(tmp_path):
 
 
 def test_constraint_drift_runs(tmp_path):
-    script = load_script("constraint_drift.py")
-    result = script["run"](tmp_path, steps=300, dt=1e-3, chunk=100)
+    from mbs_envs.studies import drift_report as lib
+
+    result = lib.run(tmp_path, steps=300, dt=1e-3, chunk=100)
     assert result["projection"]["max_residual"] <= 1e-10
     assert result["none"]["final_residual"] > result["projection"]["final_residual"]
     assert (tmp_path / "constraint_drift.png").exists()
 
 
 def test_disk_report_runs(tmp_path):
-    script = load_script("disk_report.py")
-    result = script["run"](tmp_path, seeds=1, iterations=2, sweep=2)
+    from mbs_envs.studies import disk_report as lib
+
+    result = lib.run(tmp_path, seeds=1, iterations=2, sweep=2)
     assert result["critical_spin"]["simulated_bracket"][0] < result["critical_spin"]["simulated_bracket"][1]
     for name in ("disk_report.json", "summary.md", "critical_spin.png", "lean_traces.png"):
         assert (tmp_path / name).exists()
 
 
 def test_bench_chain_runs(tmp_path):
-    script = load_script("bench_chain.py")
-    result = script["run"](tmp_path, sizes=[2, 20, 40])
+    from mbs_envs.studies import chain_bench as lib
+
+    result = lib.run(tmp_path, sizes=[2, 20, 40])
     assert "aba_single" in result["loglog_slopes_n_ge_20"] and "spatial_aba_single" in result["loglog_slopes_n_ge_20"]
     assert all(r.get("spatial_aba_agreement_rel", 0.0) < 1e-11 for r in result["rows"])  # Pinocchio, where installed
     assert (tmp_path / "bench_chain.json").exists() and (tmp_path / "bench_chain.png").exists()
@@ -362,7 +374,7 @@ def test_bench_integration_errors():
     """The bench's accuracy figures (deterministic, unlike its timings): Planar2R-v0 at its defaults makes
     >= 100x less error per control step than Acrobot-v1 (the issue's target); at Acrobot's 0.2 s step with the
     default 5 ms physics step, more error than at 0.01 s but less than Acrobot."""
-    e = load_script("bench.py")["step_errors"](n_states=10)
+    e = importlib.import_module("mbs_envs.studies.bench_peers").step_errors(n_states=10)
     assert e["ratio_acrobot_to_planar2r"] >= 100
     at_02 = e["planar2r_at_acrobot_dt"]
     assert (
@@ -376,15 +388,16 @@ def test_bench_mujoco_error_reference_is_converged():
     """MuJoCo's InvertedDoublePendulum-v5 error per control step, against its own model at a 200x finer RK4 step."""
     pytest.importorskip("mujoco")
     env = gym.make("InvertedDoublePendulum-v5")
-    e = load_script("bench.py")["mujoco_step_error"](env, n_states=5)
+    e = importlib.import_module("mbs_envs.studies.bench_peers").mujoco_step_error(env, n_states=5)
     assert e["dt"] == 0.05 and e["integrator"] == "RK4"
     assert e["steps_with_active_constraints"] == 0  # the slider's limit stays out of the measured steps
     assert 0 < e["reference_error_estimate"] < 1e-6 * e["max_state_error_per_step"]
 
 
 def test_work_precision_tiny_configuration(tmp_path):
-    script = load_script("work_precision.py")
-    rows = script["run"](tmp_path, quick=True, problems=["planar2r-free", "fourbar-forced"], methods=["rk4", "sdirk2", "dop853"],
+    from mbs_envs.studies import work_precision_report as lib
+
+    rows = lib.run(tmp_path, quick=True, problems=["planar2r-free", "fourbar-forced"], methods=["rk4", "sdirk2", "dop853"],
                          repeats=1, n_fixed=2, n_adaptive=2)  # fmt: skip
     # rk4 on both paths (numpy, compiled), sdirk2 and dop853 on numpy: 4 rows per setting, 2 settings, 2 problems
     assert len(rows) == 2 * 2 * 4
@@ -408,7 +421,7 @@ def test_work_precision_tiny_configuration(tmp_path):
     assert 0 < meta["problems"]["planar2r-free"]["reference_floor"] < 1e-10
     # --add: another scene's problem joins the results; those already there are kept
     before = (tmp_path / "work_precision.csv").read_text().splitlines()
-    script["run"](
+    lib.run(
         tmp_path, quick=True, problems=["acrobot-forced"], methods=["rk4"], repeats=1, n_fixed=2, n_adaptive=2, add=True
     )
     after = (tmp_path / "work_precision.csv").read_text().splitlines()
@@ -419,7 +432,7 @@ def test_work_precision_tiny_configuration(tmp_path):
     )
     assert "| acrobot-forced |" in (tmp_path / "work_precision.md").read_text()
     with pytest.raises(ValueError, match="same configuration"):
-        script["run"](
+        lib.run(
             tmp_path,
             quick=False,
             problems=["pendubot-forced"],
@@ -434,7 +447,7 @@ def test_work_precision_tiny_configuration(tmp_path):
 def test_implicit_chain_tiny_configuration(tmp_path):
     """The joint-implicit step holds the stiff PD chain at 0.02 s where RK4 needs an 8x smaller step or less
     (flagged as diverged above it); the script writes its tables and plot."""
-    result = load_script("implicit_chain.py")["run"](tmp_path, ns=[8], repeats=1)
+    result = importlib.import_module("mbs_envs.studies.implicit_chain_report").run(tmp_path, ns=[8], repeats=1)
     stable = {r["integrator"]: r for r in result["stability"]}
     assert stable["joint_implicit_euler"]["largest_stable_dt"] == 0.02
     assert stable["rk4"]["largest_stable_dt"] <= 0.02 / 8 and stable["rk4"]["flagged_above"] >= 3
@@ -450,7 +463,7 @@ def test_implicit_chain_tiny_configuration(tmp_path):
 
 def test_what_to_pick_tiny_configuration(tmp_path):
     """Viscous b = 400 at the 10 ms control step: RK4 is flagged at 1-8 substeps; SDIRK2 is usable at one."""
-    result = load_script("what_to_pick.py")["run"](
+    result = importlib.import_module("mbs_envs.studies.what_to_pick").run(
         tmp_path, cases=["viscous b=400"], methods=["rk4", "sdirk2"], accurate=1e-3, repeats=1
     )
     (pick,) = result["picks"]
@@ -460,8 +473,9 @@ def test_what_to_pick_tiny_configuration(tmp_path):
     assert [r.split(",")[4] for r in rk4[:4]] == ["True"] * 4  # flagged, not silently wrong
     assert (tmp_path / "what_to_pick.md").stat().st_size > 0
     # --add: another case merged in, the first one's runs and pick kept as they were
-    script = load_script("what_to_pick.py")
-    merged = script["run"](
+    from mbs_envs.studies import what_to_pick as lib
+
+    merged = lib.run(
         tmp_path,
         cases=["Acrobot (environment model, 0.3 u_max held)"],
         methods=["rk4"],
@@ -478,7 +492,7 @@ def test_what_to_pick_tiny_configuration(tmp_path):
     assert [r for r in after if r.startswith("viscous")] == [r for r in rows if r.startswith("viscous")]
     assert "Acrobot" in (tmp_path / "what_to_pick.md").read_text()
     with pytest.raises(SystemExit, match="no case"):
-        script["run"](tmp_path, cases=["no such case"], add=True)
+        lib.run(tmp_path, cases=["no such case"], add=True)
 
 
 def test_stiff_cases_tiny_configuration(tmp_path):
@@ -500,8 +514,9 @@ def test_stiff_cases_tiny_configuration(tmp_path):
 
 def test_soak_tiny_configuration(tmp_path):
     """Random episodes with no non-finite output, long runs and the parameter edges (processes: slow test)."""
-    script = load_script("soak.py")
-    result = script["run"](tmp_path, episodes=20, quick=True, ids=["mbs_envs/Planar2R-v0", "mbs_envs/RollingDisk-v0"], processes=False,
+    from mbs_envs.studies import soak as lib
+
+    result = lib.run(tmp_path, episodes=20, quick=True, ids=["mbs_envs/Planar2R-v0", "mbs_envs/RollingDisk-v0"], processes=False,
                            integrator_episodes=4, integrator_envs=4, adversarial_rounds=30)  # fmt: skip
     for x in result["adversarial"]:
         assert (
@@ -648,19 +663,20 @@ def test_compare_records_repository_paths_relative_to_its_root():
 
 
 def test_tune_refine_only_starts_a_controller_without_a_pick_from_the_one_whose_laws_it_shares():
-    script = load_script("tune.py")
+    from mbs_envs.studies import gain_tuning as lib
+
     stored = {"gains": {"mbs_envs/Acrobot-v0": {"swing-up + LQR": {"k_q": 2.0}}}}
-    assert script["first_stage_of"](stored, "mbs_envs/Acrobot-v1", "adaptive swing-up + LQR") == (
+    assert lib.first_stage_of(stored, "mbs_envs/Acrobot-v1", "adaptive swing-up + LQR") == (
         "mbs_envs/Acrobot-v0",
         "swing-up + LQR",
     )
     stored["gains"]["mbs_envs/Acrobot-v1"] = {"adaptive swing-up + LQR": {"k_q": 5.0}}
-    assert script["first_stage_of"](stored, "mbs_envs/Acrobot-v1", "adaptive swing-up + LQR") == (
+    assert lib.first_stage_of(stored, "mbs_envs/Acrobot-v1", "adaptive swing-up + LQR") == (
         "mbs_envs/Acrobot-v1",
         "adaptive swing-up + LQR",
     )
     with pytest.raises(SystemExit, match="no stored first stage"):
-        script["first_stage_of"](stored, "mbs_envs/Pendubot-v1", "adaptive swing-up + LQR")
+        lib.first_stage_of(stored, "mbs_envs/Pendubot-v1", "adaptive swing-up + LQR")
 
 
 def test_train_env_kwargs_reach_the_training_members_only(tmp_path, monkeypatch):
@@ -739,8 +755,10 @@ def test_dfki_script_scores_the_protocol_and_writes_its_report(tmp_path, monkeyp
     from mbs_envs.studies import dfki
 
     monkeypatch.setattr(dfki, "PULSES", {**dfki.PULSES, "episodes": 2})
+    from mbs_envs.studies import dfki_job as lib
+
     script = load_script("dfki.py")
-    record = script["run"](script["parse_args"](["--out", str(tmp_path), "--scene", "Pendubot", "--controller", "swing-up + LQR",
+    record = lib.run(script["parse_args"](["--out", str(tmp_path), "--scene", "Pendubot", "--controller", "swing-up + LQR",
                                                  "--robustness", "--values", "2"]))  # fmt: skip
     row = record["rows"][0]
     assert row["scene"] == "Pendubot" and row["success"] in (0.0, 1.0) and 0.0 <= row["score"] <= 1.0
@@ -750,7 +768,7 @@ def test_dfki_script_scores_the_protocol_and_writes_its_report(tmp_path, monkeyp
     text = (tmp_path / "report.md").read_text()
     assert "ours: swing-up + LQR" in text and "AR-EAPO (published)" in text
     # the same controller seeing the rates differenced from the angles: named so, and said so in the report
-    other = script["run"](script["parse_args"](["--out", str(tmp_path / "rates"), "--scene", "Pendubot", "--controller", "swing-up + LQR",
+    other = lib.run(script["parse_args"](["--out", str(tmp_path / "rates"), "--scene", "Pendubot", "--controller", "swing-up + LQR",
                                                 "--rates-from-angles", "--workers", "1"]))  # fmt: skip
     assert other["rows"][0]["controller"] == "swing-up + LQR (rates from angles)"
     assert "Rates from angles" in (tmp_path / "rates" / "report.md").read_text()
@@ -778,11 +796,10 @@ def test_dfki_script_tunes_a_robust_catch_stores_it_and_runs_with_it(tmp_path, m
     one, with it, named so and said so in the report."""
     from mbs_envs.controllers import tuned
 
+    from mbs_envs.studies import dfki_job as lib
+
     script = load_script("dfki.py")
-    assert (
-        script["catch_group"]("PPO + LQR seed12") == "PPO + LQR"
-        and script["catch_group"]("swing-up + LQR") == "swing-up + LQR"
-    )
+    assert lib.catch_group("PPO + LQR seed12") == "PPO + LQR" and lib.catch_group("swing-up + LQR") == "swing-up + LQR"
     seen = {}
 
     def fake(env_id, policies, groups, **kw):
@@ -795,7 +812,7 @@ def test_dfki_script_tunes_a_robust_catch_stores_it_and_runs_with_it(tmp_path, m
 
     table = tuning_replaced(tmp_path, monkeypatch, fake)
     try:
-        script["tune_robust_catch"](script["parse_args"](["--out", str(tmp_path / "tune"), "--scene", "Pendubot", "--tune-robust-catch",
+        lib.tune_robust_catch(script["parse_args"](["--out", str(tmp_path / "tune"), "--scene", "Pendubot", "--tune-robust-catch",
                                                           "--rates-from-angles", "--write"]))  # fmt: skip
         assert seen["groups"]["PPO + LQR"] == ["PPO + LQR seed0", "PPO + LQR seed1", "PPO + LQR seed2"]
         assert {"swing-up + LQR", "adaptive swing-up + LQR"} <= set(
@@ -811,7 +828,7 @@ def test_dfki_script_tunes_a_robust_catch_stores_it_and_runs_with_it(tmp_path, m
         assert (
             stored["scores"]["mbs_envs/PendubotDFKI-v1"]["swing-up + LQR (robust catch)"]["rates_from_angles"] is True
         )
-        record = script["run"](script["parse_args"](["--out", str(tmp_path / "run"), "--scene", "Pendubot", "--robust-catch", "--workers", "1",
+        record = lib.run(script["parse_args"](["--out", str(tmp_path / "run"), "--scene", "Pendubot", "--robust-catch", "--workers", "1",
                                                      "--controller", "swing-up + LQR", "--controller", "identified iLQR + TVLQR"]))  # fmt: skip
         (row,) = record["rows"]
         assert row["controller"] == "swing-up + LQR (robust catch)" and json.loads(row["catch_gains"]) == {
@@ -820,7 +837,7 @@ def test_dfki_script_tunes_a_robust_catch_stores_it_and_runs_with_it(tmp_path, m
         }
         assert "Robust catch" in (tmp_path / "run" / "report.md").read_text()
         with pytest.raises(SystemExit, match="no policy has a catch tuned for robustness"):
-            script["run"](script["parse_args"](["--out", str(tmp_path / "none"), "--scene", "Pendubot", "--robust-catch",
+            lib.run(script["parse_args"](["--out", str(tmp_path / "none"), "--scene", "Pendubot", "--robust-catch",
                                                 "--controller", "identified iLQR + TVLQR"]))  # fmt: skip
     finally:
         monkeypatch.undo()
@@ -834,6 +851,8 @@ def test_dfki_script_release_stage_keeps_each_stored_catch_and_tries_the_release
     alone (without --tune-robust-catch) is refused."""
     from mbs_envs.controllers import tuned
     from mbs_envs.studies import dfki_tuning
+
+    from mbs_envs.studies import dfki_job as lib
 
     script = load_script("dfki.py")
     calls = []
@@ -856,7 +875,7 @@ def test_dfki_script_release_stage_keeps_each_stored_catch_and_tries_the_release
         del entries["adaptive swing-up + LQR (robust catch)"]  # this group has no stored catch
         table.write_text(json.dumps(stored))
         tuned.clear_cache()
-        record = script["tune_robust_catch"](script["parse_args"](["--out", str(tmp_path / "tune"), "--scene", "Pendubot", "--tune-robust-catch",
+        record = lib.tune_robust_catch(script["parse_args"](["--out", str(tmp_path / "tune"), "--scene", "Pendubot", "--tune-robust-catch",
                                                                    "--release-stage", "--rates-from-angles", "--write"]))  # fmt: skip
         by_group = {next(iter(groups)): cands for groups, cands in calls}
         assert set(by_group) == {"swing-up + LQR", "PPO + LQR"}
@@ -874,7 +893,7 @@ def test_dfki_script_release_stage_keeps_each_stored_catch_and_tries_the_release
         score = record["scores"]["mbs_envs/PendubotDFKI-v1"]["PPO + LQR (robust catch)"]
         assert score["stage"] == "release" and score["candidates"] == len(dfki_tuning.ROBUST_RELEASE)
         assert set(score["tuning_set_robustness"].values()) == {0.6}  # the picked candidate's rows, release included
-        run = script["run"](script["parse_args"](["--out", str(tmp_path / "run"), "--scene", "Pendubot", "--robust-catch", "--workers", "1",
+        run = lib.run(script["parse_args"](["--out", str(tmp_path / "run"), "--scene", "Pendubot", "--robust-catch", "--workers", "1",
                                                   "--controller", "swing-up + LQR"]))  # fmt: skip
         (row,) = run["rows"]
         assert json.loads(row["catch_gains"])["release"] == dfki_tuning.ROBUST_RELEASE[2]
@@ -882,7 +901,7 @@ def test_dfki_script_release_stage_keeps_each_stored_catch_and_tries_the_release
             script["check_args"](script["parse_args"](["--out", str(tmp_path / "x"), "--release-stage"]))
         # a grid widened beyond a pick at its edge, for the groups named
         calls.clear()
-        script["tune_robust_catch"](script["parse_args"](["--out", str(tmp_path / "wide"), "--scene", "Pendubot", "--tune-robust-catch",
+        lib.tune_robust_catch(script["parse_args"](["--out", str(tmp_path / "wide"), "--scene", "Pendubot", "--tune-robust-catch",
                                                           "--release-stage", "--release-values", "16", "32", "--controller", "PPO + LQR"]))  # fmt: skip
         ((groups, cands),) = calls
         assert list(groups) == ["PPO + LQR"] and [c["release"] for c in cands] == [16.0, 32.0]
@@ -900,9 +919,10 @@ def test_dfki_script_cuts_the_controllers_sweeps_in_parts_and_keeps_an_agents_wh
     one batch per axis (its network's outputs move in the last bits with the batch size)."""
     from mbs_envs.studies import dfki
 
-    script = load_script("dfki.py")
+    from mbs_envs.studies import dfki_job as lib
+
     jobs = [("Acrobot", "swing-up + LQR"), ("Acrobot", "PPO seed0"), ("Pendubot", "identified iLQR + TVLQR")]
-    parts, metas = script["sweep_parts_of"](jobs, 3, 0, workers=2)
+    parts, metas = lib.sweep_parts_of(jobs, 3, 0, workers=2)
     mine = {j: [p for i, p in parts if i == j] for j in range(3)}
     assert sorted(p.axis for p in mine[1]) == sorted(dfki.AXES) and all(p.members == slice(0, p.size) for p in mine[1])
     for j in (0, 2):
@@ -919,12 +939,12 @@ def test_dfki_script_cuts_the_controllers_sweeps_in_parts_and_keeps_an_agents_wh
     assert sizes == sorted(sizes, reverse=True)  # largest first, so the pool's last tasks are small
     members = sum(p.size for j in (0, 2) for p in mine[j] if p.members.start == 0)
     assert max(sizes[k] for k, (j, _) in enumerate(parts) if j != 1) == min(32, -(-members // 8))
-    full, _ = script["sweep_parts_of"]([("Acrobot", "identified iLQR + TVLQR")], 21, 0, workers=2)
+    full, _ = lib.sweep_parts_of([("Acrobot", "identified iLQR + TVLQR")], 21, 0, workers=2)
     assert max(p.members.stop - p.members.start for _, p in full) == 32  # the cap (250 members, 2 workers)
-    fixed, _ = script["sweep_parts_of"](jobs, 3, 0, workers=2, part_size=1)
+    fixed, _ = lib.sweep_parts_of(jobs, 3, 0, workers=2, part_size=1)
     assert all(p.members.stop - p.members.start == 1 for j, p in fixed if j != 1)
     with pytest.raises(ValueError, match="part_size"):
-        script["sweep_parts_of"](jobs, 3, 0, workers=2, part_size=0)
+        lib.sweep_parts_of(jobs, 3, 0, workers=2, part_size=0)
 
 
 def test_robustness_script_sweeps_a_scene_and_writes_its_report(tmp_path):
@@ -957,8 +977,10 @@ def test_dfki_script_runs_agents_trained_on_the_protocol_alone_and_with_the_lqr(
     train = load_script("train.py")
     train["run"](train["parse_args"](["--env", "mbs_envs/Acrobot-v1", "--env-kwargs", '{"preset": "dfki_c1"}', "--algo", "ppo",
                                       "--steps", "512", "--n-envs", "4", "--eval-seeds", "1", "--out", str(folder)]))  # fmt: skip
+    from mbs_envs.studies import dfki_job as lib
+
     script = load_script("dfki.py")
-    record = script["run"](script["parse_args"](["--out", str(tmp_path / "out"), "--scene", "Acrobot", "--agents", str(tmp_path / "agents"),
+    record = lib.run(script["parse_args"](["--out", str(tmp_path / "out"), "--scene", "Acrobot", "--agents", str(tmp_path / "agents"),
                                                  "--controller", "PPO seed0", "--controller", "PPO + LQR seed0", "--workers", "1"]))  # fmt: skip
     assert [r["controller"] for r in record["rows"]] == ["PPO seed0", "PPO + LQR seed0"]
     assert all(r["success"] in (0.0, 1.0) and 0.0 <= r["score"] <= 1.0 for r in record["rows"])
@@ -1047,8 +1069,9 @@ def test_bench_derived_first_make_leaves_no_child_writing_into_its_temporary_cac
     import subprocess
     import sys
 
-    script = load_script("bench_derived.py")
-    code = script["FIRST"].format(user="", env_id="mbs_envs/CartPoleSwingUp-v0")
+    from mbs_envs.studies import derived_bench as lib
+
+    code = lib.FIRST.format(user="", env_id="mbs_envs/CartPoleSwingUp-v0")
     cache = str(tmp_path / "numba")
     env = {**os.environ, "MBS_ENVS_DERIVED_CACHE": str(tmp_path / "derived"), "NUMBA_CACHE_DIR": cache}
     env.pop("MBS_ENVS_JIT", None)  # the default mode, as the bench runs it (the tests set sync)
