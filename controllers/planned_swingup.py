@@ -74,6 +74,7 @@ from . import region
 from . import trajectory as traj
 from .swingup import upright_linearization
 from .control_map import fast_map, state_error
+from .planned_settings import HoldSettings, PlanSettings, split_settings
 from .adaptive_swingup import K_, MODE, S_, STATE_SIZE, THETA, XH, AdaptiveSwingUpLQR, unwrapped_env
 
 #: columns after the adaptive controller's: phase (0 pump, 1 track, 2 balance, 3 hold, 4 recover into the hold), step
@@ -83,9 +84,6 @@ from .adaptive_swingup import K_, MODE, S_, STATE_SIZE, THETA, XH, AdaptiveSwing
 PHASE, STEP, LENGTH, CLOCK, SINCE = range(STATE_SIZE, STATE_SIZE + 5)
 KH_, KE_, KR_ = (slice(STATE_SIZE + 5 + 4 * i, STATE_SIZE + 9 + 4 * i) for i in range(3))
 ZD_ = slice(STATE_SIZE + 5, STATE_SIZE + 12)
-#: the hold's laws inside its band: the unstable zero dynamics steered by the driven angle
-#: (:func:`controllers.region.zero_dynamics_input`), or two LQRs switched at the driven angle's edge
-HOLD_LAWS = ("zero_dynamics", "edge")
 #: the filter's consistency while balancing: a running mean of its normalized squared innovations (1 where the
 #: observations scatter about the model's predictions as the observation noise alone would)
 NIS = STATE_SIZE + 17
@@ -136,8 +134,6 @@ def thread_map(f: Any, items: list) -> list:
 HOLD_WINDOW, HOLD_SETTLE = 2.0, 3.0
 #: the least gain in held windows [share] for which the hold stage is used
 HOLD_GAIN = 0.05
-#: the hold's weights (passive angle, driven angle, rates) inside, at the edge and recovering (``scripts/tune_hold.py``)
-HOLD_Q, EDGE_Q, RECOVER_Q = (3e4, 5.0, 0.2), (0.006, 3.0, 100.0), (0.2, 400.0, 10.0)
 #: the consistency test of the hold: the running mean's time constant [s] and the limit above which the model is not
 #: trusted (the member balances, or goes back to balancing)
 NIS_TAU, NIS_LIMIT = 0.5, 3.0
@@ -195,157 +191,75 @@ class PlannedSwingUp(AdaptiveSwingUpLQR):
     catch, release
         Validated and kept for the shared gains entry, unused: this controller's catch is the simulated
         region (``catch_time``, ``catch_tol``), not a level of ``x^T S x``.
-    plan_time : float
-        Seconds of identification before the first attempt to plan (>= 0).
-    horizon : float
-        The longest plan [s].
-    tail : float
-        Seconds the plan continues after the pumping guess's closest approach to upright.
-    iterations, refine_iterations : int
-        iLQR iterations of a new plan and of a plan refined from where the arm is.
-    w_u, w_T, w_x : float
-        The plan's effort weight [1/(N m)^2 s], and the scales of its terminal and running state weights
-        (:data:`TERMINAL` times each; :func:`controllers.trajectory.ilqr`'s objective). ``w_x = 0``: a
-        running cost quadratic in wrapped angles far from upright made plans worse while building it.
-    margin : float
-        The share of the torque limit the plan may use (the rest is the feedback's).
-    accept : float
-        A plan is taken when it ends within this distance of upright (largest wrapped entry [rad, rad/s]).
-    retry, refine_every : float
-        Seconds between attempts to plan while pumping, and between refinements of the plan being tracked.
-    funnel : float
-        Largest angle off the plan [rad] before the member plans afresh.
-    drop : float
-        Largest angle off upright [rad] before a balancing member plans afresh.
-    track_r : float
-        The time-varying LQR's input weight [(N m)^-2] (its state weight is the upright LQR's ``Q``).
-    catch_time, catch_tol : float
-        A member not balancing is handed to the upright LQR where, simulated on the identified model from the
-        current state for ``catch_time`` [s], the saturated LQR ends within ``catch_tol`` of upright (rad, rad/s;
-        checked only within ``drop`` of upright): the LQR's region of attraction under the torque limit, sampled
-        at the states the arm visits.
-    plan_step, plan_h : float
-        The plan's time grid [s]: its knots ``stride = max(1, round(plan_step / dt))`` control steps apart (inputs
-        held, gains and states per knot, the state between knots interpolated for the feedback), its model stepped
-        by RK4 in ``ceil(stride dt / plan_h)`` sub-steps (where ``stride`` is 1, the env's own sub-steps: our
-        swing-up scenes, ``dt = 0.01``, plan on their control steps as before). On the DFKI protocol (``dt =
-        0.002``) a plan's knots are 0.01 s apart, as on the scenes where this controller was built: a fifth of the
-        stages, 2 RK4 steps per knot.
-    hold : bool, optional
-        Whether a balancing member switches to the hold LQR (phase 3, module docstring); None (default): where it
-        pays (:func:`hold_pays`).
-    hold_q : tuple of three floats
-        The hold's inside gain's state weights: the passive angle's, the driven angle's and the rates' (``[rad^-2]``,
-        ``[s^2 rad^-2]``; ``Q = diag``) of its discrete LQR.
-    hold_r : float
-        The input weight [(N m)^-2] of both of the hold's discrete LQRs.
-    edge_q : tuple of three floats
-        The hold's edge gain's state weights, as ``hold_q``.
-    edge, edge_lead : float
-        The hold switches to its edge gain where the driven angle ``edge_lead`` [s] ahead at its present rate is more
-        than ``edge`` [rad] off upright (:func:`controllers.region.edge_switched`).
-    recover_q : tuple of three floats
-        The hold's recovery gain's state weights, as ``hold_q``.
-    hold_law : str
-        The hold's law (:data:`HOLD_LAWS`): ``"zero_dynamics"`` (default): the driven angle steers the arm's
-        unstable zero dynamics (:func:`controllers.region.zero_dynamics_input` with ``hold_rate``, ``hold_reach``,
-        ``hold_omega``, on the identified model's linearization), rescuing the arm past what its reach can pull
-        back (``hold_rescue_reach``, ``hold_trigger``, ``hold_release``; module docstring);
-        ``"edge"``: the two LQRs of ``hold_q`` and ``edge_q`` switched at ``edge``, with the band and the recovery
-        gain (the edge law).
-    hold_rate : float
-        [1/s]: the zero dynamics' unstable mode's closed-loop decay rate where the driven angle's request is linear.
-    hold_reach : float
-        [rad]: the most the driven angle is asked off upright.
-    hold_omega : float
-        [rad/s]: the driven angle's loop (critically damped).
-    hold_rescue_reach, hold_trigger, hold_release : float
-        The zero-dynamics hold's phase 4 (instead of the band and the recovery gain): a holding member rescues,
-        the law with the reach ``hold_rescue_reach`` [rad], where its unstable mode exceeds ``hold_trigger`` times
-        what the reach can pull back, until it is below ``hold_release`` times that with both angles within
-        ``hold_back`` (:class:`controllers.region.ZeroDynamicsHold`, :func:`controllers.region.rescuing`).
-    hold_band, hold_back : float
-        [rad]: a holding member recovers (its recovery gain) where an estimated angle is more than ``hold_band`` off
-        upright, until both are within ``hold_back`` again (:func:`controllers.region.recovering`), and a balancing
-        member switches to the hold only within ``hold_back`` (``0 < hold_back <= hold_band``).
-    hold_noise : (float, float)
-        The filter's per-step process-noise standard deviations (angle [rad], rate [rad/s]) while holding.
-    patience : float
-        [s]: the initial guess trades a closer approach to upright against an earlier one, ``e`` times the
-        cost-to-go for ``patience`` seconds sooner (:func:`controllers.trajectory.pumping_search`).
+    plan : PlanSettings, optional
+        The plan and the catch (:class:`controllers.planned_settings.PlanSettings`; default its defaults).
+    hold : HoldSettings or bool, optional
+        The hold stage (:class:`controllers.planned_settings.HoldSettings`); a bool or None: the default settings
+        with ``enabled`` so (None: the hold is used where it pays, :func:`hold_pays`).
+    **settings
+        Any field of :class:`~controllers.planned_settings.PlanSettings` or :class:`~controllers.planned_settings.HoldSettings`
+        by name (``plan_time=0.0``, ``hold_law="edge"``, ...), applied on top of ``plan`` and ``hold``: the keys of
+        the tuned entries; an unknown name is a ``ValueError``. The control step's limits (the plan's grid in control
+        steps, ``hold_omega <= pi / dt``, ``hold_reach <= hold_rescue_reach <= drop``) are checked here.
     """
 
     tuned_name = "identified iLQR + TVLQR"
 
     def __init__(self, env: Any, k_q: Any = None, k_v: Any = None, k_E: Any = None, catch: Any = None, release: float = 4.0,
-                 lqr_r: Any = None, window: int = 10,
-                 prior: float = 0.1, obs_noise: float = 0.01, process_noise: Any = ((1e-4, 1e-2), (3e-4, 3e-2)),
-                 plan_time: float = 3.0, horizon: float = 10.0, tail: float = 0.5, iterations: int = 100, refine_iterations: int = 10,
-                 w_u: float = 0.1, w_T: float = 1e4, margin: float = 0.85, accept: float = 0.05, retry: float = 1.0,
-                 refine_every: float = 0.5, funnel: float = 0.5, drop: float = 0.3, patience: float = 5.0, track_r: float = 1.0, w_x: float = 0.0, catch_time: float = 3.0,
-                 catch_tol: float = 0.01, plan_step: float = 0.01, plan_h: float = 0.005, gate: Any = None, hold: Any = None,
-                 hold_q: Any = HOLD_Q, hold_r: float = 1e-3, hold_noise: Any = (1e-5, 1e-4), edge_q: Any = EDGE_Q,
-                 recover_q: Any = RECOVER_Q, edge: float = 0.083, edge_lead: float = 0.025, hold_band: float = 0.1,
-                 hold_back: float = 0.085, hold_law: str = "zero_dynamics", hold_rate: float = 35.0, hold_reach: float = 0.0975,
-                 hold_omega: float = 45.0, hold_rescue_reach: float = 0.2, hold_trigger: float = 1.35, hold_release: float = 0.7):  # fmt: skip
+                 lqr_r: Any = None, window: int = 10, prior: float = 0.1, obs_noise: float = 0.01,
+                 process_noise: Any = ((1e-4, 1e-2), (3e-4, 3e-2)), gate: Any = None, plan: PlanSettings | None = None,
+                 hold: HoldSettings | bool | None = None, **settings: Any):  # fmt: skip
+        plan, hold = split_settings(plan, hold, settings)  # every setting validated before anything is built
         # a catch level only for the inherited switching rule, which this controller does not use (module docstring)
         catch = 1.0 if catch is None else catch
         super().__init__(env, k_q=k_q, k_v=k_v, k_E=k_E, catch=catch, release=release, lqr_r=lqr_r, window=window, prior=prior, obs_noise=obs_noise,
                          process_noise=process_noise, gate=gate)  # fmt: skip
+        self.plan_settings, self.hold_settings = plan, hold
 
-        def steps(
-            t: Any, name: str, positive: bool = False, step: float = self.dt
-        ) -> int:  # a duration [s] in steps of ``step``
-            return int(round(check.real(t, name, 0.0, 1e4, low_open=positive) / step))
+        def steps(t: float, step: float = self.dt) -> int:  # a duration [s] in steps of ``step``
+            return int(round(t / step))
 
         # the plan's grid: ``stride`` control steps per knot, its model stepped by RK4 in steps of at most ``plan_h``
-        self.stride = max(1, steps(plan_step, "plan_step", positive=True))
-        h = check.real(plan_h, "plan_h", 0.0, 1.0, low_open=True)
+        self.stride = max(1, steps(plan.plan_step))
         self.plan_dt = self.stride * self.dt
-        self.plan_substeps = self.substeps if self.stride == 1 else max(1, int(np.ceil(round(self.plan_dt / h, 9))))
-        self.plan_steps = steps(plan_time, "plan_time")
-        self.max_steps = max(2, steps(horizon, "horizon", positive=True, step=self.plan_dt))
-        self.tail = min(steps(tail, "tail", step=self.plan_dt), self.max_steps - 1)
-        self.patience = max(1, steps(patience, "patience", step=self.plan_dt))
-        self.retry_steps = max(1, steps(retry, "retry", positive=True))
-        self.refine_steps = max(1, steps(refine_every, "refine_every", positive=True))
-        self.iterations = check.integer(iterations, "iterations", 0, 10**6)
-        self.refine_iterations = check.integer(refine_iterations, "refine_iterations", 0, 10**6)
-        self.w_u = check.positive(w_u, "w_u")
-        self.w_T = check.positive(w_T, "w_T")
+        self.plan_substeps = (
+            self.substeps if self.stride == 1 else max(1, int(np.ceil(round(self.plan_dt / plan.plan_h, 9))))
+        )
+        self.plan_steps = steps(plan.plan_time)
+        self.max_steps = max(2, steps(plan.horizon, step=self.plan_dt))
+        self.tail = min(steps(plan.tail, step=self.plan_dt), self.max_steps - 1)
+        self.patience = max(1, steps(plan.patience, step=self.plan_dt))
+        self.retry_steps = max(1, steps(plan.retry))
+        self.refine_steps = max(1, steps(plan.refine_every))
+        self.iterations, self.refine_iterations = plan.iterations, plan.refine_iterations
+        self.w_u, self.w_T = plan.w_u, plan.w_T
         self.P_T = self.w_T * TERMINAL
-        self.W = check.nonnegative(w_x, "w_x") * TERMINAL
-        self.track_r = check.positive(track_r, "track_r")
-        self.catch_steps = max(10, steps(catch_time, "catch_time"))
-        self.catch_tol = check.positive(catch_tol, "catch_tol")
-        self.margin = check.real(margin, "margin", 0.0, 1.0, low_open=True)
-        self.accept = check.positive(accept, "accept")
-        self.funnel = check.positive(funnel, "funnel")
-        self.drop = check.positive(drop, "drop")
+        self.W = plan.w_x * TERMINAL
+        self.track_r = plan.track_r
+        self.catch_steps = max(10, steps(plan.catch_time))
+        self.catch_tol, self.margin, self.accept, self.funnel, self.drop = (plan.catch_tol, plan.margin, plan.accept,
+                                                                            plan.funnel, plan.drop)  # fmt: skip
         self.goal = np.concatenate([Q_UP, np.zeros(2)])
-        self.Q_hold, self.Q_edge, self.Q_recover = (self.hold_weights(w, name) for w, name in ((hold_q, "hold_q"), (edge_q, "edge_q"),
-                                                                                          (recover_q, "recover_q")))  # fmt: skip
-        self.R_hold = np.full((1, 1), check.positive(hold_r, "hold_r"))
-        self.edge = check.positive(edge, "edge")
-        self.edge_lead = check.nonnegative(edge_lead, "edge_lead")
-        self.hold_band = check.positive(hold_band, "hold_band")
-        if hold_law not in HOLD_LAWS:
-            raise ValueError(f"hold_law must be one of {HOLD_LAWS}, got {hold_law!r}")
-        self.hold_law = hold_law
-        reach = check.real(hold_reach, "hold_reach", 0.0, self.hold_band, low_open=True)
-        release = check.real(hold_release, "hold_release", 0.0, 1.0, low_open=True)
-        self.zd = region.ZeroDynamicsHold(check.positive(hold_rate, "hold_rate"), reach, check.real(hold_omega, "hold_omega", 0.0, np.pi / self.dt, low_open=True),
-                                          check.real(hold_rescue_reach, "hold_rescue_reach", reach, self.drop),
-                                          check.real(hold_trigger, "hold_trigger", release, 1e3, low_open=True), release)  # fmt: skip
-        self.hold_back = check.real(hold_back, "hold_back", 0.0, self.hold_band, low_open=True)
-        sigma = check.reals(hold_noise, "hold_noise")
-        if sigma.shape != (2,) or not (np.isfinite(sigma).all() and (sigma > 0).all()):
-            raise ValueError(f"hold_noise must be (angle, rate) standard deviations, positive, got {hold_noise!r}")
-        self.Q_w_hold = np.diag(np.repeat(sigma, 2) ** 2)
+        self.Q_hold, self.Q_edge, self.Q_recover = (self.hold_weights(w, name) for w, name in ((hold.hold_q, "hold_q"), (hold.edge_q, "edge_q"),
+                                                                                          (hold.recover_q, "recover_q")))  # fmt: skip
+        self.R_hold = np.full((1, 1), hold.hold_r)
+        self.edge, self.edge_lead, self.hold_band, self.hold_back = (
+            hold.edge,
+            hold.edge_lead,
+            hold.hold_band,
+            hold.hold_back,
+        )
+        self.hold_law = hold.hold_law
+        omega = check.real(hold.hold_omega, "hold_omega", 0.0, np.pi / self.dt, low_open=True)
+        rescue = check.real(hold.hold_rescue_reach, "hold_rescue_reach", hold.hold_reach, self.drop)
+        self.zd = region.ZeroDynamicsHold(
+            hold.hold_rate, hold.hold_reach, omega, rescue, hold.hold_trigger, hold.hold_release
+        )
+        self.Q_w_hold = np.diag(np.repeat(np.array(hold.hold_noise), 2) ** 2)
         self.hold = (
             hold_pays(self, getattr(unwrapped_env(env), "upright_tolerance", 0.1))
-            if hold is None
-            else check.boolean(hold, "hold")
+            if hold.enabled is None
+            else hold.enabled
         )
         if self.hold and self.obs_noise <= 0:
             raise ValueError(

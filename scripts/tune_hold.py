@@ -31,7 +31,8 @@ import numpy as np
 from tqdm import tqdm
 import mbs_envs  # noqa: F401
 from mbs_envs.controllers import PlannedSwingUp, region
-from mbs_envs.controllers.planned_swingup import EDGE_Q, HOLD_Q, HOLD_SETTLE, HOLD_WINDOW, RECOVER_Q
+from mbs_envs.controllers.planned_settings import EDGE_Q, HOLD_Q, RECOVER_Q
+from mbs_envs.controllers.planned_swingup import HOLD_SETTLE, HOLD_WINDOW
 from mbs_envs.controllers.swingup import upright_linearization
 from mbs_envs.studies.plotting import pyplot, save
 

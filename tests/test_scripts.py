@@ -1121,7 +1121,7 @@ def test_tune_hold_scores_candidates_on_the_arms_map_and_checks_the_best_beside_
     """``scripts/tune_hold.py`` at a tiny size: every candidate scored (a share in [0, 1]), the best checked beside the
     defaults (their weights as ``PlannedSwingUp`` has them), the three files written."""
     from mbs_envs.controllers import PlannedSwingUp
-    from mbs_envs.controllers.planned_swingup import EDGE_Q, HOLD_Q, RECOVER_Q
+    from mbs_envs.controllers.planned_settings import EDGE_Q, HOLD_Q, RECOVER_Q
 
     script = load_script("tune_hold.py")
     assert (
