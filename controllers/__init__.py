@@ -11,6 +11,7 @@ from .disk import LQR, NoControl, SteeringPD
 from .joint import PD, ComputedTorque, PDGravity
 from .adaptive_swingup import AdaptiveSwingUpLQR
 from .planned_swingup import PlannedSwingUp
+from .scored_swingup import ScoredSwingUp
 from .swingup import SwingUpLQR
 from .energy_swingup import EnergySwingUpLQR
 from .estimator import RatesFromAngles
@@ -26,6 +27,7 @@ __all__ = [
     "SwingUpLQR",
     "AdaptiveSwingUpLQR",
     "PlannedSwingUp",
+    "ScoredSwingUp",
     "EnergySwingUpLQR",
     "RatesFromAngles",
 ]

@@ -35,6 +35,9 @@ SWING_UP_CONTROLLERS = MappingProxyType(
         "identified iLQR + TVLQR": "mbs_envs.controllers:PlannedSwingUp",
     }
 )
+#: controllers designed for the DFKI protocol ids alone (their design is the protocol plant's; not run on our own
+#: swing-up scenes)
+PROTOCOL_CONTROLLERS = MappingProxyType({"score-designed swing-up + TVLQR": "mbs_envs.controllers:ScoredSwingUp"})
 
 
 @dataclasses.dataclass(frozen=True)

@@ -17,7 +17,10 @@ import numpy as np
 import mbs_envs  # noqa: F401
 from .. import validation as check
 from ..envs.presets import PROTOCOL_IDS
-from ..envs.registry import SWING_UP_CONTROLLERS
+from ..envs.registry import PROTOCOL_CONTROLLERS, SWING_UP_CONTROLLERS
+
+#: every model-based controller run on the protocol
+MODEL_BASED = {**SWING_UP_CONTROLLERS, **PROTOCOL_CONTROLLERS}
 from . import dfki
 from .parallel import run_tasks
 from .robustness import plot_success
@@ -40,7 +43,7 @@ def run(args: argparse.Namespace) -> dict:
     rows, sweeps = [], {}
     specs = {s: policies(s, None if args.no_agents else args.agents) for s in scenes}
     jobs = [(s, n) for s in scenes for n in specs[s]
-            if (not args.controller or n in args.controller) and not (args.no_controllers and n in SWING_UP_CONTROLLERS)]  # fmt: skip
+            if (not args.controller or n in args.controller) and not (args.no_controllers and n in MODEL_BASED)]  # fmt: skip
     if not jobs:
         raise SystemExit("dfki.py: no controller or agent matches --controller")
     if args.robust_catch:
@@ -121,7 +124,7 @@ def sweep_parts_of(jobs: list[tuple[str, str]], values: int, seed: int, workers:
     axis: its network's outputs move in the last bits with the batch size (:func:`mbs_envs.studies.robustness.run`),
     so only whole batches give the committed runs' episodes. The parts go out largest first (stably: an axis' parts
     stay in their order), so that the pool's last tasks are small ones."""
-    model_based = {j for j, (_, name) in enumerate(jobs) if name in SWING_UP_CONTROLLERS}
+    model_based = {j for j, (_, name) in enumerate(jobs) if name in MODEL_BASED}
     whole, metas = {}, {}
     for j, (scene, _) in enumerate(jobs):
         whole[j], metas[j] = dfki.sweep_parts(SCENES[scene], values, seed)
@@ -138,7 +141,7 @@ def policies(scene: str, agents: pathlib.Path | None) -> dict[str, str]:
     the protocol plant's upright LQR catching (``"<ALGO> + LQR seed<k>"``, :mod:`mbs_envs.studies.handover`)."""
     from mbs_envs.studies.comparison import AGENT_GROUPS, HAND_OVER
 
-    out = dict(SWING_UP_CONTROLLERS)
+    out = dict(MODEL_BASED)
     if agents is None:
         return out
     for folder in sorted(pathlib.Path(agents).glob(f"{scene}DFKI-v1/*/seed*/agent.zip")):

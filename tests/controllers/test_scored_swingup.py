@@ -1,0 +1,91 @@
+"""The score-designed swing-up: its design within the torque limit, ending in the success region, scored on the
+protocol as its design's rollout is, its memory in SB3's state, its refusals."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import mbs_envs  # noqa: F401
+from mbs_envs.controllers.scored_swingup import ScoredSwingUp, feedforward, stored_design
+from mbs_envs.studies import dfki, dfki_swingup
+
+IDS = ("mbs_envs/AcrobotDFKI-v1", "mbs_envs/PendubotDFKI-v1")
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_the_shipped_design_stays_within_the_limit_and_its_plan_ends_where_the_lqr_catches(env_id):
+    env = gym.make(env_id)
+    ctrl = ScoredSwingUp(env)
+    assert np.all(np.abs(ctrl.U) <= ctrl.u_max[0])
+    e = ctrl.X[-1] - ctrl.goal
+    e[:2] = np.mod(e[:2] + np.pi, 2 * np.pi) - np.pi
+    assert np.max(np.abs(e[:2])) < 0.1 and np.max(np.abs(e[2:])) < 1.0  # near upright: the upright LQR's to catch
+    p = env.unwrapped.model.params
+    y = dfki.end_effector_height(ctrl.X[-1, :2], p.l1, p.l2)
+    assert y > dfki.HEIGHT * (p.l1 + p.l2)  # in the success region
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_the_protocols_score_is_the_designs_rollout_score(env_id):
+    """The episode the protocol records (the env, the controller) scores as the design's own rollout (the same
+    trajectory: the feedback terms are zero along the plan on the nominal plant), to rounding."""
+    env = gym.make(env_id)
+    design = stored_design(env_id)
+    plant = dfki_swingup.Plant.of(env)
+    objective, c = dfki_swingup.design_score(plant, np.array(design["knots"]), design["knot_dt"])
+    venv = gym.make_vec(env_id, num_envs=1, vectorization_mode="vector_entry_point", autoreset_mode="Disabled")
+    run = dfki.record(venv, ScoredSwingUp(env), [0])
+    p = env.unwrapped.model.params
+    got = dfki.evaluate(run, p.l1, p.l2)[0]
+    assert got["success"] == 1.0 and c["success"] == 1.0
+    for k in ("swingup_time", "energy", "tau_cost", "tau_smoothness", "velocity_cost", "score"):
+        assert got[k] == pytest.approx(c[k], rel=1e-6, abs=1e-9), k  # RK4 of the env's kernel against the planner's
+    assert -objective == c["score"]
+
+
+def test_the_step_since_the_start_is_the_controllers_state_per_member():
+    env = gym.make(IDS[0])
+    ctrl = ScoredSwingUp(env)
+    obs, _ = env.reset(seed=0)
+    batch = np.stack([obs, obs])
+    a1, s1 = ctrl.predict(batch, None, np.array([True, True]))
+    a2, s2 = ctrl.predict(batch, s1, np.array([False, True]))  # the second member starts again
+    assert s1.tolist() == [1, 1] and s2.tolist() == [2, 1]
+    np.testing.assert_array_equal(a2[1], a1[1])
+    assert a2[0] != a1[0]  # the plan moved on a step
+
+
+def test_feedforward_is_the_spline_through_the_knots_clipped():
+    u = feedforward(np.array([0.0, 10.0, -10.0, 0.0]), 0.05, 0.002, 6.0)
+    assert len(u) == 75 and np.max(np.abs(u)) == 6.0 and u[0] == 0.0 and u[25] == 6.0
+
+
+def test_a_design_missing_or_malformed_is_refused_by_name():
+    with pytest.raises(ValueError, match="no scored swing-up design for 'mbs_envs/Acrobot-v1'"):
+        ScoredSwingUp(gym.make("mbs_envs/Acrobot-v1"))
+    env = gym.make(IDS[0])
+    with pytest.raises(ValueError, match="knots"):
+        ScoredSwingUp(env, design={"knot_dt": 0.05, "knots": [0.0, np.nan, 1.0, 0.0]})
+    with pytest.raises(ValueError, match="knot_dt"):
+        ScoredSwingUp(env, design={"knot_dt": -0.05, "knots": [0.0] * 5})
+
+
+def test_the_search_never_worsens_the_design_and_repeats_from_its_seed():
+    env_id = IDS[1]
+    plant = dfki_swingup.Plant.of(gym.make(env_id))
+    design = stored_design(env_id)
+    knots = np.array(design["knots"]) + 0.05 * np.sin(np.arange(len(design["knots"])))  # a design a little off
+    start = dfki_swingup.design_score(plant, knots, design["knot_dt"])[0]
+    z1, f1 = dfki_swingup.search(plant, knots, design["knot_dt"], evaluations=60, seed=4)
+    z2, f2 = dfki_swingup.search(plant, knots, design["knot_dt"], evaluations=60, seed=4)
+    assert f1 <= start and f1 == f2 and np.array_equal(z1, z2)
+    assert dfki_swingup.design_score(plant, z1, design["knot_dt"])[0] == f1
+    assert np.all(np.abs(z1) <= plant.u_max)
+
+
+def test_a_design_that_does_not_swing_up_scores_worse_than_any_that_does():
+    plant = dfki_swingup.Plant.of(gym.make(IDS[0]))
+    f, c = dfki_swingup.design_score(plant, np.zeros(10), 0.05)  # no torque: the arm hangs
+    assert c["success"] == 0.0 and c["score"] == 0.0 and f >= 1.0 + np.pi - 1e-9
