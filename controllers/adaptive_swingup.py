@@ -218,9 +218,10 @@ class AdaptiveSwingUpLQR(SwingUpLQR):
                 # an estimate whose LQR does not exist (a near-unstabilizable linearization) is not taken
                 ok = np.isfinite(K).all(axis=(1, 2)) & np.isfinite(S).all(axis=(1, 2))
                 rows, theta, K, S = rows[ok], theta[usable][ok], K[ok], S[ok]
-                state[rows, THETA] = theta
-                state[rows, K_] = K.reshape(len(rows), -1)
-                state[rows, S_] = S.reshape(len(rows), -1)
+                if len(rows):  # (none left where every new estimate's LQR was refused: the old gains stay)
+                    state[rows, THETA] = theta
+                    state[rows, K_] = K.reshape(len(rows), -1)
+                    state[rows, S_] = S.reshape(len(rows), -1)
         return state
 
     @staticmethod
