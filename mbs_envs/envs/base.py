@@ -232,12 +232,12 @@ class MBSEnv(Drawable, gym.Env):
         (``(B,)`` or ``(B, width)``; the reward left out)."""
         return self.dispatch.info_rows(info)
 
-    def _step_compiled(self, action: Any, tab: TableauArrays):
+    def _step_compiled(self, action: Any, tab: TableauArrays, d: StepDispatch):
         a = validate_action(action, self.model.nu)  # raises before any change
         if self._task_columns is None or self._task_columns[0] is not self._task:
             self._task_columns = (self._task, self.task_columns(self._task))
         t = np.array([self._t])
-        obs, info_row, u, bad, terminated = self.run_step_kernel(
+        obs, info_row, u, bad, terminated = d.run(
             self.model, self._q.reshape(-1, 1), self._v.reshape(-1, 1), t, self._task_columns[1], a.reshape(1, -1), tab
         )
         self._t = float(t[0])
@@ -245,7 +245,7 @@ class MBSEnv(Drawable, gym.Env):
         row = info_row[0]
         values = row.tolist()  # one conversion, not one per entry (:meth:`info_rows` is slower for one member)
         named = {name: (bool(values[c]) if boolean else values[c]) if w is None else row[c : c + w]
-                 for name, c, w, boolean in self.dispatch.info_columns()[1]}  # fmt: skip
+                 for name, c, w, boolean in d.info_columns()[1]}  # fmt: skip
         return self._single_step_result(obs, values, terminated, bad, named)
 
     def _single_step_result(self, obs, reward, terminated, bad, named: dict) -> tuple:
@@ -595,9 +595,10 @@ class MBSEnv(Drawable, gym.Env):
 
     def _step(self, action: Any):
         self._require_reset("step")
-        tab = self.compiled
+        d = self.dispatch
+        tab = d.tableau()
         if tab is not None:
-            return self._step_compiled(action, tab)
+            return self._step_compiled(action, tab, d)
         action = validate_action(action, self.model.nu)  # raises before any change
         q, v, t, u, obs, reward, terminated, bad, info_rows = self.step_rows(
             self.model, self._q[None], self._v[None], np.array([self._t]), self._task, action[None]
