@@ -37,19 +37,6 @@ class InfoColumn(NamedTuple):
     boolean: bool
 
 
-class _Kept(NamedTuple):
-    """A value and the objects (compared by identity) and plain key (compared by value) it was built from."""
-
-    objects: tuple
-    key: Any
-    value: Any
-
-    def holds(self, objects: tuple, key: Any = None) -> bool:
-        return (
-            len(objects) == len(self.objects) and all(a is b for a, b in zip(objects, self.objects)) and key == self.key
-        )
-
-
 def info_columns(layout: tuple[tuple[str, int | None, bool], ...]) -> tuple[int, tuple[InfoColumn, ...]]:
     """``(width, columns)`` of an ``info`` layout ``((name, width, boolean), ...)``: the array's total width and
     each entry's :class:`InfoColumn`, the reward (the first entry) left out."""
@@ -73,19 +60,19 @@ class StepDispatch:
 
     def __init__(self, env: Any):
         self.env = env
-        self._tableau: _Kept | None = None
-        self._arguments: _Kept | None = None
-        self._direct: _Kept | None = None
+        self._tableau: tuple | None = None
+        self._arguments: tuple | None = None
+        self._direct: tuple | None = None
         self._info: tuple[int, tuple[InfoColumn, ...]] | None = None
         self.actuated: np.ndarray | None = None
 
     def tableau(self) -> TableauArrays | None:
         """The tableau of the compiled step, or None when steps take the numpy path (see ``MBSEnv.compiled``)."""
         env = self.env
-        objects = (env.integrator, env.stabilization, env.model)
-        if self._tableau is None or not self._tableau.holds(objects):
-            self._tableau = _Kept(objects, None, self._decide())
-        return self._tableau.value
+        k = self._tableau  # (integrator, stabilization, model, tableau): decided again when one is replaced
+        if k is None or k[0] is not env.integrator or k[1] is not env.stabilization or k[2] is not env.model:
+            k = self._tableau = (env.integrator, env.stabilization, env.model, self._decide())
+        return k[3]
 
     def _decide(self) -> TableauArrays | None:
         env = self.env
@@ -114,26 +101,21 @@ class StepDispatch:
     def arguments(self, tab: TableauArrays, nc: int, full_info: bool) -> tuple:
         """``(stepper, control)`` of the step kernel (:mod:`mbs_envs.envs.engine`), kept until a setting changes."""
         env = self.env
-        objects = (tab, env.stabilization, self.actuated)
+        stab, actuated = env.stabilization, self.actuated
         key = (check.settings_version(env), env.residual_limit, nc, full_info)
-        if self._arguments is None or not self._arguments.holds(objects, key):
-            stepper = tab.packed(env.dt / env.substeps, env.substeps, projection_tol(env.stabilization))
-            control = (
-                float(env.dt),
-                float(env.divergence_limit),
-                float(env.residual_limit),
-                np.array(env.u_max),
-                self.actuated,
-                nc,
-                full_info,
-            )  # fmt: skip  (writable copies: compiled code takes one array type)
-            self._arguments = _Kept(objects, key, (stepper, control))
-        return self._arguments.value
+        c = self._arguments  # (tableau, stabilization, actuated, key, (stepper, control))
+        if c is None or c[0] is not tab or c[1] is not stab or c[2] is not actuated or c[3] != key:
+            stepper = tab.packed(env.dt / env.substeps, env.substeps, projection_tol(stab))
+            # writable copies: compiled code takes one array type
+            control = (float(env.dt), float(env.divergence_limit), float(env.residual_limit), np.array(env.u_max),
+                       actuated, nc, full_info)  # fmt: skip
+            c = self._arguments = (tab, stab, actuated, key, (stepper, control))
+        return c[4]
 
     @property
     def warm(self) -> bool:
         """Whether a single env's entry point is the compiled kernel (not its Python while it compiles)."""
-        return self._direct is not None and self._direct.key is None
+        return self._direct is not None and self._direct[5] is None
 
     def run(self, model: Any, q, v, t, task_columns: tuple, action, tab: TableauArrays | None = None,
             full_info: bool = True) -> tuple:  # fmt: skip
@@ -157,12 +139,22 @@ class StepDispatch:
         # argument object changes (a setting, the model's parameters, the episode's task); the state and the outputs
         # are built above the same way every step, so their types repeat. Until the kernel is compiled, its Python
         # (the same bits, :mod:`mbs_envs.dynamics.background`), looked up again once the compiling child has answered
-        objects = (theta, stepper, control, task, task_columns)
-        d = self._direct
-        if d is None or not d.holds(objects, d.key) or (d.key is not None and d.key != background.generation()):
+        d = self._direct  # (theta, stepper, control, task, task_columns, generation or None, entry, head)
+        if (
+            d is None or d[0] is not theta or d[1] is not stepper or d[2] is not control or d[3] is not task
+            or d[4] is not task_columns or (d[5] is not None and d[5] != background.generation())
+        ):  # fmt: skip
             head = (theta, stepper, control, task + task_columns)
             f, compiled = background.entry(env.step_kernel, head + (state, out))
-            d = self._direct = _Kept(objects, None if compiled else background.generation(), (f, head))
-        f, head = d.value
-        f(*head, state, out)
+            d = self._direct = (
+                theta,
+                stepper,
+                control,
+                task,
+                task_columns,
+                None if compiled else background.generation(),
+                f,
+                head,
+            )
+        d[6](*d[7], state, out)
         return obs.T, info.T, u.T, bad, terminated

@@ -121,7 +121,8 @@ def merged_sections(cls: type) -> tuple[str, dict[str, str]]:
 
 def _baselines(env_id: str) -> tuple[str, ...]:
     base_id = {pid: f"mbs_envs/{entry.rsplit(':', 1)[1].replace('V1Env', '')}-v1" for pid, entry, _, _ in PROTOCOL_IDS}
-    return tuple(registry.scene(base_id.get(env_id, env_id)).controllers)
+    extra = tuple(registry.PROTOCOL_CONTROLLERS) if env_id in base_id else ()
+    return tuple(registry.scene(base_id.get(env_id, env_id)).controllers) + extra
 
 
 def box_text(space: gym.spaces.Box) -> str:

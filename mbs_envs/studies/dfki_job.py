@@ -371,6 +371,12 @@ def gains_sentence(rows: list[dict]) -> str:
             "those the project's tuning picked on our own scene of the same task (`mbs_envs/<scene>-v1`, `controllers/tuned.json`; "
             "none tuned on this plant) for " + ", ".join(by["own scene"])
         )
+    designed = sorted({f"{r['controller']} ({r['scene']})" for r in rows if r["controller"] in PROTOCOL_CONTROLLERS})
+    if designed:
+        parts.append(
+            "designed on the protocol's score (`scripts/dfki_design.py`, `controllers/scored_swingup.json`) for "
+            + ", ".join(designed)
+        )
     return "; ".join(parts) + "." if parts else "none (agents only)."
 
 

@@ -89,3 +89,24 @@ def test_a_design_that_does_not_swing_up_scores_worse_than_any_that_does():
     plant = dfki_swingup.Plant.of(gym.make(IDS[0]))
     f, c = dfki_swingup.design_score(plant, np.zeros(10), 0.05)  # no torque: the arm hangs
     assert c["success"] == 0.0 and c["score"] == 0.0 and f >= 1.0 + np.pi - 1e-9
+
+
+def test_an_identification_window_whose_every_lqr_is_refused_keeps_the_gains_it_had(monkeypatch):
+    """A window closes where no member's new estimate gives an LQR (all non-finite): the memory keeps the old
+    gains and the step goes on (it raised a reshape error on the global-policy protocol's disturbed states)."""
+    from mbs_envs.controllers.adaptive_swingup import K_, AdaptiveSwingUpLQR
+
+    env = gym.make("mbs_envs/AcrobotDFKI-v1")
+    ctrl = AdaptiveSwingUpLQR(env, window=5)
+    monkeypatch.setattr(
+        ctrl, "gains", lambda model, n, Q=None, R=None: (np.full((n, 1, 4), np.nan), np.full((n, 4, 4), np.nan))
+    )
+    obs, _ = env.reset(seed=0)
+    state, start = None, True
+    for k in range(30):
+        action, state = ctrl.predict(obs[None], state, np.array([start]))
+        start = False
+        if k == 0:
+            K0 = np.array(state[:, K_])
+        obs, *_ = env.step(action[0])
+    np.testing.assert_array_equal(state[:, K_], K0)
