@@ -593,6 +593,7 @@ def test_bench_scenes_sweeps_batch_sizes():
     assert "| 2 envs | 3 envs |" in text and "Pendubot-v0" in text
 
 
+@pytest.mark.slow  # a fresh process times every scene (cold kernels compile there); the measurement itself: above
 def test_bench_scenes_measures_a_checkout_in_a_fresh_process():
     """``--baseline``: the measurement runs as this module's file in a fresh process on a checkout (here this one)."""
     import pathlib
