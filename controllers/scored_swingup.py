@@ -26,18 +26,19 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from mbs_envs import validation as check
+from mbs_envs.dynamics.jit import njit
 from mbs_envs.envs.swingup import Q_DOWN, Q_UP, SwingUpEnv
 
 from . import trajectory as traj
 from .base import Controller
-from .swingup import upright_lqr
+from .swingup import upright_lqr, wrap_angle
 
 #: the designs shipped with the package (``scripts/dfki.py --design``), by env id
 DESIGNS = pathlib.Path(__file__).with_name("scored_swingup.json")
 
 
 def feedforward(knots: np.ndarray, knot_dt: float, dt: float, u_max: float) -> np.ndarray:
-    """The torque at the control steps ``k dt``, ``k < N = round(len(knots) - 1) knot_dt / dt)``: the cubic spline
+    """The torque at the control steps ``k dt``, ``k < N = round((len(knots) - 1) knot_dt / dt)``: the cubic spline
     through ``(i knot_dt, knots[i])`` (natural ends), clipped to ``[-u_max, u_max]``; shape ``(N,)``."""
     knots = np.asarray(knots, float)
     n = int(round((len(knots) - 1) * knot_dt / dt))
@@ -46,12 +47,30 @@ def feedforward(knots: np.ndarray, knot_dt: float, dt: float, u_max: float) -> n
     return np.clip(spline(t), -u_max, u_max)
 
 
+@njit
+def closed_loop(U, K, goal, u_max, driven, theta, dt, substeps, steps, X, u):  # pragma: no cover - compiled
+    """The nominal episode of a design: ``U`` (N,) from hanging at rest, then the upright LQR ``u = -K wrap(x -
+    goal)`` clipped to ``u_max``, for ``steps`` control steps in all; writes the states ``X`` (steps, 4) at each
+    step's start and the inputs ``u`` (steps,)."""
+    x0, x1, x2, x3 = X[0, 0], X[0, 1], X[0, 2], X[0, 3]
+    for k in range(steps):
+        X[k, 0], X[k, 1], X[k, 2], X[k, 3] = x0, x1, x2, x3
+        if k < U.shape[0]:
+            uk = U[k]
+        else:
+            e0, e1, e2, e3 = traj.error4(x0, x1, x2, x3, goal[0], goal[1], goal[2], goal[3])
+            uk = -(K[0] * e0 + K[1] * e1 + K[2] * e2 + K[3] * e3)
+            uk = min(max(uk, -u_max), u_max)
+        u[k] = uk
+        x0, x1, x2, x3 = traj.step4(x0, x1, x2, x3, uk, driven, theta, dt, substeps)
+
+
 def nominal_plan(U: np.ndarray, x0: np.ndarray, driven: int, theta: np.ndarray, dt: float, substeps: int) -> np.ndarray:
-    """The states ``X`` (N+1, 4) of the inputs ``U`` (N,) from ``x0`` on the model ``theta`` (RK4, as the env steps)."""
+    """The states ``X`` (N+1, 4) of the inputs ``U`` (N,) from ``x0`` on the model ``theta`` (RK4, as the env steps):
+    :func:`closed_loop` over the plan's steps and the state after it."""
     X = np.empty((len(U) + 1, 4))
     X[0] = x0
-    for k in range(len(U)):
-        X[k + 1] = traj.step_map(X[k], float(U[k]), driven, theta, dt, substeps)
+    closed_loop(U, np.zeros(4), np.zeros(4), 0.0, driven, theta, dt, substeps, len(U) + 1, X, np.empty(len(U) + 1))
     return X
 
 
@@ -107,8 +126,7 @@ class ScoredSwingUp(Controller):
         return self._lqr(x)
 
     def _lqr(self, x: np.ndarray) -> np.ndarray:
-        e = x - self.goal
-        e[..., :2] = np.mod(e[..., :2] + np.pi, 2 * np.pi) - np.pi
+        e = np.concatenate([wrap_angle(x[..., :2] - Q_UP), x[..., 2:]], axis=-1)
         return -(e @ np.asarray(self.K, float).reshape(4))[..., None]
 
     def control(self, obs: Any, state: Any, episode_start: Any) -> tuple[np.ndarray, Any]:
@@ -125,7 +143,7 @@ class ScoredSwingUp(Controller):
         if on.any():
             j = k[on]
             e = x[on] - self.X[j]
-            e[:, :2] = np.mod(e[:, :2] + np.pi, 2 * np.pi) - np.pi
+            e[:, :2] = wrap_angle(e[:, :2])
             u[on] = self.U[j] + np.einsum("ij,ij->i", self.K_track[j], e)
         u = u[:, None]
         return (u[0] if single else u), k + 1

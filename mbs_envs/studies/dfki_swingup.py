@@ -31,28 +31,10 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ..controllers import trajectory as traj
-from ..controllers.scored_swingup import ScoredSwingUp, feedforward
-from ..dynamics.jit import njit
+from ..controllers.swingup import upright_lqr
+from ..controllers.scored_swingup import ScoredSwingUp, closed_loop, feedforward
 from ..envs.swingup import Q_DOWN, Q_UP
 from . import dfki
-
-
-@njit
-def closed_loop(U, K, goal, u_max, driven, theta, dt, substeps, steps, X, u):  # pragma: no cover - compiled
-    """The nominal episode of a design: ``U`` (N,) from hanging at rest, then the upright LQR ``u = -K wrap(x -
-    goal)`` clipped to ``u_max``, for ``steps`` control steps in all; writes the states ``X`` (steps, 4) at each
-    step's start and the inputs ``u`` (steps,)."""
-    x0, x1, x2, x3 = X[0, 0], X[0, 1], X[0, 2], X[0, 3]
-    for k in range(steps):
-        X[k, 0], X[k, 1], X[k, 2], X[k, 3] = x0, x1, x2, x3
-        if k < U.shape[0]:
-            uk = U[k]
-        else:
-            e0, e1, e2, e3 = traj.error4(x0, x1, x2, x3, goal[0], goal[1], goal[2], goal[3])
-            uk = -(K[0] * e0 + K[1] * e1 + K[2] * e2 + K[3] * e3)
-            uk = min(max(uk, -u_max), u_max)
-        u[k] = uk
-        x0, x1, x2, x3 = traj.step4(x0, x1, x2, x3, uk, driven, theta, dt, substeps)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -74,10 +56,11 @@ class Plant:
         """The plant of a protocol env (``gym.make("mbs_envs/AcrobotDFKI-v1")``), with the upright LQR of
         :class:`ScoredSwingUp`'s defaults."""
         base = env.unwrapped
-        ctrl = ScoredSwingUp(env, design={"knot_dt": 0.05, "knots": [0.0] * 4})
-        p = base.model.params
-        return cls(ctrl.theta, ctrl.driven, ctrl.dt, ctrl.substeps, int(env.spec.max_episode_steps), float(ctrl.u_max[0]),
-                   np.asarray(ctrl.K, float).reshape(4), float(p.l1), float(p.l2))  # fmt: skip
+        model, p = base.model, base.model.params
+        K = upright_lqr(model, ScoredSwingUp.Q, np.eye(1))[0]  # (the controller's default lqr_r = 1)
+        return cls(np.asarray(model.kernel_params(), float).reshape(-1, 1), int(model.driven[0]), float(base.dt),
+                   int(base.substeps), int(env.spec.max_episode_steps), float(base.u_max[0]),
+                   np.asarray(K, float).reshape(4), float(p.l1), float(p.l2))  # fmt: skip
 
 
 def rollout(plant: Plant, knots: np.ndarray, knot_dt: float) -> dict[str, np.ndarray]:
