@@ -12,6 +12,7 @@ from .joint import PD, ComputedTorque, PDGravity
 from .adaptive_swingup import AdaptiveSwingUpLQR
 from .planned_swingup import PlannedSwingUp
 from .scored_swingup import ScoredSwingUp
+from .mpc_swingup import MPCSwingUp, MPCSettings
 from .swingup import SwingUpLQR
 from .energy_swingup import EnergySwingUpLQR
 from .estimator import RatesFromAngles
@@ -28,6 +29,8 @@ __all__ = [
     "AdaptiveSwingUpLQR",
     "PlannedSwingUp",
     "ScoredSwingUp",
+    "MPCSwingUp",
+    "MPCSettings",
     "EnergySwingUpLQR",
     "RatesFromAngles",
 ]

@@ -7,7 +7,7 @@ leaderboard's code defines them), in a pool of processes. Writes ``v3.json`` (ev
 summary), ``v3.csv``, ``report.md`` (our rows beside the published leaders) and ``<robot>_<controller>.png`` (the best
 seed's run) to ``--out``::
 
-    python scripts/dfki_v3.py --out results/dfki_v3                 # 3 controllers x 2 robots x 3 seeds
+    python scripts/dfki_v3.py --out results/dfki_v3                 # every model-based controller x 2 robots x 3 seeds
     python scripts/dfki_v3.py --out results/dfki_v3 --seeds 0 --controller "swing-up + LQR"
 """
 
@@ -19,8 +19,8 @@ import json
 import pathlib
 
 import mbs_envs  # noqa: F401
-from mbs_envs.envs.registry import SWING_UP_CONTROLLERS
 from mbs_envs.studies import dfki_v3
+from mbs_envs.studies.dfki_job import MODEL_BASED
 from mbs_envs.studies.parallel import run_tasks
 
 
@@ -28,12 +28,12 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", required=True, type=pathlib.Path)
     p.add_argument("--scene", nargs="+", choices=["Acrobot", "Pendubot"], default=["Acrobot", "Pendubot"])
-    p.add_argument("--controller", nargs="+", choices=sorted(SWING_UP_CONTROLLERS), default=list(SWING_UP_CONTROLLERS))
+    p.add_argument("--controller", nargs="+", choices=sorted(MODEL_BASED), default=list(MODEL_BASED))
     p.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     p.add_argument("--workers", type=int, default=None)
     a = p.parse_args(argv)
     a.out.mkdir(parents=True, exist_ok=True)
-    tasks = [{"scene": s, "name": n, "spec": SWING_UP_CONTROLLERS[n], "seed": k} for s in a.scene for n in a.controller
+    tasks = [{"scene": s, "name": n, "spec": MODEL_BASED[n], "seed": k} for s in a.scene for n in a.controller
              for k in a.seeds]  # fmt: skip
     results = run_tasks(dfki_v3.job, tasks, max_workers=a.workers, progress="v3 runs")
     rows = [r["row"] for r in results]

@@ -37,7 +37,12 @@ SWING_UP_CONTROLLERS = MappingProxyType(
 )
 #: controllers designed for the DFKI protocol ids alone (their design is the protocol plant's; not run on our own
 #: swing-up scenes)
-PROTOCOL_CONTROLLERS = MappingProxyType({"score-designed swing-up + TVLQR": "mbs_envs.controllers:ScoredSwingUp"})
+PROTOCOL_CONTROLLERS = MappingProxyType(
+    {
+        "score-designed swing-up + TVLQR": "mbs_envs.controllers:ScoredSwingUp",
+        "iLQR MPC + LQR": "mbs_envs.controllers:MPCSwingUp",
+    }
+)
 
 
 @dataclasses.dataclass(frozen=True)

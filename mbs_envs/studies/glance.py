@@ -8,7 +8,8 @@ Reports read (paths relative to the repository):
 
 - ``docs/figures/compare/summary.json``: the main job (``scripts/compare.py``), tracking and swing-up scenes;
 - ``docs/figures/dfki/performance/dfki.json``: the DFKI protocol, simulation v2 (``scripts/dfki.py``);
-- ``docs/figures/dfki/robustness/<Robot>/dfki.json``: its robustness v2 sweep.
+- ``docs/figures/dfki/robustness/<Robot>/dfki.json``: its robustness v2 sweep;
+- ``docs/figures/dfki/v3/v3.json``: the global-policy protocol, simulation v3 (``scripts/dfki_v3.py``).
 """
 
 from __future__ import annotations
@@ -20,11 +21,13 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from .dfki import PUBLISHED_ROBUSTNESS_V2, PUBLISHED_SIMULATION_V2
+from .dfki_v3 import PUBLISHED_V3
 
 #: the reports, relative to the repository root
 COMPARE = "docs/figures/compare/summary.json"
 DFKI_PERFORMANCE = "docs/figures/dfki/performance/dfki.json"
 DFKI_ROBUSTNESS = "docs/figures/dfki/robustness/{robot}/dfki.json"
+DFKI_V3 = "docs/figures/dfki/v3/v3.json"
 
 #: the success a policy needs at the nominal plant to count as "best" on its side (as the report's rule)
 BEST_SUCCESS = 0.95
@@ -120,6 +123,20 @@ def dfki_table(performance: Mapping[str, Any], robustness: Mapping[str, Mapping[
     return "\n".join(rows)
 
 
+def dfki_v3_table(v3: Mapping[str, Any]) -> str:
+    """Per robot, our best simulation-v3 score (mean over its seeds, with their range) beside the best published one."""
+    rows = ["| robot | ours, simulation v3 | uptime score | range over seeds | best published | uptime score |",
+            "|---|---|---|---|---|---|"]  # fmt: skip
+    for env_id in dict.fromkeys(r["env_id"] for r in v3["summary"]):
+        ours = max((r for r in v3["summary"] if r["env_id"] == env_id), key=lambda r: r["score"])
+        pub = PUBLISHED_V3.get(env_id, {})
+        best = max(pub, key=pub.get) if pub else None
+        robot = env_id.split("/")[-1].replace("DFKI-v1", "")
+        rows.append(f"| {robot} | {ours['controller']} | {ours['score']:.3f} | {ours['min']:.3f} - {ours['max']:.3f} "
+                    f"({len(ours['seeds'])} seeds) | {best or '-'} | {f'{pub[best]:.3f}' if best else '-'} |")  # fmt: skip
+    return "\n".join(rows)
+
+
 def tables(root: pathlib.Path) -> dict[str, str]:
     """Every glance table by marker name, read from the reports under the repository ``root``."""
     summary = json.loads((root / COMPARE).read_text())
@@ -129,8 +146,9 @@ def tables(root: pathlib.Path) -> dict[str, str]:
         path = root / DFKI_ROBUSTNESS.format(robot=robot)
         if path.exists():
             robustness[robot] = json.loads(path.read_text())
+    v3 = json.loads((root / DFKI_V3).read_text())
     return {"tracking": tracking_table(summary), "swingup": swingup_table(summary),
-            "dfki": dfki_table(performance, robustness)}  # fmt: skip
+            "dfki": dfki_table(performance, robustness), "dfki_v3": dfki_v3_table(v3)}  # fmt: skip
 
 
 def fill(text: str, blocks: Mapping[str, str]) -> str:
