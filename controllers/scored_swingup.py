@@ -98,6 +98,8 @@ class ScoredSwingUp(Controller):
 
     fits = (SwingUpEnv,)
     Q = np.diag([10.0, 10.0, 1.0, 1.0])
+    #: where its settings come from (the DFKI report says so)
+    settings_note = "designed on the protocol's score (`scripts/dfki_design.py`, `controllers/scored_swingup.json`)"
 
     def __init__(self, env: Any, design: Mapping[str, Any] | None = None, lqr_r: float = 1.0, track_r: float = 1.0):
         super().__init__(env)

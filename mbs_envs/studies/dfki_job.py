@@ -371,12 +371,15 @@ def gains_sentence(rows: list[dict]) -> str:
             "those the project's tuning picked on our own scene of the same task (`mbs_envs/<scene>-v1`, `controllers/tuned.json`; "
             "none tuned on this plant) for " + ", ".join(by["own scene"])
         )
-    designed = sorted({f"{r['controller']} ({r['scene']})" for r in rows if r["controller"] in PROTOCOL_CONTROLLERS})
-    if designed:
-        parts.append(
-            "designed on the protocol's score (`scripts/dfki_design.py`, `controllers/scored_swingup.json`) for "
-            + ", ".join(designed)
-        )
+    from .evaluation import controller_class
+
+    notes: dict[str, list[str]] = {}  # a protocol controller's own account of its settings -> who has it
+    for r in rows:
+        if r["controller"] in PROTOCOL_CONTROLLERS:
+            note = controller_class(PROTOCOL_CONTROLLERS[r["controller"]]).settings_note
+            notes.setdefault(note, []).append(f"{r['controller']} ({r['scene']})")
+    for note, who in notes.items():
+        parts.append(note + " for " + ", ".join(sorted(set(who))))
     return "; ".join(parts) + "." if parts else "none (agents only)."
 
 
