@@ -6,7 +6,7 @@ protocol scores (:mod:`mbs_envs.studies.dfki_v3`: 15 disturbances in 60 s, each 
 member, at every knot (``knot_dt`` apart: ``stride`` control steps; the model is stepped over a knot exactly as the
 env steps it, ``stride * substeps`` classical RK4 steps with the input held):
 
-1. **Solve** the finite-horizon problem from the current state ``x`` (``N = horizon / knot_dt`` knots)
+1. **Solve** the finite-horizon problem from the current state ``x`` (``N = horizon / knot_dt`` knots)::
 
        min_U  sum_k (w_u u_k^2 + dx_k^T W dx_k) h / 2 + w_T dx_N^T S dx_N / 2,   |u_k| <= u_max,
 
@@ -228,6 +228,10 @@ class MPCSwingUp(Controller):
         e = np.concatenate([wrap_angle(x[..., :2] - Q_UP), x[..., 2:]], axis=-1)
         return np.clip(-(e @ self.K), -self.u_lim, self.u_lim)[..., None]
 
+    def upright_input(self, e: np.ndarray) -> float:
+        """The saturated upright LQR's input [N m] at the wrapped error ``e`` (4,)."""
+        return float(np.clip(-self.K @ e, -self.u_lim, self.u_lim))
+
     def act(self, x: np.ndarray, row: np.ndarray) -> float:
         """One member's input [N m] at state ``x`` (4,), its memory ``row`` updated in place (module docstring)."""
         s = self.settings
@@ -240,12 +244,12 @@ class MPCSwingUp(Controller):
         if row[MODE] == 0 and knot and not far and self.catches(x):
             row[MODE] = 1.0
         if row[MODE] == 1:
-            return float(np.clip(-self.K @ e, -self.u_lim, self.u_lim))
+            return self.upright_input(e)
         if knot:
             self.replan(x, row)
             row[STEP] = 0.0
-            if not row[VALID]:
-                return float(np.clip(-self.K @ e, -self.u_lim, self.u_lim))
+            if not row[VALID]:  # no finite solution from here: the upright LQR until the next knot
+                return self.upright_input(e)
         N = self.N
         X = row[self.X_].reshape(N + 1, 4)
         f = row[STEP] / self.stride
