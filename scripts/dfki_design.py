@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import json
 import pathlib
+import sys
 
 import gymnasium as gym
 
@@ -49,11 +50,17 @@ def main(argv: list[str] | None = None) -> int:
     tasks = [{"robot": r, "horizons": a.horizons, "knot_dt": a.knot_dt, "top": a.top, "evaluations": a.evaluations,
               "seed": a.seed, "out": str(a.out)} for r in a.robot]  # fmt: skip
     entries = run_tasks(one, tasks, max_workers=a.workers, progress="designs")
+    command = "python scripts/dfki_design.py " + " ".join(argv if argv is not None else sys.argv[1:])
+    for e in entries:  # the command that made each design, kept with it
+        e["command"] = command
+        path = a.out / e["env_id"].split("/")[-1].replace("DFKI-v1", "") / "design.json"
+        path.write_text(json.dumps(e, indent=1))
     for e in entries:
         c = e["criteria"]
         print(f"{e['env_id']}: score {c['score']:.4f} (swing-up {c['swingup_time']:.3f} s, energy {c['energy']:.2f} J, "
               f"torque cost {c['tau_cost']:.2f}, smoothness {c['tau_smoothness']:.4f}, velocity cost {c['velocity_cost']:.1f})")  # fmt: skip
-    (a.out / "report.md").write_text(ds.design_report(entries))
+    # the report covers every robot designed into --out, by this run or an earlier one (one robot at a time works)
+    (a.out / "report.md").write_text(ds.design_report(ds.designs_in(a.out, tuple(IDS))))
     if a.write:
         stored = json.loads(DESIGNS.read_text()) if DESIGNS.exists() else {}
         stored.update({e["env_id"]: {"knot_dt": e["knot_dt"], "knots": e["knots"]} for e in entries})

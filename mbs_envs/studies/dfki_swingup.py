@@ -92,10 +92,13 @@ def design_score(plant: Plant, knots: np.ndarray, knot_dt: float) -> tuple[float
 
 
 def first_swingups(plant: Plant, horizon: float, knot_dt: float, periods: tuple = (0.3, 0.4, 0.5, 0.6, 0.8),
-                   amplitudes: tuple = (0.5, 1.0), weights: tuple = ((0.1, 0.0), (1.0, 0.0), (0.1, 0.1), (1.0, 1.0)),
+                   amplitudes: tuple = (0.5, 1.0),
+                   weights: tuple = ((0.1, 0.0), (1.0, 0.0), (0.1, 0.1), (1.0, 1.0), (1.0, 0.03), (1.0, 0.07)),
                    w_T: float = 1e4) -> list[tuple[float, np.ndarray, dict]]:  # fmt: skip
     """Step 1 (module docstring): for each initial guess ``u = a u_max sin(2 pi t / period)`` and each iLQR weight
-    pair ``(w_u, w_v)`` (effort; the rates' running weight), the iLQR swing-up within ``horizon`` [s] on knots 0.01 s
+    pair ``(w_u, w_v)`` (effort; the rates' running weight; a rates' weight a few hundredths of the effort's is the
+    score's own exchange rate near the leaders: the slope of ``tanh(pi c / n)`` makes a unit of torque cost worth about
+    14 of velocity cost at the pendubot's leading values), the iLQR swing-up within ``horizon`` [s] on knots 0.01 s
     apart (:func:`mbs_envs.controllers.trajectory.ilqr`, terminal weight ``w_T``); those ending within 0.05 of upright
     fitted as a spline design (:func:`fit_knots`). Returns ``(objective, knots, settings)`` of each, best first."""
     plan_dt, H = 0.01, int(round(horizon / 0.01))
@@ -215,6 +218,16 @@ def write_design(out: Any, env_id: str, knots: np.ndarray, info: dict, knot_dt: 
     return entry
 
 
+def designs_in(out: Any, robots: tuple = ("Acrobot", "Pendubot")) -> list[dict]:
+    """The designs written to ``out`` (``<robot>/design.json`` of each robot that has one, in ``robots``' order), by one
+    run of ``scripts/dfki_design.py`` or several: what its report covers."""
+    import json
+    import pathlib
+
+    files = [pathlib.Path(out) / r / "design.json" for r in robots]
+    return [json.loads(f.read_text()) for f in files if f.exists()]
+
+
 def design_report(entries: list[dict]) -> str:
     """The designs' criteria beside the published simulation-v2 leader of each robot (markdown)."""
     from .dfki import PUBLISHED_SIMULATION_V2
@@ -239,6 +252,7 @@ def design_report(entries: list[dict]) -> str:
         s = e["settings"]
         lines += ["", f"First swing-up: {s['horizon']} s horizon, sinusoid of period {s['period']} s at "
                   f"{s['amplitude']:g} of the limit, iLQR weights w_u = {s['w_u']:g}, w_v = {s['w_v']:g}; "
-                  f"{len(e['knots'])} knots {e['knot_dt']} s apart.", "",
+                  f"{len(e['knots'])} knots {e['knot_dt']} s apart."
+                  + (f" Designed by `{e['command']}`." if e.get("command") else ""), "",
                   f"![{e['env_id']}]({robot}/design.png)", ""]  # fmt: skip
     return "\n".join(lines)

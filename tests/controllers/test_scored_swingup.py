@@ -3,6 +3,8 @@ protocol as its design's rollout is, its memory in SB3's state, its refusals."""
 
 from __future__ import annotations
 
+import json
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -110,3 +112,23 @@ def test_an_identification_window_whose_every_lqr_is_refused_keeps_the_gains_it_
             K0 = np.array(state[:, K_])
         obs, *_ = env.step(action[0])
     np.testing.assert_array_equal(state[:, K_], K0)
+
+
+def test_the_design_report_covers_every_robot_designed_into_the_folder(tmp_path):
+    """Robots designed by separate runs into one folder share one report, each with the command that made it."""
+    c = {"swingup_time": 1.0, "energy": 8.0, "tau_cost": 2.0, "tau_smoothness": 0.01, "velocity_cost": 50.0,
+         "score": 0.6}  # fmt: skip
+    settings = {"horizon": 1.5, "period": 0.3, "amplitude": 1.0, "w_u": 1.0, "w_v": 0.03}
+    for robot, command in (("Pendubot", "python scripts/dfki_design.py --robot Pendubot"), ("Acrobot", None)):
+        entry = {"env_id": f"mbs_envs/{robot}DFKI-v1", "knot_dt": 0.05, "knots": [0.0] * 5, "criteria": c,
+                 "settings": settings, "candidates": []}  # fmt: skip
+        if command:
+            entry["command"] = command
+        (tmp_path / robot).mkdir()
+        (tmp_path / robot / "design.json").write_text(json.dumps(entry))
+    entries = dfki_swingup.designs_in(tmp_path)
+    assert [e["env_id"] for e in entries] == ["mbs_envs/AcrobotDFKI-v1", "mbs_envs/PendubotDFKI-v1"]
+    text = dfki_swingup.design_report(entries)
+    assert "### mbs_envs/AcrobotDFKI-v1" in text and "### mbs_envs/PendubotDFKI-v1" in text
+    assert text.count("Designed by `python scripts/dfki_design.py --robot Pendubot`") == 1
+    assert dfki_swingup.designs_in(tmp_path / "empty") == []
