@@ -226,11 +226,11 @@ class MPCSwingUp(Controller):
         """Without memory: the upright LQR (the MPC needs its last solution, :meth:`control`)."""
         x = np.concatenate([obs.q, obs.v], axis=-1)
         e = np.concatenate([wrap_angle(x[..., :2] - Q_UP), x[..., 2:]], axis=-1)
-        return np.clip(-(e @ self.K), -self.u_lim, self.u_lim)[..., None]
+        return self.upright_input(e)[..., None]
 
-    def upright_input(self, e: np.ndarray) -> float:
-        """The saturated upright LQR's input [N m] at the wrapped error ``e`` (4,)."""
-        return float(np.clip(-self.K @ e, -self.u_lim, self.u_lim))
+    def upright_input(self, e: np.ndarray) -> np.ndarray:
+        """The saturated upright LQR's input [N m] at the wrapped error ``e`` (..., 4): shape (...)."""
+        return np.clip(-(e @ self.K), -self.u_lim, self.u_lim)
 
     def act(self, x: np.ndarray, row: np.ndarray) -> float:
         """One member's input [N m] at state ``x`` (4,), its memory ``row`` updated in place (module docstring)."""
@@ -244,12 +244,12 @@ class MPCSwingUp(Controller):
         if row[MODE] == 0 and knot and not far and self.catches(x):
             row[MODE] = 1.0
         if row[MODE] == 1:
-            return self.upright_input(e)
+            return float(self.upright_input(e))
         if knot:
             self.replan(x, row)
             row[STEP] = 0.0
             if not row[VALID]:  # no finite solution from here: the upright LQR until the next knot
-                return self.upright_input(e)
+                return float(self.upright_input(e))
         N = self.N
         X = row[self.X_].reshape(N + 1, 4)
         f = row[STEP] / self.stride

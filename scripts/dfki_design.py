@@ -32,7 +32,7 @@ def one(task: dict) -> dict:
     plant = ds.Plant.of(gym.make(env_id))
     z, info = ds.design(plant, tuple(task["horizons"]), task["knot_dt"], task["top"], task["evaluations"], task["seed"],
                         progress=lambda m: print(f"{task['robot']}: {m}", flush=True))  # fmt: skip
-    return ds.write_design(pathlib.Path(task["out"]) / task["robot"], env_id, z, info, task["knot_dt"])
+    return ds.write_design(pathlib.Path(task["out"]) / task["robot"], env_id, z, info, task["knot_dt"], task["command"])
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -47,14 +47,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--write", action="store_true", help="store the designs in controllers/scored_swingup.json")
     a = p.parse_args(argv)
-    tasks = [{"robot": r, "horizons": a.horizons, "knot_dt": a.knot_dt, "top": a.top, "evaluations": a.evaluations,
-              "seed": a.seed, "out": str(a.out)} for r in a.robot]  # fmt: skip
-    entries = run_tasks(one, tasks, max_workers=a.workers, progress="designs")
     command = "python scripts/dfki_design.py " + " ".join(argv if argv is not None else sys.argv[1:])
-    for e in entries:  # the command that made each design, kept with it
-        e["command"] = command
-        path = a.out / e["env_id"].split("/")[-1].replace("DFKI-v1", "") / "design.json"
-        path.write_text(json.dumps(e, indent=1))
+    tasks = [{"robot": r, "horizons": a.horizons, "knot_dt": a.knot_dt, "top": a.top, "evaluations": a.evaluations,
+              "seed": a.seed, "out": str(a.out), "command": command} for r in a.robot]  # fmt: skip
+    entries = run_tasks(one, tasks, max_workers=a.workers, progress="designs")
     for e in entries:
         c = e["criteria"]
         print(f"{e['env_id']}: score {c['score']:.4f} (swing-up {c['swingup_time']:.3f} s, energy {c['energy']:.2f} J, "

@@ -57,7 +57,7 @@ def run(args: argparse.Namespace) -> dict:
             )
         if not jobs:
             raise SystemExit("dfki.py: no policy has a catch tuned for robustness (run --tune-robust-catch --write)")
-    gains = {(s, n): protocol_gains(s, n) if n in SWING_UP_CONTROLLERS else (None, "") for s, n in jobs}
+    gains = {(s, n): protocol_gains(s, n) for s, n in jobs}
     base = [{"env_id": SCENES[s], "spec": specs[s][n], "gains": gains[s, n][0], "rates_from_angles": args.rates_from_angles,
              **({"catch_gains": catches[s, n]} if args.robust_catch else {})} for s, n in jobs]  # fmt: skip
     tasks = list(base)  # the protocol's episode of each, then the parts of every sweep: one pool keeps every core busy
@@ -156,10 +156,13 @@ def protocol_gains(scene: str, name: str) -> tuple[dict | None, str]:
     """The gains this controller runs with on the protocol and where they come from: those tuned on the protocol id
     where ``controllers/tuned.json`` has them (``--tune --write``; for a controller without an entry of its own, that
     of the controller whose laws it shares; ``"protocol"``), else those the project's tuning picked on our own scene
-    of the same task (``mbs_envs/<scene>-v1``; ``"own scene"``)."""
+    of the same task (``mbs_envs/<scene>-v1``; ``"own scene"``). ``(None, "")`` for a policy without tuned gains: an
+    agent, or a protocol controller (:data:`PROTOCOL_CONTROLLERS`, whose report states its own settings)."""
     from mbs_envs.controllers.tuned import stored_entry, tuned_gains
     from mbs_envs.studies.evaluation import controller_class
 
+    if name not in SWING_UP_CONTROLLERS:
+        return None, ""
     tuned_name = getattr(controller_class(SWING_UP_CONTROLLERS[name]), "tuned_name", None)
     if tuned_name is None:
         return None, ""
@@ -210,10 +213,7 @@ def tune_robust_catch(args: argparse.Namespace) -> dict:
         specs = catching_policies(scene, args.agents)
         if args.controller:
             specs = {n: s for n, s in specs.items() if n in args.controller or catch_group(n) in args.controller}
-        pols = {
-            n: {"spec": s, "gains": protocol_gains(scene, n)[0] if n in SWING_UP_CONTROLLERS else None}
-            for n, s in specs.items()
-        }
+        pols = {n: {"spec": s, "gains": protocol_gains(scene, n)[0]} for n, s in specs.items()}
         groups: dict[str, list[str]] = {}
         for n in pols:
             groups.setdefault(catch_group(n), []).append(n)

@@ -188,9 +188,12 @@ def search(plant: Plant, knots: np.ndarray, knot_dt: float, evaluations: int = 5
     return z, f
 
 
-def write_design(out: Any, env_id: str, knots: np.ndarray, info: dict, knot_dt: float) -> dict:
+def write_design(
+    out: Any, env_id: str, knots: np.ndarray, info: dict, knot_dt: float, command: str | None = None
+) -> dict:
     """``design.json`` (the knots, the criteria and score of the nominal rollout, the settings of the first swing-up
-    it came from, every candidate's objective) and ``design.png`` (angles and torque of the rollout) to ``out``."""
+    it came from, every candidate's objective, and the ``command`` that made it where given) and ``design.png``
+    (angles and torque of the rollout) to ``out``."""
     import json
     import pathlib
 
@@ -203,6 +206,8 @@ def write_design(out: Any, env_id: str, knots: np.ndarray, info: dict, knot_dt: 
     run = rollout(plant, knots, knot_dt)
     entry = {"env_id": env_id, "knot_dt": knot_dt, "knots": [round(float(x), 6) for x in knots],
              "criteria": info["criteria"], "settings": info["settings"], "candidates": info["candidates"]}  # fmt: skip
+    if command is not None:
+        entry["command"] = command
     (out / "design.json").write_text(json.dumps(entry, indent=1))
     plt = pyplot()
     fig, ax = plt.subplots(2, 1, figsize=(7, 5), sharex=True)

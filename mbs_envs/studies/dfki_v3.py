@@ -151,14 +151,11 @@ def job(task: dict) -> dict:
     """One protocol run (a picklable task for :func:`mbs_envs.studies.parallel.run_tasks`): ``scene`` ("Acrobot",
     "Pendubot"), ``name`` and ``spec`` of a swing-up controller (built with its protocol gains,
     :func:`mbs_envs.studies.dfki_job.protocol_gains`), ``seed``. Returns the row (score, wall time) and the run."""
-    from ..envs.registry import SWING_UP_CONTROLLERS
     from .dfki_job import SCENES, protocol_gains
     from .evaluation import make_controller
 
     env_id = SCENES[task["scene"]]
-    gains, source = (
-        protocol_gains(task["scene"], task["name"]) if task["name"] in SWING_UP_CONTROLLERS else (None, "design")
-    )
+    gains, source = protocol_gains(task["scene"], task["name"])
     policy = make_controller(task["spec"], gym.make(env_id), gains or {})
     r = run(env_id, policy, task["seed"], task.get("t_max", T_MAX), task.get("n", N_DISTURBANCES))
     row = {"env_id": env_id, "controller": task["name"], "seed": task["seed"], "score": r["score"],
