@@ -43,14 +43,14 @@ from __future__ import annotations
 
 from typing import Any
 
-import control
 import numpy as np
 
 from mbs_envs import validation as check
 from mbs_envs.envs.swingup import Q_DOWN, Q_UP, SwingUpEnv
 from mbs_envs.envs.tracking import wrap_angle
+from mbs_envs.envs.upright import upright_linearization, upright_lqr  # noqa: F401  (re-exported)
 
-from .base import Controller, linearize, solve_rows
+from .base import Controller, solve_rows
 from .tuned import tuned_gains
 
 #: a state within this of the hanging rest (each angle [rad] and rate [rad/s]) is at rest there (the kick)
@@ -96,24 +96,6 @@ def at_rest(q: np.ndarray, v: np.ndarray, tol: float = REST_TOL) -> np.ndarray:
     """Whether the arm is at rest hanging: every angle within ``tol`` [rad] of :data:`~mbs_envs.envs.swingup.Q_DOWN`
     (wrapped) and every rate within ``tol`` [rad/s] of zero; ``q, v`` shape ``(..., 2)``, result ``(...)``."""
     return (np.abs(wrap_angle(q - Q_DOWN)).max(axis=-1) < tol) & (np.abs(v).max(axis=-1) < tol)
-
-
-def upright_linearization(model: Any, lead: tuple[int, ...] = ()) -> tuple[np.ndarray, np.ndarray]:
-    """``(A, B)`` of ``dx/dt = A x + B u`` about ``(q_up, v = 0, u = 0)``, ``x = (dq, dv)``: central
-    finite differences of the model's ``forward_dynamics``; shapes ``lead + (4, 4)`` and ``lead + (4, nu)``
-    (``lead = (B,)`` for a model with per-member parameters of shape ``(B,)``)."""
-
-    def f(x, u):
-        return np.concatenate([x[..., 2:], model.forward_dynamics(x[..., :2], x[..., 2:], u)], axis=-1)
-
-    return linearize(f, np.broadcast_to(np.concatenate([Q_UP, np.zeros(2)]), lead + (4,)), np.zeros(lead + (model.nu,)))
-
-
-def upright_lqr(model: Any, Q: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(K, S)`` of ``control.lqr`` on the model linearized about ``(q_up, v = 0, u = 0)``."""
-    A, B = upright_linearization(model)
-    K, S, _ = control.lqr(A, B, Q, R)
-    return np.asarray(K), np.asarray(S)
 
 
 def switch(

@@ -68,7 +68,14 @@ def env_id(env: Any) -> str | None:
 
 
 #: a task version -> the version whose plant it shares (a changed reward keeps the plant, so the gains)
-SAME_PLANT = {"mbs_envs/Acrobot-v1": "mbs_envs/Acrobot-v0", "mbs_envs/Pendubot-v1": "mbs_envs/Pendubot-v0"}
+SAME_PLANT = {
+    "mbs_envs/Acrobot-v1": "mbs_envs/Acrobot-v0",
+    "mbs_envs/Pendubot-v1": "mbs_envs/Pendubot-v0",
+    "mbs_envs/Acrobot-v2": "mbs_envs/Acrobot-v0",
+    "mbs_envs/Pendubot-v2": "mbs_envs/Pendubot-v0",
+    "mbs_envs/AcrobotDFKI-v2": "mbs_envs/AcrobotDFKI-v1",
+    "mbs_envs/PendubotDFKI-v2": "mbs_envs/PendubotDFKI-v1",
+}
 
 
 #: a controller -> the controller whose tuned entry it takes while it has none of its own (the same laws and gains)

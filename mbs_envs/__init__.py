@@ -8,7 +8,7 @@ from gymnasium.envs.registration import register, registry
 
 from . import models
 from .dynamics import integrators
-from .envs.presets import PROTOCOL_IDS
+from .envs.presets import PROTOCOL_IDS, TRAINING_IDS
 from .envs.registry import SCENES
 from .envs.vector import vector_entry_point as _vector_entry_point
 from .simulate import Trajectory, simulate  # the module first, then the name is the function
@@ -28,8 +28,9 @@ for _scene in SCENES:
             max_episode_steps=_scene.max_episode_steps,
         )
 
-# the published protocols' ids (a preset's plant and setup with the protocol's episode length; mbs_envs.envs.presets)
-for _id, _entry, _preset, _steps in PROTOCOL_IDS:
+# the published protocols' ids (a preset's plant and setup with the protocol's episode length; mbs_envs.envs.presets),
+# and the same plants with the v2 task's reward to train on
+for _id, _entry, _preset, _steps in PROTOCOL_IDS + TRAINING_IDS:
     if _id not in registry:
         register(
             id=_id,

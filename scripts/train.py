@@ -31,6 +31,7 @@ os.environ.setdefault("MBS_ENVS_JIT", "sync")
 import mbs_envs  # noqa: F401
 from mbs_envs.studies import cli
 from mbs_envs.envs import registry
+from mbs_envs.envs.presets import PROTOCOL_IDS, TRAINING_IDS
 from mbs_envs.studies.evaluation import ERROR_METRIC
 from mbs_envs.studies.parallel import run_tasks
 from mbs_envs.studies.training import ALGOS, TrainConfig, hyper_setting, out_refusal, residual_base, train
@@ -38,7 +39,7 @@ from mbs_envs.studies.training import ALGOS, TrainConfig, hyper_setting, out_ref
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--env", required=True, choices=list(mbs_envs.ENV_IDS))
+    p.add_argument("--env", required=True, choices=list(mbs_envs.ENV_IDS) + [e[0] for e in PROTOCOL_IDS + TRAINING_IDS])
     p.add_argument("--algo", required=True, choices=sorted(ALGOS))
     p.add_argument("--steps", required=True, type=cli.positive_int)
     p.add_argument("--seed", type=int, nargs="+", default=[0])

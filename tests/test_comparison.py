@@ -243,14 +243,25 @@ def test_swing_up_agents_also_run_as_rl_plus_lqr_on_the_model_based_plus_rl_side
         "model-based + RL",
         "model-based + RL",
     )
+    # agents of a later version of the task (another reward, the same plant and success rule) join, named with it;
+    # earlier versions' do not
+    for version in ("v2", "v0"):
+        folder = tmp_path / f"Acrobot-{version}" / "sac" / "seed0"
+        folder.mkdir(parents=True)
+        (folder / "agent.zip").write_bytes(b"")
+    swing = find_agents(tmp_path, "Acrobot")
+    assert sorted(swing) == ["PPO", "PPO + LQR", "SAC (v2 reward)", "SAC (v2 reward) + LQR"]
+    assert swing["SAC (v2 reward)"] == [str(tmp_path / "Acrobot-v2" / "sac" / "seed0")]
+    assert (kind_of("SAC (v2 reward)"), kind_of("SAC (v2 reward) + LQR")) == ("RL", "model-based + RL")
 
 
 def test_a_reward_only_version_takes_its_plants_tuned_gains_even_with_entries_of_its_own():
     from mbs_envs.controllers import tuned
 
-    v0, v1 = gym.make("mbs_envs/Acrobot-v0"), gym.make("mbs_envs/Acrobot-v1")
+    v0, v1, v2 = gym.make("mbs_envs/Acrobot-v0"), gym.make("mbs_envs/Acrobot-v1"), gym.make("mbs_envs/Acrobot-v2")
     assert (
-        tuned.tuned_gains(v1, "swing-up + LQR")
+        tuned.tuned_gains(v2, "swing-up + LQR")
+        == tuned.tuned_gains(v1, "swing-up + LQR")
         == tuned.tuned_gains(v0, "swing-up + LQR")
         != tuned.FALLBACK["swing-up + LQR"]
     )

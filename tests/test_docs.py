@@ -41,7 +41,7 @@ def test_the_environments_table_lists_exactly_the_registered_ids():
     block = README.read_text().split("<!-- glance:environments -->")[1].split("<!-- /glance:environments -->")[0]
     listed = re.findall(r"\[`(mbs_envs/[^`]+)`\]", block)
     registered = [i for i in gym.registry if i.startswith("mbs_envs/")]
-    assert sorted(listed) == sorted(registered) and len(listed) == len(set(listed)) == 14
+    assert sorted(listed) == sorted(registered) and len(listed) == len(set(listed)) == 18
     for i in registered:
         assert (ROOT / "docs" / "environments" / f"{i.split('/', 1)[1]}.md").exists(), i
 

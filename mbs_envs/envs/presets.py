@@ -132,6 +132,12 @@ PROTOCOL_IDS = (
     ("mbs_envs/AcrobotDFKI-v1", "mbs_envs.envs.swingup:AcrobotV1Env", "dfki_c1", 5000),
     ("mbs_envs/PendubotDFKI-v1", "mbs_envs.envs.swingup:PendubotV1Env", "dfki_c1", 5000),
 )
+#: the protocol plant with the v2 task's reward (:mod:`mbs_envs.envs.swingup_v2`), for training: the protocol's
+#: evaluation runs the ids above (the reward plays no part in it); same layout
+TRAINING_IDS = (
+    ("mbs_envs/AcrobotDFKI-v2", "mbs_envs.envs.swingup_v2:AcrobotV2Env", "dfki_c1", 5000),
+    ("mbs_envs/PendubotDFKI-v2", "mbs_envs.envs.swingup_v2:PendubotV2Env", "dfki_c1", 5000),
+)
 
 
 def with_preset(preset: str | None, given: Mapping[str, Any]) -> dict[str, Any]:

@@ -146,12 +146,14 @@ SCENES: tuple[Scene, ...] = (
           free_motions="mbs_envs.studies.scene_cases:cart_pole_free_motions"),
     *(
         Scene(
-            name + suffix, f"mbs_envs/{name}-{version}", f"mbs_envs.envs.swingup:{name}{cls}Env", 1500,
+            name + suffix, f"mbs_envs/{name}-{version}", f"mbs_envs.envs.{module}:{name}{cls}Env", 1500,
             controllers=SWING_UP_CONTROLLERS, residual_base="mbs_envs.controllers:SwingUpLQR", sizing=False, scoring="swing-up",
             model="mbs_envs.models.planar2r:Planar2R", edge_parameters=(("m2", {}), ("l1", {})), compared=compared,
         )
-        # v1 (the hold bonus) is the compared task; v0 stays registered under its own name
-        for version, suffix, cls, compared in (("v1", "", "V1", True), ("v0", "-v0", "", False))
+        # v1 (the hold bonus) is the compared task; v0 stays registered under its own name; v2 (the LQR region's
+        # reward) is the task the pure RL agents train on (mbs_envs.envs.swingup_v2)
+        for version, suffix, module, cls, compared in (("v1", "", "swingup", "V1", True), ("v0", "-v0", "swingup", "", False),
+                                                       ("v2", "-v2", "swingup_v2", "V2", False))
         for name in ("Acrobot", "Pendubot")
     ),
 )  # fmt: skip
@@ -166,7 +168,9 @@ def load(target: str):
 
 
 def scene(key: str) -> Scene:
-    """The scene with this name or Gymnasium id.
+    """The scene with this name or Gymnasium id; for a protocol id (:data:`mbs_envs.envs.presets.PROTOCOL_IDS` and
+    ``TRAINING_IDS``) the scene of its task class with the protocol's id, episode length and preset (not compared:
+    the protocol studies run it).
 
     Raises
     ------
@@ -176,4 +180,11 @@ def scene(key: str) -> Scene:
     for s in SCENES:
         if key in (s.name, s.id):
             return s
+    from .presets import PROTOCOL_IDS, TRAINING_IDS
+
+    for pid, entry, preset, steps in PROTOCOL_IDS + TRAINING_IDS:
+        if key == pid:
+            base = next(s for s in SCENES if s.entry_point == entry)
+            return dataclasses.replace(base, name=pid.split("/")[-1], id=pid, max_episode_steps=steps,
+                                       kwargs=MappingProxyType({"preset": preset}), compared=False)  # fmt: skip
     raise ValueError(f"unknown scene {key!r}; known: {[s.name for s in SCENES]} or {[s.id for s in SCENES]}")

@@ -16,7 +16,7 @@ import re
 import gymnasium as gym
 
 from ..envs import registry
-from ..envs.presets import PROTOCOL_IDS
+from ..envs.presets import PROTOCOL_IDS, TRAINING_IDS
 
 #: the sections of an environment page, in Gymnasium's order
 SECTIONS = ("Description", "Action Space", "Drives", "Observation Space", "Rewards", "Starting State", "Episode End",
@@ -28,6 +28,10 @@ PROTOCOL_SUMMARY = {
     "swing up from hanging and balance, the leaderboard's simulation protocol (RK4 at 2 ms, 10 s)",
     "mbs_envs/PendubotDFKI-v1": "DFKI double pendulum (design C.1, model 1.0), shoulder driven at 6 N m: "
     "swing up from hanging and balance, the leaderboard's simulation protocol (RK4 at 2 ms, 10 s)",
+    "mbs_envs/AcrobotDFKI-v2": "DFKI double pendulum (design C.1, model 1.0), elbow driven at 6 N m: "
+    "the protocol's plant and setup with the v2 reward (the LQR region's), to train on",
+    "mbs_envs/PendubotDFKI-v2": "DFKI double pendulum (design C.1, model 1.0), shoulder driven at 6 N m: "
+    "the protocol's plant and setup with the v2 reward (the LQR region's), to train on",
 }
 
 
@@ -120,7 +124,8 @@ def merged_sections(cls: type) -> tuple[str, dict[str, str]]:
 
 
 def _baselines(env_id: str) -> tuple[str, ...]:
-    base_id = {pid: f"mbs_envs/{entry.rsplit(':', 1)[1].replace('V1Env', '')}-v1" for pid, entry, _, _ in PROTOCOL_IDS}
+    base_id = {pid: next(s.id for s in registry.SCENES if s.entry_point == entry)
+               for pid, entry, _, _ in PROTOCOL_IDS + TRAINING_IDS}  # fmt: skip
     extra = tuple(registry.PROTOCOL_CONTROLLERS) if env_id in base_id else ()
     return tuple(registry.scene(base_id.get(env_id, env_id)).controllers) + extra
 
@@ -161,8 +166,8 @@ def env_facts(env_id: str) -> EnvFacts:
 
 
 def registered_ids() -> list[str]:
-    """Every id this package registers, in the registry's order, then the protocol ids."""
-    return [s.id for s in registry.SCENES] + [pid for pid, _, _, _ in PROTOCOL_IDS]
+    """Every id this package registers, in the registry's order, then the protocol ids and their training ids."""
+    return [s.id for s in registry.SCENES] + [pid for pid, _, _, _ in PROTOCOL_IDS + TRAINING_IDS]
 
 
 def environments_table(facts: list[EnvFacts], link: str = "docs/environments/{slug}.md") -> str:

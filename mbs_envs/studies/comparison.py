@@ -78,25 +78,43 @@ def find_agents(root: pathlib.Path, scene: str) -> dict[str, list[str]]:
     """Shipped agents of a scene by algorithm: ``{"PPO": [".../ppo/seed0", ...], ...}``.
 
     Reads ``<root>/<id>/<algo>/seed<k>/agent.zip`` (every training seed) and
-    ``<root>/<id>/<algo>/agent.zip`` (a single one).
+    ``<root>/<id>/<algo>/agent.zip`` (a single one); then the agents of later versions of the scene's task
+    (``<root>/<name>-v<k>/...`` for a registered ``k`` above the scene's own: the same plant, start and success rule
+    with another reward), named with their version (``"SAC (v2 reward)"``, :func:`version_tag`).
     """
     env_id = SCENES[scene][0].split("/")[-1]
-    folder = pathlib.Path(root) / env_id
+    name_part, _, version = env_id.rpartition("-v")
+    later = sorted(
+        (s.id.split("/")[-1] for s in registry.SCENES
+         if s.id.rpartition("-v")[0] == SCENES[scene][0].rpartition("-v")[0] and int(s.id.rpartition("-v")[2]) > int(version)),
+        key=lambda i: int(i.rpartition("-v")[2]),
+    )  # fmt: skip
     out: dict[str, list[str]] = {}
-    for algo_dir in sorted(p for p in folder.glob("*") if p.is_dir()):
-        runs = sorted(p.parent for p in algo_dir.glob("seed*/agent.zip")) or (
-            [algo_dir] if (algo_dir / "agent.zip").exists() else []
-        )
-        if runs:
-            name, kind = AGENT_GROUPS.get(algo_dir.name, (algo_dir.name.upper(), "RL"))
-            out[name] = [str(r) for r in runs]
-            if kind == "RL" and registry.scene(scene).scoring == "swing-up":
-                out[f"{name} + LQR"] = [HAND_OVER + str(r) for r in runs]
+    for folder_name in [env_id, *later]:
+        tag = "" if folder_name == env_id else version_tag(folder_name.rpartition("-")[2])
+        for algo_dir in sorted(p for p in (pathlib.Path(root) / folder_name).glob("*") if p.is_dir()):
+            runs = sorted(p.parent for p in algo_dir.glob("seed*/agent.zip")) or (
+                [algo_dir] if (algo_dir / "agent.zip").exists() else []
+            )
+            if runs:
+                name, kind = AGENT_GROUPS.get(algo_dir.name, (algo_dir.name.upper(), "RL"))
+                out[name + tag] = [str(r) for r in runs]
+                if kind == "RL" and registry.scene(scene).scoring == "swing-up":
+                    out[f"{name}{tag} + LQR"] = [HAND_OVER + str(r) for r in runs]
     return out
 
 
+def version_tag(version: str) -> str:
+    """The suffix naming an agent trained on another version of the task: ``"v2"`` -> ``" (v2 reward)"``."""
+    return f" ({version} reward)"
+
+
 def kind_of(name: str) -> str:
-    """``"model-based"``, ``"RL"`` or ``"model-based + RL"`` for a policy's display name."""
+    """``"model-based"``, ``"RL"`` or ``"model-based + RL"`` for a policy's display name (a version tag,
+    :func:`version_tag`, left out)."""
+    import re
+
+    name = re.sub(r" \(v\d+ reward\)", "", name)
     for display, kind in AGENT_GROUPS.values():
         if display == name:
             return kind

@@ -24,6 +24,7 @@ MODEL_BASED = {**SWING_UP_CONTROLLERS, **PROTOCOL_CONTROLLERS}
 from . import dfki
 from .parallel import run_tasks
 from .robustness import plot_success
+from .learning_curves import draw, training_curves
 from .plotting import pyplot, save
 
 
@@ -109,9 +110,67 @@ def run(args: argparse.Namespace) -> dict:
         if any(k[0] == scene for k in sweeps):
             plot_success({n: [r] for (s, n), r in sweeps.items() if s == scene}, dfki.AXES, f"{scene} (DFKI robustness v2 axes): success",
                          args.out / f"robustness_{scene}.png")  # fmt: skip
-    (args.out / "report.md").write_text(report(rows, args))
+    curves = {s: training_curves(agent_folders(specs[s])) for s in scenes}
+    if any(curves.values()):
+        plot_agent_curves(curves, args.out / "learning_curves.png")
+    (args.out / "report.md").write_text(report(rows, args) + curves_section(curves))
     print(f"written {args.out}")
     return record
+
+
+def agent_folders(specs: dict[str, str]) -> dict[str, list[str]]:
+    """The agents among a scene's policies (:func:`policies`) by algorithm, their training seeds' folders:
+    ``{"SAC (v2 reward)": [".../seed0", ...]}`` (the ``+ LQR`` pairings left out: the same agents)."""
+    from mbs_envs.studies.comparison import HAND_OVER
+
+    out: dict[str, list[str]] = {}
+    for name, spec in specs.items():
+        if name in MODEL_BASED or spec.startswith(HAND_OVER):
+            continue
+        out.setdefault(catch_group(name), []).append(spec)
+    return out
+
+
+def plot_agent_curves(curves: dict[str, dict], path: pathlib.Path) -> None:
+    """Per robot: the validation success of each algorithm's agents (mean, band = range over training seeds) against
+    control steps and training wall time."""
+    scenes = [s for s in curves if curves[s]]
+    plt = pyplot()
+    fig, axes = plt.subplots(len(scenes), 2, figsize=(12, 3.4 * len(scenes)), squeeze=False)
+    for row, scene in zip(axes, scenes):
+        for name, c in curves[scene].items():
+            for ax, key in zip(row, ("timesteps", "train_wall_s")):
+                draw(ax, name, c["runs"], "success", key)
+        for ax in row:
+            ax.set_ylim(-0.05, 1.05)
+            ax.set_ylabel("validation success")
+            ax.legend(fontsize=7)
+            ax.set_title(f"{scene} (protocol plant)", loc="left", fontsize=10, fontweight="bold")
+        row[0].set_xlabel("control steps (2 ms)")
+        row[1].set_xlabel("training wall time [s] (one thread)")
+    fig.suptitle("Agents trained on the protocol plant: validation success (mean, band = range over training seeds)",
+                 fontsize=10)  # fmt: skip
+    save(fig, path)
+
+
+def curves_section(curves: dict[str, dict]) -> str:
+    """The report's section on the agents' training: per algorithm and seed, its budget, wall time and command."""
+    if not any(curves.values()):
+        return ""
+    out = ["## Training of the agents", "",
+           "Each agent trained on the protocol's plant (its training id: the protocol's setup, with the reward of the "
+           "task version it names), validated on the protocol's start every evaluation, the evaluation with the highest "
+           "validation return shipped. ![learning curves](learning_curves.png)", "",
+           "| robot | agent | seed | control steps | decisions (action repeat) | training wall [s] | kept at | command |",
+           "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    for scene, by_name in curves.items():
+        for name, c in by_name.items():
+            for r in c["runs"]:
+                k = r["action_repeat"]
+                kept = f"{r['kept']['timesteps']:,.0f}" if r.get("kept") else "last"
+                out.append(f"| {scene} | {name} | {r['seed']} | {r['steps']:,} | {r['steps'] // k:,} ({k}) | "
+                           f"{r['wall']:.0f} | {kept} | `{r['command']}` |")  # fmt: skip
+    return "\n".join(out) + "\n"
 
 
 def sweep_parts_of(jobs: list[tuple[str, str]], values: int, seed: int, workers: int, part_size: int | None = None
@@ -137,16 +196,17 @@ def sweep_parts_of(jobs: list[tuple[str, str]], values: int, seed: int, workers:
 
 def policies(scene: str, agents: pathlib.Path | None) -> dict[str, str]:
     """Name -> spec of every policy run on the protocol: the model-based swing-up controllers, then each agent trained
-    on the protocol (``<agents>/<scene>DFKI-v1/<algo>/seed<k>/agent.zip``, one row per training seed) alone and with
+    on the protocol plant (``<agents>/<scene>DFKI-v<k>/<algo>/seed<j>/agent.zip``, one row per training seed; an agent of a
+    later task version, ``DFKI-v2``'s reward, named with it) alone and with
     the protocol plant's upright LQR catching (``"<ALGO> + LQR seed<k>"``, :mod:`mbs_envs.studies.handover`)."""
-    from mbs_envs.studies.comparison import AGENT_GROUPS, HAND_OVER
+    from mbs_envs.studies.comparison import AGENT_GROUPS, HAND_OVER, version_tag
 
     out = dict(MODEL_BASED)
     if agents is None:
         return out
-    for folder in sorted(pathlib.Path(agents).glob(f"{scene}DFKI-v1/*/seed*/agent.zip")):
-        algo, seed = folder.parent.parent.name, folder.parent.name
-        name = AGENT_GROUPS.get(algo, (algo.upper(),))[0]
+    for folder in sorted(pathlib.Path(agents).glob(f"{scene}DFKI-v*/*/seed*/agent.zip")):
+        algo, seed, version = folder.parent.parent.name, folder.parent.name, folder.parents[2].name.rpartition("-")[2]
+        name = AGENT_GROUPS.get(algo, (algo.upper(),))[0] + ("" if version == "v1" else version_tag(version))
         out[f"{name} {seed}"] = str(folder.parent)
         out[f"{name} + LQR {seed}"] = HAND_OVER + str(folder.parent)
     return out

@@ -28,6 +28,7 @@ from .handover import TUNED_NAME as HAND_OVER_NAME
 from . import scene_robustness as sr
 from .parallel import run_tasks
 from . import provenance
+from .learning_curves import draw, training_curves
 from .plotting import pyplot, save
 from .sizing import actuator_sizing
 
@@ -304,28 +305,6 @@ def sizing_tables(scene: str, seeds: list[int]) -> dict:
     return out
 
 
-def training_curves(agents: dict[str, list[str]]) -> dict[str, dict]:
-    """Per algorithm: every training seed's log (error, failures against env steps and wall time) and record."""
-    curves = {}
-    for name, folders in agents.items():
-        runs = []
-        for folder in folders:
-            path = pathlib.Path(folder) / "training_log.csv"
-            if not path.exists():
-                continue
-            with open(path, newline="") as f:
-                rows = list(csv.DictReader(f))
-            cfg = json.loads((pathlib.Path(folder) / "config.json").read_text())
-            runs.append({"timesteps": [float(r["timesteps"]) for r in rows], "train_wall_s": [float(r["train_wall_s"]) for r in rows],
-                         "rms_error_settled": [float(r["rms_error_settled"]) for r in rows],
-                         "failure_rate": [float(r["failure_rate"]) for r in rows], "return": [float(r["return"]) for r in rows],
-                         "steps": cfg["steps"], "seed": cfg["seed"], "command": cfg.get("command"), "wall": cfg["train_wall_s"],
-                         "hyperparameters": cfg.get("hyperparameters"), "n_envs": cfg.get("n_envs"), "init": cfg.get("init")})  # fmt: skip
-        if runs:
-            curves[name] = {"runs": runs}
-    return curves
-
-
 def plot_scene(scene: str, by_cond: dict, path: pathlib.Path) -> None:
     """Per condition and policy, means with 95 % CIs: on the tracking scenes the settled error of the successful
     episodes (log axis: errors span decades), the success rate written where it is below 100 %; on the swing-up
@@ -394,8 +373,8 @@ def bars(ax: Any, x: np.ndarray, width: float, policies: list[str], cells: list[
 
 def plot_learning_curves(summary: dict, curves: dict, path: pathlib.Path) -> None:
     """Per scene: validation error of each algorithm (mean, range over training seeds) against env steps and wall time;
-    on the swing-up scenes the validation return (the reward the agents train on; the error is undefined
-    until an episode succeeds)."""
+    on the swing-up scenes the validation success rate (the error is undefined until an episode succeeds, and agents
+    of different task versions train on different rewards, so their returns do not compare)."""
     scenes = [s for s in summary if curves.get(s)]
     if not scenes:
         return
@@ -403,37 +382,23 @@ def plot_learning_curves(summary: dict, curves: dict, path: pathlib.Path) -> Non
     fig, axes = plt.subplots(len(scenes), 2, figsize=(12, 3.6 * len(scenes)), squeeze=False)
     for row, scene in zip(axes, scenes):
         swing_up = scoring_of(scene) == "swing-up"
-        metric = "return" if swing_up else "rms_error_settled"
+        metric = "success" if swing_up else "rms_error_settled"
         for name, c in curves[scene].items():
-            runs = c["runs"]
-            n = min(len(r["timesteps"]) for r in runs)
             for ax, key in zip(row, ("timesteps", "train_wall_s")):
-                xs = np.mean([r[key][:n] for r in runs], axis=0)
-                ys = np.array([r[metric][:n] for r in runs], float)
-                alive = np.isfinite(ys).any(axis=0)  # evaluations where some seed kept an episode
-                mean = np.full(n, np.nan)
-                lo, hi = mean.copy(), mean.copy()
-                mean[alive] = np.nanmean(ys[:, alive], axis=0)
-                lo[alive], hi[alive] = np.nanmin(ys[:, alive], axis=0), np.nanmax(ys[:, alive], axis=0)
-                line = ax.plot(xs, mean, "o-", ms=3, label=f"{name} ({len(runs)} seeds)")[0]
-                if len(runs) > 1:
-                    ax.fill_between(xs, lo, hi, color=line.get_color(), alpha=0.2)
-                if not alive.all():  # every validation episode of every seed failed: an x at the top
-                    ax.plot(xs[~alive], np.full((~alive).sum(), 0.97), "x", color=line.get_color(), transform=ax.get_xaxis_transform(),
-                            label=f"{name}: all validation episodes failed")  # fmt: skip
+                draw(ax, name, c["runs"], metric, key)
         for ax in row:
             for name, m in summary[scene]["nominal"].items():
-                value = m.get("return_all") if swing_up else m["rms_error_settled"]
+                value = m.get("success") if swing_up else m["rms_error_settled"]
                 if m["kind"] == "model-based" and value is not None and np.isfinite(value) and name != "no control":
                     ax.axhline(value, ls="--", lw=1, color="gray")
                     ax.annotate(f" {name}", (1.0, value), xycoords=("axes fraction", "data"), fontsize=7, va="center")
             ax.set_yscale("linear" if swing_up else "log")
-            ax.set_ylabel("validation return" if swing_up else "validation RMS error [rad]")
+            ax.set_ylabel("validation success" if swing_up else "validation RMS error [rad]")
             ax.legend(fontsize=7)
             ax.set_title(scene, loc="left", fontsize=10, fontweight="bold")
         row[0].set_xlabel("env steps")
         row[1].set_xlabel("training wall time [s] (one thread)")
-    fig.suptitle("Learning curves: validation error, on the swing-up scenes the return (mean, band = range over training seeds); "
+    fig.suptitle("Learning curves: validation error, on the swing-up scenes the success rate (mean, band = range over training seeds); "
                  "dashed: model-based controllers on the test seeds",
                  fontsize=10)  # fmt: skip
     save(fig, path, rect=(0, 0, 1, 1 - 0.5 / fig.get_figheight()))  # room for the two-line title
