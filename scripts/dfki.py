@@ -61,7 +61,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         "--agents",
         type=pathlib.Path,
         default=pathlib.Path("agents"),
-        help="root of the agents trained on the protocol (<root>/<scene>DFKI-v1/<algo>/seed<k>/; default agents/)",
+        help="root of the agents trained on the protocol plant (<root>/<scene>DFKI-v<k>/<algo>/seed<j>/; default agents/)",
     )
     p.add_argument("--no-agents", action="store_true", help="the model-based controllers only")
     p.add_argument("--no-controllers", action="store_true", help="the agents only")

@@ -775,6 +775,28 @@ def test_dfki_script_scores_the_protocol_and_writes_its_report(tmp_path, monkeyp
     assert "Rates from angles" in (tmp_path / "rates" / "report.md").read_text()
 
 
+def test_dfki_script_runs_an_agent_of_the_v2_task_and_shows_its_training(tmp_path):
+    """An agent trained on the protocol plant's v2 id (``AcrobotDFKI-v2``: the protocol with another reward) is found
+    under its own folder, run on the protocol named with its task version, alone and with the LQR catching; the report
+    gains the agents' training section and learning curves."""
+    from mbs_envs.studies import dfki_job as lib
+
+    agent = tmp_path / "agents" / "AcrobotDFKI-v2" / "sac" / "seed0"
+    train_script = load_script("train.py")
+    train_script["run"](train_script["parse_args"](["--env", "mbs_envs/AcrobotDFKI-v2", "--algo", "sac", "--steps", "4000",
+                                                    "--n-envs", "4", "--action-repeat", "10", "--net-arch", "16", "16",
+                                                    "--hyper", "learning_starts=50", "--eval-seeds", "1",
+                                                    "--eval-every", "2000", "--out", str(agent)]))  # fmt: skip
+    assert set(lib.policies("Acrobot", tmp_path / "agents")) >= {"SAC (v2 reward) seed0", "SAC (v2 reward) + LQR seed0"}
+    script = load_script("dfki.py")
+    record = lib.run(script["parse_args"](["--out", str(tmp_path / "run"), "--scene", "Acrobot", "--agents", str(tmp_path / "agents"),
+                                           "--no-controllers", "--workers", "1"]))  # fmt: skip
+    assert [r["controller"] for r in record["rows"]] == ["SAC (v2 reward) seed0", "SAC (v2 reward) + LQR seed0"]
+    text = (tmp_path / "run" / "report.md").read_text()
+    assert "## Training of the agents" in text and "| Acrobot | SAC (v2 reward) | 0 | 4,000 | 400 (10) |" in text
+    assert (tmp_path / "run" / "learning_curves.png").stat().st_size > 0
+
+
 def tuning_replaced(tmp_path, monkeypatch, fake):
     """``dfki_tuning.robust_catch`` replaced by ``fake`` and ``controllers/tuned.json`` by a copy in ``tmp_path`` (returned),
     for the DFKI script's tuning runs; the caller undoes both (``monkeypatch.undo()``, ``tuned.clear_cache()``)."""
