@@ -7,6 +7,7 @@ once a turn). The v2 reward is a *rate* [1/s] integrated over the step (``r = dt
 episode does not depend on the control step or on how long an agent holds its actions):
 
     rate = - w_e |e|^2 - w_v1 v1^2 - w_v2 v2^2 - w_u a^2 + w_line 1[h >= h_line] + w_region 1[x^T S x < c]
+           + w_hold 1[|e_1| <= tol and |e_2| <= tol]
 
 - ``e = wrap(q - q_up)`` the distance to upright [rad], ``v`` the rates [rad/s], ``a`` the normalized input;
 - ``h = (l1 sin th1 + l2 sin(th1 + th2)) / (l1 + l2)`` the tip's height over the arm's reach (each arm's own
@@ -16,12 +17,16 @@ episode does not depend on the control step or on how long an agent holds its ac
   saturated at the torque limit, catches every state (``region_level``; measured for each registered plant with
   :func:`mbs_envs.controllers.region.estimate_region`, checked by the tests). The region's bonus is what makes
   holding upright worth ten times passing through it, and it only pays where balancing is possible.
-- default weights ``(w_e, w_v1, w_v2, w_u, w_line, w_region) = (5, 0.02, 0.015, 2, 50, 500)`` per second: the
-  velocity weights a few thousandths of the error's (a swing-up needs speed), the effort small.
+- ``tol`` the success tolerance (``upright_tolerance``, 0.1 rad): the region holds states at rest with the elbow
+  bent a quarter radian (balanced with a steady torque), which the success rule does not count; the hold bonus
+  pays for the centre the rule asks for.
+- default weights ``(w_e, w_v1, w_v2, w_u, w_line, w_region, w_hold) = (5, 0.02, 0.015, 10, 50, 500, 500)`` per
+  second: the velocity weights a few thousandths of the error's (a swing-up needs speed), the effort a fiftieth of
+  the bonuses.
 
 The observation, action, start, episode end and success rule are v1's (:mod:`mbs_envs.envs.swingup`); ``info``
-holds the terms (``reward_upright``, ``reward_rates``, ``reward_effort``, ``reward_line``, ``reward_region``, each
-``dt`` times its rate), ``tracking_error``, ``upright`` and ``power``.
+holds the terms (``reward_upright``, ``reward_rates``, ``reward_effort``, ``reward_line``, ``reward_region``,
+``reward_hold``, each ``dt`` times its rate), ``tracking_error``, ``upright`` and ``power``.
 """
 
 from __future__ import annotations
@@ -46,10 +51,10 @@ from .upright import upright_lqr
 #: the LQR weights of the region's cost-to-go: ``Q`` on ``(e1, e2, v1, v2)`` and ``R`` [(N m)^-2]
 REGION_Q = np.diag([10.0, 10.0, 1.0, 1.0])
 REGION_R = np.eye(1)
-#: ``(w_e, w_v1, w_v2, w_u, w_line, w_region)`` [1/s] (module docstring)
-DEFAULT_WEIGHTS = (5.0, 0.02, 0.015, 2.0, 50.0, 500.0)
+#: ``(w_e, w_v1, w_v2, w_u, w_line, w_region, w_hold)`` [1/s] (module docstring)
+DEFAULT_WEIGHTS = (5.0, 0.02, 0.015, 10.0, 50.0, 500.0, 500.0)
 #: the rows of the task kernel's ``info``
-ROWS = 10
+ROWS = 11
 
 
 @njit
@@ -64,8 +69,8 @@ def region_columns(
         Joint angles [rad] and rates [rad/s].
     action : ndarray, shape (1, B)
         Normalized input.
-    weights : ndarray, shape (6,)
-        ``(w_e, w_v1, w_v2, w_u, w_line, w_region)`` [1/s].
+    weights : ndarray, shape (7,)
+        ``(w_e, w_v1, w_v2, w_u, w_line, w_region, w_hold)`` [1/s].
     line : float
         ``h_line``, the tip's height over the reach that earns ``w_line``.
     S : ndarray, shape (4, 4)
@@ -81,8 +86,9 @@ def region_columns(
         Upright tolerance per joint [rad].
     dt : float
         Control step [s].
-    info : ndarray, shape (>= 10, B)
-        Written: ``(r, r_upright, r_rates, r_effort, e1, e2, upright, power, r_line, r_region)`` in rows 0-9.
+    info : ndarray, shape (>= 11, B)
+        Written: ``(r, r_upright, r_rates, r_effort, e1, e2, upright, power, r_line, r_region, r_hold)`` in rows
+        0-10.
     """
     B = q.shape[1]
     s, c = np.empty((2, B)), np.empty((2, B))
@@ -104,12 +110,14 @@ def region_columns(
         r_u = -dt * weights[3] * a * a
         r_l = dt * weights[4] * (h >= line)
         r_c = dt * weights[5] * (cost < level)
-        info[0, b] = r_e + r_v + r_u + r_l + r_c
+        up = abs(e1) <= tolerance and abs(e2) <= tolerance
+        r_b = dt * weights[6] * up
+        info[0, b] = r_e + r_v + r_u + r_l + r_c + r_b
         info[1, b], info[2, b], info[3, b] = r_e, r_v, r_u
         info[4, b], info[5, b] = e1, e2
-        info[6, b] = abs(e1) <= tolerance and abs(e2) <= tolerance
+        info[6, b] = up
         info[7, b] = a * u_max[0] * v[driven[0], b]
-        info[8, b], info[9, b] = r_l, r_c
+        info[8, b], info[9, b], info[10, b] = r_l, r_c, r_b
 
 
 @njit
@@ -149,8 +157,8 @@ class RegionTaskParams:
 
     Attributes
     ----------
-    weights : ndarray, shape (6,)
-        ``(w_e, w_v1, w_v2, w_u, w_line, w_region)`` [1/s].
+    weights : ndarray, shape (7,)
+        ``(w_e, w_v1, w_v2, w_u, w_line, w_region, w_hold)`` [1/s].
     line : float
         ``h_line``.
     S : ndarray, shape (4, 4)
@@ -198,7 +206,7 @@ class RegionTaskParams:
 
 
 def task_rows(p: RegionTaskParams, q: np.ndarray, v: np.ndarray, action: np.ndarray) -> np.ndarray:
-    """:func:`region_columns` batched over leading dimensions: shape ``(..., 10)``."""
+    """:func:`region_columns` batched over leading dimensions: shape ``(..., 11)``."""
     lead, (q2, v2, a2) = _as_columns(q, v, action)
     info = np.empty((ROWS, q2.shape[1]))
     region_columns(q2, v2, a2, *p.kernel_arguments(), info)
@@ -206,7 +214,7 @@ def task_rows(p: RegionTaskParams, q: np.ndarray, v: np.ndarray, action: np.ndar
 
 
 #: the reward's terms: name -> row of :func:`region_columns`' ``info``
-TERMS = {"reward_upright": 1, "reward_rates": 2, "reward_effort": 3, "reward_line": 8, "reward_region": 9}
+TERMS = {"reward_upright": 1, "reward_rates": 2, "reward_effort": 3, "reward_line": 8, "reward_region": 9, "reward_hold": 10}
 
 
 class SwingUpV2Env(SwingUpEnv):
@@ -215,19 +223,20 @@ class SwingUpV2Env(SwingUpEnv):
 
     ## Rewards
 
-    ``r = dt * (-w_e |e|^2 - w_v1 v1^2 - w_v2 v2^2 - w_u a^2 + w_line 1[h >= 0.8] + w_region 1[x^T S x < c])``
-    (module docstring): default ``(5, 0.02, 0.015, 2, 50, 500)`` per second; ``S`` the upright LQR's cost-to-go on
-    the env's plant, ``c`` the ``region_level``; terms in ``info``.
+    ``r = dt * (-w_e |e|^2 - w_v1 v1^2 - w_v2 v2^2 - w_u a^2 + w_line 1[h >= 0.8] + w_region 1[x^T S x < c]
+    + w_hold 1[upright])`` (module docstring): default ``(5, 0.02, 0.015, 10, 50, 500, 500)`` per second; ``S`` the
+    upright LQR's cost-to-go on the env's plant, ``c`` the ``region_level``, ``upright`` both joints within
+    ``upright_tolerance``; terms in ``info``.
 
     ## Arguments
 
-    As v1's, with ``reward_weights`` the six rates above, ``line_height=0.8`` and ``region_level=None`` (the
+    As v1's, with ``reward_weights`` the seven rates above, ``line_height=0.8`` and ``region_level=None`` (the
     registered plant's measured level; for another plant or torque limit, measure it with
-    :func:`mbs_envs.controllers.region.estimate_region` and pass it). ``hold_bonus`` is not part of this reward.
+    :func:`mbs_envs.controllers.region.estimate_region` and pass it). ``hold_bonus`` is ``reward_weights[6]`` here.
     """
 
     step_kernel = staticmethod(step_kernel)
-    reward_weights = check.Checked(lambda x, name: check.vector(x, name, 6, 0.0, broadcast=False))
+    reward_weights = check.Checked(lambda x, name: check.vector(x, name, 7, 0.0, broadcast=False))
     line_height = check.Checked(lambda x, name: check.real(x, name, -1.0, 1.0))
     region_level = check.Checked(lambda x, name: check.nonnegative(x, name, 1e12))
     #: the measured region level of the scene's plant by preset (None: the scene's own plant)
@@ -248,7 +257,7 @@ class SwingUpV2Env(SwingUpEnv):
         **kwargs: Any,
     ):
         if "hold_bonus" in kwargs:
-            raise ValueError("hold_bonus is not part of the v2 reward (its region bonus is reward_weights[5])")
+            raise ValueError("hold_bonus: the v2 reward has its hold bonus in reward_weights[6] (a rate, per second)")
         levels = self.default_region_levels
         if region_level is None and preset not in levels:
             raise ValueError(f"region_level: no measured level for preset {preset!r}; pass region_level")
@@ -309,6 +318,7 @@ class SwingUpV2Env(SwingUpEnv):
             ("power", None, False),
             ("reward_line", None, False),
             ("reward_region", None, False),
+            ("reward_hold", None, False),
         )
 
 
@@ -325,10 +335,11 @@ class AcrobotV2Env(SwingUpV2Env, AcrobotEnv):
 
     ## Rewards
 
-    ``r = dt * (-5 |e|^2 - 0.02 v1^2 - 0.015 v2^2 - 2 a^2 + 50 * 1[h >= 0.8] + 500 * 1[x^T S x < c])``
-    (:mod:`mbs_envs.envs.swingup_v2`): the tip above 0.8 of the reach, and above all the region the upright LQR
-    catches, pay; distance, speed and effort cost. Terms in ``info`` (``reward_upright``, ``reward_rates``,
-    ``reward_effort``, ``reward_line``, ``reward_region``).
+    ``r = dt * (-5 |e|^2 - 0.02 v1^2 - 0.015 v2^2 - 10 a^2 + 50 * 1[h >= 0.8] + 500 * 1[x^T S x < c]
+    + 500 * 1[upright])`` (:mod:`mbs_envs.envs.swingup_v2`): the tip above 0.8 of the reach, and above all the
+    region the upright LQR catches and the success tolerance, pay; distance, speed and effort cost. Terms in
+    ``info`` (``reward_upright``, ``reward_rates``, ``reward_effort``, ``reward_line``, ``reward_region``,
+    ``reward_hold``).
 
     ## Version History
 

@@ -26,14 +26,15 @@ def riccati(env) -> np.ndarray:
 
 def rate_formula(env, q, v, a) -> np.ndarray:
     """The reward rate [1/s] written out from the module docstring; ``q, v`` (N, 2), ``a`` (N,)."""
-    w_e, w_v1, w_v2, w_u, w_line, w_region = DEFAULT_WEIGHTS
+    w_e, w_v1, w_v2, w_u, w_line, w_region, w_hold = DEFAULT_WEIGHTS
     p = env.unwrapped.model.params
     e = np.mod(q - Q_UP + np.pi, 2 * np.pi) - np.pi
     x = np.concatenate([e, v], axis=1)
     cost = np.einsum("bi,ij,bj->b", x, riccati(env), x)
     h = (p.l1 * np.sin(q[:, 0]) + p.l2 * np.sin(q[:, 0] + q[:, 1])) / (p.l1 + p.l2)
     return (-w_e * (e**2).sum(1) - w_v1 * v[:, 0] ** 2 - w_v2 * v[:, 1] ** 2 - w_u * a**2
-            + w_line * (h >= 0.8) + w_region * (cost < env.unwrapped.region_level))  # fmt: skip
+            + w_line * (h >= 0.8) + w_region * (cost < env.unwrapped.region_level)
+            + w_hold * np.all(np.abs(e) <= 0.1, axis=1))  # fmt: skip
 
 
 def state_reward(env_id: str, q, v, a: float = 0.0, dt: float = 1e-9, **kwargs) -> tuple[float, dict]:
@@ -63,7 +64,9 @@ def test_the_reward_is_dt_times_the_written_rate(env_id):
     assert 10 <= inside.sum() <= n // 2  # the sample reaches into the region and out of it
     np.testing.assert_allclose(rows[:, 0], env.unwrapped.dt * rate, rtol=1e-12, atol=1e-12)
     # the terms add up to the reward
-    np.testing.assert_allclose(rows[:, [1, 2, 3, 8, 9]].sum(1), rows[:, 0], rtol=0, atol=1e-12)
+    held = rows[:, 10] > 0
+    assert (held & ~inside).any()  # the angles within the tolerance at any rates: not all in the region
+    np.testing.assert_allclose(rows[:, [1, 2, 3, 8, 9, 10]].sum(1), rows[:, 0], rtol=0, atol=1e-12)
 
 
 @pytest.mark.parametrize("env_id", V2[:2])
@@ -76,11 +79,19 @@ def test_the_return_does_not_depend_on_the_control_step(env_id):
 @pytest.mark.parametrize("env_id", V2)
 def test_only_the_region_pays_the_big_bonus(env_id):
     r_up, info = state_reward(env_id, Q_UP, [0.0, 0.0])
-    assert info["upright"] and info["reward_region"] > 0 and info["reward_line"] > 0
-    assert r_up / 1e-9 == pytest.approx(550.0, abs=1e-6)  # 50 + 500, nothing to pay
+    assert info["upright"] and info["reward_region"] > 0 and info["reward_line"] > 0 and info["reward_hold"] > 0
+    assert r_up / 1e-9 == pytest.approx(1050.0, abs=1e-6)  # 50 + 500 + 500, nothing to pay
+    # at rest with the elbow bent 0.15 rad and the shoulder where the cost-to-go is least: inside the region, outside
+    # the success tolerance, so without the hold bonus
+    S = riccati(gym.make(env_id))
+    e = np.array([-S[0, 1] / S[0, 0] * 0.15, 0.15])
+    r_bent, info = state_reward(env_id, Q_UP + e, [0.0, 0.0])
+    assert info["reward_region"] > 0 and not info["upright"] and info["reward_hold"] == 0
+    assert r_bent / 1e-9 == pytest.approx(550 - 5 * e @ e, abs=1e-6)
     # straight up but spinning: above the line, outside the region
     r_spin, info = state_reward(env_id, Q_UP, [6.0, 0.0])
-    assert info["reward_region"] == 0 and info["reward_line"] > 0 and r_spin < 0.1 * r_up
+    assert info["reward_region"] == 0 and info["reward_line"] > 0 and info["reward_hold"] > 0
+    assert r_spin / 1e-9 == pytest.approx(550 - 0.02 * 36, abs=1e-6)  # the line and the hold, no region
     # hanging at rest: only the distance costs
     r_down, info = state_reward(env_id, -Q_UP, [0.0, 0.0])
     assert info["reward_region"] == info["reward_line"] == 0
@@ -125,7 +136,7 @@ def test_vector_and_numpy_paths_pay_the_same(env_id):
         _, r1, _, _, i1 = env.step(a)
         _, r2, _, _, i2 = ref.step(a)
         assert r1 == pytest.approx(r2, abs=1e-12)
-        for k in ("reward_upright", "reward_rates", "reward_effort", "reward_line", "reward_region"):
+        for k in ("reward_upright", "reward_rates", "reward_effort", "reward_line", "reward_region", "reward_hold"):
             assert i1[k] == pytest.approx(i2[k], abs=1e-12)
     venv = gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point")
     venv.reset(seed=[11, 12, 13])
@@ -143,6 +154,8 @@ def test_bad_settings_are_refused(env_id):
         gym.make(env_id, hold_bonus=1.0)
     with pytest.raises(ValueError, match="reward_weights"):
         gym.make(env_id, reward_weights=(1.0, 0.05, 0.01))
+    with pytest.raises(ValueError, match="reward_weights"):
+        gym.make(env_id, reward_weights=(5, 0.02, 0.015, 10, 50, 500, -1))
     with pytest.raises(ValueError, match="region_level"):
         gym.make(env_id, region_level=-1.0)
     with pytest.raises(ValueError, match="line_height"):
