@@ -631,6 +631,24 @@ def test_train_continues_an_earlier_versions_agent_on_the_new_reward(tmp_path):
             TrainConfig(**kw)
 
 
+def test_a_continued_off_policy_run_keeps_its_replay_buffer(tmp_path):
+    """An off-policy run saves its replay buffer beside its agent; a run continuing it (``--init``) starts with that
+    data (its buffer holds the first run's transitions and its own); the buffer never ships."""
+    script = load_script("train.py")
+    args = ["--env", "mbs_envs/Pendubot-v2", "--algo", "sac", "--steps", "800", "--n-envs", "4", "--action-repeat", "2",
+            "--net-arch", "8", "8", "--eval-seeds", "1", "--seed", "0"]  # fmt: skip
+    script["run"](script["parse_args"](args + ["--hyper", "learning_starts=40", "--out", str(tmp_path / "a")]))
+    from mbs_envs.studies.training import ALGOS, REPLAY_BUFFER, ship
+
+    assert (tmp_path / "a" / REPLAY_BUFFER).exists()
+    script["run"](script["parse_args"](args + ["--init", str(tmp_path / "a"), "--out", str(tmp_path / "b")]))
+    model = ALGOS["sac"].load(tmp_path / "b" / "agent.zip")
+    model.load_replay_buffer(tmp_path / "b" / REPLAY_BUFFER)
+    assert model.replay_buffer.size() == 2 * 800 // 2 // 4  # both runs' decisions, per member row
+    ship(tmp_path / "b", tmp_path / "shipped")
+    assert not (tmp_path / "shipped" / REPLAY_BUFFER).exists()
+
+
 def test_a_shipped_agent_acts_as_trained_without_its_optimizer_state(tmp_path):
     script = load_script("train.py")
     script["run"](script["parse_args"](["--env", "mbs_envs/Planar2R-v0", "--algo", "ppo", "--steps", "1024", "--n-envs", "4",

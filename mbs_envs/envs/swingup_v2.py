@@ -214,7 +214,14 @@ def task_rows(p: RegionTaskParams, q: np.ndarray, v: np.ndarray, action: np.ndar
 
 
 #: the reward's terms: name -> row of :func:`region_columns`' ``info``
-TERMS = {"reward_upright": 1, "reward_rates": 2, "reward_effort": 3, "reward_line": 8, "reward_region": 9, "reward_hold": 10}
+TERMS = {
+    "reward_upright": 1,
+    "reward_rates": 2,
+    "reward_effort": 3,
+    "reward_line": 8,
+    "reward_region": 9,
+    "reward_hold": 10,
+}
 
 
 class SwingUpV2Env(SwingUpEnv):

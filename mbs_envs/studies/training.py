@@ -129,7 +129,8 @@ class TrainConfig:
     init : str, optional
         A folder saved by :func:`train` whose agent this run continues (its weights, and its
         optimizer's state) instead of starting afresh, e.g. an agent of an earlier task version
-        trained on further on the new reward. The algorithm, action repeat, normalization and
+        trained on further on the new reward, or a run continued for a longer budget (an off-policy run's replay
+        buffer, saved beside its agent, comes with it). The algorithm, action repeat, normalization and
         residual base must be the source's; its hyperparameters are kept (``hyper`` must be empty);
         not for a normalized run (its reward statistics are not saved).
         ``config.json`` records the source and its budget.
@@ -479,6 +480,9 @@ def _train(config: TrainConfig, out: pathlib.Path, tensorboard: bool, checkpoint
                                         tensorboard_log=str(out / "tensorboard") if tensorboard else None)  # fmt: skip
         model.set_random_seed(config.seed)
         hyper = source["hyperparameters"]
+        buffer = pathlib.Path(config.init) / REPLAY_BUFFER
+        if hasattr(model, "load_replay_buffer") and buffer.exists():  # an off-policy run continues with its data
+            model.load_replay_buffer(buffer)
     if not tensorboard:  # SB3's own logger, left to itself, makes an empty folder in the system's temp dir per run
         model.set_logger(Logger(folder=None, output_formats=[]))
     kept: dict[str, Any] = {}
@@ -499,7 +503,11 @@ def _train(config: TrainConfig, out: pathlib.Path, tensorboard: bool, checkpoint
         every = checkpoint_every // (config.members * config.action_repeat)
         callbacks.append(
             CheckpointCallback(
-                max(every, 1), str(out / "checkpoints"), name_prefix="agent", save_vecnormalize=config.normalize
+                max(every, 1),
+                str(out / "checkpoints"),
+                name_prefix="agent",
+                save_vecnormalize=config.normalize,
+                save_replay_buffer=hasattr(model, "replay_buffer"),
             )
         )
     model.learn(config.steps // config.action_repeat, callback=CallbackList(callbacks))
@@ -508,6 +516,8 @@ def _train(config: TrainConfig, out: pathlib.Path, tensorboard: bool, checkpoint
         model.save(out / "agent.zip")
         if config.normalize:
             ObsNormalization.of(venv).save(out)
+    if hasattr(model, "save_replay_buffer"):  # what a continued run (``init``) picks up; never shipped
+        model.save_replay_buffer(out / REPLAY_BUFFER)
     venv.close()  # training_log.csv: written by the log at each evaluation, the last at the end of training
     record = {
         "env_id": config.env_id,
@@ -587,7 +597,10 @@ def as_evaluated(
     return HeldPolicy(policy, action_repeat) if action_repeat > 1 else policy
 
 
-#: the files of a trained agent's folder that ship with it (checkpoints and TensorBoard logs stay behind)
+#: an off-policy run's replay buffer, saved beside its agent (and with each checkpoint) for a run that continues it
+REPLAY_BUFFER = "replay_buffer.pkl"
+#: the files of a trained agent's folder that ship with it (checkpoints, the replay buffer and TensorBoard logs stay
+#: behind)
 SHIPPED_FILES = ("agent.zip", "config.json", "training_log.csv", "normalization.npz")
 
 
