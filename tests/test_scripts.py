@@ -647,6 +647,15 @@ def test_a_continued_off_policy_run_keeps_its_replay_buffer(tmp_path):
     assert model.replay_buffer.size() == 2 * 800 // 2 // 4  # both runs' decisions, per member row
     ship(tmp_path / "b", tmp_path / "shipped")
     assert not (tmp_path / "shipped" / REPLAY_BUFFER).exists()
+    # the shipped log is the whole chain's: the first run's evaluations, then the second's counted on from its end
+    from mbs_envs.studies.learning_curves import read_run
+
+    a, b = (list(csv.DictReader(open(tmp_path / x / "training_log.csv"))) for x in ("a", "b"))
+    run = read_run(tmp_path / "shipped")
+    assert run["timesteps"] == [float(r["timesteps"]) for r in a] + [800 + float(r["timesteps"]) for r in b]
+    assert run["steps"] == 1600 and run["runs"] == 2
+    wall_a = json.loads((tmp_path / "a" / "config.json").read_text())["train_wall_s"]
+    assert run["train_wall_s"][len(a)] == pytest.approx(wall_a + float(b[0]["train_wall_s"]), rel=1e-12)
 
 
 def test_a_shipped_agent_acts_as_trained_without_its_optimizer_state(tmp_path):

@@ -13,7 +13,8 @@ import numpy as np
 
 def read_run(folder: pathlib.Path) -> dict[str, Any] | None:
     """One training run's evaluations (validation return, settled error, failure and success rates against env steps
-    and training wall time) and its record, or None where the folder has no log."""
+    and training wall time) and its record, or None where the folder has no log. A shipped agent of a continued run
+    has the whole chain's log and budget (:func:`mbs_envs.studies.training.whole_log`)."""
     folder = pathlib.Path(folder)
     path = folder / "training_log.csv"
     if not path.exists():
@@ -25,7 +26,8 @@ def read_run(folder: pathlib.Path) -> dict[str, Any] | None:
     return {"timesteps": column("timesteps"), "train_wall_s": column("train_wall_s"),
             "rms_error_settled": column("rms_error_settled"), "failure_rate": column("failure_rate"),
             "return": column("return"), "success": [1.0 - x for x in column("failure_rate")],
-            "steps": cfg["steps"], "seed": cfg["seed"], "command": cfg.get("command"), "wall": cfg["train_wall_s"],
+            "steps": (cfg.get("total") or cfg)["steps"], "seed": cfg["seed"], "command": cfg.get("command"),
+            "wall": (cfg.get("total") or cfg)["train_wall_s"], "runs": (cfg.get("total") or {}).get("runs", 1),
             "hyperparameters": cfg.get("hyperparameters"), "n_envs": cfg.get("n_envs"), "init": cfg.get("init"),
             "action_repeat": cfg.get("action_repeat", 1), "kept": cfg.get("kept")}  # fmt: skip
 

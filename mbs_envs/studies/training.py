@@ -605,7 +605,8 @@ SHIPPED_FILES = ("agent.zip", "config.json", "training_log.csv", "normalization.
 
 
 def ship(src: pathlib.Path, dst: pathlib.Path) -> int:
-    """Copy the agent saved by :func:`train` in ``src`` to ``dst`` without its optimizers' state.
+    """Copy the agent saved by :func:`train` in ``src`` to ``dst`` without its optimizers' state (a continued run with
+    the whole chain's training log and, as ``"total"`` in ``config.json``, its budget: :func:`whole_log`).
 
     The network weights (all of them, so SB3 loads the agent as usual), configuration, training
     log and normalization are kept; the Adam moments of every optimizer are dropped, which is a
@@ -635,7 +636,34 @@ def ship(src: pathlib.Path, dst: pathlib.Path) -> int:
     for name in SHIPPED_FILES[2:]:
         if (src / name).exists():
             shutil.copyfile(src / name, dst / name)
+    rows, budget = whole_log(src)
+    chain = {}
+    if budget["runs"] > 1:  # a continued run ships its whole learning curve, the runs it continues first
+        write_log(dst / "training_log.csv", rows)
+        chain = {"total": budget}
     (dst / "config.json").write_text(
-        json.dumps({**record, "shipped_without_optimizer_state": True}, indent=2, default=str)
+        json.dumps({**record, "shipped_without_optimizer_state": True, **chain}, indent=2, default=str)
     )
     return (dst / "agent.zip").stat().st_size
+
+
+def whole_log(folder: pathlib.Path) -> tuple[list[dict], dict]:
+    """The evaluations of the run in ``folder`` preceded by those of the runs it continues (``config.json``'s
+    ``init``, followed while its folder is at hand), each later run's control steps and wall time counted on from
+    where the one before ended, with the run's place in the chain in a column ``run`` (0 the first); and the
+    chain's budget ``{"steps", "train_wall_s", "runs"}``."""
+    folder = pathlib.Path(folder)
+    record = json.loads((folder / "config.json").read_text())
+    source = (record.get("init") or {}).get("from")
+    rows, budget = (
+        whole_log(pathlib.Path(source)) if source and (pathlib.Path(source) / "config.json").exists() else ([], {})
+    )
+    steps0, wall0, run = budget.get("steps", 0), budget.get("train_wall_s", 0.0), budget.get("runs", 0)
+    if (folder / "training_log.csv").exists():
+        with open(folder / "training_log.csv", newline="") as f:
+            for r in csv.DictReader(f):
+                r.pop("run", None)
+                rows.append({"run": run, **r, "timesteps": steps0 + int(float(r["timesteps"])),
+                             "train_wall_s": wall0 + float(r["train_wall_s"])})  # fmt: skip
+    return rows, {"steps": steps0 + int(record["steps"]), "train_wall_s": wall0 + float(record["train_wall_s"]),
+                  "runs": run + 1}  # fmt: skip
