@@ -658,6 +658,34 @@ def test_a_continued_off_policy_run_keeps_its_replay_buffer(tmp_path):
     assert run["train_wall_s"][len(a)] == pytest.approx(wall_a + float(b[0]["train_wall_s"]), rel=1e-12)
 
 
+def test_a_run_stopped_by_sigterm_saves_its_agent_and_says_so(tmp_path, monkeypatch):
+    """SIGTERM (a job's time limit) mid-run: the agent, log and record are written, the record with the steps done
+    and those planned; the signal's handler is restored afterwards."""
+    import os
+    import signal
+
+    from mbs_envs.studies import training
+
+    calls = []
+    evaluate = training.TrainingLog._evaluate
+
+    def evaluate_then_stop(self):
+        evaluate(self)
+        calls.append(self.env_steps)
+        if len(calls) == 2:
+            os.kill(os.getpid(), signal.SIGTERM)
+
+    monkeypatch.setattr(training.TrainingLog, "_evaluate", evaluate_then_stop)
+    before = signal.getsignal(signal.SIGTERM)
+    config = training.TrainConfig("mbs_envs/Pendubot-v2", "ppo", 4096, n_envs=4, eval_every=512, eval_seeds=1,
+                                  hyper={"n_steps": 32})  # fmt: skip
+    record = training.train(config, tmp_path)
+    assert signal.getsignal(signal.SIGTERM) is before
+    assert record["interrupted"] == {"planned_steps": 4096} and record["steps"] == calls[1] < 4096
+    assert (tmp_path / "agent.zip").exists() and json.loads((tmp_path / "config.json").read_text())["steps"] == calls[1]
+    training.load_agent(tmp_path)
+
+
 def test_a_shipped_agent_acts_as_trained_without_its_optimizer_state(tmp_path):
     script = load_script("train.py")
     script["run"](script["parse_args"](["--env", "mbs_envs/Planar2R-v0", "--algo", "ppo", "--steps", "1024", "--n-envs", "4",

@@ -8,7 +8,9 @@ as ``scripts/compare.py``) and records it against the *training* wall time
 (evaluation time excluded), which is what the comparison plots as "error
 against run time". A run saves ``agent.zip`` (SB3), ``config.json`` (env id
 and arguments, algorithm, hyperparameters, the exact command, wall time,
-versions) and ``training_log.csv``.
+versions) and ``training_log.csv``. A run stopped early (Ctrl-C, or SIGTERM at a job's time limit) saves the same,
+its ``config.json`` recording the steps done and ``interrupted`` (the steps planned), so that it ships or continues
+(``init``) as any other.
 
 Requires the ``rl`` extra.
 """
@@ -510,7 +512,14 @@ def _train(config: TrainConfig, out: pathlib.Path, tensorboard: bool, checkpoint
                 save_replay_buffer=hasattr(model, "replay_buffer"),
             )
         )
-    model.learn(config.steps // config.action_repeat, callback=CallbackList(callbacks))
+    interrupted = False
+    with stop_on_sigterm():
+        try:
+            model.learn(config.steps // config.action_repeat, callback=CallbackList(callbacks))
+        except KeyboardInterrupt:  # Ctrl-C or SIGTERM (a job's time limit): keep what was learnt, say so
+            interrupted = True
+            if log._bar is not None:
+                log._bar.close()
     wall = log.train_wall_s
     if not kept:  # the last agent (keep_best: the best evaluated one is saved already)
         model.save(out / "agent.zip")
@@ -525,7 +534,8 @@ def _train(config: TrainConfig, out: pathlib.Path, tensorboard: bool, checkpoint
         "train_env_kwargs": config.train_env_kwargs,
         "eval_env_kwargs": config.eval_env_kwargs,
         "algo": config.algo,
-        "steps": config.steps,
+        "steps": log.env_steps if interrupted else config.steps,
+        "interrupted": {"planned_steps": config.steps} if interrupted else None,
         "seed": config.seed,
         "n_envs": config.members,
         "training_member_seeds": [members[0], members[-1]],
@@ -562,6 +572,28 @@ def _train(config: TrainConfig, out: pathlib.Path, tensorboard: bool, checkpoint
     }
     (out / "config.json").write_text(json.dumps(record, indent=2, default=str))
     return record
+
+
+@contextlib.contextmanager
+def stop_on_sigterm() -> Iterator[None]:
+    """SIGTERM raises ``KeyboardInterrupt`` in the main thread while the block runs (so a run stopped by a job's time
+    limit saves its agent and record as a Ctrl-C does); the previous handler is restored after it. Elsewhere than
+    in the main thread, nothing changes."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def load_agent(folder: pathlib.Path) -> tuple[Any, dict[str, Any]]:
