@@ -168,8 +168,9 @@ def curves_section(curves: dict[str, dict]) -> str:
             for r in c["runs"]:
                 k = r["action_repeat"]
                 kept = f"{r['kept']['timesteps']:,.0f}" if r.get("kept") else "last"
-                out.append(f"| {scene} | {name} | {r['seed']} | {r['steps']:,} | {r['steps'] // k:,} ({k}) | "
-                           f"{r['wall']:.0f} | {kept} | `{r['command']}` |")  # fmt: skip
+                last = " (its last run)" if r.get("init") and r["runs"] == 1 else ""  # a chain shipped without its log
+                out.append(f"| {scene} | {name} | {r['seed']} | {r['steps']:,}{last} | {r['steps'] // k:,} ({k}) | "
+                           f"{r['wall']:.0f}{last} | {kept} | `{r['command']}` |")  # fmt: skip
     return "\n".join(out) + "\n"
 
 

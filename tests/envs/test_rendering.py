@@ -127,21 +127,21 @@ def test_record_writes_playable_videos_side_by_side(tmp_path):
     imageio = pytest.importorskip("imageio.v2")
     pytest.importorskip("imageio_ffmpeg")
     script = runpy.run_path(str(ROOT / "scripts" / "record.py"))
-    record = script["run"](script["parse_args"](["--env", "mbs_envs/Acrobot-v0", "--policy", "swingup", "--vs", "ppo", "--seed", "0",
+    record = script["run"](script["parse_args"](["--env", "mbs_envs/Acrobot-v1", "--policy", "swingup", "--vs", "ppo", "--seed", "0",
                                                  "--seconds", "0.4", "--fps", "25", "--size", "120", "--out", str(tmp_path)]))  # fmt: skip
     assert [p["steps"] for p in record["panels"]] == [40, 40] and record["panels"][1]["label"].startswith("PPO")
-    frames = imageio.mimread(tmp_path / "Acrobot-v0_swingup_vs_ppo_seed0.gif")
+    frames = imageio.mimread(tmp_path / "Acrobot-v1_swingup_vs_ppo_seed0.gif")
     assert len(frames) == record["frames"] == 11 and frames[0].shape[:2] == (120, 240)  # t = 0 and every 4th step
-    reader = imageio.get_reader(tmp_path / "Acrobot-v0_swingup_vs_ppo_seed0.mp4")
+    reader = imageio.get_reader(tmp_path / "Acrobot-v1_swingup_vs_ppo_seed0.mp4")
     video = [f for f in reader]
     assert len(video) == 11 and video[0].shape == (120, 240, 3) and reader.get_meta_data()["fps"] == pytest.approx(25.0)
-    assert json.loads((tmp_path / "Acrobot-v0_swingup_vs_ppo_seed0.json").read_text())["files"]
+    assert json.loads((tmp_path / "Acrobot-v1_swingup_vs_ppo_seed0.json").read_text())["files"]
 
 
 def test_record_names_unknown_policies():
     from mbs_envs.studies.recording import policy_names, resolve_policy
 
-    assert {"swingup", "ppo", "sac"} <= set(policy_names("mbs_envs/Acrobot-v0"))
+    assert {"swingup", "ppo", "sac"} <= set(policy_names("mbs_envs/Acrobot-v1"))
     assert {"pd", "pdgravity", "ct", "computedtorque"} <= set(policy_names("mbs_envs/Planar2R-v0"))
     assert resolve_policy("mbs_envs/Planar2R-v0", "ct") == ("mbs_envs.controllers:ComputedTorque", "computed torque")
     with pytest.raises(ValueError, match="'dance'.*one of"):
