@@ -32,17 +32,11 @@ import dataclasses
 from collections.abc import Mapping
 from types import MappingProxyType
 from typing import Any
-import warnings
 
 import numpy as np
 
 from ..envs.perturbations import PULSES, RANGES, RATE_INDEX  # noqa: F401  (the benchmark's robustness-v2 ranges)
 
-# The protocol ids are v1 on purpose: their v2 (``AcrobotDFKI-v2``, ...) changes only the reward, which the protocol
-# does not use, so Gymnasium's notice that a newer version exists says nothing to a protocol run.
-warnings.filterwarnings(
-    "ignore", message=r".*mbs_envs/(Acrobot|Pendubot)DFKI-v1 is out of date", category=DeprecationWarning
-)
 
 #: end-effector threshold as a fraction of the reach ``l1 + l2``
 HEIGHT = 0.9

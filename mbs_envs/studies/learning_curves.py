@@ -55,7 +55,7 @@ def draw(ax: Any, name: str, runs: list[dict], metric: str, x: str) -> None:
     lo, hi = mean.copy(), mean.copy()
     mean[alive] = np.nanmean(ys[:, alive], axis=0)
     lo[alive], hi[alive] = np.nanmin(ys[:, alive], axis=0), np.nanmax(ys[:, alive], axis=0)
-    line = ax.plot(xs, mean, "o-", ms=3, label=f"{name} ({len(runs)} seeds)")[0]
+    line = ax.plot(xs, mean, "o-", ms=3, label=f"{name} ({len(runs)} seed{'s' if len(runs) > 1 else ''})")[0]
     if len(runs) > 1:
         ax.fill_between(xs, lo, hi, color=line.get_color(), alpha=0.2)
     if not alive.all():
