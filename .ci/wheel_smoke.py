@@ -16,7 +16,7 @@ from mbs_envs.models import FourBar, Planar2R, RollingDisk, SerialChain, Spatial
 assert "site-packages" in mbs_envs.__file__, mbs_envs.__file__  # the wheel, not a checkout
 assert importlib.util.find_spec("controllers") is None, "a top-level 'controllers' module is installed"
 ids = [i for i in gym.registry if i.startswith("mbs_envs/")]
-assert len(ids) == 14, ids
+assert len(ids) == 18, ids
 for env_id in ids:
     env = gym.make(env_id)
     obs, info = env.reset(seed=0)
