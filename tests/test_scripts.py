@@ -618,7 +618,8 @@ def test_train_continues_an_earlier_versions_agent_on_the_new_reward(tmp_path):
                                                   "--action-repeat", "4", "--eval-seeds", "2", "--init", str(tmp_path / "v{seed}"),
                                                   "--seed", "0", "--out", str(tmp_path / "v1")]))  # fmt: skip
     r = records[0]
-    assert r["init"] == {"from": str(tmp_path / "v0"), "env_id": "mbs_envs/Acrobot-v0", "steps": 1024, "init": None}
+    assert r["init"] == {"from": str(tmp_path / "v0"), "env_id": "mbs_envs/Acrobot-v0", "steps": 1024, "init": None,
+                         "replay_buffer": None}
     assert r["hyperparameters"]["n_steps"] == 32  # the source's
     after = ALGOS["ppo"].load(tmp_path / "v1" / "agent.zip").policy.state_dict()
     assert any(not np.array_equal(before[k].numpy(), after[k].numpy()) for k in before)  # trained on from there
@@ -645,6 +646,18 @@ def test_a_continued_off_policy_run_keeps_its_replay_buffer(tmp_path):
     model = ALGOS["sac"].load(tmp_path / "b" / "agent.zip")
     model.load_replay_buffer(tmp_path / "b" / REPLAY_BUFFER)
     assert model.replay_buffer.size() == 2 * 800 // 2 // 4  # both runs' decisions, per member row
+    assert json.loads((tmp_path / "b" / "config.json").read_text())["init"]["replay_buffer"] == str(tmp_path / "a" / REPLAY_BUFFER)
+    # on another reward the stored rewards are stale: the continued run starts with an empty buffer
+    weights = '{"reward_weights": [5, 0.5, 0.5, 500, 50, 500, 500]}'
+    script["run"](script["parse_args"](args + ["--init", str(tmp_path / "a"), "--env-kwargs", weights, "--out", str(tmp_path / "c")]))
+    model = ALGOS["sac"].load(tmp_path / "c" / "agent.zip")
+    model.load_replay_buffer(tmp_path / "c" / REPLAY_BUFFER)
+    assert model.replay_buffer.size() == 800 // 2 // 4  # its own decisions only
+    assert json.loads((tmp_path / "c" / "config.json").read_text())["init"]["replay_buffer"] is None
+    # a curriculum on the starts keeps it (a stored transition is worth the same)
+    script["run"](script["parse_args"](args + ["--init", str(tmp_path / "a"), "--train-env-kwargs", '{"start_upright": 0.5}',
+                                               "--out", str(tmp_path / "d")]))  # fmt: skip
+    assert json.loads((tmp_path / "d" / "config.json").read_text())["init"]["replay_buffer"] == str(tmp_path / "a" / REPLAY_BUFFER)
     ship(tmp_path / "b", tmp_path / "shipped")
     assert not (tmp_path / "shipped" / REPLAY_BUFFER).exists()
     # the shipped log is the whole chain's: the first run's evaluations, then the second's counted on from its end

@@ -26,6 +26,7 @@ import pathlib
 import platform
 import sys
 import time
+from collections.abc import Mapping
 from typing import Any, Iterator
 
 import gymnasium as gym
@@ -68,6 +69,22 @@ def check_init(config: "TrainConfig") -> dict[str, Any]:
             "init: continuing a normalized run is not supported (only its observation statistics are saved)"
         )
     return source
+
+
+#: env arguments that only draw the episodes' starts: a transition stored under other values is worth the same
+START_ARGUMENTS = ("start_upright", "start_noise")
+
+
+def same_task(source: Mapping[str, Any], config: "TrainConfig") -> bool:
+    """Whether a continued run trains on its source's task, so that the transitions (and rewards) stored in the
+    source's replay buffer are this run's: the same env id and env arguments, the training members' arguments
+    alike but for the starts (:data:`START_ARGUMENTS`, a curriculum). Otherwise the run starts with an empty buffer."""
+
+    def task(env_id: str, env_kwargs: Mapping[str, Any], train_env_kwargs: Mapping[str, Any]) -> tuple:
+        return env_id, dict(env_kwargs), {k: v for k, v in train_env_kwargs.items() if k not in START_ARGUMENTS}
+
+    return task(source["env_id"], source.get("env_kwargs", {}), source.get("train_env_kwargs", {})) == task(
+        config.env_id, config.env_kwargs, config.train_env_kwargs)  # fmt: skip
 
 
 def residual_base(env_id: str) -> str:
@@ -471,6 +488,7 @@ def _train(config: TrainConfig, out: pathlib.Path, tensorboard: bool, checkpoint
         model, config.action_repeat, base, config.residual_bound, normalization and normalization()
     )  # noqa: E731
     source = None
+    buffer_from = None
     if config.init is None:
         model = ALGOS[config.algo](
             "MlpPolicy", venv, seed=config.seed, device="cpu", verbose=0,
@@ -483,8 +501,9 @@ def _train(config: TrainConfig, out: pathlib.Path, tensorboard: bool, checkpoint
         model.set_random_seed(config.seed)
         hyper = source["hyperparameters"]
         buffer = pathlib.Path(config.init) / REPLAY_BUFFER
-        if hasattr(model, "load_replay_buffer") and buffer.exists():  # an off-policy run continues with its data
-            model.load_replay_buffer(buffer)
+        if hasattr(model, "load_replay_buffer") and buffer.exists() and same_task(source, config):
+            model.load_replay_buffer(buffer)  # an off-policy run continues with its data (its rewards still hold)
+            buffer_from = str(buffer)
     if not tensorboard:  # SB3's own logger, left to itself, makes an empty folder in the system's temp dir per run
         model.set_logger(Logger(folder=None, output_formats=[]))
     kept: dict[str, Any] = {}
@@ -556,6 +575,7 @@ def _train(config: TrainConfig, out: pathlib.Path, tensorboard: bool, checkpoint
             "env_id": source["env_id"],
             "steps": source["steps"],
             "init": source.get("init"),
+            "replay_buffer": buffer_from,
         },
         "command": "python scripts/train.py " + " ".join(sys.argv[1:])
         if sys.argv and sys.argv[0].endswith("train.py")
