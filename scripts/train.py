@@ -109,7 +109,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument(
         "--init",
         type=pathlib.Path,
-        help="continue the agent saved in this folder (e.g. one of an earlier task version); {seed} stands for the run seed",
+        help="continue the agent saved in this folder (e.g. one of an earlier task version) or one of its checkpoints (FOLDER/checkpoints/agent_<n>_steps.zip); {seed} stands for the run seed",
     )
     p.add_argument(
         "--eval-seeds", type=cli.positive_int, default=10, help="validation episodes per evaluation (default 10)"

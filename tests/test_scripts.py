@@ -618,8 +618,14 @@ def test_train_continues_an_earlier_versions_agent_on_the_new_reward(tmp_path):
                                                   "--action-repeat", "4", "--eval-seeds", "2", "--init", str(tmp_path / "v{seed}"),
                                                   "--seed", "0", "--out", str(tmp_path / "v1")]))  # fmt: skip
     r = records[0]
-    assert r["init"] == {"from": str(tmp_path / "v0"), "env_id": "mbs_envs/Acrobot-v0", "steps": 1024, "init": None,
-                         "replay_buffer": None}
+    assert r["init"] == {
+        "from": str(tmp_path / "v0"),
+        "env_id": "mbs_envs/Acrobot-v0",
+        "steps": 1024,
+        "init": None,
+        "replay_buffer": None,
+        "checkpoint": None,
+    }
     assert r["hyperparameters"]["n_steps"] == 32  # the source's
     after = ALGOS["ppo"].load(tmp_path / "v1" / "agent.zip").policy.state_dict()
     assert any(not np.array_equal(before[k].numpy(), after[k].numpy()) for k in before)  # trained on from there
@@ -646,10 +652,16 @@ def test_a_continued_off_policy_run_keeps_its_replay_buffer(tmp_path):
     model = ALGOS["sac"].load(tmp_path / "b" / "agent.zip")
     model.load_replay_buffer(tmp_path / "b" / REPLAY_BUFFER)
     assert model.replay_buffer.size() == 2 * 800 // 2 // 4  # both runs' decisions, per member row
-    assert json.loads((tmp_path / "b" / "config.json").read_text())["init"]["replay_buffer"] == str(tmp_path / "a" / REPLAY_BUFFER)
+    assert json.loads((tmp_path / "b" / "config.json").read_text())["init"]["replay_buffer"] == str(
+        tmp_path / "a" / REPLAY_BUFFER
+    )
     # on another reward the stored rewards are stale: the continued run starts with an empty buffer
     weights = '{"reward_weights": [5, 0.5, 0.5, 500, 50, 500, 500]}'
-    script["run"](script["parse_args"](args + ["--init", str(tmp_path / "a"), "--env-kwargs", weights, "--out", str(tmp_path / "c")]))
+    script["run"](
+        script["parse_args"](
+            args + ["--init", str(tmp_path / "a"), "--env-kwargs", weights, "--out", str(tmp_path / "c")]
+        )
+    )
     model = ALGOS["sac"].load(tmp_path / "c" / "agent.zip")
     model.load_replay_buffer(tmp_path / "c" / REPLAY_BUFFER)
     assert model.replay_buffer.size() == 800 // 2 // 4  # its own decisions only
@@ -657,7 +669,9 @@ def test_a_continued_off_policy_run_keeps_its_replay_buffer(tmp_path):
     # a curriculum on the starts keeps it (a stored transition is worth the same)
     script["run"](script["parse_args"](args + ["--init", str(tmp_path / "a"), "--train-env-kwargs", '{"start_upright": 0.5}',
                                                "--out", str(tmp_path / "d")]))  # fmt: skip
-    assert json.loads((tmp_path / "d" / "config.json").read_text())["init"]["replay_buffer"] == str(tmp_path / "a" / REPLAY_BUFFER)
+    assert json.loads((tmp_path / "d" / "config.json").read_text())["init"]["replay_buffer"] == str(
+        tmp_path / "a" / REPLAY_BUFFER
+    )
     ship(tmp_path / "b", tmp_path / "shipped")
     assert not (tmp_path / "shipped" / REPLAY_BUFFER).exists()
     # the shipped log is the whole chain's: the first run's evaluations, then the second's counted on from its end
@@ -669,6 +683,39 @@ def test_a_continued_off_policy_run_keeps_its_replay_buffer(tmp_path):
     assert run["steps"] == 1600 and run["runs"] == 2
     wall_a = json.loads((tmp_path / "a" / "config.json").read_text())["train_wall_s"]
     assert run["train_wall_s"][len(a)] == pytest.approx(wall_a + float(b[0]["train_wall_s"]), rel=1e-12)
+
+
+def test_a_run_continues_from_a_checkpoint_with_the_buffer_saved_beside_it(tmp_path):
+    """``--init FOLDER/checkpoints/agent_<n>_steps.zip``: that agent's weights, the replay buffer saved with it, the
+    record naming the run and the checkpoint's control steps; a file that is no checkpoint of a run is refused."""
+    script = load_script("train.py")
+    args = ["--env", "mbs_envs/Pendubot-v2", "--algo", "sac", "--n-envs", "4", "--action-repeat", "2",
+            "--net-arch", "8", "8", "--eval-seeds", "1", "--seed", "0"]  # fmt: skip
+    script["run"](script["parse_args"](args + ["--steps", "800", "--hyper", "learning_starts=40", "--checkpoint-every", "400",
+                                               "--out", str(tmp_path / "a")]))  # fmt: skip
+    from mbs_envs.studies.training import ALGOS, REPLAY_BUFFER, TrainConfig
+
+    point = tmp_path / "a" / "checkpoints" / "agent_200_steps.zip"  # 200 decisions = 400 control steps
+    assert point.exists()
+    records = script["run"](
+        script["parse_args"](args + ["--steps", "80", "--init", str(point), "--out", str(tmp_path / "b")])
+    )
+    init = records[0]["init"]
+    assert init["from"] == str(tmp_path / "a") and init["checkpoint"] == 400 and init["steps"] == 800
+    assert init["replay_buffer"] == str(point.parent / "agent_replay_buffer_200_steps.pkl")
+    model = ALGOS["sac"].load(tmp_path / "b" / "agent.zip")
+    model.load_replay_buffer(tmp_path / "b" / REPLAY_BUFFER)
+    # the checkpoint's decisions but its last (SB3 saves the buffer before storing the step it checkpoints at),
+    # then this run's
+    assert model.replay_buffer.size() == 400 // 2 // 4 - 1 + 80 // 2 // 4
+    with pytest.raises(ValueError, match="no agent saved by train"):
+        TrainConfig(
+            "mbs_envs/Pendubot-v2",
+            "sac",
+            80,
+            action_repeat=2,
+            init=str(tmp_path / "a" / "checkpoints" / "agent_7_steps.zip"),
+        )
 
 
 def test_a_run_stopped_by_sigterm_saves_its_agent_and_says_so(tmp_path, monkeypatch):

@@ -24,6 +24,7 @@ import json
 import os
 import pathlib
 import platform
+import re
 import sys
 import time
 from collections.abc import Mapping
@@ -49,11 +50,32 @@ from .normalized import NormalizedPolicy, ObsNormalization
 ALGOS = {"ppo": PPO, "sac": SAC, "td3": TD3}
 
 
+#: a checkpoint's file name, ``agent_<decisions>_steps.zip`` (SB3's CheckpointCallback with the prefix ``agent``)
+CHECKPOINT = re.compile(r"agent_(\d+)_steps\.zip")
+
+
+def init_files(init: str | pathlib.Path) -> tuple[pathlib.Path, pathlib.Path, pathlib.Path, int | None]:
+    """Where a continued run's source is: ``(run folder, agent file, replay buffer file, checkpoint's decisions)``.
+
+    ``init`` is a folder saved by :func:`train` (its agent and buffer; decisions None), or one of its checkpoints,
+    ``<folder>/checkpoints/agent_<n>_steps.zip`` (that agent and the buffer saved with it, ``n`` decisions in).
+    """
+    init = pathlib.Path(init)
+    match = CHECKPOINT.fullmatch(init.name)
+    if match and init.parent.name == "checkpoints":
+        n = int(match.group(1))
+        return init.parents[1], init, init.parent / f"agent_replay_buffer_{n}_steps.pkl", n
+    return init, init / "agent.zip", init / REPLAY_BUFFER, None
+
+
 def check_init(config: "TrainConfig") -> dict[str, Any]:
-    """The ``config.json`` of ``config.init``, or a ``ValueError`` naming what does not match."""
-    folder = pathlib.Path(config.init)
-    if not (folder / "agent.zip").exists() or not (folder / "config.json").exists():
-        raise ValueError(f"init: {str(folder)!r} holds no agent saved by train (agent.zip and config.json)")
+    """The ``config.json`` of ``config.init``'s run, or a ``ValueError`` naming what does not match."""
+    folder, agent, _, _ = init_files(config.init)
+    if not agent.exists() or not (folder / "config.json").exists():
+        raise ValueError(
+            f"init: {str(config.init)!r} is no agent saved by train (a folder with agent.zip and config.json, "
+            "or its checkpoints/agent_<n>_steps.zip)"
+        )
     source = json.loads((folder / "config.json").read_text())
     mine = {"algo": config.algo, "action_repeat": config.action_repeat, "normalize": config.normalize,
             "residual": (config.residual or None)}  # fmt: skip
@@ -149,7 +171,8 @@ class TrainConfig:
         A folder saved by :func:`train` whose agent this run continues (its weights, and its
         optimizer's state) instead of starting afresh, e.g. an agent of an earlier task version
         trained on further on the new reward, or a run continued for a longer budget (an off-policy run's replay
-        buffer, saved beside its agent, comes with it). The algorithm, action repeat, normalization and
+        buffer, saved beside its agent, comes with it on the same task: :func:`same_task`); or one of the
+        folder's checkpoints (``checkpoints/agent_<n>_steps.zip``, with the buffer saved beside it). The algorithm, action repeat, normalization and
         residual base must be the source's; its hyperparameters are kept (``hyper`` must be empty);
         not for a normalized run (its reward statistics are not saved).
         ``config.json`` records the source and its budget.
@@ -496,11 +519,11 @@ def _train(config: TrainConfig, out: pathlib.Path, tensorboard: bool, checkpoint
         )  # fmt: skip
     else:
         source = check_init(config)
-        model = ALGOS[config.algo].load(pathlib.Path(config.init) / "agent.zip", env=venv, device="cpu", verbose=0,
+        source_folder, agent_file, buffer, checkpoint = init_files(config.init)
+        model = ALGOS[config.algo].load(agent_file, env=venv, device="cpu", verbose=0,
                                         tensorboard_log=str(out / "tensorboard") if tensorboard else None)  # fmt: skip
         model.set_random_seed(config.seed)
         hyper = source["hyperparameters"]
-        buffer = pathlib.Path(config.init) / REPLAY_BUFFER
         if hasattr(model, "load_replay_buffer") and buffer.exists() and same_task(source, config):
             model.load_replay_buffer(buffer)  # an off-policy run continues with its data (its rewards still hold)
             buffer_from = str(buffer)
@@ -571,7 +594,8 @@ def _train(config: TrainConfig, out: pathlib.Path, tensorboard: bool, checkpoint
         "init": None
         if source is None
         else {
-            "from": str(config.init),
+            "from": str(source_folder),
+            "checkpoint": None if checkpoint is None else checkpoint * config.action_repeat,
             "env_id": source["env_id"],
             "steps": source["steps"],
             "init": source.get("init"),
