@@ -646,7 +646,9 @@ def load_agent(folder: pathlib.Path) -> tuple[Any, dict[str, Any]]:
     A residual agent comes back as a :class:`~mbs_envs.studies.residual.ResidualPolicy`
     around its base controller, built on the nominal env of its record with
     the gains it was trained with; an agent trained with ``action_repeat > 1`` as a
-    :class:`~mbs_envs.studies.held.HeldPolicy` holding its decisions as in training.
+    :class:`~mbs_envs.studies.held.HeldPolicy` holding its decisions as in training, or every
+    ``"evaluated_action_repeat"`` control steps where its record says so (an agent shipped to decide at another
+    interval: :mod:`mbs_envs.studies.dfki_selection`).
     """
     folder = pathlib.Path(folder)
     record = json.loads((folder / "config.json").read_text())
@@ -658,7 +660,8 @@ def load_agent(folder: pathlib.Path) -> tuple[Any, dict[str, Any]]:
             residual["base"], gym.make(record["env_id"], **record.get("env_kwargs", {})), residual.get("gains")
         )
         return as_evaluated(model, 1, base, residual["bound"], normalization), record
-    return as_evaluated(model, record.get("action_repeat", 1), None, 0.0, normalization), record
+    repeat = record.get("evaluated_action_repeat") or record.get("action_repeat", 1)
+    return as_evaluated(model, repeat, None, 0.0, normalization), record
 
 
 def as_evaluated(
@@ -680,9 +683,14 @@ REPLAY_BUFFER = "replay_buffer.pkl"
 SHIPPED_FILES = ("agent.zip", "config.json", "training_log.csv", "normalization.npz")
 
 
-def ship(src: pathlib.Path, dst: pathlib.Path) -> int:
+def ship(src: pathlib.Path, dst: pathlib.Path, checkpoint: int | None = None, kept: Mapping[str, Any] | None = None,
+         evaluated_action_repeat: int | None = None) -> int:  # fmt: skip
     """Copy the agent saved by :func:`train` in ``src`` to ``dst`` without its optimizers' state (a continued run with
     the whole chain's training log and, as ``"total"`` in ``config.json``, its budget: :func:`whole_log`).
+
+    ``checkpoint`` (control steps) ships that checkpoint of the run instead of its ``agent.zip``, with ``kept`` (why it
+    was chosen) recorded as ``"kept"``; ``evaluated_action_repeat`` makes :func:`load_agent` hold its decisions that
+    many control steps instead of the training's action repeat. The budget stays the whole run's (every step spent).
 
     The network weights (all of them, so SB3 loads the agent as usual), configuration, training
     log and normalization are kept; the Adam moments of every optimizer are dropped, which is a
@@ -702,7 +710,20 @@ def ship(src: pathlib.Path, dst: pathlib.Path) -> int:
 
     src, dst = pathlib.Path(src), pathlib.Path(dst)
     record = json.loads((src / "config.json").read_text())
-    model = ALGOS[record["algo"]].load(src / "agent.zip", device="cpu")
+    agent, extra = src / "agent.zip", {}
+    if checkpoint is not None:
+        repeat = record.get("action_repeat", 1)
+        agent = src / "checkpoints" / f"agent_{int(checkpoint) // repeat}_steps.zip"
+        if int(checkpoint) % repeat or not agent.exists():
+            raise ValueError(f"checkpoint: {src} has no checkpoint at {checkpoint} control steps")
+        extra["kept"] = {"checkpoint": int(checkpoint), **(kept or {})}
+    elif kept is not None:
+        raise ValueError("kept: only with a checkpoint (a run's own agent.zip keeps its training's record)")
+    if evaluated_action_repeat is not None:
+        from ..envs.sb3 import check_action_repeat
+
+        extra["evaluated_action_repeat"] = check_action_repeat(evaluated_action_repeat)
+    model = ALGOS[record["algo"]].load(agent, device="cpu")
     for name in model._get_torch_save_params()[0]:  # the state dicts SB3 saves: "policy", "<net>.optimizer", ...
         module = recursive_getattr(model, name)
         if isinstance(module, torch.optim.Optimizer):
@@ -718,7 +739,7 @@ def ship(src: pathlib.Path, dst: pathlib.Path) -> int:
         write_log(dst / "training_log.csv", rows)
         chain = {"total": budget}
     (dst / "config.json").write_text(
-        json.dumps({**record, "shipped_without_optimizer_state": True, **chain}, indent=2, default=str)
+        json.dumps({**record, **extra, "shipped_without_optimizer_state": True, **chain}, indent=2, default=str)
     )
     return (dst / "agent.zip").stat().st_size
 
