@@ -123,6 +123,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         help="replace an agent already in --out (a folder another run is writing is refused)",
     )
     p.add_argument(
+        "--smooth",
+        metavar="T,S,SIGMA",
+        help="CAPS smoothness regularization of an off-policy actor: the temporal and spatial terms' weights and the "
+        "observation noise (mbs_envs.studies.smoothing), e.g. 1,1,0.05",
+    )
+    p.add_argument(
         "--ray", nargs="?", const="local", help="run the seeds on Ray (cluster ADDRESS, or a local instance)"
     )
     return p.parse_args(argv)
@@ -141,7 +147,7 @@ def run(args: argparse.Namespace) -> list[dict]:
                       env_kwargs=args.env_kwargs, train_env_kwargs=args.train_env_kwargs, eval_env_kwargs=args.eval_env_kwargs, keep_best=args.keep_best, net_arch=tuple(args.net_arch) if args.net_arch else None,
                       eval_every=args.eval_every, eval_seeds=args.eval_seeds, residual=residual, residual_bound=args.residual_bound,
                       hyper=dict(args.hyper), action_repeat=args.action_repeat, normalize=args.normalize, perturb=args.perturb,
-                      init=str(args.init).format(seed=seed) if args.init else None)  # fmt: skip
+                      init=str(args.init).format(seed=seed) if args.init else None, smooth=args.smooth)  # fmt: skip
         try:
             TrainConfig(**config)  # validate before starting anything
         except ValueError as exc:

@@ -40,6 +40,7 @@ from stable_baselines3.common.vec_env import VecNormalize
 from tqdm import tqdm
 
 from . import seeds as seed_ranges
+from .. import validation as check
 from ..envs import registry
 from .evaluation import ERROR_METRIC, SCORING, default_gains_entry, make_controller, rollout_batch
 from .residual import ResidualPolicy, check_bound, residual_vec_env
@@ -185,6 +186,10 @@ class TrainConfig:
         :class:`mbs_envs.envs.perturbed.TrainingPerturbations`): each training member meets one perturbation
         (measurement noise, torque noise, a lagging actuator, a delay, torque pulses) per episode, drawn at its
         reset; validation runs the task unperturbed. ``config.json`` records the ranges.
+    smooth : CAPS, dict or str, optional
+        Regularize an off-policy actor toward a smooth feedback law (:mod:`mbs_envs.studies.smoothing`: the CAPS
+        terms' weights and noise, as :class:`~mbs_envs.studies.smoothing.CAPS`, its fields or
+        ``"temporal,spatial,sigma"``). The reward is untouched; ``config.json`` records the setting.
     """
 
     env_id: str
@@ -206,10 +211,19 @@ class TrainConfig:
     init: str | None = None
     keep_best: bool = False
     perturb: Any = None
+    smooth: Any = None
 
     def __post_init__(self) -> None:
         if self.algo not in ALGOS:
             raise ValueError(f"algo must be one of {sorted(ALGOS)}, got {self.algo!r}")
+        if self.smooth is not None:
+            from .smoothing import CAPS
+
+            caps = self.smooth if isinstance(self.smooth, CAPS) else (
+                CAPS.parse(self.smooth) if isinstance(self.smooth, str) else CAPS(**check.mapping(self.smooth, "smooth")))  # fmt: skip
+            if self.algo == "ppo":
+                raise ValueError("smooth: CAPS regularizes an off-policy actor (sac, td3), not ppo")
+            object.__setattr__(self, "smooth", dataclasses.asdict(caps))  # checked, JSON-ready
         if not (isinstance(self.steps, int) and self.steps > 0):
             raise ValueError(f"steps must be a positive integer, got {self.steps!r}")
         if self.n_envs is not None and not (
@@ -527,6 +541,10 @@ def _train(config: TrainConfig, out: pathlib.Path, tensorboard: bool, checkpoint
         if hasattr(model, "load_replay_buffer") and buffer.exists() and same_task(source, config):
             model.load_replay_buffer(buffer)  # an off-policy run continues with its data (its rewards still hold)
             buffer_from = str(buffer)
+    if config.smooth is not None:
+        from .smoothing import CAPS, regularize
+
+        regularize(model, CAPS(**config.smooth))
     if not tensorboard:  # SB3's own logger, left to itself, makes an empty folder in the system's temp dir per run
         model.set_logger(Logger(folder=None, output_formats=[]))
     kept: dict[str, Any] = {}
@@ -591,6 +609,7 @@ def _train(config: TrainConfig, out: pathlib.Path, tensorboard: bool, checkpoint
         "action_repeat": config.action_repeat,
         "normalize": config.normalize,
         "perturb": config.perturb,
+        "smooth": config.smooth,
         "init": None
         if source is None
         else {
