@@ -631,7 +631,7 @@ def test_train_continues_an_earlier_versions_agent_on_the_new_reward(tmp_path):
     assert any(not np.array_equal(before[k].numpy(), after[k].numpy()) for k in before)  # trained on from there
     assert load_agent(tmp_path / "v1")[1]["env_id"] == "mbs_envs/Acrobot-v1"
     src = str(tmp_path / "v0")
-    for bad, match in ((dict(algo="sac"), "algo"), (dict(action_repeat=2), "action_repeat"), (dict(hyper={"gamma": 0.9}), "hyper"),
+    for bad, match in ((dict(algo="sac"), "algo"), (dict(action_repeat=2), "action_repeat"), (dict(hyper={"n_steps": 64}), "hyper may set only"),
                        (dict(normalize=True), "normalize"), (dict(init=str(tmp_path)), "no agent")):  # fmt: skip
         kw = dict(env_id="mbs_envs/Acrobot-v1", algo="ppo", steps=1024, action_repeat=4, init=src) | bad
         with pytest.raises(ValueError, match=match):
@@ -672,6 +672,17 @@ def test_a_continued_off_policy_run_keeps_its_replay_buffer(tmp_path):
     assert json.loads((tmp_path / "d" / "config.json").read_text())["init"]["replay_buffer"] == str(
         tmp_path / "a" / REPLAY_BUFFER
     )
+    # a fine-tuning with a longer discount and another learning rate: the source's agent and data, those two changed
+    script["run"](script["parse_args"](args + ["--init", str(tmp_path / "a"), "--hyper", "gamma=0.995", "--hyper", "learning_rate=0.0001",
+                                               "--out", str(tmp_path / "e")]))  # fmt: skip
+    record = json.loads((tmp_path / "e" / "config.json").read_text())
+    assert record["hyperparameters"]["gamma"] == 0.995 and record["hyperparameters"]["learning_rate"] == 0.0001
+    assert record["hyperparameters"]["learning_starts"] == 40 and record["hyper_overrides"] == {
+        "gamma": 0.995,
+        "learning_rate": 0.0001,
+    }
+    model = ALGOS["sac"].load(tmp_path / "e" / "agent.zip")
+    assert model.gamma == 0.995 and model.lr_schedule(1.0) == 0.0001
     ship(tmp_path / "b", tmp_path / "shipped")
     assert not (tmp_path / "shipped" / REPLAY_BUFFER).exists()
     # the shipped log is the whole chain's: the first run's evaluations, then the second's counted on from its end

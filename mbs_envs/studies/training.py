@@ -55,6 +55,11 @@ ALGOS = {"ppo": PPO, "sac": SAC, "td3": TD3}
 CHECKPOINT = re.compile(r"agent_(\d+)_steps\.zip")
 
 
+#: the hyperparameters a continued run may change (none shapes a network or a buffer): the discount, the target
+#: networks' rate, the learning rate, the batch and the gradient steps per update
+CONTINUED_HYPER = ("gamma", "tau", "learning_rate", "batch_size", "gradient_steps")
+
+
 def init_files(init: str | pathlib.Path) -> tuple[pathlib.Path, pathlib.Path, pathlib.Path, int | None]:
     """Where a continued run's source is: ``(run folder, agent file, replay buffer file, checkpoint's decisions)``.
 
@@ -85,8 +90,11 @@ def check_init(config: "TrainConfig") -> dict[str, Any]:
     for key in mine:
         if mine[key] != theirs[key]:
             raise ValueError(f"init: the source agent has {key}={theirs[key]!r}, this run {mine[key]!r}")
-    if config.hyper:
-        raise ValueError("init: a continued run keeps the source's hyperparameters; hyper must be empty")
+    if set(config.hyper) - set(CONTINUED_HYPER):
+        raise ValueError(
+            f"init: a continued run keeps the source's networks and buffers; hyper may set only {CONTINUED_HYPER}, "
+            f"got {sorted(config.hyper)}"
+        )
     if config.normalize:
         raise ValueError(
             "init: continuing a normalized run is not supported (only its observation statistics are saved)"
@@ -174,7 +182,8 @@ class TrainConfig:
         trained on further on the new reward, or a run continued for a longer budget (an off-policy run's replay
         buffer, saved beside its agent, comes with it on the same task: :func:`same_task`); or one of the
         folder's checkpoints (``checkpoints/agent_<n>_steps.zip``, with the buffer saved beside it). The algorithm, action repeat, normalization and
-        residual base must be the source's; its hyperparameters are kept (``hyper`` must be empty);
+        residual base must be the source's; its hyperparameters are kept but for those ``hyper`` sets among
+        :data:`CONTINUED_HYPER` (a longer discount for a fine-tuning, say);
         not for a normalized run (its reward statistics are not saved).
         ``config.json`` records the source and its budget.
     keep_best : bool
@@ -537,7 +546,11 @@ def _train(config: TrainConfig, out: pathlib.Path, tensorboard: bool, checkpoint
         model = ALGOS[config.algo].load(agent_file, env=venv, device="cpu", verbose=0,
                                         tensorboard_log=str(out / "tensorboard") if tensorboard else None)  # fmt: skip
         model.set_random_seed(config.seed)
-        hyper = source["hyperparameters"]
+        hyper = {**source["hyperparameters"], **config.hyper}
+        for key, value in config.hyper.items():  # CONTINUED_HYPER only (check_init)
+            setattr(model, key, value)
+        if "learning_rate" in config.hyper:
+            model._setup_lr_schedule()
         if hasattr(model, "load_replay_buffer") and buffer.exists() and same_task(source, config):
             model.load_replay_buffer(buffer)  # an off-policy run continues with its data (its rewards still hold)
             buffer_from = str(buffer)
