@@ -66,6 +66,7 @@ AGENT_GROUPS = {
     "ppo": ("PPO", "RL"),
     "sac": ("SAC", "RL"),
     "td3": ("TD3", "RL"),
+    "sac-caps": ("SAC + CAPS", "RL"),  # SAC with the actor's smoothness regularized (mbs_envs.studies.smoothing)
     "residual-ppo": ("residual PPO", "model-based + RL"),
     "residual-sac": ("residual SAC", "model-based + RL"),
     "residual-td3": ("residual TD3", "model-based + RL"),
