@@ -692,6 +692,7 @@ def test_a_continued_off_policy_run_keeps_its_replay_buffer(tmp_path):
     run = read_run(tmp_path / "shipped")
     assert run["timesteps"] == [float(r["timesteps"]) for r in a] + [800 + float(r["timesteps"]) for r in b]
     assert run["steps"] == 1600 and run["runs"] == 2
+    assert run["commands"] == [None, None]  # each run's command (none from a test: not run as train.py)
     wall_a = json.loads((tmp_path / "a" / "config.json").read_text())["train_wall_s"]
     assert run["train_wall_s"][len(a)] == pytest.approx(wall_a + float(b[0]["train_wall_s"]), rel=1e-12)
 

@@ -29,7 +29,9 @@ def read_run(folder: pathlib.Path) -> dict[str, Any] | None:
             "steps": (cfg.get("total") or cfg)["steps"], "seed": cfg["seed"], "command": cfg.get("command"),
             "wall": (cfg.get("total") or cfg)["train_wall_s"], "runs": (cfg.get("total") or {}).get("runs", 1),
             "hyperparameters": cfg.get("hyperparameters"), "n_envs": cfg.get("n_envs"), "init": cfg.get("init"),
-            "action_repeat": cfg.get("action_repeat", 1), "kept": cfg.get("kept")}  # fmt: skip
+            "action_repeat": cfg.get("action_repeat", 1), "kept": cfg.get("kept"),
+            "commands": (cfg.get("total") or {}).get("commands") or [cfg.get("command")],
+            "evaluated_action_repeat": cfg.get("evaluated_action_repeat")}  # fmt: skip
 
 
 def training_curves(agents: dict[str, list[str]]) -> dict[str, dict]:

@@ -780,7 +780,7 @@ def whole_log(folder: pathlib.Path) -> tuple[list[dict], dict]:
     """The evaluations of the run in ``folder`` preceded by those of the runs it continues (``config.json``'s
     ``init``, followed while its folder is at hand), each later run's control steps and wall time counted on from
     where the one before ended, with the run's place in the chain in a column ``run`` (0 the first); and the
-    chain's budget ``{"steps", "train_wall_s", "runs"}``."""
+    chain's budget ``{"steps", "train_wall_s", "runs", "commands"}`` (each run's command, the first first)."""
     folder = pathlib.Path(folder)
     record = json.loads((folder / "config.json").read_text())
     source = (record.get("init") or {}).get("from")
@@ -795,4 +795,4 @@ def whole_log(folder: pathlib.Path) -> tuple[list[dict], dict]:
                 rows.append({"run": run, **r, "timesteps": steps0 + int(float(r["timesteps"])),
                              "train_wall_s": wall0 + float(r["train_wall_s"])})  # fmt: skip
     return rows, {"steps": steps0 + int(record["steps"]), "train_wall_s": wall0 + float(record["train_wall_s"]),
-                  "runs": run + 1}  # fmt: skip
+                  "runs": run + 1, "commands": [*budget.get("commands", []), record.get("command")]}  # fmt: skip

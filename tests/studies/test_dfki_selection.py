@@ -74,6 +74,13 @@ def test_every_checkpoint_at_each_interval_scored_as_the_protocol_scores_it_and_
     policy, record = load_agent(tmp_path / "shipped")
     assert record["kept"] == {"checkpoint": 1000, "by": "test"} and record["evaluated_action_repeat"] == 1
     assert record["steps"] == 2000  # the budget stays the whole run's
+    from mbs_envs.studies.dfki_job import kept_at
+    from mbs_envs.studies.learning_curves import read_run
+
+    assert (
+        kept_at(read_run(tmp_path / "shipped"))
+        == "checkpoint 1,000 of its last run, best protocol score; deciding every 1"
+    )
     venv = gym.make_vec(
         "mbs_envs/PendubotDFKI-v1", num_envs=1, vectorization_mode="vector_entry_point", autoreset_mode="Disabled"
     )
