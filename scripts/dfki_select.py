@@ -22,6 +22,7 @@ import sys
 
 from mbs_envs.studies import dfki_selection as sel
 from mbs_envs.studies.training import ship
+from mbs_envs.studies.provenance import command_line
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -46,7 +47,7 @@ def run(args: argparse.Namespace) -> dict:
         w.writeheader()
         w.writerows(rows)
     result = {"run": str(args.run), "env_id": record["env_id"], "rows": rows, "best": chosen,
-              "command": "python scripts/dfki_select.py " + " ".join(sys.argv[1:])}  # fmt: skip
+              "command": command_line("dfki_select.py")}  # fmt: skip
     (args.out / "selection.json").write_text(json.dumps(result, indent=2))
     sel.plot(rows, args.out / "selection.png", f"{record['env_id']}: checkpoints on the protocol")
     print(f"best: checkpoint {chosen['checkpoint']} control steps, deciding every {chosen['action_repeat']}, "

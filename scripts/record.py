@@ -28,6 +28,7 @@ import time
 import mbs_envs  # noqa: F401
 from mbs_envs.studies import cli
 from mbs_envs.studies.recording import record_episode, side_by_side, write_video
+from mbs_envs.studies.provenance import command_line  # noqa: E402
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -72,7 +73,7 @@ def run(args: argparse.Namespace) -> dict:
         "panels": [{"policy": n, "label": r.label, "steps": r.steps, "return": r.episode_return, "ended": r.ended}
                    for n, r in zip([args.policy, args.vs], recordings)],
         "run_time_s": time.perf_counter() - tic,
-        "command": "python scripts/record.py " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("record.py") else None,
+        "command": command_line("record.py"),
     }  # fmt: skip
     (args.out / f"{stem}.json").write_text(json.dumps(record, indent=2))
     for p in record["panels"]:

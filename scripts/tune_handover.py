@@ -31,6 +31,7 @@ from mbs_envs.studies.handover import TUNED_NAME, tune_catch
 from mbs_envs.studies.plotting import pyplot, save
 from mbs_envs.studies.tuning import tuning_seeds
 from mbs_envs.studies.training import load_agent
+from mbs_envs.studies.provenance import command_line  # noqa: E402
 
 #: catch levels from 300 to 1e7 (the first grid ended at 3e4, where the pendubot's pick sat at its edge: widened),
 #: each with the hysteresis factors 2, 4 (the model-based controller's) and 16 (added in the third round)
@@ -80,11 +81,7 @@ def run(args: argparse.Namespace) -> dict:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
-    command = (
-        "python scripts/tune_handover.py " + " ".join(sys.argv[1:])
-        if sys.argv and sys.argv[0].endswith("tune_handover.py")
-        else None
-    )
+    command = command_line("tune_handover.py")
     record["command"] = command
     (args.out / "handover_tuning.json").write_text(json.dumps(record, indent=2))
     plot(rows, args.out / "handover_tuning.png")

@@ -286,6 +286,23 @@ def test_the_run_records_what_its_numbers_depend_on():
     assert set(rec["pinned"]) == set(provenance.PINNED)
 
 
+def test_a_recorded_command_pastes_back_into_a_shell_as_it_was_given(monkeypatch):
+    """A JSON argument (spaces, quotes, brackets) survives: the recorded line split as a POSIX shell splits it is the
+    process's arguments; another script's process records nothing."""
+    import shlex
+    import sys
+
+    from mbs_envs.studies.provenance import command_line
+
+    argv = ["scripts/train.py", "--env-kwargs", '{"reward_weights": [5, 0.4, 400]}', "--out", "runs/a b", "--seed", "0"]
+    monkeypatch.setattr(sys, "argv", argv)
+    line = command_line("train.py")
+    assert line.startswith("python scripts/train.py ") and shlex.split(line)[2:] == argv[1:]
+    assert command_line("dfki.py") is None
+    monkeypatch.setattr(sys, "argv", ["scripts/dfki.py"])
+    assert command_line("dfki.py") == "python scripts/dfki.py"
+
+
 def test_the_evaluation_scripts_pin_mkl_before_torch_loads_and_keep_what_the_user_set():
     """issue 37: the agents' actions differed in their last bits between MKL's AVX-512 and AVX2 code (96 of 450 summary
     values of two scenes); the scripts pin MKL's reproducible mode, in a fresh process before torch is imported."""

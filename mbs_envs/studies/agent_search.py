@@ -6,12 +6,12 @@ import argparse
 import csv
 import json
 import pathlib
-import sys
 import numpy as np
 import mbs_envs  # noqa: F401
 from .agent_tuning import agent_grid, tune_agent
 from .plotting import pyplot, save
 from .training import hyper_setting
+from .provenance import command_line
 
 
 def grid_setting(text: str) -> tuple[str, list[int | float]]:
@@ -35,7 +35,7 @@ def run(args: argparse.Namespace) -> dict:
         w.writeheader()
         w.writerows([dict(r, hyper=json.dumps(r["hyper"])) for r in rows])
     record = {"env_id": args.env, "algo": args.algo, "steps": args.steps, "seed": args.seed, "grid": dict(args.grid),
-              "best": best, "rows": rows, "command": "python scripts/tune_agent.py " + " ".join(sys.argv[1:])}  # fmt: skip
+              "best": best, "rows": rows, "command": command_line("tune_agent.py")}  # fmt: skip
     (args.out / "tuning.json").write_text(json.dumps(record, indent=2))
     plot(rows, args.out / "learning_curves.png", args.env, args.algo)
     for r in rows:

@@ -7,7 +7,6 @@ import csv
 import json
 import os
 import pathlib
-import sys
 import time
 
 import gymnasium as gym
@@ -26,6 +25,7 @@ from .parallel import run_tasks
 from .robustness import plot_success
 from .learning_curves import draw, training_curves
 from .plotting import pyplot, save
+from .provenance import command_line
 
 
 SCENES = {entry[0].split("/")[1].replace("DFKI-v1", ""): entry[0] for entry in PROTOCOL_IDS}
@@ -100,9 +100,7 @@ def run(args: argparse.Namespace) -> dict:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
-    command = (
-        "python scripts/dfki.py " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("dfki.py") else None
-    )
+    command = command_line("dfki.py")
     record = {"command": command, "rows": rows, "sweeps": {f"{s} | {n}": to_json(r) for (s, n), r in sweeps.items()},
               "protocol": {s: SCENES[s] for s in scenes}, "values_per_axis": args.values, "seed": args.seed, "wall_s": wall}  # fmt: skip
     (args.out / "dfki.json").write_text(json.dumps(record, indent=2, default=float))
@@ -288,9 +286,7 @@ def tune_robust_catch(args: argparse.Namespace) -> dict:
     from mbs_envs.studies import dfki_tuning
 
     args.out.mkdir(parents=True, exist_ok=True)
-    command = (
-        "python scripts/dfki.py " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("dfki.py") else None
-    )
+    command = command_line("dfki.py")
     record: dict = {"procedure": dfki_tuning.robust_catch.__doc__, "command": command, "tuning_set": dict(dfki_tuning.ROBUST_SET),
                     "rates_from_angles": args.rates_from_angles, "gains": {}, "scenes": {}}  # fmt: skip
     rows = []
@@ -386,9 +382,7 @@ def tune(args: argparse.Namespace) -> dict:
     from mbs_envs.studies import dfki_tuning, tuning
 
     args.out.mkdir(parents=True, exist_ok=True)
-    command = (
-        "python scripts/dfki.py " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("dfki.py") else None
-    )
+    command = command_line("dfki.py")
     record: dict = {"procedure": dfki_tuning.__doc__, "command": command, "gains": {}, "scores": {}}
     rows = []
     scenes = args.scene or sorted(SCENES)

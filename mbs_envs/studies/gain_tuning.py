@@ -7,7 +7,6 @@ import csv
 import json
 import multiprocessing
 import pathlib
-import sys
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 import numpy as np
@@ -17,6 +16,7 @@ from ..controllers import tuned
 from . import tuning
 from .comparison import SCENES
 from .plotting import pyplot, save
+from .provenance import command_line
 
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
@@ -79,9 +79,7 @@ def run(args: argparse.Namespace) -> dict:
         "gains": {},
         "scores": {},
     }
-    command = (
-        "python scripts/tune.py " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("tune.py") else None
-    )
+    command = command_line("tune.py")
     for r in results:
         env_id = SCENES[r["scene"]][0]
         record["gains"].setdefault(env_id, {})[r["controller"]] = r["best"]

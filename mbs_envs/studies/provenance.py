@@ -20,6 +20,7 @@ import importlib.metadata
 import os
 import pathlib
 import platform
+import shlex
 import sys
 from typing import Any
 
@@ -82,3 +83,11 @@ def summary_line(rec: dict[str, Any]) -> str:
     flags = ", ".join(rec["cpu"]["flags"]) or "none of " + "/".join(CPU_FLAGS)
     pinned = ", ".join(f"{k}={v}" for k, v in rec.get("pinned", {}).items() if v is not None) or "nothing pinned"
     return f"Python {rec['python']} on {rec['platform']}, {rec['cpu']['model']} ({flags}); {libs}; {pinned}"
+
+
+def command_line(script: str) -> str | None:
+    """The command this process was started with, ``"python scripts/<script> ..."`` with its arguments quoted for a
+    POSIX shell (a JSON argument pastes back as it was given), or None when not run as ``script``."""
+    if not (sys.argv and sys.argv[0].endswith(script)):
+        return None
+    return f"python scripts/{script} {shlex.join(sys.argv[1:])}".rstrip()

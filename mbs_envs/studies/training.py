@@ -25,7 +25,6 @@ import os
 import pathlib
 import platform
 import re
-import sys
 import time
 from collections.abc import Mapping
 from typing import Any, Iterator
@@ -47,6 +46,7 @@ from .residual import ResidualPolicy, check_bound, residual_vec_env
 from ..envs.sb3 import check_action_repeat, make_sb3_vec_env
 from .held import HeldPolicy
 from .normalized import NormalizedPolicy, ObsNormalization
+from .provenance import command_line
 
 ALGOS = {"ppo": PPO, "sac": SAC, "td3": TD3}
 
@@ -633,9 +633,7 @@ def _train(config: TrainConfig, out: pathlib.Path, tensorboard: bool, checkpoint
             "init": source.get("init"),
             "replay_buffer": buffer_from,
         },
-        "command": "python scripts/train.py " + " ".join(sys.argv[1:])
-        if sys.argv and sys.argv[0].endswith("train.py")
-        else None,
+        "command": command_line("train.py"),
         "train_wall_s": wall,
         "final_evaluation": log.rows[-1],
         "kept": dict(kept) if kept else None,
