@@ -59,6 +59,19 @@ def test_the_results_tables_are_the_committed_reports():
     assert f"{computed:.3g}" in tables["tracking"]  # the table reads the report, not a constant
 
 
+def test_the_pure_rl_table_leaves_out_the_lqr_catching_and_compares_with_published_rl_only():
+    from mbs_envs.studies import glance
+
+    agents = {"rows": [{"scene": "Acrobot", "controller": "SAC seed0", "score": 0.3},
+                       {"scene": "Acrobot", "controller": "SAC + CAPS seed0", "score": 0.5},
+                       {"scene": "Acrobot", "controller": "SAC + CAPS + LQR seed0", "score": 0.9}],
+              "sweeps": {"Acrobot | SAC + CAPS seed0": {"score": {"value": 0.61}}}}  # fmt: skip
+    row = glance.dfki_rl_table(agents).splitlines()[2]
+    assert (
+        row == "| Acrobot | SAC + CAPS seed0 | 0.500 | 0.610 | History SAC | 0.655 | History SAC | 0.751 |"
+    )  # not TVLQR
+
+
 def test_fill_refuses_missing_markers():
     from mbs_envs.studies import glance
 

@@ -462,6 +462,11 @@ PUBLISHED_ROBUSTNESS_V2 = MappingProxyType({
 })  # fmt: skip
 
 
+#: the published entries whose policy is a network trained by model-free RL alone (mcpilco learns a model to search
+#: its policy on; the rest are model-based controllers)
+PUBLISHED_PURE_RL = ("History SAC", "AR-EAPO", "evolsac")
+
+
 def controller_job(task: Mapping[str, Any]) -> dict[str, Any]:
     """One controller on one protocol id, or one part of its robustness sweep (a picklable task for
     :func:`mbs_envs.studies.parallel.run_tasks`).

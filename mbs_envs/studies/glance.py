@@ -9,7 +9,8 @@ Reports read (paths relative to the repository):
 - ``docs/figures/compare/summary.json``: the main job (``scripts/compare.py``), tracking and swing-up scenes;
 - ``docs/figures/dfki/performance/dfki.json``: the DFKI protocol, simulation v2 (``scripts/dfki.py``);
 - ``docs/figures/dfki/robustness/<Robot>/dfki.json``: its robustness v2 sweep;
-- ``docs/figures/dfki/v3/v3.json``: the global-policy protocol, simulation v3 (``scripts/dfki_v3.py``).
+- ``docs/figures/dfki/v3/v3.json``: the global-policy protocol, simulation v3 (``scripts/dfki_v3.py``);
+- ``docs/figures/dfki/agents/dfki.json``: the agents trained on the protocol's plant, with their robustness v2.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ import re
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from .dfki import PUBLISHED_ROBUSTNESS_V2, PUBLISHED_SIMULATION_V2
+from .dfki import PUBLISHED_PURE_RL, PUBLISHED_ROBUSTNESS_V2, PUBLISHED_SIMULATION_V2
 from .dfki_v3 import PUBLISHED_V3
 
 #: the reports, relative to the repository root
@@ -28,6 +29,7 @@ COMPARE = "docs/figures/compare/summary.json"
 DFKI_PERFORMANCE = "docs/figures/dfki/performance/dfki.json"
 DFKI_ROBUSTNESS = "docs/figures/dfki/robustness/{robot}/dfki.json"
 DFKI_V3 = "docs/figures/dfki/v3/v3.json"
+DFKI_AGENTS = "docs/figures/dfki/agents/dfki.json"
 
 #: the success a policy needs at the nominal plant to count as "best" on its side (as the report's rule)
 BEST_SUCCESS = 0.95
@@ -123,6 +125,27 @@ def dfki_table(performance: Mapping[str, Any], robustness: Mapping[str, Mapping[
     return "\n".join(rows)
 
 
+def dfki_rl_table(agents: Mapping[str, Any]) -> str:
+    """Per robot, our best pure RL agent on the DFKI protocol (no LQR catching: an agents report's rows without
+    ``" + LQR"``) by simulation-v2 score, with its robustness-v2 score, beside the best published pure RL entries
+    (:data:`~mbs_envs.studies.dfki.PUBLISHED_PURE_RL`) on each leaderboard."""
+    rows = ["| robot | ours, pure RL | simulation v2 | robustness v2 | best published pure RL, simulation v2 | score "
+            "| best published pure RL, robustness v2 | score |", "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    for robot in dict.fromkeys(r["scene"] for r in agents["rows"]):
+        pure = [r for r in agents["rows"] if r["scene"] == robot and "+ LQR" not in r["controller"]]
+        if not pure:
+            continue
+        ours = max(pure, key=lambda r: r["score"])
+        rob = agents.get("sweeps", {}).get(f"{robot} | {ours['controller']}", {}).get("score", {}).get("value")
+        cells = [f"| {robot}", ours["controller"], f"{ours['score']:.3f}", f"{rob:.3f}" if rob is not None else "-"]
+        for table in (PUBLISHED_SIMULATION_V2, PUBLISHED_ROBUSTNESS_V2):
+            pub = {n: v[-1] for n, v in table.get(robot, {}).get("rows", {}).items() if n in PUBLISHED_PURE_RL}
+            name = max(pub, key=pub.get) if pub else None
+            cells += [name or "-", f"{pub[name]:.3f}" if name else "-"]
+        rows.append(" | ".join(cells) + " |")
+    return "\n".join(rows)
+
+
 def dfki_v3_table(v3: Mapping[str, Any]) -> str:
     """Per robot, our best simulation-v3 score (mean over its seeds, with their range) beside the best published one."""
     rows = ["| robot | ours, simulation v3 | uptime score | range over seeds | best published | uptime score |",
@@ -147,8 +170,10 @@ def tables(root: pathlib.Path) -> dict[str, str]:
         if path.exists():
             robustness[robot] = json.loads(path.read_text())
     v3 = json.loads((root / DFKI_V3).read_text())
+    agents = json.loads((root / DFKI_AGENTS).read_text())
     return {"tracking": tracking_table(summary), "swingup": swingup_table(summary),
-            "dfki": dfki_table(performance, robustness), "dfki_v3": dfki_v3_table(v3)}  # fmt: skip
+            "dfki": dfki_table(performance, robustness), "dfki_rl": dfki_rl_table(agents),
+            "dfki_v3": dfki_v3_table(v3)}  # fmt: skip
 
 
 def fill(text: str, blocks: Mapping[str, str]) -> str:
