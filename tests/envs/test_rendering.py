@@ -141,7 +141,8 @@ def test_record_writes_playable_videos_side_by_side(tmp_path):
 def test_record_names_unknown_policies():
     from mbs_envs.studies.recording import policy_names, resolve_policy
 
-    assert {"swingup", "ppo", "sac"} <= set(policy_names("mbs_envs/Acrobot-v1"))
+    assert {"swingup", "ppo"} <= set(policy_names("mbs_envs/Acrobot-v1"))
+    assert {"swingup", "sac"} <= set(policy_names("mbs_envs/Acrobot-v2"))  # the agents of each task version
     assert {"pd", "pdgravity", "ct", "computedtorque"} <= set(policy_names("mbs_envs/Planar2R-v0"))
     assert resolve_policy("mbs_envs/Planar2R-v0", "ct") == ("mbs_envs.controllers:ComputedTorque", "computed torque")
     with pytest.raises(ValueError, match="'dance'.*one of"):
