@@ -28,7 +28,7 @@ import time
 import mbs_envs  # noqa: F401
 from mbs_envs.studies import cli
 from mbs_envs.studies.recording import record_episode, side_by_side, write_video
-from mbs_envs.studies.provenance import command_line  # noqa: E402
+from mbs_envs.studies.provenance import command_line
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:

@@ -30,7 +30,6 @@ from mbs_envs.studies import scene_robustness as sr
 from mbs_envs.studies import provenance
 from mbs_envs.studies.parallel import run_tasks
 from mbs_envs.studies.comparison import find_agents
-from mbs_envs.studies.provenance import command_line  # noqa: E402
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -87,7 +86,7 @@ def run(args: argparse.Namespace) -> dict:
         w.writeheader()
         w.writerows(rows)
     sr.plot(sweeps, args.out)
-    command = command_line("robustness.py")
+    command = provenance.command_line("robustness.py")
     record = {"command": command, "values_per_axis": args.values, "seeds_per_value": args.seeds, "pulse_episodes": args.pulse_episodes,
               "seed": args.seed, "tolerance_rad": sr.TOLERANCE, "wall_s": wall, "scenes": summary,
               "ranges": {s: {k: (dict(v) if hasattr(v, "items") else v) for k, v in vars(sr.SWEEPS[s]).items()} for s in summary}}  # fmt: skip

@@ -31,7 +31,7 @@ from mbs_envs.studies.handover import TUNED_NAME, tune_catch
 from mbs_envs.studies.plotting import pyplot, save
 from mbs_envs.studies.tuning import tuning_seeds
 from mbs_envs.studies.training import load_agent
-from mbs_envs.studies.provenance import command_line  # noqa: E402
+from mbs_envs.studies.provenance import command_line
 
 #: catch levels from 300 to 1e7 (the first grid ended at 3e4, where the pendubot's pick sat at its edge: widened),
 #: each with the hysteresis factors 2, 4 (the model-based controller's) and 16 (added in the third round)

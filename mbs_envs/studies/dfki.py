@@ -505,8 +505,17 @@ def controller_job(task: Mapping[str, Any]) -> dict[str, Any]:
     tic = time.perf_counter()
     if task.get("part") is not None:
         return {"success": sweep_part(task["env_id"], make, task["part"]), "wall_s": time.perf_counter() - tic}
-    env = gym.make(task["env_id"])
-    p = env.unwrapped.model.params
-    venv = gym.make_vec(task["env_id"], num_envs=1, vectorization_mode="vector_entry_point", autoreset_mode="Disabled")
-    run_ = record(venv, make(env), [0])[0]
-    return {"run": run_, "criteria": evaluate([run_], p.l1, p.l2)[0], "wall_s": time.perf_counter() - tic}
+    run_, criteria_ = protocol_episode(task["env_id"], make(gym.make(task["env_id"])))
+    return {"run": run_, "criteria": criteria_, "wall_s": time.perf_counter() - tic}
+
+
+def protocol_episode(env_id: str, policy: Any) -> tuple[dict[str, Any], dict[str, float]]:
+    """``policy``'s episode on the protocol id ``env_id`` (from its one start, seed 0), recorded as the benchmark
+    records it (:func:`record`), and its criteria and score (:func:`evaluate`)."""
+    import gymnasium as gym
+
+    p = gym.make(env_id).unwrapped.model.params
+    venv = gym.make_vec(env_id, num_envs=1, vectorization_mode="vector_entry_point", autoreset_mode="Disabled")
+    run_ = record(venv, policy, [0])[0]
+    venv.close()
+    return run_, evaluate([run_], p.l1, p.l2)[0]

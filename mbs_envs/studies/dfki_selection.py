@@ -71,19 +71,13 @@ def checkpoints(run: pathlib.Path) -> list[tuple[int, pathlib.Path]]:
 def protocol_row(agent_file: pathlib.Path, algo: str, env_id: str, action_repeat: int) -> dict[str, float]:
     """The protocol's criteria and simulation-v2 score of the agent in ``agent_file`` deciding every ``action_repeat``
     control steps."""
-    import gymnasium as gym
-
-    from . import dfki
+    from .dfki import protocol_episode
     from .held import HeldPolicy
     from .training import ALGOS
 
     model = ALGOS[algo].load(agent_file, device="cpu")
     policy = HeldPolicy(model, action_repeat) if action_repeat > 1 else model
-    pid = protocol_id(env_id)
-    p = gym.make(pid).unwrapped.model.params
-    venv = gym.make_vec(pid, num_envs=1, vectorization_mode="vector_entry_point", autoreset_mode="Disabled")
-    row = dfki.evaluate(dfki.record(venv, policy, [0]), p.l1, p.l2)[0]
-    venv.close()
+    _, row = protocol_episode(protocol_id(env_id), policy)
     return {k: float(row[k]) for k in COLUMNS}
 
 

@@ -53,6 +53,20 @@ class CAPS:
         check.positive(self.sigma, "sigma")
 
     @classmethod
+    def of(cls, spec: Any) -> "CAPS":
+        """From an instance, a mapping of the fields or ``"temporal,spatial,sigma"`` (a ``ValueError`` names what is
+        wrong)."""
+        if isinstance(spec, cls):
+            return spec
+        if isinstance(spec, str):
+            return cls.parse(spec)
+        spec = check.mapping(spec, "smooth")
+        fields = {f.name for f in dataclasses.fields(cls)}
+        if set(spec) - fields:
+            raise ValueError(f"smooth: unknown fields {sorted(set(spec) - fields)}; known {sorted(fields)}")
+        return cls(**spec)
+
+    @classmethod
     def parse(cls, text: str) -> "CAPS":
         """From ``"temporal,spatial,sigma"`` (the command line's form), or a ``ValueError`` naming it."""
         parts = str(text).split(",")

@@ -39,7 +39,6 @@ from stable_baselines3.common.vec_env import VecNormalize
 from tqdm import tqdm
 
 from . import seeds as seed_ranges
-from .. import validation as check
 from ..envs import registry
 from .evaluation import ERROR_METRIC, SCORING, default_gains_entry, make_controller, rollout_batch
 from .residual import ResidualPolicy, check_bound, residual_vec_env
@@ -181,8 +180,8 @@ class TrainConfig:
         optimizer's state) instead of starting afresh, e.g. an agent of an earlier task version
         trained on further on the new reward, or a run continued for a longer budget (an off-policy run's replay
         buffer, saved beside its agent, comes with it on the same task: :func:`same_task`); or one of the
-        folder's checkpoints (``checkpoints/agent_<n>_steps.zip``, with the buffer saved beside it). The algorithm, action repeat, normalization and
-        residual base must be the source's; its hyperparameters are kept but for those ``hyper`` sets among
+        folder's checkpoints (``checkpoints/agent_<n>_steps.zip``, with the buffer saved beside it). The algorithm,
+        action repeat, normalization and residual base must be the source's; its hyperparameters are kept but for those ``hyper`` sets among
         :data:`CONTINUED_HYPER` (a longer discount for a fine-tuning, say);
         not for a normalized run (its reward statistics are not saved).
         ``config.json`` records the source and its budget.
@@ -228,8 +227,7 @@ class TrainConfig:
         if self.smooth is not None:
             from .smoothing import CAPS
 
-            caps = self.smooth if isinstance(self.smooth, CAPS) else (
-                CAPS.parse(self.smooth) if isinstance(self.smooth, str) else CAPS(**check.mapping(self.smooth, "smooth")))  # fmt: skip
+            caps = CAPS.of(self.smooth)
             if self.algo == "ppo":
                 raise ValueError("smooth: CAPS regularizes an off-policy actor (sac, td3), not ppo")
             object.__setattr__(self, "smooth", dataclasses.asdict(caps))  # checked, JSON-ready

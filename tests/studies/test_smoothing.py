@@ -13,7 +13,18 @@ from mbs_envs.studies.training import ALGOS, TrainConfig, train
 
 
 def test_settings_are_checked_and_parsed():
-    assert CAPS.parse("1,2.5,0.1") == CAPS(1.0, 2.5, 0.1)
+    assert (
+        CAPS.parse("1,2.5,0.1")
+        == CAPS(1.0, 2.5, 0.1)
+        == CAPS.of("1,2.5,0.1")
+        == CAPS.of({"temporal": 1, "spatial": 2.5, "sigma": 0.1})
+    )
+    caps = CAPS()
+    assert CAPS.of(caps) is caps
+    with pytest.raises(ValueError, match="unknown fields.*lambda"):
+        CAPS.of({"temporal": 1, "lambda": 2})
+    with pytest.raises(ValueError, match="smooth"):
+        CAPS.of(3.0)
     for bad in ("1,2", "a,b,c", "1,2,3,4"):
         with pytest.raises(ValueError, match="smooth"):
             CAPS.parse(bad)
