@@ -20,9 +20,7 @@ import json
 import pathlib
 import sys
 
-from mbs_envs.studies import dfki_selection as sel
-from mbs_envs.studies.training import ship
-from mbs_envs.studies.provenance import command_line
+from mbs_envs.studies import provenance
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -36,6 +34,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 
 def run(args: argparse.Namespace) -> dict:
+    # imported here: they load torch, which main() pins first
+    from mbs_envs.studies import dfki_selection as sel
+    from mbs_envs.studies.training import ship
+
     record = json.loads((args.run / "config.json").read_text()) if (args.run / "config.json").exists() else {}
     sel.checkpoints(args.run)  # refuses a folder without config.json or checkpoints before anything is written
     sel.protocol_id(record["env_id"])
@@ -47,7 +49,7 @@ def run(args: argparse.Namespace) -> dict:
         w.writeheader()
         w.writerows(rows)
     result = {"run": str(args.run), "env_id": record["env_id"], "rows": rows, "best": chosen,
-              "command": command_line("dfki_select.py")}  # fmt: skip
+              "command": provenance.command_line("dfki_select.py")}  # fmt: skip
     (args.out / "selection.json").write_text(json.dumps(result, indent=2))
     sel.plot(rows, args.out / "selection.png", f"{record['env_id']}: checkpoints on the protocol")
     print(f"best: checkpoint {chosen['checkpoint']} control steps, deciding every {chosen['action_repeat']}, "
@@ -62,6 +64,7 @@ def run(args: argparse.Namespace) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
+    provenance.pin_numerics()  # before torch loads: the scores bit-equal with scripts/dfki.py's report
     run(parse_args(argv))
     return 0
 

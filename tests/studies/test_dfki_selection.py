@@ -112,3 +112,29 @@ def test_the_script_writes_its_table_plot_and_ships(dfki_run, tmp_path):
     with pytest.raises(ValueError, match="no checkpoints"):
         script["run"](script["parse_args"](["--run", str(tmp_path / "agent"), "--out", str(tmp_path / "o2")]))
     assert not (tmp_path / "o2").exists()
+
+
+def test_the_script_pins_the_numerics_before_torch_loads():
+    """Its scores must be the report's bits (``scripts/dfki.py`` pins MKL's and torch's kernels the same way): the
+    script's module does not load torch, and its ``main`` sets the pinned settings before its first import of it."""
+    import subprocess
+    import sys
+
+    from mbs_envs.studies import provenance
+
+    root = pathlib.Path(__file__).resolve().parents[2]
+    code = (
+        "import os, runpy, sys\n"
+        "for k in %r: os.environ.pop(k, None)\n"
+        "ns = runpy.run_path(%r, run_name='not_main')\n"
+        "assert 'torch' not in sys.modules, 'the module loaded torch'\n"
+        "try:\n"
+        "    ns['main'](['--run', 'no-such-run', '--out', 'no-such-out'])\n"
+        "except ValueError:\n"
+        "    pass\n"
+        "assert 'torch' in sys.modules\n"
+        "print({k: os.environ.get(k) for k in %r})\n"
+    ) % (list(provenance.PINNED), str(root / "scripts" / "dfki_select.py"), list(provenance.PINNED))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=root, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert eval(out.stdout.strip().splitlines()[-1]) == provenance.PINNED
