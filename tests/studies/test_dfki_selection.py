@@ -117,6 +117,7 @@ def test_the_script_writes_its_table_plot_and_ships(dfki_run, tmp_path):
 def test_the_script_pins_the_numerics_before_torch_loads():
     """Its scores must be the report's bits (``scripts/dfki.py`` pins MKL's and torch's kernels the same way): the
     script's module does not load torch, and its ``main`` sets the pinned settings before its first import of it."""
+    import ast
     import subprocess
     import sys
 
@@ -137,4 +138,4 @@ def test_the_script_pins_the_numerics_before_torch_loads():
     ) % (list(provenance.PINNED), str(root / "scripts" / "dfki_select.py"), list(provenance.PINNED))
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=root, timeout=300)
     assert out.returncode == 0, out.stderr
-    assert eval(out.stdout.strip().splitlines()[-1]) == provenance.PINNED
+    assert ast.literal_eval(out.stdout.strip().splitlines()[-1]) == provenance.PINNED
