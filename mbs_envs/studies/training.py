@@ -181,8 +181,8 @@ class TrainConfig:
         trained on further on the new reward, or a run continued for a longer budget (an off-policy run's replay
         buffer, saved beside its agent, comes with it on the same task: :func:`same_task`); or one of the
         folder's checkpoints (``checkpoints/agent_<n>_steps.zip``, with the buffer saved beside it). The algorithm,
-        action repeat, normalization and residual base must be the source's; its hyperparameters are kept but for those ``hyper`` sets among
-        :data:`CONTINUED_HYPER` (a longer discount for a fine-tuning, say);
+        action repeat, normalization and residual base must be the source's; its hyperparameters are kept but for
+        those ``hyper`` sets among :data:`CONTINUED_HYPER` (a longer discount for a fine-tuning, say);
         not for a normalized run (its reward statistics are not saved).
         ``config.json`` records the source and its budget.
     keep_best : bool
