@@ -7,7 +7,7 @@ once a turn). The v2 reward is a *rate* [1/s] integrated over the step (``r = dt
 episode does not depend on the control step or on how long an agent holds its actions):
 
     rate = - w_e |e|^2 - w_v1 v1^2 - w_v2 v2^2 - w_u a^2 + w_line 1[h >= h_line] + w_region 1[x^T S x < c]
-           + w_hold 1[|e_1| <= tol and |e_2| <= tol] - w_idle a^2 exp(-(v_d / v_idle)^2)
+           + w_hold 1[|e_1| <= tol and |e_2| <= tol]
 
 - ``e = wrap(q - q_up)`` the distance to upright [rad], ``v`` the rates [rad/s], ``a`` the normalized input;
 - ``h = (l1 sin th1 + l2 sin(th1 + th2)) / (l1 + l2)`` the tip's height over the arm's reach (each arm's own
@@ -23,13 +23,6 @@ episode does not depend on the control step or on how long an agent holds its ac
 - default weights ``(w_e, w_v1, w_v2, w_u, w_line, w_region, w_hold) = (5, 0.02, 0.015, 10, 50, 500, 500)`` per
   second: the velocity weights a few thousandths of the error's (a swing-up needs speed), the effort a fiftieth of
   the bonuses.
-- ``w_idle`` (an optional eighth weight, 0 by default: the registered task leaves it out) charges the effort spent
-  while the driven joint's rate ``v_d`` is small against ``v_idle`` (``idle_rate``, 3 rad/s by default). Torque
-  moves energy into the arm only through the power ``u v_d``: over a swing-up that puts in the work ``W``, the
-  squared torque costs at least ``W^2 / int v_d^2 dt`` (Cauchy-Schwarz), an equality only for ``u`` proportional to
-  ``v_d``; torque held against a nearly still joint costs effort and does no work. The term is reward shaping for
-  fine-tuning toward that bound; the effort term stays, so it adds to the cost of such torque and takes nothing off
-  the rest. Its cost is folded into ``reward_effort``.
 
 The observation, action, start, episode end and success rule are v1's (:mod:`mbs_envs.envs.swingup`); ``info``
 holds the terms (``reward_upright``, ``reward_rates``, ``reward_effort``, ``reward_line``, ``reward_region``,
@@ -58,17 +51,15 @@ from .upright import upright_lqr
 #: the LQR weights of the region's cost-to-go: ``Q`` on ``(e1, e2, v1, v2)`` and ``R`` [(N m)^-2]
 REGION_Q = np.diag([10.0, 10.0, 1.0, 1.0])
 REGION_R = np.eye(1)
-#: ``(w_e, w_v1, w_v2, w_u, w_line, w_region, w_hold)`` [1/s] (module docstring); an eighth, ``w_idle``, is optional
+#: ``(w_e, w_v1, w_v2, w_u, w_line, w_region, w_hold)`` [1/s] (module docstring)
 DEFAULT_WEIGHTS = (5.0, 0.02, 0.015, 10.0, 50.0, 500.0, 500.0)
-#: ``v_idle`` [rad/s], the driven joint's rate below which the optional idle-effort term charges (module docstring)
-DEFAULT_IDLE_RATE = 3.0
 #: the rows of the task kernel's ``info``
 ROWS = 11
 
 
 @njit
 def region_columns(
-    q, v, action, weights, line, S, level, reach, u_max, driven, tolerance, dt, idle_rate, info
+    q, v, action, weights, line, S, level, reach, u_max, driven, tolerance, dt, info
 ):  # pragma: no cover - compiled
     """The v2 task's reward and ``info`` (module docstring) of a batch in columns.
 
@@ -78,8 +69,8 @@ def region_columns(
         Joint angles [rad] and rates [rad/s].
     action : ndarray, shape (1, B)
         Normalized input.
-    weights : ndarray, shape (8,)
-        ``(w_e, w_v1, w_v2, w_u, w_line, w_region, w_hold, w_idle)`` [1/s].
+    weights : ndarray, shape (7,)
+        ``(w_e, w_v1, w_v2, w_u, w_line, w_region, w_hold)`` [1/s].
     line : float
         ``h_line``, the tip's height over the reach that earns ``w_line``.
     S : ndarray, shape (4, 4)
@@ -95,8 +86,6 @@ def region_columns(
         Upright tolerance per joint [rad].
     dt : float
         Control step [s].
-    idle_rate : float
-        ``v_idle`` [rad/s], > 0.
     info : ndarray, shape (>= 11, B)
         Written: ``(r, r_upright, r_rates, r_effort, e1, e2, upright, power, r_line, r_region, r_hold)`` in rows
         0-10.
@@ -118,8 +107,7 @@ def region_columns(
                 cost += x[i] * S[i, j] * x[j]
         r_e = -dt * weights[0] * (e1 * e1 + e2 * e2)
         r_v = -dt * (weights[1] * v1 * v1 + weights[2] * v2 * v2)
-        vd = v[driven[0], b] / idle_rate
-        r_u = -dt * (weights[3] + weights[7] * np.exp(-vd * vd)) * a * a
+        r_u = -dt * weights[3] * a * a
         r_l = dt * weights[4] * (h >= line)
         r_c = dt * weights[5] * (cost < level)
         up = abs(e1) <= tolerance and abs(e2) <= tolerance
@@ -135,8 +123,8 @@ def region_columns(
 @njit
 def region_task(q, v, t, action, task, obs, info, terminated):  # pragma: no cover - compiled
     """The task kernel (:mod:`mbs_envs.envs.engine`) of :class:`RegionTaskParams.kernel_arguments`; no termination."""
-    weights, line, S, level, reach, u_max, driven, tolerance, dt, idle_rate = task
-    region_columns(q, v, action, weights, line, S, level, reach, u_max, driven, tolerance, dt, idle_rate, info)
+    weights, line, S, level, reach, u_max, driven, tolerance, dt = task
+    region_columns(q, v, action, weights, line, S, level, reach, u_max, driven, tolerance, dt, info)
     observe_columns(q, v, obs)
     for b in range(q.shape[1]):
         terminated[b] = False
@@ -169,8 +157,8 @@ class RegionTaskParams:
 
     Attributes
     ----------
-    weights : ndarray, shape (7,) or (8,)
-        ``(w_e, w_v1, w_v2, w_u, w_line, w_region, w_hold[, w_idle])`` [1/s] (``w_idle`` 0 when left out).
+    weights : ndarray, shape (7,)
+        ``(w_e, w_v1, w_v2, w_u, w_line, w_region, w_hold)`` [1/s].
     line : float
         ``h_line``.
     S : ndarray, shape (4, 4)
@@ -188,8 +176,6 @@ class RegionTaskParams:
         Control step [s].
     start_noise, start_upright : float
         As :class:`~mbs_envs.envs.swingup.SwingUpTaskParams`'s (the same starts).
-    idle_rate : float
-        ``v_idle`` [rad/s] of the optional idle-effort term.
     """
 
     weights: np.ndarray
@@ -203,15 +189,11 @@ class RegionTaskParams:
     dt: float
     start_noise: float
     start_upright: float = 0.0
-    idle_rate: float = DEFAULT_IDLE_RATE
 
     def kernel_arguments(self) -> tuple:
-        """The task kernel's arguments, as :func:`region_columns` takes them after ``action`` (the weights padded
-        to eight with ``w_idle = 0``)."""
-        w = np.zeros(8)
-        w[: len(self.weights)] = self.weights
+        """The task kernel's arguments, as :func:`region_columns` takes them after ``action``."""
         return (
-            w,
+            np.array(self.weights, float),
             float(self.line),
             np.ascontiguousarray(self.S, float),
             float(self.level),
@@ -220,16 +202,7 @@ class RegionTaskParams:
             np.array([self.driven], np.int64),
             float(self.tolerance),
             float(self.dt),
-            float(self.idle_rate),
         )
-
-
-def weights_7_or_8(x: Any, name: str) -> np.ndarray:
-    """The v2 reward's weights: seven, or eight with ``w_idle`` (module docstring), each finite and >= 0."""
-    w = check.reals(x, name)
-    if w.shape not in ((7,), (8,)):
-        raise ValueError(f"{name} must have shape (7,) or (8,) (w_idle last), got shape {w.shape}")
-    return check.vector(w, name, w.shape[0], 0.0, broadcast=False)
 
 
 def task_rows(p: RegionTaskParams, q: np.ndarray, v: np.ndarray, action: np.ndarray) -> np.ndarray:
@@ -264,16 +237,13 @@ class SwingUpV2Env(SwingUpEnv):
 
     ## Arguments
 
-    As v1's, with ``reward_weights`` the seven rates above (or eight: ``w_idle`` last, the optional idle-effort term
-    ``- w_idle a^2 exp(-(v_d / idle_rate)^2)``, folded into ``reward_effort``), ``idle_rate=3.0`` [rad/s],
-    ``line_height=0.8`` and ``region_level=None`` (the registered plant's measured level; for another plant or torque
-    limit, measure it with :func:`mbs_envs.controllers.region.estimate_region` and pass it). ``hold_bonus`` is
-    ``reward_weights[6]`` here.
+    As v1's, with ``reward_weights`` the seven rates above, ``line_height=0.8`` and ``region_level=None`` (the
+    registered plant's measured level; for another plant or torque limit, measure it with
+    :func:`mbs_envs.controllers.region.estimate_region` and pass it). ``hold_bonus`` is ``reward_weights[6]`` here.
     """
 
     step_kernel = staticmethod(step_kernel)
-    reward_weights = check.Checked(weights_7_or_8)
-    idle_rate = check.Checked(lambda x, name: check.positive(x, name, 1e6))
+    reward_weights = check.Checked(lambda x, name: check.vector(x, name, 7, 0.0, broadcast=False))
     line_height = check.Checked(lambda x, name: check.real(x, name, -1.0, 1.0))
     region_level = check.Checked(lambda x, name: check.nonnegative(x, name, 1e12))
     #: the measured region level of the scene's plant by preset (None: the scene's own plant)
@@ -291,7 +261,6 @@ class SwingUpV2Env(SwingUpEnv):
         line_height: float = 0.8,
         region_level: float | None = None,
         preset: str | None = None,
-        idle_rate: float = DEFAULT_IDLE_RATE,
         **kwargs: Any,
     ):
         if "hold_bonus" in kwargs:
@@ -300,7 +269,6 @@ class SwingUpV2Env(SwingUpEnv):
         if region_level is None and preset not in levels:
             raise ValueError(f"region_level: no measured level for preset {preset!r}; pass region_level")
         self.line_height = line_height
-        self.idle_rate = idle_rate
         self.region_level = levels[preset] if region_level is None else region_level
         super().__init__(params, torque_limit, substeps, reward_weights, start_noise, start_upright, upright_tolerance,
                          preset=preset, **kwargs)  # fmt: skip
@@ -311,7 +279,6 @@ class SwingUpV2Env(SwingUpEnv):
             self.reward_weights.tobytes(),
             self.line_height,
             self.region_level,
-            self.idle_rate,
             self.u_max.tobytes(),
             self.upright_tolerance,
             self.start_noise,
@@ -326,7 +293,7 @@ class SwingUpV2Env(SwingUpEnv):
             params = RegionTaskParams(
                 self.reward_weights, self.line_height, self._region_S, self.region_level,
                 np.array([p.l1, p.l2]) / (p.l1 + p.l2), self.u_max, self.driven, self.upright_tolerance, self.dt,
-                self.start_noise, self.start_upright, self.idle_rate,
+                self.start_noise, self.start_upright,
             )  # fmt: skip
             cached = self._task_params = (key, params, params.kernel_arguments())
         return cached
