@@ -895,6 +895,10 @@ def test_dfki_script_scores_the_protocol_and_writes_its_report(tmp_path, monkeyp
         assert (tmp_path / name).stat().st_size > 0, name
     text = (tmp_path / "report.md").read_text()
     assert "ours: swing-up + LQR" in text and "AR-EAPO (published)" in text
+    # how much of the swing-up's torque does work: a part of the episode's torque cost, bounded below by the least
+    assert 0.0 < row["least_tau_cost"] <= row["swingup_tau_cost"] <= row["tau_cost"] and 0.0 < row["torque_use"] <= 1.0
+    assert row["torque_use"] == pytest.approx(row["least_tau_cost"] / row["swingup_tau_cost"], rel=1e-12)
+    assert "Pendubot: how much of the swing-up's torque does work" in text
     # the same controller seeing the rates differenced from the angles: named so, and said so in the report
     other = lib.run(script["parse_args"](["--out", str(tmp_path / "rates"), "--scene", "Pendubot", "--controller", "swing-up + LQR",
                                                 "--rates-from-angles", "--workers", "1"]))  # fmt: skip

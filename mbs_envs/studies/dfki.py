@@ -103,6 +103,47 @@ def criteria(T: np.ndarray, q: np.ndarray, v: np.ndarray, u: np.ndarray, l1: flo
     }
 
 
+def torque_use(T: np.ndarray, v: np.ndarray, u: np.ndarray, driven: int, t_end: float) -> dict[str, float]:
+    """How much of a swing-up's torque cost does work: its cost against the least cost of the same work at the same
+    rates of the driven joint.
+
+    Over the intervals before ``t_end`` (the swing-up time; sums as in :func:`criteria`), with ``u_d, v_d`` the
+    driven joint's torque and rate: the torque cost ``C = sum u_d^2 dt``, the work ``W = sum |u_d v_d| dt`` and
+    ``V = sum v_d^2 dt``. By Cauchy-Schwarz ``W^2 <= C V``: for these rates no torque doing the work ``W`` costs
+    less than ``W^2 / V``, and the torque reaches it only when ``|u_d|`` is proportional to ``|v_d|``. Torque held
+    against a still joint costs and does no work.
+
+    Parameters
+    ----------
+    T : ndarray, shape (N,)
+        Sample times [s].
+    v, u : ndarray, shape (N, 2)
+        Rates [rad/s] and torques [N m], torque ``u[i]`` applied from ``T[i]`` on.
+    driven : int
+        The driven joint (0 or 1).
+    t_end : float
+        End of the window [s].
+
+    Returns
+    -------
+    dict
+        ``swingup_tau_cost`` (``C``), ``work`` (``W``, J), ``least_tau_cost`` (``W^2 / V``; 0 when ``V = 0``) and
+        ``torque_use`` (``W^2 / (C V)`` in ``[0, 1]``; NaN without torque or without motion).
+    """
+    T, v, u = (np.asarray(x, float) for x in (T, v, u))
+    if driven not in (0, 1):
+        raise ValueError(f"driven must be 0 or 1, got {driven!r}")
+    if v.shape != (len(T), 2) or u.shape != (len(T), 2):
+        raise ValueError(f"v and u must have shape ({len(T)}, 2), got {v.shape} and {u.shape}")
+    dt = np.diff(T)
+    m = T[:-1] < t_end
+    ud, vd, dt = u[:-1, driven][m], v[:-1, driven][m], dt[m]
+    C, W, V = float((ud**2 * dt).sum()), float((np.abs(ud * vd) * dt).sum()), float((vd**2 * dt).sum())
+    least = W * W / V if V > 0 else 0.0
+    return {"swingup_tau_cost": C, "work": W, "least_tau_cost": least,
+            "torque_use": least / C if C > 0 and V > 0 else float("nan")}  # fmt: skip
+
+
 def score(c: Mapping[str, Any], normalizers: Mapping[str, float] = NORMALIZERS) -> float:
     """The leaderboard's score v2, ``success * (1 - mean_k tanh(pi c_k / n_k))``, in ``[0, 1]``."""
     terms = [np.tanh(np.pi * float(c[k]) / n) for k, n in normalizers.items()]

@@ -77,7 +77,9 @@ def run(args: argparse.Namespace) -> dict:
         source = gains[scene, name][1]
         name = name + (CATCH_SUFFIX if args.robust_catch else "") + (RATES_SUFFIX if args.rates_from_angles else "")
         c = res["criteria"]
-        row = {"scene": scene, "controller": name, "gains": source, **c, "wall_s": res["wall_s"]}
+        run_, driven = res["run"], gym.make(SCENES[scene]).unwrapped.driven
+        use = dfki.torque_use(run_["T"], run_["v"], run_["u"], driven, c["swingup_time"]) if "swingup_time" in c else {}
+        row = {"scene": scene, "controller": name, "gains": source, **c, **use, "wall_s": res["wall_s"]}
         if args.robust_catch:
             row["catch_gains"] = json.dumps(base[j]["catch_gains"], sort_keys=True)
         plot_run(
@@ -505,6 +507,19 @@ def report(rows: list[dict], args: argparse.Namespace) -> str:
         else:
             out += ["", "(No published simulation-v2 table for this scene was at hand.)"]
         out.append("")
+        if any("torque_use" in r for r in rows if r["scene"] == scene):
+            out += [f"## {scene}: how much of the swing-up's torque does work", "",
+                    "Over the swing-up the torque does the work `W = sum |u_d v_d| dt` at the driven joint; at the same "
+                    "rates no torque doing that work costs less than `W^2 / sum v_d^2 dt` (Cauchy-Schwarz), reached only "
+                    "when the torque follows the joint's rate (`mbs_envs.studies.dfki.torque_use`). The share is that "
+                    "least cost over the swing-up's own: torque held against a still joint costs and does no work.", "",
+                    "| controller | swing-up time [s] | work [J] | torque cost of the swing-up | least for its work | share |",
+                    "|---|---|---|---|---|---|"]  # fmt: skip
+            for r in rows:
+                if r["scene"] == scene and "torque_use" in r:
+                    out.append(f"| {r['controller']} | {r['swingup_time']:.3g} | {r['work']:.3g} | {r['swingup_tau_cost']:.3g} "
+                               f"| {r['least_tau_cost']:.3g} | {r['torque_use']:.2f} |")  # fmt: skip
+            out.append("")
         if args.robustness:
             out += [f"## {scene}: robustness v2 (success [%] per axis; score = mean of the six)", "",
                     "| controller | " + " | ".join(dfki.AXES) + " | score |", "|---" * (len(dfki.AXES) + 2) + "|"]  # fmt: skip

@@ -3,6 +3,8 @@
 import gymnasium as gym
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import mbs_envs  # noqa: F401
 from mbs_envs.studies import dfki
@@ -79,6 +81,51 @@ def test_energy_sees_steps_across_the_wrap():
     u = np.array([[0.0, 1.0]] * 3)
     c = dfki.criteria(T, q, np.zeros((3, 2)), u, L1, L2)
     assert c["energy"] == pytest.approx(0.04, rel=1e-9)
+
+
+@given(st.integers(0, 2**32 - 1), st.sampled_from([0, 1]), st.floats(0.01, 0.2))
+@settings(max_examples=50, deadline=None)
+def test_torque_use_is_one_for_torque_following_the_rate_and_below_one_otherwise(seed, driven, t_end):
+    rng = np.random.default_rng(seed)
+    n = 101
+    T = np.cumsum(np.r_[0.0, rng.uniform(0.5, 1.5, n - 1) * DT])  # uneven steps: the sums weigh each by its dt
+    v = rng.normal(0, 3.0, (n, 2))
+    u = np.zeros((n, 2))
+    u[:, driven] = -2.5 * v[:, driven]  # |u| proportional to |v| (of either sign): the bound is reached
+    r = dfki.torque_use(T, v, u, driven, t_end)
+    m = T[:-1] < t_end
+    dt = np.diff(T)[m]
+    assert r["swingup_tau_cost"] == pytest.approx((6.25 * v[:-1, driven][m] ** 2 * dt).sum(), rel=1e-12)
+    assert r["torque_use"] == pytest.approx(1.0, rel=1e-12)
+    assert r["least_tau_cost"] == pytest.approx(r["swingup_tau_cost"], rel=1e-12)
+    u[:, driven] += rng.normal(0, 1.0, n)  # any other torque: strictly less of it does work
+    r = dfki.torque_use(T, v, u, driven, t_end)
+    assert 0.0 <= r["torque_use"] < 1.0 and r["least_tau_cost"] < r["swingup_tau_cost"]
+    # the other joint's rates do not enter
+    v2 = v.copy()
+    v2[:, 1 - driven] *= 7.0
+    assert dfki.torque_use(T, v2, u, driven, t_end) == r
+
+
+def test_torque_use_of_hand_made_runs_and_refusals():
+    T = np.arange(5) * 0.5
+    v = np.zeros((5, 2))
+    u = np.zeros((5, 2))
+    v[:, 1] = [1.0, 0.0, 2.0, 0.0, 9.0]
+    u[:, 1] = [2.0, 3.0, 1.0, 0.0, 9.0]  # intervals 0..3 before t_end = 2.0; the last sample is not an interval
+    r = dfki.torque_use(T, v, u, 1, 2.0)
+    # C = (4 + 9 + 1 + 0) / 2 = 7, W = (2 + 0 + 2 + 0) / 2 = 2, V = (1 + 0 + 4 + 0) / 2 = 2.5
+    assert r == {"swingup_tau_cost": 7.0, "work": 2.0, "least_tau_cost": 1.6, "torque_use": pytest.approx(1.6 / 7)}
+    # the window ends at the swing-up: from t_end = 1.0 on, intervals 0 and 1 only
+    assert dfki.torque_use(T, v, u, 1, 1.0) == {"swingup_tau_cost": 6.5, "work": 1.0, "least_tau_cost": 2.0,
+                                                "torque_use": pytest.approx(2.0 / 6.5)}  # fmt: skip
+    held = dfki.torque_use(T, np.zeros((5, 2)), u, 1, 2.0)  # torque against a joint that never moves: no work
+    assert held["work"] == held["least_tau_cost"] == 0.0 and np.isnan(held["torque_use"])
+    assert np.isnan(dfki.torque_use(T, v, np.zeros((5, 2)), 1, 2.0)["torque_use"])  # no torque
+    with pytest.raises(ValueError, match="driven"):
+        dfki.torque_use(T, v, u, 2, 2.0)
+    with pytest.raises(ValueError, match="shape"):
+        dfki.torque_use(T, v[:4], u, 1, 2.0)
 
 
 def test_upright_run_succeeds_and_scores_by_its_criteria():
