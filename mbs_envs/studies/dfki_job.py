@@ -77,14 +77,18 @@ def run(args: argparse.Namespace) -> dict:
         source = gains[scene, name][1]
         name = name + (CATCH_SUFFIX if args.robust_catch else "") + (RATES_SUFFIX if args.rates_from_angles else "")
         c = res["criteria"]
-        run_, driven = res["run"], gym.make(SCENES[scene]).unwrapped.driven
-        use = dfki.torque_use(run_["T"], run_["v"], run_["u"], driven, c["swingup_time"]) if "swingup_time" in c else {}
+        run_, plant = res["run"], gym.make(SCENES[scene]).unwrapped
+        use = (
+            dfki.torque_use(run_["T"], run_["v"], run_["u"], plant.driven, c["swingup_time"])
+            if "swingup_time" in c
+            else {}
+        )
         row = {"scene": scene, "controller": name, "gains": source, **c, **use, "wall_s": res["wall_s"]}
         if args.robust_catch:
             row["catch_gains"] = json.dumps(base[j]["catch_gains"], sort_keys=True)
         plot_run(
-            res["run"],
-            gym.make(SCENES[scene]).unwrapped.model.params,
+            run_,
+            plant.model.params,
             f"{scene}: {name}",
             args.out / f"run_{scene}_{slug(name)}.png",
         )
