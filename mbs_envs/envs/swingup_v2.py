@@ -7,7 +7,7 @@ once a turn). The v2 reward is a *rate* [1/s] integrated over the step (``r = dt
 episode does not depend on the control step or on how long an agent holds its actions):
 
     rate = - w_e |e|^2 - w_v1 v1^2 - w_v2 v2^2 - w_u a^2 + w_line 1[h >= h_line] + w_region 1[x^T S x < c]
-           + w_hold 1[|e_1| <= tol and |e_2| <= tol]
+           + w_hold 1[|e_1| <= tol and |e_2| <= tol] - w_p |u v_d|
 
 - ``e = wrap(q - q_up)`` the distance to upright [rad], ``v`` the rates [rad/s], ``a`` the normalized input;
 - ``h = (l1 sin th1 + l2 sin(th1 + th2)) / (l1 + l2)`` the tip's height over the arm's reach (each arm's own
@@ -23,6 +23,12 @@ episode does not depend on the control step or on how long an agent holds its ac
 - default weights ``(w_e, w_v1, w_v2, w_u, w_line, w_region, w_hold) = (5, 0.02, 0.015, 10, 50, 500, 500)`` per
   second: the velocity weights a few thousandths of the error's (a swing-up needs speed), the effort a fiftieth of
   the bonuses.
+- ``w_p`` (an optional eighth weight [1/(W s)], 0 by default: the registered task leaves it out) charges the motor's
+  mechanical power ``|u v_d|`` [W] (``u = a u_max`` the torque, ``v_d`` the driven joint's rate): over an episode
+  the term is ``w_p`` times the energy the motor moves in or out of the arm, what the DFKI protocol's energy
+  criterion sums (:func:`mbs_envs.studies.dfki.criteria`). Work done and then taken back (an arm pumped past what
+  the swing-up needs and braked) is paid twice. Reward shaping for fine-tuning toward that criterion; its cost is
+  folded into ``reward_effort``.
 
 The observation, action, start, episode end and success rule are v1's (:mod:`mbs_envs.envs.swingup`); ``info``
 holds the terms (``reward_upright``, ``reward_rates``, ``reward_effort``, ``reward_line``, ``reward_region``,
@@ -51,7 +57,7 @@ from .upright import upright_lqr
 #: the LQR weights of the region's cost-to-go: ``Q`` on ``(e1, e2, v1, v2)`` and ``R`` [(N m)^-2]
 REGION_Q = np.diag([10.0, 10.0, 1.0, 1.0])
 REGION_R = np.eye(1)
-#: ``(w_e, w_v1, w_v2, w_u, w_line, w_region, w_hold)`` [1/s] (module docstring)
+#: ``(w_e, w_v1, w_v2, w_u, w_line, w_region, w_hold)`` [1/s] (module docstring); an eighth, ``w_p``, is optional
 DEFAULT_WEIGHTS = (5.0, 0.02, 0.015, 10.0, 50.0, 500.0, 500.0)
 #: the rows of the task kernel's ``info``
 ROWS = 11
@@ -69,8 +75,8 @@ def region_columns(
         Joint angles [rad] and rates [rad/s].
     action : ndarray, shape (1, B)
         Normalized input.
-    weights : ndarray, shape (7,)
-        ``(w_e, w_v1, w_v2, w_u, w_line, w_region, w_hold)`` [1/s].
+    weights : ndarray, shape (8,)
+        ``(w_e, w_v1, w_v2, w_u, w_line, w_region, w_hold)`` [1/s] and ``w_p`` [1/(W s)].
     line : float
         ``h_line``, the tip's height over the reach that earns ``w_line``.
     S : ndarray, shape (4, 4)
@@ -107,7 +113,8 @@ def region_columns(
                 cost += x[i] * S[i, j] * x[j]
         r_e = -dt * weights[0] * (e1 * e1 + e2 * e2)
         r_v = -dt * (weights[1] * v1 * v1 + weights[2] * v2 * v2)
-        r_u = -dt * weights[3] * a * a
+        power = a * u_max[0] * v[driven[0], b]
+        r_u = -dt * (weights[3] * a * a + weights[7] * abs(power))
         r_l = dt * weights[4] * (h >= line)
         r_c = dt * weights[5] * (cost < level)
         up = abs(e1) <= tolerance and abs(e2) <= tolerance
@@ -116,7 +123,7 @@ def region_columns(
         info[1, b], info[2, b], info[3, b] = r_e, r_v, r_u
         info[4, b], info[5, b] = e1, e2
         info[6, b] = up
-        info[7, b] = a * u_max[0] * v[driven[0], b]
+        info[7, b] = power
         info[8, b], info[9, b], info[10, b] = r_l, r_c, r_b
 
 
@@ -157,8 +164,9 @@ class RegionTaskParams:
 
     Attributes
     ----------
-    weights : ndarray, shape (7,)
-        ``(w_e, w_v1, w_v2, w_u, w_line, w_region, w_hold)`` [1/s].
+    weights : ndarray, shape (7,) or (8,)
+        ``(w_e, w_v1, w_v2, w_u, w_line, w_region, w_hold)`` [1/s] and optionally ``w_p`` [1/(W s)] (0 when left
+        out).
     line : float
         ``h_line``.
     S : ndarray, shape (4, 4)
@@ -191,9 +199,12 @@ class RegionTaskParams:
     start_upright: float = 0.0
 
     def kernel_arguments(self) -> tuple:
-        """The task kernel's arguments, as :func:`region_columns` takes them after ``action``."""
+        """The task kernel's arguments, as :func:`region_columns` takes them after ``action`` (the weights padded
+        to eight with ``w_p = 0``)."""
+        w = np.zeros(8)
+        w[: len(self.weights)] = self.weights
         return (
-            np.array(self.weights, float),
+            w,
             float(self.line),
             np.ascontiguousarray(self.S, float),
             float(self.level),
@@ -203,6 +214,14 @@ class RegionTaskParams:
             float(self.tolerance),
             float(self.dt),
         )
+
+
+def weights_7_or_8(x: Any, name: str) -> np.ndarray:
+    """The v2 reward's weights: seven, or eight with ``w_p`` last (module docstring), each finite and >= 0."""
+    w = check.reals(x, name)
+    if w.shape not in ((7,), (8,)):
+        raise ValueError(f"{name} must have shape (7,) or (8,) (w_p last), got shape {w.shape}")
+    return check.vector(w, name, w.shape[0], 0.0, broadcast=False)
 
 
 def task_rows(p: RegionTaskParams, q: np.ndarray, v: np.ndarray, action: np.ndarray) -> np.ndarray:
@@ -237,13 +256,14 @@ class SwingUpV2Env(SwingUpEnv):
 
     ## Arguments
 
-    As v1's, with ``reward_weights`` the seven rates above, ``line_height=0.8`` and ``region_level=None`` (the
-    registered plant's measured level; for another plant or torque limit, measure it with
+    As v1's, with ``reward_weights`` the seven rates above (or eight: ``w_p`` last, the optional power term
+    ``- w_p |u v_d|``, folded into ``reward_effort``), ``line_height=0.8`` and ``region_level=None`` (the registered
+    plant's measured level; for another plant or torque limit, measure it with
     :func:`mbs_envs.controllers.region.estimate_region` and pass it). ``hold_bonus`` is ``reward_weights[6]`` here.
     """
 
     step_kernel = staticmethod(step_kernel)
-    reward_weights = check.Checked(lambda x, name: check.vector(x, name, 7, 0.0, broadcast=False))
+    reward_weights = check.Checked(weights_7_or_8)
     line_height = check.Checked(lambda x, name: check.real(x, name, -1.0, 1.0))
     region_level = check.Checked(lambda x, name: check.nonnegative(x, name, 1e12))
     #: the measured region level of the scene's plant by preset (None: the scene's own plant)

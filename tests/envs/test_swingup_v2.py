@@ -24,9 +24,12 @@ def riccati(env) -> np.ndarray:
     return scipy.linalg.solve_continuous_are(A, B, REGION_Q, REGION_R)
 
 
-def rate_formula(env, q, v, a) -> np.ndarray:
-    """The reward rate [1/s] written out from the module docstring; ``q, v`` (N, 2), ``a`` (N,)."""
-    w_e, w_v1, w_v2, w_u, w_line, w_region, w_hold = DEFAULT_WEIGHTS
+def rate_formula(env, q, v, a, weights=DEFAULT_WEIGHTS) -> np.ndarray:
+    """The reward rate [1/s] written out from the module docstring; ``q, v`` (N, 2), ``a`` (N,); ``weights`` seven,
+    or eight with ``w_p`` last."""
+    w_e, w_v1, w_v2, w_u, w_line, w_region, w_hold, w_p = (*weights, 0.0)[:8]
+    u = a * env.unwrapped.u_max[0]
+    v_d = v[:, env.unwrapped.driven]
     p = env.unwrapped.model.params
     e = np.mod(q - Q_UP + np.pi, 2 * np.pi) - np.pi
     x = np.concatenate([e, v], axis=1)
@@ -34,7 +37,7 @@ def rate_formula(env, q, v, a) -> np.ndarray:
     h = (p.l1 * np.sin(q[:, 0]) + p.l2 * np.sin(q[:, 0] + q[:, 1])) / (p.l1 + p.l2)
     return (-w_e * (e**2).sum(1) - w_v1 * v[:, 0] ** 2 - w_v2 * v[:, 1] ** 2 - w_u * a**2
             + w_line * (h >= 0.8) + w_region * (cost < env.unwrapped.region_level)
-            + w_hold * np.all(np.abs(e) <= 0.1, axis=1))  # fmt: skip
+            + w_hold * np.all(np.abs(e) <= 0.1, axis=1) - w_p * np.abs(u * v_d))  # fmt: skip
 
 
 def state_reward(env_id: str, q, v, a: float = 0.0, dt: float = 1e-9, **kwargs) -> tuple[float, dict]:
@@ -67,6 +70,49 @@ def test_the_reward_is_dt_times_the_written_rate(env_id):
     held = rows[:, 10] > 0
     assert (held & ~inside).any()  # the angles within the tolerance at any rates: not all in the region
     np.testing.assert_allclose(rows[:, [1, 2, 3, 8, 9, 10]].sum(1), rows[:, 0], rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("env_id", V2)
+def test_the_optional_power_term_is_the_written_rate(env_id):
+    """An eighth weight adds ``- w_p |u v_d|`` to the effort term and nothing else; an eighth weight of 0 is the
+    registered reward, bit for bit."""
+    from mbs_envs.envs.swingup_v2 import task_rows
+
+    rng = np.random.default_rng(5)
+    n = 200
+    q = rng.uniform(-np.pi, np.pi, (n, 2))
+    v = rng.normal(0, 4.0, (n, 2))
+    a = rng.uniform(-1, 1, n)
+    weights = (*DEFAULT_WEIGHTS, 70.0)
+    env = gym.make(env_id, reward_weights=weights)
+    base = gym.make(env_id)
+    rows = task_rows(env.unwrapped.task_params, q, v, a[:, None])
+    rows0 = task_rows(base.unwrapped.task_params, q, v, a[:, None])
+    dt = env.unwrapped.dt
+    np.testing.assert_allclose(rows[:, 0], dt * rate_formula(env, q, v, a, weights), rtol=1e-12, atol=1e-12)
+    # only the effort term moves, by dt * w_p * |power|, the power as info reports it
+    extra = dt * 70.0 * np.abs(rows[:, 7])
+    np.testing.assert_allclose(rows[:, 3], rows0[:, 3] - extra, rtol=1e-12, atol=1e-12)
+    assert np.array_equal(rows[:, [1, 2, 4, 5, 6, 7, 8, 9, 10]], rows0[:, [1, 2, 4, 5, 6, 7, 8, 9, 10]])
+    assert (extra > 0).all()
+    # through step: the episode's sum of the term is w_p times the motor's energy, sum |u v_d| dt at the step's start
+    env.reset(seed=2)
+    base.reset(seed=2)
+    for k in range(30):
+        act = np.array([np.cos(0.2 * k)], np.float32)
+        _, r, *_, info = env.step(act)
+        _, r0, *_, info0 = base.step(act)
+        assert np.array_equal(info["power"], info0["power"])
+        assert r == pytest.approx(r0 - dt * 70.0 * abs(info["power"]), rel=0, abs=1e-12)
+    # an eighth weight of 0: the registered reward and dynamics, step for step
+    e7, e8 = gym.make(env_id), gym.make(env_id, reward_weights=(*DEFAULT_WEIGHTS, 0.0))
+    e7.reset(seed=4)
+    e8.reset(seed=4)
+    for k in range(50):
+        act = np.array([np.sin(0.3 * k)], np.float32)
+        o7, r7, *_ = e7.step(act)
+        o8, r8, *_ = e8.step(act)
+        assert r7 == r8 and np.array_equal(o7, o8)
 
 
 @pytest.mark.parametrize("env_id", V2[:2])
@@ -156,6 +202,11 @@ def test_bad_settings_are_refused(env_id):
         gym.make(env_id, reward_weights=(1.0, 0.05, 0.01))
     with pytest.raises(ValueError, match="reward_weights"):
         gym.make(env_id, reward_weights=(5, 0.02, 0.015, 10, 50, 500, -1))
+    with pytest.raises(ValueError, match=r"reward_weights must have shape \(7,\) or \(8,\)"):
+        gym.make(env_id, reward_weights=(5, 0.02, 0.015, 10, 50, 500, 500, 1, 1))
+    for bad in (np.nan, -1.0, np.inf):
+        with pytest.raises(ValueError, match="reward_weights"):
+            gym.make(env_id, reward_weights=(5, 0.02, 0.015, 10, 50, 500, 500, bad))
     with pytest.raises(ValueError, match="region_level"):
         gym.make(env_id, region_level=-1.0)
     with pytest.raises(ValueError, match="line_height"):
@@ -166,6 +217,9 @@ def test_bad_settings_are_refused(env_id):
     with pytest.raises(ValueError, match="region_level"):
         env.unwrapped.region_level = np.nan
     assert env.unwrapped.task_params is before  # a refused setting leaves the task as it was
+    with pytest.raises(ValueError, match="reward_weights"):
+        env.unwrapped.reward_weights = np.zeros(9)
+    assert env.unwrapped.task_params is before
     # a plant given by preset has its own measured level; the defaults are the scene's
     assert gym.make(env_id, preset="dfki_c1").unwrapped.region_level != env.unwrapped.region_level
 
