@@ -32,6 +32,7 @@ import mbs_envs  # noqa: F401
 from mbs_envs.studies import cli
 from mbs_envs.envs import registry
 from mbs_envs.envs.presets import PROTOCOL_IDS, TRAINING_IDS
+from mbs_envs.studies.dfki_swingup import plan_starts
 from mbs_envs.studies.evaluation import ERROR_METRIC
 from mbs_envs.studies.parallel import run_tasks
 from mbs_envs.studies.training import ALGOS, TrainConfig, hyper_setting, out_refusal, residual_base, train
@@ -57,6 +58,13 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         default={},
         help="JSON dict of env arguments for the training members only (a curriculum; validation runs the task as "
         "--env-kwargs gives it), e.g. '{\"start_upright\": 0.5}'",
+    )
+    p.add_argument(
+        "--starts-from-plan",
+        type=float,
+        metavar="SHARE",
+        help="a curriculum on a DFKI protocol id: this share of the training episodes starts from a state of the "
+        "score-designed swing-up's plan instead of hanging (added to --train-env-kwargs as start_states)",
     )
     p.add_argument(
         "--eval-env-kwargs",
@@ -142,9 +150,15 @@ def _train_one(task: dict) -> dict:
 def run(args: argparse.Namespace) -> list[dict]:
     tasks = []
     residual = residual_base(args.env) if args.residual == "default" else args.residual
+    train_env_kwargs = dict(args.train_env_kwargs)
+    if args.starts_from_plan is not None:
+        try:
+            train_env_kwargs["start_states"] = plan_starts(args.env, args.starts_from_plan)
+        except ValueError as exc:
+            raise SystemExit(f"train.py: --starts-from-plan: {exc}") from None
     for seed in args.seed:
         config = dict(env_id=args.env, algo=args.algo, steps=args.steps, seed=seed, n_envs=args.n_envs,
-                      env_kwargs=args.env_kwargs, train_env_kwargs=args.train_env_kwargs, eval_env_kwargs=args.eval_env_kwargs, keep_best=args.keep_best, net_arch=tuple(args.net_arch) if args.net_arch else None,
+                      env_kwargs=args.env_kwargs, train_env_kwargs=train_env_kwargs, eval_env_kwargs=args.eval_env_kwargs, keep_best=args.keep_best, net_arch=tuple(args.net_arch) if args.net_arch else None,
                       eval_every=args.eval_every, eval_seeds=args.eval_seeds, residual=residual, residual_bound=args.residual_bound,
                       hyper=dict(args.hyper), action_repeat=args.action_repeat, normalize=args.normalize, perturb=args.perturb,
                       init=str(args.init).format(seed=seed) if args.init else None, smooth=args.smooth)  # fmt: skip

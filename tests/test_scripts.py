@@ -832,6 +832,35 @@ def test_train_env_kwargs_reach_the_training_members_only(tmp_path, monkeypatch)
     assert records[0]["env_kwargs"] == {"start_noise": 0.05}
 
 
+def test_starts_from_plan_adds_the_plan_rows_to_the_training_members_only(tmp_path, monkeypatch):
+    """--starts-from-plan SHARE: the training members start a share of their episodes on the score-designed plan
+    (start_states, recorded with the run); validation runs the task; a bad share or an id off the protocol's plant is
+    refused before anything runs."""
+    from mbs_envs.studies import training
+    from mbs_envs.studies.dfki_swingup import plan_starts
+
+    seen = {}
+    real_vec = training.make_sb3_vec_env
+    monkeypatch.setattr(
+        training, "make_sb3_vec_env", lambda *a, **kw: seen.setdefault("train", kw) and real_vec(*a, **kw)
+    )
+    script = load_script("train.py")
+    args = ["--env", "mbs_envs/AcrobotDFKI-v2", "--algo", "ppo", "--steps", "512", "--n-envs", "8", "--hyper", "n_steps=32",
+            "--eval-seeds", "1", "--train-env-kwargs", '{"start_noise": 0.01}']  # fmt: skip
+    records = script["run"](script["parse_args"](args + ["--starts-from-plan", "0.4", "--out", str(tmp_path / "a")]))
+    bank = plan_starts("mbs_envs/AcrobotDFKI-v2", 0.4)
+    assert seen["train"]["start_states"] == bank and seen["train"]["start_noise"] == 0.01
+    assert records[0]["train_env_kwargs"] == {"start_noise": 0.01, "start_states": bank}
+    assert records[0]["env_kwargs"] == {}
+    for bad, match in ((["--starts-from-plan", "1.5"], "share"), (["--starts-from-plan", "nan"], "share")):
+        with pytest.raises(SystemExit, match=match):
+            script["run"](script["parse_args"](args + bad + ["--out", str(tmp_path / "b")]))
+    off = ["--env", "mbs_envs/Acrobot-v2"] + args[2:] + ["--starts-from-plan", "0.5", "--out", str(tmp_path / "b")]
+    with pytest.raises(SystemExit, match="not on the DFKI protocol's plant"):
+        script["run"](script["parse_args"](off))
+    assert not (tmp_path / "b").exists()
+
+
 def test_eval_env_kwargs_reach_the_validation_episodes_only(tmp_path, monkeypatch):
     """--eval-env-kwargs (e.g. plants drawn per validation seed) shape the validation episodes, not the training
     members, and config.json records them; the validation plants are the same at every evaluation (seeded)."""

@@ -156,6 +156,46 @@ def decode_swingup(obs: np.ndarray) -> SwingUpObservation:
 
 
 @dataclasses.dataclass(frozen=True)
+class StartBank:
+    """Training starts from given states: a curriculum (the evaluated task starts hanging).
+
+    Attributes
+    ----------
+    share : float
+        The share, in [0, 1], of the episodes that would start hanging which start from a row instead.
+    rows : ndarray, shape (K, 4)
+        States ``(th1, th2, dth1, dth2)`` [rad, rad/s]; such a start is a row drawn uniformly, plus the task's start
+        noise ``U(-s, s)`` on each entry (as about hanging).
+    """
+
+    share: float
+    rows: np.ndarray
+
+    def key(self) -> tuple:
+        """What identifies the bank (for a cache key)."""
+        return (self.share, self.rows.tobytes())
+
+
+def start_bank(value: Any, name: str) -> StartBank | None:
+    """The ``start_states`` setting: ``None`` (no bank), a :class:`StartBank`, or a mapping ``{"share": p, "rows":
+    (K, 4) states}`` (JSON's form, e.g. ``--train-env-kwargs``); a ``ValueError`` naming the culprit otherwise."""
+    if value is None:
+        return None
+    if isinstance(value, StartBank):
+        value = {"share": value.share, "rows": value.rows}
+    m = check.mapping(value, name)
+    if set(m) != {"share", "rows"}:
+        raise ValueError(f"{name} must have exactly the keys 'share' and 'rows', got {sorted(m)}")
+    share = check.real(m["share"], f"{name}['share']", 0.0, 1.0)
+    rows = check.reals(m["rows"], f"{name}['rows']")
+    if rows.ndim != 2 or rows.shape[1] != 4 or len(rows) == 0:
+        raise ValueError(f"{name}['rows'] must have shape (K, 4) with K >= 1 (th1, th2, dth1, dth2), got {rows.shape}")
+    if not np.all(np.isfinite(rows)):
+        raise ValueError(f"{name}['rows'] must be finite")
+    return StartBank(share, check.frozen(rows))
+
+
+@dataclasses.dataclass(frozen=True)
 class SwingUpTaskParams:
     """The swing-up task's parameters, explicit and immutable (Gymnasium's phys2d style); an env
     holds its own as :attr:`SwingUpEnv.task_params`.
@@ -175,6 +215,8 @@ class SwingUpTaskParams:
     start_upright : float
         The share of episodes whose centre ``q_c`` is upright instead of hanging (0: every
         episode hangs, the task as evaluated; a training curriculum may raise it).
+    start_bank : StartBank or None
+        Of the episodes that would hang, a share that starts from given states instead (a training curriculum).
     """
 
     weights: np.ndarray
@@ -183,6 +225,7 @@ class SwingUpTaskParams:
     tolerance: float
     start_noise: float
     start_upright: float = 0.0
+    start_bank: StartBank | None = None
 
     def kernel_arguments(self) -> tuple:
         """``(weights, u_max, driven, tolerance)`` as :func:`swingup_columns` takes them."""
@@ -196,14 +239,25 @@ class SwingUpTaskParams:
 
 def start(p: SwingUpTaskParams, rngs: list[np.random.Generator]) -> tuple[np.ndarray, np.ndarray]:
     """Starts ``(q0, v0)``, shape ``(L, 2)`` each, member ``i`` from ``rngs[i]`` (the task has no other
-    episode state): near hanging, or near upright with probability ``p.start_upright`` (drawn first,
-    and only when that share is positive, so the hanging task's starts are the same draws as without
-    the option)."""
-    s, k = p.start_noise, int(p.start_upright > 0.0)
-    d = np.array([rng.random(k + 4) for rng in rngs])  # (the choice), q noise, v noise (:mod:`mbs_envs.envs.draws`)
-    upright = (d[:, 0] < p.start_upright) if k else np.zeros(len(rngs), bool)
-    noise = uniform_of(d[:, k:], -s, s)
-    return np.where(upright[:, None], Q_UP, Q_DOWN) + noise[:, :2], noise[:, 2:]
+    episode state): a centre ``(q_c, v_c)`` plus ``U(-s, s)`` on each entry. The centre is upright at rest with
+    probability ``p.start_upright``; else a row of ``p.start_bank`` with probability ``p.start_bank.share``; else
+    hanging at rest. The choice is drawn first (one double), then the row (one double), each only when its option is
+    on, so the hanging task's starts are the same draws as without the options."""
+    s, bank = p.start_noise, p.start_bank
+    b = int(bank is not None and bank.share > 0.0)
+    k = int(p.start_upright > 0.0 or b > 0)
+    d = np.array([rng.random(k + b + 4) for rng in rngs])  # (the choice), (the row), q noise, v noise (:mod:`.draws`)
+    r = d[:, 0] if k else np.ones(len(rngs))
+    upright = r < p.start_upright
+    noise = uniform_of(d[:, k + b :], -s, s)
+    q_c = np.where(upright[:, None], Q_UP, Q_DOWN)
+    v_c = np.zeros_like(q_c)
+    if b:
+        banked = ~upright & (r < p.start_upright + bank.share * (1.0 - p.start_upright))
+        rows = bank.rows[np.minimum((d[:, 1] * len(bank.rows)).astype(np.int64), len(bank.rows) - 1)]
+        q_c = np.where(banked[:, None], rows[:, :2], q_c)
+        v_c = np.where(banked[:, None], rows[:, 2:], v_c)
+    return q_c + noise[:, :2], v_c + noise[:, 2:]
 
 
 def reward_formula(weights: Any, tolerance: float, q: np.ndarray, action: np.ndarray) -> np.ndarray:
@@ -270,8 +324,10 @@ class SwingUpEnv(MBSEnv):
     Hanging: ``q0 = (-pi/2, 0) + U(-s, s)``, ``v0 = U(-s, s)`` with ``s = start_noise``
     (default 0.1, at most pi: then ``q0`` is uniform on the torus), or exactly
     ``reset(options={"q": ..., "v": ...})``. ``start_upright = p`` (default 0) starts a share ``p``
-    of the episodes about upright instead, ``q0 = (pi/2, 0) + U(-s, s)``: a training curriculum
-    (``scripts/train.py --train-env-kwargs``), not the task the evaluation scores.
+    of the episodes about upright instead, ``q0 = (pi/2, 0) + U(-s, s)``, and ``start_states = {"share": p,
+    "rows": (K, 4) states}`` a share ``p`` of those that would hang from a row drawn uniformly (plus the same noise):
+    training curricula (``scripts/train.py --train-env-kwargs``, ``--starts-from-plan``), not the task the
+    evaluation scores.
 
     ## Episode End
 
@@ -283,7 +339,7 @@ class SwingUpEnv(MBSEnv):
     ## Arguments
 
     ``gym.make(id, params=None, torque_limit=..., dt=0.01, integrator="rk4", substeps=2,
-    reward_weights=(1, 0.05, 0.01), hold_bonus=None, start_noise=0.1, start_upright=0.0, upright_tolerance=0.1, compiled=True, ...)``;
+    reward_weights=(1, 0.05, 0.01), hold_bonus=None, start_noise=0.1, start_upright=0.0, start_states=None, upright_tolerance=0.1, compiled=True, ...)``;
     ``params`` overrides :class:`~mbs_envs.models.planar2r.Planar2RParams` (Planar2R-v0's defaults:
     uniform 1 kg, 1 m rods, no friction).
     """
@@ -313,6 +369,7 @@ class SwingUpEnv(MBSEnv):
         upright_tolerance: float = 0.1,
         hold_bonus: Any = None,
         preset: str | None = None,
+        start_states: Any = None,
         **kwargs: Any,
     ):
         given = {
@@ -336,6 +393,25 @@ class SwingUpEnv(MBSEnv):
         high = np.concatenate([np.ones(4), np.full(2, self.divergence_limit)]).astype(np.float32)
         self.observation_space = gym.spaces.Box(-high, high, dtype=np.float32)
         self._check_start_bound(np.pi / 2 + self.start_noise)
+        self.start_states = start_states
+
+    @property
+    def start_states(self) -> StartBank | None:
+        """Training starts from given states (:class:`StartBank`), or None (class docstring, Starting State)."""
+        return self.__dict__.get("_start_states")
+
+    @start_states.setter
+    def start_states(self, value: Any) -> None:
+        bank = start_bank(value, "start_states")  # refused before anything is stored
+        if bank is not None:
+            self._check_start_bound(float(np.abs(bank.rows).max()) + self.start_noise)
+        self.__dict__["_start_states"] = bank
+        check.touch(self)
+
+    def _start_key(self) -> tuple:
+        """The start settings, as a task cache's key holds them."""
+        bank = self.start_states
+        return (self.start_noise, self.start_upright, None if bank is None else bank.key())
 
     # -- the task: the module's functions with this env's parameters -----------------
 
@@ -346,15 +422,15 @@ class SwingUpEnv(MBSEnv):
             self.hold_bonus,
             self.u_max.tobytes(),
             self.upright_tolerance,
-            self.start_noise,
-            self.start_upright,
+            self._start_key(),
         )
         cached = self.__dict__.get("_task_params")
         if cached is None or cached[0] != key:
             weights = np.append(self.reward_weights, self.hold_bonus)
             params = SwingUpTaskParams(
-                weights, self.u_max, self.driven, self.upright_tolerance, self.start_noise, self.start_upright
-            )
+                weights, self.u_max, self.driven, self.upright_tolerance, self.start_noise, self.start_upright,
+                self.start_states,
+            )  # fmt: skip
             cached = self._task_params = (key, params, params.kernel_arguments())
         return cached
 

@@ -50,7 +50,7 @@ from ..dynamics.jit import njit
 from ..dynamics.trig import sincos_columns, wrap
 from ..models import planar2r as _model
 from .engine import engine_step
-from .swingup import AcrobotEnv, PendubotEnv, SwingUpEnv, observe_columns, start
+from .swingup import AcrobotEnv, PendubotEnv, StartBank, SwingUpEnv, observe_columns, start
 from .tracking import _as_columns
 from .upright import upright_lqr
 
@@ -183,6 +183,7 @@ class RegionTaskParams:
     dt : float
         Control step [s].
     start_noise, start_upright : float
+    start_bank : StartBank or None
         As :class:`~mbs_envs.envs.swingup.SwingUpTaskParams`'s (the same starts).
     """
 
@@ -197,6 +198,7 @@ class RegionTaskParams:
     dt: float
     start_noise: float
     start_upright: float = 0.0
+    start_bank: StartBank | None = None
 
     def kernel_arguments(self) -> tuple:
         """The task kernel's arguments, as :func:`region_columns` takes them after ``action`` (the weights padded
@@ -301,8 +303,7 @@ class SwingUpV2Env(SwingUpEnv):
             self.region_level,
             self.u_max.tobytes(),
             self.upright_tolerance,
-            self.start_noise,
-            self.start_upright,
+            self._start_key(),
             self.dt,
         )
         cached = self.__dict__.get("_task_params")
@@ -313,7 +314,7 @@ class SwingUpV2Env(SwingUpEnv):
             params = RegionTaskParams(
                 self.reward_weights, self.line_height, self._region_S, self.region_level,
                 np.array([p.l1, p.l2]) / (p.l1 + p.l2), self.u_max, self.driven, self.upright_tolerance, self.dt,
-                self.start_noise, self.start_upright,
+                self.start_noise, self.start_upright, self.start_states,
             )  # fmt: skip
             cached = self._task_params = (key, params, params.kernel_arguments())
         return cached

@@ -223,6 +223,39 @@ def write_design(
     return entry
 
 
+def plan_starts(env_id: str, share: float, stride: int = 10) -> dict[str, Any]:
+    """Training starts along the score-designed swing-up: the ``start_states`` setting (a
+    :class:`~mbs_envs.envs.swingup.StartBank` as JSON's form) of an env on the protocol's plant.
+
+    Parameters
+    ----------
+    env_id : str
+        A protocol or training id on the DFKI plant (its protocol id's shipped design is the plan).
+    share : float
+        The share, in [0, 1], of the episodes that would start hanging which start from the plan instead.
+    stride : int
+        Every ``stride``-th state of the plan (its control steps ``dt`` apart) is a row.
+
+    Returns
+    -------
+    dict
+        ``{"share": share, "rows": [[th1, th2, dth1, dth2], ...]}``: the nominal plan's states from hanging at rest to
+        the hand-over to the upright LQR (:class:`~mbs_envs.controllers.scored_swingup.ScoredSwingUp`'s ``X``).
+    """
+    from .dfki_selection import protocol_id
+
+    from ..controllers.scored_swingup import stored_design
+    from ..envs.swingup import start_bank
+
+    if isinstance(stride, bool) or not isinstance(stride, int) or stride < 1:
+        raise ValueError(f"stride must be an integer >= 1, got {stride!r}")
+    env = gym.make(env_id)
+    X = ScoredSwingUp(env, design=stored_design(protocol_id(env_id))).X[::stride]
+    bank = {"share": share, "rows": [[round(float(x), 12) for x in row] for row in X]}
+    start_bank(bank, "starts")  # the env's own check, so a bad share is refused here
+    return bank
+
+
 def designs_in(out: Any, robots: tuple = ("Acrobot", "Pendubot")) -> list[dict]:
     """The designs written to ``out`` (``<robot>/design.json`` of each robot that has one, in ``robots``' order), by one
     run of ``scripts/dfki_design.py`` or several: what its report covers."""

@@ -102,7 +102,7 @@ def check_init(config: "TrainConfig") -> dict[str, Any]:
 
 
 #: env arguments that only draw the episodes' starts: a transition stored under other values is worth the same
-START_ARGUMENTS = ("start_upright", "start_noise")
+START_ARGUMENTS = ("start_upright", "start_noise", "start_states")
 
 
 def same_task(source: Mapping[str, Any], config: "TrainConfig") -> bool:
