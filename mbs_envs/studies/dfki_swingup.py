@@ -244,16 +244,15 @@ def plan_starts(env_id: str, share: float, stride: int = 10) -> dict[str, Any]:
     """
     from .dfki_selection import protocol_id
 
+    from .. import validation as check
     from ..controllers.scored_swingup import stored_design
-    from ..envs.swingup import start_bank
 
     if isinstance(stride, bool) or not isinstance(stride, int) or stride < 1:
         raise ValueError(f"stride must be an integer >= 1, got {stride!r}")
-    env = gym.make(env_id)
-    X = ScoredSwingUp(env, design=stored_design(protocol_id(env_id))).X[::stride]
-    bank = {"share": share, "rows": [[round(float(x), 12) for x in row] for row in X]}
-    start_bank(bank, "starts")  # the env's own check, so a bad share is refused here
-    return bank
+    share = check.real(share, "share", 0.0, 1.0)  # refused before the plan is built
+    design = stored_design(protocol_id(env_id))
+    X = ScoredSwingUp(gym.make(env_id), design=design).X[::stride]
+    return {"share": share, "rows": [[round(float(x), 12) for x in row] for row in X]}
 
 
 def designs_in(out: Any, robots: tuple = ("Acrobot", "Pendubot")) -> list[dict]:
