@@ -183,8 +183,9 @@ class RegionTaskParams:
     dt : float
         Control step [s].
     start_noise, start_upright : float
-    start_bank : StartBank or None
         As :class:`~mbs_envs.envs.swingup.SwingUpTaskParams`'s (the same starts).
+    start_bank : StartBank or None
+        As :class:`~mbs_envs.envs.swingup.SwingUpTaskParams`'s.
     """
 
     weights: np.ndarray
