@@ -155,7 +155,7 @@ def decode_swingup(obs: np.ndarray) -> SwingUpObservation:
     return SwingUpObservation(q=np.arctan2(obs[..., 2:4], obs[..., 0:2]), v=obs[..., 4:6])
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, eq=False)
 class StartBank:
     """Training starts from given states: a curriculum (the evaluated task starts hanging).
 
@@ -166,14 +166,14 @@ class StartBank:
     rows : ndarray, shape (K, 4)
         States ``(th1, th2, dth1, dth2)`` [rad, rad/s]; such a start is a row drawn uniformly, plus the task's start
         noise ``U(-s, s)`` on each entry (as about hanging).
+
+    Equal only to itself (``eq=False``): a bank is immutable (its rows read-only) and each assignment of the setting
+    makes a new one, so a task cache keyed on the bank object is rebuilt exactly when the setting changes, without
+    comparing the rows at every step.
     """
 
     share: float
     rows: np.ndarray
-
-    def key(self) -> tuple:
-        """What identifies the bank (for a cache key)."""
-        return (self.share, self.rows.tobytes())
 
 
 def start_bank(value: Any, name: str) -> StartBank | None:
@@ -409,9 +409,8 @@ class SwingUpEnv(MBSEnv):
         check.touch(self)
 
     def _start_key(self) -> tuple:
-        """The start settings, as a task cache's key holds them."""
-        bank = self.start_states
-        return (self.start_noise, self.start_upright, None if bank is None else bank.key())
+        """The start settings, as a task cache's key holds them (the bank by identity: :class:`StartBank`)."""
+        return (self.start_noise, self.start_upright, self.start_states)
 
     # -- the task: the module's functions with this env's parameters -----------------
 
