@@ -32,7 +32,7 @@ import mbs_envs  # noqa: F401
 from mbs_envs.studies import cli
 from mbs_envs.envs import registry
 from mbs_envs.envs.presets import PROTOCOL_IDS, TRAINING_IDS
-from mbs_envs.studies.dfki_swingup import plan_starts
+from mbs_envs.studies.swingup_starts import swingup_starts
 from mbs_envs.studies.evaluation import ERROR_METRIC
 from mbs_envs.studies.parallel import run_tasks
 from mbs_envs.studies.training import ALGOS, TrainConfig, hyper_setting, out_refusal, residual_base, train
@@ -63,8 +63,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         "--starts-from-plan",
         type=float,
         metavar="SHARE",
-        help="a curriculum on a DFKI protocol id: this share of the training episodes starts from a state of the "
-        "score-designed swing-up's plan instead of hanging (added to --train-env-kwargs as start_states)",
+        help="a curriculum on a swing-up id: this share of the training episodes that would start hanging starts from "
+        "a state of the scene's best model-based swing-up instead (the score-designed plan on the DFKI protocol's "
+        "plant, identified iLQR + TVLQR on our own arms; added to --train-env-kwargs as start_states)",
     )
     p.add_argument(
         "--eval-env-kwargs",
@@ -153,7 +154,9 @@ def run(args: argparse.Namespace) -> list[dict]:
     train_env_kwargs = dict(args.train_env_kwargs)
     if args.starts_from_plan is not None:
         try:
-            train_env_kwargs["start_states"] = plan_starts(args.env, args.starts_from_plan)
+            train_env_kwargs["start_states"] = swingup_starts(
+                args.env, args.starts_from_plan, env_kwargs=args.env_kwargs
+            )
         except ValueError as exc:
             raise SystemExit(f"train.py: --starts-from-plan: {exc}") from None
     for seed in args.seed:

@@ -834,8 +834,8 @@ def test_train_env_kwargs_reach_the_training_members_only(tmp_path, monkeypatch)
 
 def test_starts_from_plan_adds_the_plan_rows_to_the_training_members_only(tmp_path, monkeypatch):
     """--starts-from-plan SHARE: the training members start a share of their episodes on the score-designed plan
-    (start_states, recorded with the run); validation runs the task; a bad share or an id off the protocol's plant is
-    refused before anything runs."""
+    (start_states, recorded with the run); validation runs the task; a bad share or an id that is no swing-up of the
+    arm is refused before anything runs."""
     from mbs_envs.studies import training
     from mbs_envs.studies.dfki_swingup import plan_starts
 
@@ -855,10 +855,27 @@ def test_starts_from_plan_adds_the_plan_rows_to_the_training_members_only(tmp_pa
     for bad, match in ((["--starts-from-plan", "1.5"], "share"), (["--starts-from-plan", "nan"], "share")):
         with pytest.raises(SystemExit, match=match):
             script["run"](script["parse_args"](args + bad + ["--out", str(tmp_path / "b")]))
-    off = ["--env", "mbs_envs/Acrobot-v2"] + args[2:] + ["--starts-from-plan", "0.5", "--out", str(tmp_path / "b")]
-    with pytest.raises(SystemExit, match="not on the DFKI protocol's plant"):
+    off = ["--env", "mbs_envs/Planar2R-v0"] + args[2:] + ["--starts-from-plan", "0.5", "--out", str(tmp_path / "b")]
+    with pytest.raises(SystemExit, match="no swing-up of the arm"):
         script["run"](script["parse_args"](off))
     assert not (tmp_path / "b").exists()
+
+
+def test_starts_from_plan_on_our_own_arms_rolls_the_planner_on_the_run_s_plant(tmp_path, monkeypatch):
+    """On our own arms --starts-from-plan asks for the best model-based swing-up's states on the env as --env-kwargs
+    makes it (its plant and torque limit), and the training members get them."""
+    from mbs_envs.studies import swingup_starts
+
+    calls = []
+    bank = {"share": 0.5, "rows": [[-1.5707963268, 0.0, 0.0, 0.0], [-1.5, 0.1, 0.5, -0.5]]}
+    monkeypatch.setattr(swingup_starts, "swingup_starts", lambda *a, **kw: calls.append((a, kw)) or bank)
+    script = load_script("train.py")
+    args = ["--env", "mbs_envs/Pendubot-v2", "--algo", "ppo", "--steps", "512", "--n-envs", "8", "--hyper", "n_steps=32",
+            "--eval-seeds", "1", "--env-kwargs", '{"torque_limit": 8.0}', "--starts-from-plan", "0.5",
+            "--out", str(tmp_path / "a")]  # fmt: skip
+    records = script["run"](script["parse_args"](args))
+    assert calls == [(("mbs_envs/Pendubot-v2", 0.5), {"env_kwargs": {"torque_limit": 8.0}})]
+    assert records[0]["train_env_kwargs"] == {"start_states": bank}
 
 
 def test_eval_env_kwargs_reach_the_validation_episodes_only(tmp_path, monkeypatch):
