@@ -50,7 +50,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument(
         "--keep-best",
         action="store_true",
-        help="ship the agent of the evaluation with the highest validation return, not the last",
+        help="ship the agent of the best validation (fewest failed episodes, then highest return), not the last",
     )
     p.add_argument(
         "--train-env-kwargs",

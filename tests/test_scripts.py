@@ -904,8 +904,22 @@ def test_eval_env_kwargs_reach_the_validation_episodes_only(tmp_path, monkeypatc
     assert records[0]["eval_env_kwargs"] == rand and records[0]["env_kwargs"] == {"start_noise": 0.05}
 
 
+def test_keep_best_ranks_by_failed_episodes_then_return():
+    from mbs_envs.studies.training import better_evaluation
+
+    row = {"return": 10.0, "failure_rate": 0.4}
+    assert better_evaluation(row, None)
+    assert better_evaluation(row, {"return": 4000.0, "failure_rate": 0.65})  # more of the task done, less paid
+    assert not better_evaluation(row, {"return": -700.0, "failure_rate": 0.35})
+    assert better_evaluation(row, {"return": 9.0, "failure_rate": 0.4})
+    assert not better_evaluation(row, {"return": 10.0, "failure_rate": 0.4})  # a tie keeps the earlier
+    for bad in (float("nan"), float("inf"), -float("inf")):
+        assert not better_evaluation({"return": bad, "failure_rate": 0.0}, None)
+
+
 def test_keep_best_ships_the_evaluation_with_the_highest_validation_return(tmp_path):
-    """--keep-best: agent.zip is the agent evaluated best on the validation seeds; config.json says which."""
+    """--keep-best: agent.zip is the agent evaluated best on the validation seeds (fewest failures, then the highest
+    return); config.json says which."""
     import json
 
     from mbs_envs.studies.training import evaluate, load_agent
@@ -916,9 +930,10 @@ def test_keep_best_ships_the_evaluation_with_the_highest_validation_return(tmp_p
                                                   "--hyper", "n_steps=32", "--eval-seeds", "2", "--eval-every", "1024",
                                                   "--keep-best", "--out", str(tmp_path)]))  # fmt: skip
     rows = list(csv.DictReader(open(tmp_path / "training_log.csv")))
-    returns = [float(r["return"]) for r in rows]
+    best = max(rows, key=lambda r: (-float(r["failure_rate"]), float(r["return"])))
     kept = json.loads((tmp_path / "config.json").read_text())["kept"]
-    assert kept["timesteps"] == records[0]["kept"]["timesteps"] and kept["return"] == max(returns)
+    assert kept["timesteps"] == records[0]["kept"]["timesteps"] == int(best["timesteps"])
+    assert kept["return"] == float(best["return"])
     policy, _ = load_agent(tmp_path)
     again = evaluate(policy, "mbs_envs/Pendubot-v1", seed_ranges.validation_seeds(2), {})
     assert again["return"] == pytest.approx(kept["return"], rel=1e-9)

@@ -186,9 +186,10 @@ class TrainConfig:
         not for a normalized run (its reward statistics are not saved).
         ``config.json`` records the source and its budget.
     keep_best : bool
-        Ship the agent of the evaluation with the highest validation return (validation seeds only,
-        never test seeds; SB3's ``EvalCallback`` best-model rule) instead of the last one: PPO's return
-        can collapse late in a run. ``config.json`` records which evaluation was kept.
+        Ship the agent of the best evaluation on the validation seeds (never test seeds) instead of the last one:
+        the fewest failed episodes by the task's rule, then the highest return (:func:`better_evaluation`; SB3's
+        ``EvalCallback`` keeps the highest return alone, which on a swing-up scene can prefer an agent that balances
+        less often). A run's return can collapse late in it. ``config.json`` records which evaluation was kept.
     perturb : str or dict, optional
         Train under the robustness axes (``"dfki"``, or the fields of
         :class:`mbs_envs.envs.perturbed.TrainingPerturbations`): each training member meets one perturbation
@@ -360,6 +361,17 @@ def evaluate(policy: Any, env_id: str, seeds: list[int], env_kwargs: dict, **rol
         out[k] = float(np.mean([m[k] for m in ok])) if ok else float("nan")
     out["failure_rate"] = float(np.mean([failed for _, failed in scored]))
     return out
+
+
+def better_evaluation(row: Mapping[str, float], kept: Mapping[str, float] | None) -> bool:
+    """Whether the validation ``row`` (:func:`evaluate`'s figures) beats the one ``kept`` so far (None: nothing kept):
+    fewer failed episodes (the task's own rule), then a higher mean return. A row with a non-finite return never wins.
+    """
+    if not np.isfinite(row["return"]):
+        return False
+    if kept is None:
+        return True
+    return (-row["failure_rate"], row["return"]) > (-kept["failure_rate"], kept["return"])
 
 
 class TrainingLog(BaseCallback):
@@ -561,7 +573,7 @@ def _train(config: TrainConfig, out: pathlib.Path, tensorboard: bool, checkpoint
     kept: dict[str, Any] = {}
 
     def keep(row: dict[str, float]) -> None:
-        if config.keep_best and np.isfinite(row["return"]) and row["return"] > kept.get("return", -np.inf):
+        if config.keep_best and better_evaluation(row, kept or None):
             kept.clear()
             kept.update(row)
             model.save(out / "agent.zip")
