@@ -43,6 +43,26 @@ def test_controller_states_end_with_the_episode_if_it_never_reaches_the_toleranc
     np.testing.assert_allclose(X, np.tile(np.concatenate([Q_DOWN, np.zeros(2)]), (40, 1)), rtol=0, atol=1e-12)
 
 
+def test_controller_states_wrap_the_angles_of_a_spinning_arm():
+    """The acrobot's elbow pushed at full torque spins (hundreds of rad): the rows hold its angle wrapped to
+    [-pi, pi), the rates as they are."""
+    from mbs_envs.envs.tracking import wrap_angle
+
+    env = gym.make("mbs_envs/Acrobot-v2", max_episode_steps=300)
+    X = controller_states(env, Push(1.0))
+    ref = gym.make("mbs_envs/Acrobot-v2", max_episode_steps=300)
+    ref.reset(options={"q": np.array(Q_DOWN), "v": np.zeros(2)})
+    raw = []
+    for _ in range(300):
+        raw.append(np.concatenate([ref.unwrapped.q, ref.unwrapped.v]))
+        assert not ref.step(np.array([1.0], np.float32))[4]["upright"]
+    raw = np.array(raw)
+    assert np.abs(raw[:, 1]).max() > 10 * np.pi  # the elbow went round several times
+    np.testing.assert_allclose(X[:, :2], wrap_angle(raw[:, :2]), rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(X[:, 2:], raw[:, 2:])
+    assert np.all((X[:, :2] >= -np.pi) & (X[:, :2] < np.pi))
+
+
 @pytest.mark.parametrize(
     "args, match",
     [
